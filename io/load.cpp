@@ -1,0 +1,101 @@
+#include "load.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+namespace cb {
+
+Transform multiply(const Transform& a, const Transform& b) {
+    Transform r{};
+    for (int col = 0; col < 4; ++col)
+        for (int row = 0; row < 4; ++row) {
+            double s = 0;
+            for (int k = 0; k < 4; ++k) s += a[k * 4 + row] * b[col * 4 + k];
+            r[col * 4 + row] = s;
+        }
+    return r;
+}
+
+bool is_degenerate(const Mesh& mesh, size_t t) {
+    const uint32_t* i = &mesh.indices[t * 3];
+    if (i[0] == i[1] || i[1] == i[2] || i[0] == i[2]) return true;
+    const float* a = &mesh.positions[size_t(i[0]) * 3];
+    const float* b = &mesh.positions[size_t(i[1]) * 3];
+    const float* c = &mesh.positions[size_t(i[2]) * 3];
+    double u[3], v[3];
+    for (int k = 0; k < 3; ++k) u[k] = double(b[k]) - a[k], v[k] = double(c[k]) - a[k];
+    // Zero area as computed in double from the stored floats.
+    return u[1] * v[2] - u[2] * v[1] == 0 && u[2] * v[0] - u[0] * v[2] == 0 && u[0] * v[1] - u[1] * v[0] == 0;
+}
+
+uint64_t count_degenerate(const Mesh& mesh) {
+    uint64_t n = 0;
+    for (size_t t = 0; t < mesh.triangle_count(); ++t) n += is_degenerate(mesh, t);
+    return n;
+}
+
+void validate_scene(Scene& scene, const std::string& name) {
+    uint64_t degenerate = 0;
+    for (size_t m = 0; m < scene.meshes.size(); ++m) {
+        const Mesh& mesh = scene.meshes[m];
+        std::string where = name + ": mesh " + std::to_string(m);
+        if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0)
+            throw LoadError(where + ": arrays are not whole vertices or triangles");
+        size_t n = mesh.vertex_count();
+        for (size_t i = 0; i < mesh.indices.size(); ++i)
+            if (mesh.indices[i] >= n)
+                throw LoadError(where + ": triangle " + std::to_string(i / 3) + ": index " +
+                                std::to_string(mesh.indices[i]) + " out of range (" + std::to_string(n) + " vertices)");
+        for (size_t i = 0; i < mesh.positions.size(); ++i)
+            if (!std::isfinite(mesh.positions[i]))
+                throw LoadError(where + ": vertex " + std::to_string(i / 3) + ": position is not finite");
+        degenerate += count_degenerate(mesh);
+    }
+    for (size_t k = 0; k < scene.instances.size(); ++k) {
+        const Instance& inst = scene.instances[k];
+        if (inst.mesh >= scene.meshes.size())
+            throw LoadError(name + ": instance " + std::to_string(k) + ": mesh " + std::to_string(inst.mesh) + " does not exist");
+        for (double v : inst.world)
+            if (!std::isfinite(v)) throw LoadError(name + ": instance " + std::to_string(k) + ": non-finite transform");
+    }
+    scene.report.degenerate_triangles = degenerate;
+}
+
+FileFormat format_from_path(std::string_view path) {
+    size_t dot = path.find_last_of('.');
+    if (dot == std::string_view::npos) return FileFormat::unknown;
+    std::string ext(path.substr(dot + 1));
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (ext == "gltf") return FileFormat::gltf;
+    if (ext == "glb") return FileFormat::glb;
+    if (ext == "obj") return FileFormat::obj;
+    if (ext == "ply") return FileFormat::ply;
+    if (ext == "off") return FileFormat::off;
+    if (ext == "stl") return FileFormat::stl;
+    return FileFormat::unknown;
+}
+
+Scene load_scene(const std::string& path) {
+    FileFormat format = format_from_path(path);
+    if (format == FileFormat::unknown)
+        throw LoadError(path + ": unknown file type (expected .gltf .glb .obj .ply .off .stl)");
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) throw LoadError(path + ": is a directory");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw LoadError(path + ": cannot open (" + std::strerror(errno) + ")");
+    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (in.bad()) throw LoadError(path + ": read error");
+
+    if (format == FileFormat::gltf || format == FileFormat::glb) {
+        std::string base = std::filesystem::path(path).parent_path().string();
+        return load_gltf_memory(bytes.data(), bytes.size(), path, base.empty() ? "." : base);
+    }
+    return load_mesh_memory(bytes.data(), bytes.size(), format, path);
+}
+
+}  // namespace cb

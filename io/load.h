@@ -1,0 +1,42 @@
+// Scene loading: glTF 2.0 (.gltf, .glb, KHR_draco_mesh_compression, KHR_mesh_quantization) through
+// tinygltf and Draco, OBJ / PLY / OFF / STL through OpenMesh's readers.
+//
+// Every loader either returns a Scene whose indices are in range and whose positions are finite, or throws
+// LoadError with one line of the form "FILE: ELEMENT: PROBLEM". Degenerate triangles are kept and counted.
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+#include "scene.h"
+
+namespace cb {
+
+struct LoadError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+enum class FileFormat { gltf, glb, obj, ply, off, stl, unknown };
+
+// From the file extension, case-insensitive.
+FileFormat format_from_path(std::string_view path);
+
+// Loads any supported file. `path` names the file in every error message.
+Scene load_scene(const std::string& path);
+
+// Loads from bytes already in memory. `name` is used in error messages; external glTF resources are looked
+// up relative to `base_dir` (none when empty).
+Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name, const std::string& base_dir);
+Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name);
+
+// The per-format readers behind load_mesh_memory.
+Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name);
+Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name);
+Scene load_ply_stl_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name);
+
+// Throws LoadError unless every index is in range and every position finite; fills report.degenerate_triangles.
+void validate_scene(Scene& scene, const std::string& name);
+
+}  // namespace cb

@@ -1,0 +1,502 @@
+// glTF 2.0 loading: tinygltf parses the JSON and buffers (images are never decoded), this file turns
+// accessors into flat arrays, checking every range against its buffer before reading a byte of it.
+#include <draco/compression/decode.h>
+#include <tiny_gltf.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <sstream>
+
+#include "load.h"
+
+namespace cb {
+namespace {
+
+// Extensions whose presence changes nothing about positions, indices or sidedness, so a file that
+// requires them is still loaded exactly.
+bool is_known_extension(const std::string& name) {
+    static const char* known[] = {"KHR_draco_mesh_compression", "KHR_mesh_quantization", "KHR_texture_transform",
+                                  "KHR_texture_basisu", "KHR_lights_punctual", "KHR_materials_common",
+                                  "EXT_texture_webp", "KHR_materials_variants", "KHR_animation_pointer"};
+    for (const char* k : known)
+        if (name == k) return true;
+    return name.rfind("KHR_materials_", 0) == 0;  // every material extension: no geometry
+}
+
+// tinygltf 2.7 refuses a primitive whose indices accessor has no bufferView, yet that is what every
+// KHR_draco_mesh_compression primitive looks like (its data lives in the extension), and what a sparse or
+// all-zero index accessor looks like. Such "indices" are taken out of the JSON before tinygltf reads it and
+// kept here, by (mesh, primitive).
+using DetachedIndices = std::map<std::pair<size_t, size_t>, int>;
+
+bool detach_viewless_indices(nlohmann::json& doc, DetachedIndices& detached) {
+    if (!doc.is_object() || !doc.contains("meshes") || !doc["meshes"].is_array()) return false;
+    const nlohmann::json* accessors = doc.contains("accessors") && doc["accessors"].is_array() ? &doc["accessors"] : nullptr;
+    bool changed = false;
+    for (size_t m = 0; m < doc["meshes"].size(); ++m) {
+        nlohmann::json& mesh = doc["meshes"][m];
+        if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array()) continue;
+        for (size_t p = 0; p < mesh["primitives"].size(); ++p) {
+            nlohmann::json& prim = mesh["primitives"][p];
+            if (!prim.is_object() || !prim.contains("indices") || !prim["indices"].is_number_unsigned()) continue;
+            size_t k = prim["indices"].get<size_t>();
+            if (!accessors || k >= accessors->size() || !(*accessors)[k].is_object() ||
+                (*accessors)[k].contains("bufferView"))
+                continue;  // well-formed, or an error tinygltf reports itself
+            detached[{m, p}] = int(k);
+            prim.erase("indices");
+            changed = true;
+        }
+    }
+    return changed;
+}
+
+uint32_t read_u32(const uint8_t* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
+void write_u32(std::vector<uint8_t>& out, size_t at, uint32_t v) {
+    for (int i = 0; i < 4; ++i) out[at + i] = uint8_t(v >> (8 * i));
+}
+
+// Returns the glTF (or GLB) bytes with viewless indices detached, or an empty vector when nothing changed
+// or the JSON does not parse (tinygltf then reports the problem itself).
+std::vector<uint8_t> prepare_for_tinygltf(const uint8_t* data, size_t size, bool binary, DetachedIndices& detached) {
+    const uint8_t* json_begin = data;
+    size_t json_size = size;
+    if (binary) {  // 12-byte header, then a JSON chunk (length, type, bytes)
+        if (size < 20 || read_u32(data + 16) != 0x4E4F534Au) return {};
+        json_size = read_u32(data + 12);
+        if (json_size > size - 20) return {};
+        json_begin = data + 20;
+    }
+    nlohmann::json doc = nlohmann::json::parse(json_begin, json_begin + json_size, nullptr, false);
+    if (doc.is_discarded() || !detach_viewless_indices(doc, detached)) return {};
+    std::string text = doc.dump();
+    if (!binary) return std::vector<uint8_t>(text.begin(), text.end());
+    while (text.size() % 4) text.push_back(' ');  // chunks stay 4-byte aligned
+    size_t tail = 20 + json_size;                 // the BIN chunk and anything after, unchanged
+    std::vector<uint8_t> out(20);
+    std::memcpy(out.data(), data, 12);
+    out.insert(out.end(), text.begin(), text.end());
+    out.insert(out.end(), data + tail, data + size);
+    write_u32(out, 8, uint32_t(out.size()));
+    write_u32(out, 12, uint32_t(text.size()));
+    write_u32(out, 16, 0x4E4F534Au);
+    return out;
+}
+
+struct Context {
+    const tinygltf::Model& model;
+    std::string file;
+    std::string where;  // "mesh 3 primitive 1: accessor 7" and so on
+    const DetachedIndices* detached = nullptr;
+
+    [[noreturn]] void fail(const std::string& what) const {
+        throw LoadError(file + ": " + (where.empty() ? "" : where + ": ") + what);
+    }
+};
+
+std::string first_line(const std::string& s) {
+    size_t begin = s.find_first_not_of(" \n\r\t");
+    if (begin == std::string::npos) return "unknown error";
+    size_t end = s.find_first_of("\r\n", begin);
+    return s.substr(begin, end == std::string::npos ? std::string::npos : end - begin);
+}
+
+size_t component_size(int component_type) {
+    switch (component_type) {
+        case TINYGLTF_COMPONENT_TYPE_BYTE:
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
+        case TINYGLTF_COMPONENT_TYPE_SHORT:
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
+        case TINYGLTF_COMPONENT_TYPE_INT:
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+        case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
+        default: return 0;
+    }
+}
+
+// One component as double, with glTF's normalisation rules for integer types.
+double read_component(const uint8_t* p, int component_type, bool normalized) {
+    switch (component_type) {
+        case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); return f; }
+        case TINYGLTF_COMPONENT_TYPE_BYTE: {
+            int8_t v; std::memcpy(&v, p, 1);
+            return normalized ? std::max(v / 127.0, -1.0) : v;
+        }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? p[0] / 255.0 : p[0];
+        case TINYGLTF_COMPONENT_TYPE_SHORT: {
+            int16_t v; std::memcpy(&v, p, 2);
+            return normalized ? std::max(v / 32767.0, -1.0) : v;
+        }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+            uint16_t v; std::memcpy(&v, p, 2);
+            return normalized ? v / 65535.0 : v;
+        }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t v; std::memcpy(&v, p, 4); return v; }
+        case TINYGLTF_COMPONENT_TYPE_INT: { int32_t v; std::memcpy(&v, p, 4); return v; }
+        default: return 0;
+    }
+}
+
+// The bytes of `count` elements of `element_size` bytes starting `offset` into a buffer view, with the
+// view's stride (or tight packing). Checks the whole range against the view and the view against its buffer.
+struct StridedRange {
+    const uint8_t* base = nullptr;
+    size_t stride = 0;
+};
+
+StridedRange view_range(const Context& ctx, int view_index, size_t offset, size_t count, size_t element_size,
+                        bool allow_stride) {
+    const auto& views = ctx.model.bufferViews;
+    if (view_index < 0 || size_t(view_index) >= views.size())
+        ctx.fail("bufferView " + std::to_string(view_index) + " does not exist");
+    const tinygltf::BufferView& view = views[view_index];
+    if (view.buffer < 0 || size_t(view.buffer) >= ctx.model.buffers.size())
+        ctx.fail("bufferView " + std::to_string(view_index) + ": buffer " + std::to_string(view.buffer) +
+                 " does not exist");
+    const tinygltf::Buffer& buffer = ctx.model.buffers[view.buffer];
+    if (view.byteOffset > buffer.data.size() || view.byteLength > buffer.data.size() - view.byteOffset)
+        ctx.fail("bufferView " + std::to_string(view_index) + ": range " + std::to_string(view.byteOffset) + "+" +
+                 std::to_string(view.byteLength) + " past the end of buffer " + std::to_string(view.buffer) + " (" +
+                 std::to_string(buffer.data.size()) + " bytes)");
+    size_t stride = allow_stride && view.byteStride != 0 ? view.byteStride : element_size;
+    if (stride < element_size)
+        ctx.fail("bufferView " + std::to_string(view_index) + ": byteStride " + std::to_string(stride) +
+                 " smaller than an element (" + std::to_string(element_size) + " bytes)");
+    // count <= 2^32 and stride <= 2^32 in practice; guard the product against overflow anyway.
+    unsigned __int128 needed = count == 0 ? 0 : (unsigned __int128)offset + (unsigned __int128)stride * (count - 1) + element_size;
+    if (needed > view.byteLength)
+        ctx.fail("needs " + std::to_string((unsigned long long)needed) + " bytes of bufferView " +
+                 std::to_string(view_index) + " which has " + std::to_string(view.byteLength));
+    return {buffer.data.data() + view.byteOffset + offset, stride};
+}
+
+// Reads any numeric accessor as doubles (count * components), applying sparse substitution.
+std::vector<double> read_accessor(Context ctx, int accessor_index, int want_type) {
+    const auto& accessors = ctx.model.accessors;
+    if (accessor_index < 0 || size_t(accessor_index) >= accessors.size())
+        ctx.fail("accessor " + std::to_string(accessor_index) + " does not exist");
+    const tinygltf::Accessor& acc = accessors[accessor_index];
+    ctx.where += (ctx.where.empty() ? "" : ": ") + std::string("accessor ") + std::to_string(accessor_index);
+    if (acc.type != want_type) ctx.fail("unexpected accessor type " + std::to_string(acc.type));
+    size_t csize = component_size(acc.componentType);
+    if (csize == 0) ctx.fail("unknown componentType " + std::to_string(acc.componentType));
+    size_t ncomp = size_t(tinygltf::GetNumComponentsInType(uint32_t(acc.type)));
+    if (acc.count > std::numeric_limits<uint32_t>::max())
+        ctx.fail("count " + std::to_string(acc.count) + " exceeds 2^32-1");
+
+    std::vector<double> out(acc.count * ncomp, 0.0);
+    if (acc.bufferView >= 0) {
+        StridedRange r = view_range(ctx, acc.bufferView, acc.byteOffset, acc.count, csize * ncomp, true);
+        for (size_t i = 0; i < acc.count; ++i)
+            for (size_t c = 0; c < ncomp; ++c)
+                out[i * ncomp + c] = read_component(r.base + i * r.stride + c * csize, acc.componentType, acc.normalized);
+    }
+    if (acc.sparse.isSparse) {
+        const auto& sp = acc.sparse;
+        if (sp.count < 0 || size_t(sp.count) > acc.count)
+            ctx.fail("sparse count " + std::to_string(sp.count) + " exceeds accessor count " + std::to_string(acc.count));
+        int itype = sp.indices.componentType;
+        if (itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+            itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+            ctx.fail("sparse indices componentType " + std::to_string(itype) + " is not unsigned");
+        if (sp.indices.byteOffset < 0 || sp.values.byteOffset < 0) ctx.fail("negative sparse byteOffset");
+        StridedRange ir = view_range(ctx, sp.indices.bufferView, size_t(sp.indices.byteOffset), size_t(sp.count),
+                                     component_size(itype), false);
+        StridedRange vr = view_range(ctx, sp.values.bufferView, size_t(sp.values.byteOffset), size_t(sp.count),
+                                     csize * ncomp, false);
+        for (size_t s = 0; s < size_t(sp.count); ++s) {
+            double target = read_component(ir.base + s * ir.stride, itype, false);
+            if (target >= double(acc.count))
+                ctx.fail("sparse index " + std::to_string(uint64_t(target)) + " out of range (" +
+                         std::to_string(acc.count) + " elements)");
+            size_t t = size_t(target);
+            for (size_t c = 0; c < ncomp; ++c)
+                out[t * ncomp + c] = read_component(vr.base + s * vr.stride + c * csize, acc.componentType, acc.normalized);
+        }
+    }
+    return out;
+}
+
+// Indices as uint32 (only unsigned component types are valid glTF index types).
+std::vector<uint32_t> read_indices(const Context& ctx, int accessor_index) {
+    const auto& accessors = ctx.model.accessors;
+    if (accessor_index >= 0 && size_t(accessor_index) < accessors.size()) {
+        int t = accessors[accessor_index].componentType;
+        if (t != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && t != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+            t != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+            ctx.fail("indices accessor " + std::to_string(accessor_index) + ": componentType " + std::to_string(t) +
+                     " is not an unsigned integer type");
+    }
+    std::vector<double> raw = read_accessor(ctx, accessor_index, TINYGLTF_TYPE_SCALAR);
+    return std::vector<uint32_t>(raw.begin(), raw.end());
+}
+
+// Decodes a KHR_draco_mesh_compression primitive into positions and triangle indices.
+void decode_draco(const Context& ctx, const tinygltf::Value& ext, std::vector<double>& positions,
+                  std::vector<uint32_t>& indices) {
+    const tinygltf::Value& view = ext.Get("bufferView");
+    const tinygltf::Value& attrs = ext.Get("attributes");
+    if (!view.IsInt() || !attrs.IsObject()) ctx.fail("KHR_draco_mesh_compression needs bufferView and attributes");
+    const tinygltf::Value& pos_id = attrs.Get("POSITION");
+    if (!pos_id.IsInt()) ctx.fail("KHR_draco_mesh_compression has no POSITION attribute");
+
+    int view_index = view.Get<int>();
+    size_t length = view_index >= 0 && size_t(view_index) < ctx.model.bufferViews.size()
+                        ? ctx.model.bufferViews[view_index].byteLength : 0;
+    StridedRange r = view_range(ctx, view_index, 0, 1, length, false);
+
+    draco::DecoderBuffer buffer;
+    buffer.Init(reinterpret_cast<const char*>(r.base), length);
+    draco::Decoder decoder;
+    auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
+    if (!decoded.ok()) ctx.fail("Draco: " + decoded.status().error_msg_string());
+    std::unique_ptr<draco::Mesh> mesh = std::move(decoded).value();
+    if (!mesh) ctx.fail("Draco: no mesh decoded");
+
+    const draco::PointAttribute* att = mesh->GetAttributeByUniqueId(uint32_t(pos_id.Get<int>()));
+    if (!att) ctx.fail("Draco: POSITION attribute id " + std::to_string(pos_id.Get<int>()) + " not in the stream");
+    if (att->num_components() != 3) ctx.fail("Draco: POSITION has " + std::to_string(att->num_components()) + " components");
+
+    uint32_t n = mesh->num_points();
+    positions.resize(size_t(n) * 3);
+    for (uint32_t i = 0; i < n; ++i) {
+        float v[3];
+        if (!att->ConvertValue<float, 3>(att->mapped_index(draco::PointIndex(i)), v))
+            ctx.fail("Draco: cannot read position " + std::to_string(i));
+        for (int c = 0; c < 3; ++c) positions[size_t(i) * 3 + c] = v[c];
+    }
+    indices.resize(size_t(mesh->num_faces()) * 3);
+    for (uint32_t f = 0; f < mesh->num_faces(); ++f) {
+        const draco::Mesh::Face& face = mesh->face(draco::FaceIndex(f));
+        for (int c = 0; c < 3; ++c) indices[size_t(f) * 3 + c] = face[c].value();
+    }
+}
+
+// Expands strips and fans to lists; lists pass through. The list index count must be a multiple of 3.
+std::vector<uint32_t> triangulate(const Context& ctx, int mode, const std::vector<uint32_t>& idx) {
+    std::vector<uint32_t> out;
+    size_t n = idx.size();
+    if (mode == TINYGLTF_MODE_TRIANGLES) {
+        if (n % 3 != 0) ctx.fail("TRIANGLES with " + std::to_string(n) + " indices, not a multiple of 3");
+        return idx;
+    }
+    if (n < 3) return out;
+    out.reserve((n - 2) * 3);
+    for (size_t i = 0; i + 2 < n; ++i) {
+        if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+            // Odd triangles swap their first two vertices to keep a consistent winding.
+            bool odd = i & 1;
+            out.insert(out.end(), {idx[i + (odd ? 1 : 0)], idx[i + (odd ? 0 : 1)], idx[i + 2]});
+        } else {  // fan
+            out.insert(out.end(), {idx[0], idx[i + 1], idx[i + 2]});
+        }
+    }
+    return out;
+}
+
+void load_primitive(Context ctx, size_t mesh_index, size_t prim_index, const tinygltf::Primitive& prim, Mesh& mesh,
+                    LoadReport& report) {
+    int indices_accessor = prim.indices;
+    if (auto it = ctx.detached->find({mesh_index, prim_index}); it != ctx.detached->end()) indices_accessor = it->second;
+    int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+    if (mode == TINYGLTF_MODE_POINTS || mode == TINYGLTF_MODE_LINE || mode == TINYGLTF_MODE_LINE_LOOP ||
+        mode == TINYGLTF_MODE_LINE_STRIP) {
+        ++report.skipped_primitives;
+        return;
+    }
+    if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
+        ctx.fail("unknown primitive mode " + std::to_string(mode));
+
+    std::vector<double> positions;
+    std::vector<uint32_t> indices;
+    auto draco = prim.extensions.find("KHR_draco_mesh_compression");
+    if (draco != prim.extensions.end()) {
+        decode_draco(ctx, draco->second, positions, indices);
+        ++report.draco_primitives;
+        // The accessors only describe the decoded data; their counts must agree with it.
+        auto pos = prim.attributes.find("POSITION");
+        if (pos != prim.attributes.end() && pos->second >= 0 && size_t(pos->second) < ctx.model.accessors.size() &&
+            ctx.model.accessors[pos->second].count != positions.size() / 3)
+            ctx.fail("Draco decoded " + std::to_string(positions.size() / 3) + " vertices but POSITION accessor " +
+                     std::to_string(pos->second) + " says " + std::to_string(ctx.model.accessors[pos->second].count));
+        if (indices_accessor >= 0 && size_t(indices_accessor) < ctx.model.accessors.size() &&
+            ctx.model.accessors[indices_accessor].count != indices.size())
+            ctx.fail("Draco decoded " + std::to_string(indices.size() / 3) + " triangles but indices accessor " +
+                     std::to_string(indices_accessor) + " has " +
+                     std::to_string(ctx.model.accessors[indices_accessor].count) + " indices");
+        if (mode != TINYGLTF_MODE_TRIANGLES) ctx.fail("Draco primitive with mode " + std::to_string(mode));
+    } else {
+        auto pos = prim.attributes.find("POSITION");
+        if (pos == prim.attributes.end()) ctx.fail("no POSITION attribute");
+        positions = read_accessor(ctx, pos->second, TINYGLTF_TYPE_VEC3);
+        if (indices_accessor >= 0) {
+            indices = read_indices(ctx, indices_accessor);
+        } else {
+            indices.resize(positions.size() / 3);
+            for (size_t i = 0; i < indices.size(); ++i) indices[i] = uint32_t(i);
+        }
+        indices = triangulate(ctx, mode, indices);
+    }
+
+    size_t vertex_count = positions.size() / 3;
+    for (size_t i = 0; i < indices.size(); ++i)
+        if (indices[i] >= vertex_count)
+            ctx.fail("index " + std::to_string(indices[i]) + " out of range (" + std::to_string(vertex_count) +
+                     " vertices)");
+    for (size_t i = 0; i < positions.size(); ++i)
+        if (!std::isfinite(positions[i]) || std::fabs(positions[i]) > std::numeric_limits<float>::max())
+            ctx.fail("vertex " + std::to_string(i / 3) + ": position is not a finite float (" +
+                     std::to_string(positions[i]) + ")");
+
+    size_t base = mesh.vertex_count();
+    if (base + vertex_count > std::numeric_limits<uint32_t>::max()) ctx.fail("more than 2^32-1 vertices in one mesh");
+    Primitive p;
+    p.first_triangle = uint32_t(mesh.triangle_count());
+    p.triangle_count = uint32_t(indices.size() / 3);
+    p.double_sided = prim.material >= 0 && size_t(prim.material) < ctx.model.materials.size() &&
+                     ctx.model.materials[prim.material].doubleSided;
+    mesh.positions.insert(mesh.positions.end(), positions.begin(), positions.end());
+    for (uint32_t i : indices) mesh.indices.push_back(uint32_t(base + i));
+    mesh.primitives.push_back(p);
+    ++report.primitives;
+}
+
+Transform node_local(const Context& ctx, const tinygltf::Node& node) {
+    Transform m = identity_transform();
+    if (node.matrix.size() == 16) {
+        for (int i = 0; i < 16; ++i) m[i] = node.matrix[i];
+    } else {
+        if (!node.matrix.empty()) ctx.fail("matrix has " + std::to_string(node.matrix.size()) + " values, not 16");
+        double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
+        if (!node.translation.empty()) {
+            if (node.translation.size() != 3) ctx.fail("translation needs 3 values");
+            for (int i = 0; i < 3; ++i) t[i] = node.translation[i];
+        }
+        if (!node.rotation.empty()) {
+            if (node.rotation.size() != 4) ctx.fail("rotation needs 4 values");
+            for (int i = 0; i < 4; ++i) q[i] = node.rotation[i];
+            double len = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+            if (!(len > 0) || !std::isfinite(len)) ctx.fail("rotation quaternion has zero or non-finite length");
+            for (double& c : q) c /= len;  // exporters write unit quaternions to a few digits only
+        }
+        if (!node.scale.empty()) {
+            if (node.scale.size() != 3) ctx.fail("scale needs 3 values");
+            for (int i = 0; i < 3; ++i) s[i] = node.scale[i];
+        }
+        double x = q[0], y = q[1], z = q[2], w = q[3];
+        double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),
+                       2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+                       2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y)};
+        for (int col = 0; col < 3; ++col)
+            for (int row = 0; row < 3; ++row) m[col * 4 + row] = r[col * 3 + row] * s[col];
+        m[12] = t[0], m[13] = t[1], m[14] = t[2];
+    }
+    for (double v : m)
+        if (!std::isfinite(v)) ctx.fail("transform has a non-finite value");
+    if (m[3] != 0 || m[7] != 0 || m[11] != 0 || m[15] != 1) ctx.fail("transform is not affine (projective row)");
+    return m;
+}
+
+class SceneBuilder {
+public:
+    SceneBuilder(const tinygltf::Model& model, const std::string& file, const DetachedIndices& detached)
+        : ctx_{model, file, "", &detached} {}
+
+    Scene build() {
+        const auto& model = ctx_.model;
+        mesh_slot_.assign(model.meshes.size(), -1);
+        on_path_.assign(model.nodes.size(), false);
+        std::vector<int> roots;
+        int scene_index = model.defaultScene;
+        if (scene_index >= int(model.scenes.size())) ctx_.fail("scene " + std::to_string(scene_index) + " does not exist");
+        if (scene_index >= 0) {
+            roots = model.scenes[scene_index].nodes;
+        } else {
+            // No default scene: every node that is nobody's child is a root.
+            std::vector<bool> is_child(model.nodes.size(), false);
+            for (const auto& n : model.nodes)
+                for (int c : n.children)
+                    if (c >= 0 && size_t(c) < model.nodes.size()) is_child[c] = true;
+            for (size_t i = 0; i < model.nodes.size(); ++i)
+                if (!is_child[i]) roots.push_back(int(i));
+        }
+        for (int r : roots) visit(r, identity_transform());
+        for (size_t m = 0; m < model.meshes.size(); ++m)
+            if (mesh_slot_[m] < 0) ++scene_.report.unreferenced_meshes;
+        return std::move(scene_);
+    }
+
+private:
+    static constexpr size_t max_instances = 50'000'000;  // a node DAG can multiply paths exponentially
+
+    void visit(int node_index, const Transform& parent) {
+        const auto& nodes = ctx_.model.nodes;
+        Context node_ctx = ctx_;
+        node_ctx.where = "node " + std::to_string(node_index);
+        if (node_index < 0 || size_t(node_index) >= nodes.size()) ctx_.fail("node " + std::to_string(node_index) + " does not exist");
+        if (on_path_[node_index]) node_ctx.fail("node cycle (the node is its own ancestor)");
+        const tinygltf::Node& node = nodes[node_index];
+        Transform world = multiply(parent, node_local(node_ctx, node));
+        if (node.mesh >= 0) {
+            if (size_t(node.mesh) >= ctx_.model.meshes.size()) node_ctx.fail("mesh " + std::to_string(node.mesh) + " does not exist");
+            if (scene_.instances.size() >= max_instances) node_ctx.fail("more than 50 million instances");
+            scene_.instances.push_back({mesh_id(node.mesh), world, node.name});
+        }
+        on_path_[node_index] = true;
+        for (int child : node.children) visit(child, world);
+        on_path_[node_index] = false;
+    }
+
+    uint32_t mesh_id(int gltf_mesh) {
+        if (mesh_slot_[gltf_mesh] >= 0) return uint32_t(mesh_slot_[gltf_mesh]);
+        const tinygltf::Mesh& src = ctx_.model.meshes[gltf_mesh];
+        Mesh mesh;
+        mesh.name = src.name;
+        for (size_t p = 0; p < src.primitives.size(); ++p) {
+            Context pctx = ctx_;
+            pctx.where = "mesh " + std::to_string(gltf_mesh) + " primitive " + std::to_string(p);
+            load_primitive(pctx, size_t(gltf_mesh), p, src.primitives[p], mesh, scene_.report);
+        }
+        mesh_slot_[gltf_mesh] = int(scene_.meshes.size());
+        scene_.meshes.push_back(std::move(mesh));
+        return uint32_t(mesh_slot_[gltf_mesh]);
+    }
+
+    Context ctx_;
+    Scene scene_;
+    std::vector<int> mesh_slot_;   // glTF mesh index -> Scene mesh index, -1 until first used
+    std::vector<bool> on_path_;    // nodes on the current root-to-node path, for cycle detection
+};
+
+}  // namespace
+
+Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name, const std::string& base_dir) {
+    if (size == 0) throw LoadError(name + ": empty file");
+    if (size > std::numeric_limits<unsigned int>::max()) throw LoadError(name + ": larger than 4 GiB");
+    bool binary = size >= 4 && std::memcmp(data, "glTF", 4) == 0;
+    DetachedIndices detached;
+    std::vector<uint8_t> prepared = prepare_for_tinygltf(data, size, binary, detached);
+    if (!prepared.empty()) data = prepared.data(), size = prepared.size();
+
+    tinygltf::TinyGLTF loader;
+    // Images are never decoded; a no-op loader keeps tinygltf from failing on embedded ones.
+    loader.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*,
+                             int, void*) { return true; }, nullptr);
+    tinygltf::Model model;
+    std::string err, warn;
+    bool ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, data, unsigned(size), base_dir)
+                     : loader.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char*>(data),
+                                                  unsigned(size), base_dir);
+    if (!ok) throw LoadError(name + ": " + first_line(err.empty() ? warn : err));
+    for (const std::string& ext : model.extensionsRequired)
+        if (!is_known_extension(ext)) throw LoadError(name + ": unsupported required extension " + ext);
+    Scene scene = SceneBuilder(model, name, detached).build();
+    validate_scene(scene, name);
+    return scene;
+}
+
+}  // namespace cb

@@ -1,0 +1,74 @@
+// The in-memory scene every clusterbake stage reads: flat arrays, nothing decoded that shadows do not need.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace cb {
+
+// A contiguous range of a mesh's triangles that came from one glTF primitive (or the whole file for
+// OBJ/PLY/OFF/STL). Sidedness is the one material fact the shadow runtime needs.
+struct Primitive {
+    uint32_t first_triangle = 0;
+    uint32_t triangle_count = 0;
+    bool double_sided = false;
+};
+
+// Geometry in the mesh's own frame. A mesh used by several nodes is stored once.
+struct Mesh {
+    std::string name;
+    std::vector<float> positions;   // x, y, z per vertex
+    std::vector<uint32_t> indices;  // 3 per triangle, each < vertex_count()
+    std::vector<Primitive> primitives;
+
+    size_t vertex_count() const { return positions.size() / 3; }
+    size_t triangle_count() const { return indices.size() / 3; }
+};
+
+// Column-major 4x4 affine transform (glTF's convention), kept in double so composed node chains stay exact
+// enough for coordinates near 1e6.
+using Transform = std::array<double, 16>;
+
+constexpr Transform identity_transform() {
+    return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+}
+
+struct Instance {
+    uint32_t mesh = 0;
+    Transform world = identity_transform();
+    std::string node_name;
+};
+
+// Things the loader skipped or noticed; reported by `clusterbake info`, never silently dropped.
+struct LoadReport {
+    uint32_t primitives = 0;               // triangle primitives loaded
+    uint32_t skipped_primitives = 0;       // POINTS / LINES / LINE_LOOP / LINE_STRIP
+    uint32_t draco_primitives = 0;         // decoded from KHR_draco_mesh_compression
+    uint64_t degenerate_triangles = 0;     // repeated index or zero area, kept in the mesh
+    uint64_t unreferenced_meshes = 0;      // glTF meshes no node of the chosen scene uses
+};
+
+struct Scene {
+    std::vector<Mesh> meshes;
+    std::vector<Instance> instances;
+    LoadReport report;
+};
+
+// Applies an affine column-major transform to a point.
+inline std::array<double, 3> transform_point(const Transform& m, double x, double y, double z) {
+    return {m[0] * x + m[4] * y + m[8] * z + m[12],
+            m[1] * x + m[5] * y + m[9] * z + m[13],
+            m[2] * x + m[6] * y + m[10] * z + m[14]};
+}
+
+// Returns a*b for column-major affine transforms.
+Transform multiply(const Transform& a, const Transform& b);
+
+// True when the triangle has a repeated index or its three positions are collinear (zero area, exactly).
+bool is_degenerate(const Mesh& mesh, size_t triangle);
+
+uint64_t count_degenerate(const Mesh& mesh);
+
+}  // namespace cb

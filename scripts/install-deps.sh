@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Installs everything clusterbake builds, tests and benchmarks with, from Debian's packages only.
+set -euo pipefail
+packages=(
+  cmake ninja-build g++ ccache pkg-config
+  libcgal-dev libeigen3-dev libopenmesh-dev libdraco-dev libtinygltf-dev libflann-dev
+  nlohmann-json3-dev libcli11-dev libgtest-dev
+  libmeshoptimizer-dev libembree-dev
+  clang libclang-rt-14-dev   # libFuzzer + AddressSanitizer for the fuzz targets
+  assimp-testmodels          # real broken and Draco glTF files the tests read in place
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+sudo=""
+[ "$(id -u)" -eq 0 ] || sudo="sudo"
+echo "install-deps: installing ${missing[*]}"
+$sudo apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null

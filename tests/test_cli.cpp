@@ -1,0 +1,88 @@
+// The clusterbake executable: exit codes, one-line errors, JSON output.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace {
+
+struct CliRun {
+    int code = -1;
+    std::string out, err;
+};
+
+CliRun run(const std::string& args) {
+    // ctest runs tests in parallel processes: name the capture files after this one.
+    static int calls = 0;
+    auto base = std::filesystem::temp_directory_path() / ("cb_cli_" + std::to_string(getpid()) + "_" + std::to_string(calls++));
+    std::string out = base.string() + ".out", err = base.string() + ".err";
+    std::string cmd = std::string(CB_CLI) + " " + args + " >" + out + " 2>" + err;
+    int status = std::system(cmd.c_str());
+    CliRun r;
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    auto slurp = [](const std::string& p) {
+        std::ifstream in(p);
+        return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    };
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+}
+
+std::string data(const std::string& f) { return std::string(CB_SOURCE_DIR) + "/data/" + f; }
+
+}  // namespace
+
+TEST(Cli, InfoOnTheDefaultScene) {
+    CliRun r = run("info " + data("default_scene.glb"));
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("instances 12"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("load time"), std::string::npos);
+}
+
+TEST(Cli, InfoJson) {
+    CliRun r = run("info --json " + data("small/cube.obj") + " " + data("small/cube_binary.stl"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    auto j = nlohmann::json::parse(r.out);
+    ASSERT_EQ(j.size(), 2u);
+    EXPECT_EQ(j[0]["unique_triangles"], 12);
+    EXPECT_EQ(j[1]["scene_triangles"], 12);
+    EXPECT_EQ(j[0]["world_bounds"]["max"][0], 1.0);
+    EXPECT_TRUE(j[0].contains("load_ms"));
+}
+
+TEST(Cli, BadInputGivesOneLineAndExitCode2) {
+    auto bad = std::filesystem::temp_directory_path() / ("cb_cli_bad_" + std::to_string(getpid()) + ".obj");
+    std::ofstream(bad) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 70000\n";
+    CliRun r = run("info " + bad.string());
+    EXPECT_EQ(r.code, 2);
+    EXPECT_EQ(r.err, bad.string() + ": line 4: face index 70000 out of range (3 vertices)\n");
+    EXPECT_TRUE(r.out.empty());
+
+    CliRun missing = run("info /nonexistent/scene.gltf");
+    EXPECT_EQ(missing.code, 2);
+    EXPECT_EQ(missing.err.rfind("/nonexistent/scene.gltf: cannot open", 0), 0u) << missing.err;
+
+    CliRun unknown = run("info " + std::string(CB_SOURCE_DIR) + "/README.md");
+    EXPECT_EQ(unknown.code, 2);
+    EXPECT_NE(unknown.err.find("unknown file type"), std::string::npos);
+}
+
+TEST(Cli, GoodAndBadFilesTogether) {
+    // Every good file is still reported; the exit code says something failed.
+    CliRun r = run("info " + data("small/cube.off") + " /nonexistent.obj");
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.out.find("cube.off"), std::string::npos);
+}
+
+TEST(Cli, Help) {
+    EXPECT_EQ(run("--help").code, 0);
+    CliRun r = run("info --help");
+    EXPECT_EQ(r.code, 0);
+    EXPECT_NE(r.out.find("--json"), std::string::npos);
+    EXPECT_NE(run("").code, 0);  // a subcommand is required
+}
