@@ -66,6 +66,17 @@ void validate_scene(Scene& scene, const std::string& name) {
     scene.report.degenerate_triangles = degenerate;
 }
 
+Scene single_mesh_scene(Mesh mesh, const std::string& name) {
+    mesh.name = name;
+    mesh.primitives.push_back({0, uint32_t(mesh.triangle_count()), false});
+    Scene scene;
+    scene.report.primitives = 1;
+    scene.meshes.push_back(std::move(mesh));
+    scene.instances.push_back({0, identity_transform(), name});
+    validate_scene(scene, name);
+    return scene;
+}
+
 FileFormat format_from_path(std::string_view path) {
     size_t dot = path.find_last_of('.');
     if (dot == std::string_view::npos) return FileFormat::unknown;

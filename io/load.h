@@ -1,5 +1,6 @@
 // Scene loading: glTF 2.0 (.gltf, .glb, KHR_draco_mesh_compression, KHR_mesh_quantization) through
-// tinygltf and Draco, OBJ / PLY / OFF / STL through OpenMesh's readers.
+// tinygltf and Draco; STL through OpenMesh's reader; OBJ, OFF and PLY through readers of our own, since
+// OpenMesh's lose faces or fail under fuzzing (see load_text.cpp and load_ply.cpp).
 //
 // Every loader either returns a Scene whose indices are in range and whose positions are finite, or throws
 // LoadError with one line of the form "FILE: ELEMENT: PROBLEM". Degenerate triangles are kept and counted.
@@ -34,7 +35,11 @@ Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, cons
 // The per-format readers behind load_mesh_memory.
 Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name);
 Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name);
-Scene load_ply_stl_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name);
+Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name);
+Scene load_stl_memory(const uint8_t* data, size_t size, const std::string& name);
+
+// A scene of one mesh, one identity instance and one single-sided primitive, validated.
+Scene single_mesh_scene(Mesh mesh, const std::string& name);
 
 // Throws LoadError unless every index is in range and every position finite; fills report.degenerate_triangles.
 void validate_scene(Scene& scene, const std::string& name);

@@ -60,6 +60,24 @@ void write_u32(std::vector<uint8_t>& out, size_t at, uint32_t v) {
     for (int i = 0; i < 4; ++i) out[at + i] = uint8_t(v >> (8 * i));
 }
 
+// tinygltf 2.7 checks the BIN chunk's length without its 8-byte chunk header and then copies past the end
+// of the file (found by fuzz_gltf). The container is checked here first. Returns an empty string when the
+// layout is sound, else what is wrong.
+std::string glb_layout_error(const uint8_t* data, size_t size) {
+    if (size < 20) return "GLB shorter than its 20-byte header";
+    if (read_u32(data + 4) != 2) return "GLB version " + std::to_string(read_u32(data + 4)) + " (only 2 is supported)";
+    uint64_t length = read_u32(data + 8);
+    if (length > size) return "GLB header says " + std::to_string(length) + " bytes, file has " + std::to_string(size) + " (truncated?)";
+    uint64_t json_end = 20 + uint64_t(read_u32(data + 12));
+    if (read_u32(data + 16) != 0x4E4F534Au) return "GLB first chunk is not JSON";
+    if (json_end > length) return "GLB JSON chunk runs past the end of the file";
+    if (json_end == length) return "";
+    if (json_end + 8 > length) return "GLB has a partial chunk header after the JSON chunk";
+    uint64_t bin_end = json_end + 8 + uint64_t(read_u32(data + json_end));
+    if (bin_end > length) return "GLB BIN chunk runs past the end of the file (truncated?)";
+    return "";
+}
+
 // Returns the glTF (or GLB) bytes with viewless indices detached, or an empty vector when nothing changed
 // or the JSON does not parse (tinygltf then reports the problem itself).
 std::vector<uint8_t> prepare_for_tinygltf(const uint8_t* data, size_t size, bool binary, DetachedIndices& detached) {
@@ -478,6 +496,10 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
     if (size == 0) throw LoadError(name + ": empty file");
     if (size > std::numeric_limits<unsigned int>::max()) throw LoadError(name + ": larger than 4 GiB");
     bool binary = size >= 4 && std::memcmp(data, "glTF", 4) == 0;
+    if (binary) {
+        std::string layout = glb_layout_error(data, size);
+        if (!layout.empty()) throw LoadError(name + ": " + layout);
+    }
     DetachedIndices detached;
     std::vector<uint8_t> prepared = prepare_for_tinygltf(data, size, binary, detached);
     if (!prepared.empty()) data = prepared.data(), size = prepared.size();

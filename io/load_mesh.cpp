@@ -1,4 +1,4 @@
-// PLY and STL loading through OpenMesh's readers.
+// STL loading (ASCII and binary) through OpenMesh's reader.
 //
 // OpenMesh's own mesh kernels are half-edge structures: they drop or split faces that are non-manifold or
 // repeat a vertex. Shadows need every triangle exactly as written, so the readers feed a flat importer
@@ -112,34 +112,20 @@ bool looks_like_binary_stl(const uint8_t* data, size_t size) {
     return uint64_t(n) * 50 + 84 == size;
 }
 
-// OpenMesh's ASCII readers parse numbers with iostreams, which cannot read inf or nan and then go on with
-// whatever the stream left behind. Every number they will read is checked here first, so a bad one is
-// reported by line instead of turning into a wrong vertex.
-void check_ascii_numbers(const uint8_t* data, size_t size, FileFormat format, const std::string& name) {
-    std::string_view text(reinterpret_cast<const char*>(data), size);
-    bool ply = format == FileFormat::ply;
-    LineReader reader{text};
+// OpenMesh's ASCII STL reader parses numbers with iostreams, which cannot read inf or nan and then goes on
+// with whatever the stream left behind. Every coordinate it will read is checked here first, so a bad one
+// is reported by line instead of turning into a wrong vertex. (Facet normals are not used, so they may
+// be anything, as real exporters write.)
+void check_ascii_stl(const uint8_t* data, size_t size, const std::string& name) {
+    LineReader reader{std::string_view(reinterpret_cast<const char*>(data), size)};
     std::string line;
     std::vector<std::string_view> tok;
-    if (ply) {  // numbers start after the header; only an ASCII body is text
-        bool ascii = false;
-        while (reader.next(line, false)) {
-            split(line, tok);
-            if (tok.size() >= 2 && tok[0] == "format") ascii = tok[1] == "ascii";
-            if (!tok.empty() && tok[0] == "end_header") break;
-        }
-        if (!ascii) return;
-    }
     while (reader.next(line, false)) {
         split(line, tok);
-        size_t first = 0;
-        if (!ply) {  // STL: only the coordinates of "vertex" lines become geometry
-            if (tok.empty() || tok[0] != "vertex") continue;
-            first = 1;
-            if (tok.size() != 4)
-                throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": vertex needs 3 coordinates");
-        }
-        for (size_t k = first; k < tok.size(); ++k) {
+        if (tok.empty() || tok[0] != "vertex") continue;
+        if (tok.size() != 4)
+            throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": vertex needs 3 coordinates");
+        for (size_t k = 1; k < 4; ++k) {
             double v;
             if (!parse_double(tok[k], v) || !std::isfinite(v))
                 throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": '" +
@@ -154,15 +140,14 @@ Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, cons
     switch (format) {
         case FileFormat::obj: return load_obj_memory(data, size, name);
         case FileFormat::off: return load_off_memory(data, size, name);
-        case FileFormat::ply:
-        case FileFormat::stl: return load_ply_stl_memory(data, size, format, name);
+        case FileFormat::ply: return load_ply_memory(data, size, name);
+        case FileFormat::stl: return load_stl_memory(data, size, name);
         default: throw LoadError(name + ": not an OBJ, PLY, OFF or STL file");
     }
 }
 
-Scene load_ply_stl_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name) {
+Scene load_stl_memory(const uint8_t* data, size_t size, const std::string& name) {
     if (size == 0) throw LoadError(name + ": empty file");
-    const char* ext = format == FileFormat::ply ? "ply" : "stl";
 
     // OpenMesh reports problems on its own log streams; keep them off the user's terminal. The IO manager
     // is a process-wide singleton, so reads are serialised.
@@ -173,32 +158,25 @@ Scene load_ply_stl_memory(const uint8_t* data, size_t size, FileFormat format, c
 
     FlatImporter importer;
     IO::Options options;
-    bool binary_stl = format == FileFormat::stl && looks_like_binary_stl(data, size);
-    if (binary_stl) options += IO::Options::Binary;
-    if (!binary_stl) check_ascii_numbers(data, size, format, name);
+    if (looks_like_binary_stl(data, size))
+        options += IO::Options::Binary;
+    else
+        check_ascii_stl(data, size, name);
     std::istringstream stream(std::string(reinterpret_cast<const char*>(data), size), std::ios::binary);
-    bool ok = IO::IOManager().read(stream, ext, importer, options);
+    bool ok = IO::IOManager().read(stream, "stl", importer, options);
     if (!importer.error.empty()) throw LoadError(name + ": " + importer.error);
-    if (!ok) throw LoadError(name + ": the " + std::string(ext) + " reader rejected the file (malformed or truncated)");
+    if (!ok) throw LoadError(name + ": OpenMesh's STL reader rejected the file (malformed or truncated)");
 
-    Mesh mesh;
-    mesh.name = name;
     for (size_t i = 0; i < importer.points.size(); ++i) {
         double v = importer.points[i];
         if (!std::isfinite(v) || std::fabs(v) > std::numeric_limits<float>::max())
             throw LoadError(name + ": vertex " + std::to_string(i / 3) + ": position is not a finite float (" +
                             std::to_string(v) + ")");
     }
+    Mesh mesh;
     mesh.positions.assign(importer.points.begin(), importer.points.end());
     mesh.indices = std::move(importer.triangles);
-    mesh.primitives.push_back({0, uint32_t(mesh.indices.size() / 3), false});
-
-    Scene scene;
-    scene.report.primitives = 1;
-    scene.meshes.push_back(std::move(mesh));
-    scene.instances.push_back({0, identity_transform(), name});
-    validate_scene(scene, name);
-    return scene;
+    return single_mesh_scene(std::move(mesh), name);
 }
 
 }  // namespace cb

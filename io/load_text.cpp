@@ -4,7 +4,7 @@
 // faces that repeat a vertex (f 1 1 3), ignores line continuations and skips vertices it cannot parse
 // (inf, nan) so later faces point at the wrong vertex; its OFF reader rejects comments and headers run
 // together with their counts ("OFF8 6 12"). These formats are small enough to read exactly here, with an
-// error naming the line for anything malformed. PLY and STL go through OpenMesh (load_mesh.cpp).
+// error naming the line for anything malformed. STL goes through OpenMesh (load_mesh.cpp).
 #include <cmath>
 #include <limits>
 #include <string_view>
@@ -27,17 +27,6 @@ void push_position(Mesh& mesh, const double xyz[3], const std::string& where) {
 
 void push_polygon(Mesh& mesh, const std::vector<uint32_t>& poly) {
     for (size_t i = 1; i + 1 < poly.size(); ++i) mesh.indices.insert(mesh.indices.end(), {poly[0], poly[i], poly[i + 1]});
-}
-
-Scene single_mesh_scene(Mesh mesh, const std::string& name) {
-    mesh.name = name;
-    mesh.primitives.push_back({0, uint32_t(mesh.triangle_count()), false});
-    Scene scene;
-    scene.report.primitives = 1;
-    scene.meshes.push_back(std::move(mesh));
-    scene.instances.push_back({0, identity_transform(), name});
-    validate_scene(scene, name);
-    return scene;
 }
 
 }  // namespace

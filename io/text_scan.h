@@ -23,7 +23,7 @@ struct LineReader {
             size_t end = text.find('\n', pos);
             if (end == std::string_view::npos) end = text.size();
             std::string_view part = text.substr(pos, end - pos);
-            pos = end + 1;
+            pos = end < text.size() ? end + 1 : end;
             ++line_number;
             if (!part.empty() && part.back() == '\r') part.remove_suffix(1);
             if (join && !part.empty() && part.back() == '\\') {

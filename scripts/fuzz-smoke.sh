@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets with clang + ASan/UBSan in build-fuzz/ and runs each for a short while,
+# seeded from data/ (and ../shared/data when present). Usage: fuzz-smoke.sh [RUNS_PER_TARGET]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+runs=${1:-3000}
+cmake -S . -B build-fuzz -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCLUSTERBAKE_FUZZ=ON -DCLUSTERBAKE_TESTS=OFF -DCLUSTERBAKE_BENCH=OFF >/dev/null
+cmake --build build-fuzz --target fuzz_gltf fuzz_obj fuzz_off fuzz_ply fuzz_stl
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+seed() {  # seed FORMAT FILE...
+  mkdir -p "$work/$1"
+  for f in "${@:2}"; do [ -f "$f" ] && cp "$f" "$work/$1/" || true; done
+}
+shared=../shared/data
+seed gltf data/small/*.gltf data/small/*.glb $shared/gltf/Box_Draco.glb $shared/gltf/BoxDraco/BoxDraco.gltf $shared/gltf/nested.glb
+seed obj data/small/*.obj $shared/hard/deg_faces.obj $shared/hard/wallhole.obj $shared/hard/negative_indices.obj
+seed off data/small/*.off $shared/hard/comments.off $shared/hard/whitespace.off
+seed ply data/small/*.ply
+seed stl data/small/*.stl $shared/hard/soup.stl
+for format in gltf obj off ply stl; do
+  echo "fuzz_$format: $runs runs from $(ls "$work/$format" | wc -l) seeds"
+  ./build-fuzz/fuzz/fuzz_$format -runs="$runs" -max_len=65536 -rss_limit_mb=2048 -timeout=20 \
+    -print_final_stats=0 "$work/$format" 2>"$work/$format.log" || { tail -40 "$work/$format.log"; exit 1; }
+  grep -E "^#[0-9]+ *DONE" "$work/$format.log" || tail -2 "$work/$format.log"
+done
+echo "fuzz smoke: 5 targets, no crash"
