@@ -3,9 +3,12 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cstring>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 
+#include "bake.h"
 #include "load.h"
 #include "scene_info.h"
 
@@ -58,6 +61,114 @@ int run_info(const std::vector<std::string>& files, bool json) {
     return status;
 }
 
+double seconds_since(std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+struct ClusterArgs {
+    std::string file, out, method = "kmeans";
+    cb::ClusterOptions options;
+    bool json = false, quiet = false;
+};
+
+int run_cluster(const ClusterArgs& a) {
+    cb::ClusterOptions options = a.options;
+    if (!cb::parse_method(a.method, options.method)) {
+        std::fprintf(stderr, "clusterbake: unknown method '%s' (kmeans, vco, morton)\n", a.method.c_str());
+        return 1;
+    }
+    auto t0 = std::chrono::steady_clock::now();
+    cb::Scene scene;
+    try {
+        scene = cb::load_scene(a.file);
+    } catch (const cb::LoadError& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return exit_bad_input;
+    }
+    double load_s = seconds_since(t0);
+
+    // Progress for long runs only, on stderr, overwritten in place.
+    uint64_t total = 0;
+    for (const cb::Mesh& m : scene.meshes) total += m.triangle_count();
+    bool show = !a.quiet && total >= 1'000'000;
+    cb::BakeStats stats;
+    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, options, stats, [&](size_t m, size_t mc, size_t c, size_t cc) {
+        if (show) std::fprintf(stderr, "\rclustering mesh %zu/%zu: chunk %zu/%zu   ", m + 1, mc, c, cc);
+    });
+    if (show) std::fprintf(stderr, "\n");
+
+    auto t1 = std::chrono::steady_clock::now();
+    std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
+    cb::write_file_atomic(a.out, bytes);
+    double write_s = seconds_since(t1);
+
+    double tps = stats.cluster_seconds > 0 ? double(stats.triangles) / stats.cluster_seconds : 0;
+    if (a.json) {
+        nlohmann::json j = {{"file", a.file},
+                            {"output", a.out},
+                            {"method", cb::method_name(options.method)},
+                            {"coarse_size", options.coarse_size},
+                            {"fine_size", options.fine_size},
+                            {"meshes", scene.meshes.size()},
+                            {"instances", scene.instances.size()},
+                            {"triangles", stats.triangles},
+                            {"coarse_clusters", stats.coarse_clusters},
+                            {"fine_clusters", stats.fine_clusters},
+                            {"fine_min", stats.fine_min},
+                            {"fine_max", stats.fine_max},
+                            {"fine_below_half", stats.fine_below_half},
+                            {"coarse_min", stats.coarse_min},
+                            {"coarse_max", stats.coarse_max},
+                            {"load_seconds", load_s},
+                            {"cluster_seconds", stats.cluster_seconds},
+                            {"write_seconds", write_s},
+                            {"triangles_per_second", tps},
+                            {"asset_bytes", bytes.size()}};
+        if (options.method == cb::ClusterMethod::vco) {
+            j["acmr_before"] = stats.acmr_before;
+            j["acmr_after"] = stats.acmr_after;
+        }
+        std::cout << j.dump(2) << "\n";
+        return 0;
+    }
+    std::printf("%s -> %s\n", a.file.c_str(), a.out.c_str());
+    std::printf("  method %s, coarse %u, fine %u: %llu triangles in %llu meshes (%zu instances)\n",
+                cb::method_name(options.method), options.coarse_size, options.fine_size,
+                (unsigned long long)stats.triangles, (unsigned long long)scene.meshes.size(), scene.instances.size());
+    std::printf("  coarse clusters %llu (%u..%u triangles), fine clusters %llu (%u..%u triangles, %llu below half)\n",
+                (unsigned long long)stats.coarse_clusters, stats.coarse_min, stats.coarse_max,
+                (unsigned long long)stats.fine_clusters, stats.fine_min, stats.fine_max,
+                (unsigned long long)stats.fine_below_half);
+    if (options.method == cb::ClusterMethod::vco)
+        std::printf("  ACMR (FIFO %u) %.3f -> %.3f\n", options.vco_cache_size, stats.acmr_before, stats.acmr_after);
+    std::printf("  load %.3f s, cluster %.3f s (%.2f M triangles/s), write %.3f s, asset %zu bytes\n", load_s,
+                stats.cluster_seconds, tps / 1e6, write_s, bytes.size());
+    return 0;
+}
+
+int run_validate(const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) {
+        std::fprintf(stderr, "%s: cannot open\n", file.c_str());
+        return exit_bad_input;
+    }
+    std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // The view needs 8-byte alignment for the instance doubles: copy into storage that has it.
+    std::vector<uint64_t> aligned((raw.size() + 7) / 8);
+    std::memcpy(aligned.data(), raw.data(), raw.size());
+    cb::AssetView view;
+    cb::AssetError e = cb::open_asset(aligned.data(), raw.size(), &view);
+    if (e != cb::AssetError::ok) {
+        std::fprintf(stderr, "%s: %s\n", file.c_str(), cb::asset_error_text(e));
+        return exit_bad_input;
+    }
+    std::printf("%s: valid clusterbake asset v%u, %zu bytes\n", file.c_str(), cb::asset_version, raw.size());
+    std::printf("  meshes %u, instances %u, vertices %u, triangles %u, fine clusters %u, coarse clusters %u\n",
+                view.mesh_count, view.instance_count, view.vertex_count, view.triangle_count, view.fine_count,
+                view.coarse_count);
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -70,10 +181,33 @@ int main(int argc, char** argv) {
     info->add_option("files", info_files, "Scene files (.gltf .glb .obj .ply .off .stl)")->required();
     info->add_flag("--json", info_json, "Print a JSON array, one object per file");
 
+    ClusterArgs ca;
+    CLI::App* cluster = app.add_subcommand("cluster", "Cluster every mesh into coarse and fine clusters and write an asset");
+    cluster->add_option("file", ca.file, "Scene file")->required();
+    cluster->add_option("-o,--output", ca.out, "Output asset (.cbk); written atomically")->required();
+    cluster->add_option("--method", ca.method, "kmeans (default), vco or morton");
+    cluster->add_option("--coarse", ca.options.coarse_size, "Triangles per coarse cluster (default 2048)");
+    cluster->add_option("--fine", ca.options.fine_size, "Maximum triangles per fine cluster (default 16)");
+    cluster->add_option("--threads", ca.options.threads, "Worker threads, 0 = all (output is identical for any count)");
+    cluster->add_option("--seed", ca.options.seed, "Seed of k-means++ (default 1)");
+    cluster->add_option("--k0", ca.options.kmeans_branching, "k-means children per node (default 8)");
+    cluster->add_option("--iterations", ca.options.kmeans_max_iterations, "Cap on Lloyd iterations per node (default 16)");
+    cluster->add_flag("--coarse-from-tree", ca.options.kmeans_coarse_from_tree,
+                      "kmeans: take the coarse level from the top of the k-means tree instead of Morton chunks");
+    cluster->add_option("--cache", ca.options.vco_cache_size, "vco: vertex cache size (default 32)");
+    cluster->add_flag("--json", ca.json, "Print the summary as JSON");
+    cluster->add_flag("-q,--quiet", ca.quiet, "No progress on stderr");
+
+    std::string validate_file;
+    CLI::App* validate = app.add_subcommand("validate", "Check an asset's structure, ranges and checksum");
+    validate->add_option("file", validate_file, "Asset file")->required();
+
     CLI11_PARSE(app, argc, argv);
 
     try {
         if (*info) return run_info(info_files, info_json);
+        if (*cluster) return run_cluster(ca);
+        if (*validate) return run_validate(validate_file);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "clusterbake: %s\n", e.what());
         return 1;

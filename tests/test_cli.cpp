@@ -86,3 +86,35 @@ TEST(Cli, Help) {
     EXPECT_NE(r.out.find("--json"), std::string::npos);
     EXPECT_NE(run("").code, 0);  // a subcommand is required
 }
+
+TEST(Cli, ClusterWritesAValidAssetAndJson) {
+    auto out = std::filesystem::temp_directory_path() / ("cb_cli_" + std::to_string(getpid()) + ".cbk");
+    CliRun r = run("cluster " + data("default_scene.glb") + " --method vco --fine 24 -o " + out.string() + " --json");
+    ASSERT_EQ(r.code, 0) << r.err;
+    auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["method"], "vco");
+    EXPECT_EQ(j["triangles"], 33952);  // each mesh once, however often it is instanced
+    EXPECT_LE(j["fine_max"].get<int>(), 24);
+    EXPECT_LT(j["acmr_after"].get<double>(), j["acmr_before"].get<double>());
+    CliRun v = run("validate " + out.string());
+    EXPECT_EQ(v.code, 0) << v.err;
+    EXPECT_NE(v.out.find("instances 12"), std::string::npos) << v.out;
+    std::filesystem::remove(out);
+}
+
+TEST(Cli, FailedClusterLeavesTheOutputUntouched) {
+    auto dir = std::filesystem::temp_directory_path();
+    auto out = dir / ("cb_cli_keep_" + std::to_string(getpid()) + ".cbk");
+    auto bad = dir / ("cb_cli_bad_" + std::to_string(getpid()) + ".off");
+    std::ofstream(out) << "previous contents";
+    std::ofstream(bad) << "OFF\n3 1 0\n0 0 0\n1 0 0\n";
+    CliRun r = run("cluster " + bad.string() + " -o " + out.string());
+    EXPECT_EQ(r.code, 2);
+    EXPECT_EQ(r.err, bad.string() + ": truncated: 2 of 3 vertices\n");
+    std::ifstream in(out);
+    EXPECT_EQ(std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()), "previous contents");
+    CliRun v = run("validate " + out.string());
+    EXPECT_EQ(v.code, 2);
+    EXPECT_NE(v.err.find("too small"), std::string::npos) << v.err;
+    EXPECT_EQ(run("cluster " + data("small/cube.obj") + " --method nonsense -o " + out.string()).code, 1);
+}

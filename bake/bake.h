@@ -1,0 +1,31 @@
+// The pipeline from a loaded Scene to asset bytes: cluster every mesh once (instances share it), then
+// encode. Sits above io/ and cluster/ so neither needs the other; the CLI only calls this.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "asset_writer.h"
+#include "cluster.h"
+#include "scene.h"
+
+namespace cb {
+
+struct BakeStats {
+    uint64_t triangles = 0, fine_clusters = 0, coarse_clusters = 0, fine_below_half = 0;
+    uint32_t fine_min = 0, fine_max = 0;     // triangles per fine cluster
+    uint32_t coarse_min = 0, coarse_max = 0; // triangles per coarse cluster
+    double acmr_before = 0, acmr_after = 0;  // triangle-weighted over meshes (vco only)
+    double cluster_seconds = 0;
+};
+
+// Mesh `m` of the scene in cluster order, ranges mesh-local.
+AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h);
+
+// Clusters every mesh of the scene. `progress(mesh, mesh_count, chunk, chunk_count)` when set.
+std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& options, BakeStats& stats,
+                                     const std::function<void(size_t, size_t, size_t, size_t)>& progress = {});
+
+}  // namespace cb

@@ -1,0 +1,77 @@
+// Two-level triangle clustering of one mesh: coarse clusters (about `coarse_size` triangles) each split
+// into fine clusters (at most `fine_size` triangles), by Morton order, hierarchical k-means++ over triangle
+// boxes, or Forsyth vertex-cache order cut into connected patches.
+//
+// Pure functions over flat arrays: positions are xyz floats, indices 3 per triangle. The output is a
+// permutation of the triangles plus two levels of ranges over it, identical for any thread count.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace cb {
+
+enum class ClusterMethod { kmeans, vco, morton };
+
+const char* method_name(ClusterMethod m);
+bool parse_method(const std::string& name, ClusterMethod& out);
+
+struct ClusterOptions {
+    ClusterMethod method = ClusterMethod::kmeans;
+    uint32_t coarse_size = 2048;   // target triangles per coarse cluster (Morton chunks hold exactly this many)
+    uint32_t fine_size = 16;       // hard maximum triangles per fine cluster
+    uint32_t kmeans_branching = 8; // k0: children per k-means node
+    uint32_t kmeans_max_iterations = 16;
+    bool kmeans_coarse_from_tree = false;  // coarse level from the top of the k-means tree, not Morton
+    uint32_t vco_cache_size = 32;
+    uint64_t seed = 1;
+    unsigned threads = 0;          // 0: all hardware threads
+};
+
+// Ranges: fine cluster f holds triangles order[fine_offsets[f] .. fine_offsets[f+1]); coarse cluster c holds
+// fine clusters [coarse_offsets[c] .. coarse_offsets[c+1]), whose triangles are contiguous in `order`.
+struct Hierarchy {
+    std::vector<uint32_t> order;           // triangle permutation: position -> original triangle index
+    std::vector<uint32_t> fine_offsets;    // fine cluster count + 1 entries, into `order`
+    std::vector<uint32_t> coarse_offsets;  // coarse cluster count + 1 entries, into fine clusters
+
+    size_t fine_count() const { return fine_offsets.empty() ? 0 : fine_offsets.size() - 1; }
+    size_t coarse_count() const { return coarse_offsets.empty() ? 0 : coarse_offsets.size() - 1; }
+};
+
+struct ClusterStats {
+    uint64_t fine_below_half = 0;   // fine clusters with fewer than fine_size / 2 triangles
+    double acmr_before = 0;         // FIFO cache of vco_cache_size over the input order (vco only)
+    double acmr_after = 0;          // ... and over the clustered order
+};
+
+// `progress`, when set, is called with (chunks done, chunk count) from the calling thread.
+Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uint32_t* indices, size_t triangle_count,
+                          const ClusterOptions& options, ClusterStats* stats = nullptr,
+                          const std::function<void(size_t, size_t)>& progress = {});
+
+// ---- the building blocks, exposed for tests and benchmarks
+
+// Triangle indices sorted by the 63-bit Morton code of each triangle's box centre within the mesh bounds;
+// ties keep input order.
+std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count);
+
+// Hierarchical k-means++ over the triangles `tris` (reordered in place) with at most `max_size` per leaf;
+// appends the leaf sizes to `leaf_sizes` in order. `boxes` holds 6 floats (min xyz, max xyz) per triangle.
+void kmeans_split(const float* boxes, uint32_t* tris, size_t count, uint32_t max_size, uint32_t branching,
+                  uint32_t max_iterations, uint64_t seed, std::vector<uint32_t>& leaf_sizes);
+
+// Forsyth's linear-speed vertex cache optimisation: a new order of the triangles (indices into the input).
+std::vector<uint32_t> forsyth_order(const uint32_t* indices, size_t triangle_count, size_t vertex_count,
+                                    uint32_t cache_size);
+
+// Average cache miss ratio (misses per triangle) of a FIFO cache of `cache_size` vertices.
+double fifo_acmr(const uint32_t* indices, size_t triangle_count, size_t vertex_count, uint32_t cache_size);
+
+// Splits consecutive triangles `tris[0..count)` into connected patches (sharing a vertex), stable within
+// each patch; reorders `tris` so each patch is contiguous and appends the patch sizes.
+void connected_patches(const uint32_t* indices, uint32_t* tris, size_t count, std::vector<uint32_t>& patch_sizes);
+
+}  // namespace cb

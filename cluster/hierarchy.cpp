@@ -1,0 +1,177 @@
+// The two-level hierarchy: coarse chunks first (Morton order, or the top of the k-means tree), then each
+// chunk split into fine clusters independently, in parallel, with a seed that depends only on the chunk.
+#include <algorithm>
+#include <atomic>
+#include <numeric>
+#include <thread>
+
+#include "cluster.h"
+
+namespace cb {
+
+const char* method_name(ClusterMethod m) {
+    switch (m) {
+        case ClusterMethod::kmeans: return "kmeans";
+        case ClusterMethod::vco: return "vco";
+        case ClusterMethod::morton: return "morton";
+    }
+    return "?";
+}
+
+bool parse_method(const std::string& name, ClusterMethod& out) {
+    for (ClusterMethod m : {ClusterMethod::kmeans, ClusterMethod::vco, ClusterMethod::morton})
+        if (name == method_name(m)) return out = m, true;
+    return false;
+}
+
+void connected_patches(const uint32_t* indices, uint32_t* tris, size_t count, std::vector<uint32_t>& patch_sizes) {
+    // Union-find over the slice; slices are small (fine_size triangles), so the pairwise test is cheap.
+    std::vector<uint32_t> parent(count);
+    std::iota(parent.begin(), parent.end(), 0u);
+    auto root = [&](uint32_t i) {
+        while (parent[i] != i) i = parent[i] = parent[parent[i]];
+        return i;
+    };
+    for (size_t i = 0; i < count; ++i)
+        for (size_t j = i + 1; j < count; ++j) {
+            const uint32_t* a = indices + size_t(tris[i]) * 3;
+            const uint32_t* b = indices + size_t(tris[j]) * 3;
+            bool shared = false;
+            for (int x = 0; x < 3 && !shared; ++x)
+                for (int y = 0; y < 3 && !shared; ++y) shared = a[x] == b[y];
+            if (shared) parent[root(uint32_t(j))] = root(uint32_t(i));
+        }
+    // Patches in order of their first triangle; triangles keep their order within a patch.
+    std::vector<uint32_t> result;
+    result.reserve(count);
+    std::vector<uint8_t> taken(count, 0);
+    for (size_t i = 0; i < count; ++i) {
+        if (taken[i]) continue;
+        uint32_t r = root(uint32_t(i));
+        size_t before = result.size();
+        for (size_t j = i; j < count; ++j)
+            if (!taken[j] && root(uint32_t(j)) == r) taken[j] = 1, result.push_back(tris[j]);
+        patch_sizes.push_back(uint32_t(result.size() - before));
+    }
+    std::copy(result.begin(), result.end(), tris);
+}
+
+namespace {
+
+std::vector<float> triangle_boxes(const float* positions, const uint32_t* indices, size_t triangle_count) {
+    std::vector<float> boxes(triangle_count * 6);
+    for (size_t t = 0; t < triangle_count; ++t) {
+        const float* a = positions + size_t(indices[t * 3]) * 3;
+        const float* b = positions + size_t(indices[t * 3 + 1]) * 3;
+        const float* c = positions + size_t(indices[t * 3 + 2]) * 3;
+        for (int k = 0; k < 3; ++k) {
+            boxes[t * 6 + k] = std::min({a[k], b[k], c[k]});
+            boxes[t * 6 + 3 + k] = std::max({a[k], b[k], c[k]});
+        }
+    }
+    return boxes;
+}
+
+// Forsyth order inside one chunk (vertices renumbered locally so the cache state is the chunk's own), then
+// slices of fine_size triangles, each cut into connected patches.
+void vco_chunk(const uint32_t* indices, uint32_t* tris, size_t count, const ClusterOptions& o,
+               std::vector<uint32_t>& sizes) {
+    std::vector<uint32_t> local(count * 3), remap_keys;
+    remap_keys.reserve(count * 3);
+    for (size_t i = 0; i < count; ++i)
+        for (int k = 0; k < 3; ++k) remap_keys.push_back(indices[size_t(tris[i]) * 3 + k]);
+    std::vector<uint32_t> unique_vertices = remap_keys;
+    std::sort(unique_vertices.begin(), unique_vertices.end());
+    unique_vertices.erase(std::unique(unique_vertices.begin(), unique_vertices.end()), unique_vertices.end());
+    for (size_t i = 0; i < remap_keys.size(); ++i)
+        local[i] = uint32_t(std::lower_bound(unique_vertices.begin(), unique_vertices.end(), remap_keys[i]) - unique_vertices.begin());
+    std::vector<uint32_t> order = forsyth_order(local.data(), count, unique_vertices.size(), o.vco_cache_size);
+    std::vector<uint32_t> reordered(count);
+    for (size_t i = 0; i < count; ++i) reordered[i] = tris[order[i]];
+    std::copy(reordered.begin(), reordered.end(), tris);
+    for (size_t at = 0; at < count; at += o.fine_size)
+        connected_patches(indices, tris + at, std::min<size_t>(o.fine_size, count - at), sizes);
+}
+
+void split_chunk(const float* boxes, const uint32_t* indices, uint32_t* tris, size_t count, size_t chunk,
+                 const ClusterOptions& o, std::vector<uint32_t>& sizes) {
+    switch (o.method) {
+        case ClusterMethod::kmeans:
+            kmeans_split(boxes, tris, count, o.fine_size, o.kmeans_branching, o.kmeans_max_iterations,
+                         o.seed * 0x9e3779b97f4a7c15ULL + chunk, sizes);
+            break;
+        case ClusterMethod::vco: vco_chunk(indices, tris, count, o, sizes); break;
+        case ClusterMethod::morton:
+            for (size_t at = 0; at < count; at += o.fine_size) sizes.push_back(uint32_t(std::min<size_t>(o.fine_size, count - at)));
+            break;
+    }
+}
+
+}  // namespace
+
+Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uint32_t* indices, size_t triangle_count,
+                          const ClusterOptions& options, ClusterStats* stats,
+                          const std::function<void(size_t, size_t)>& progress) {
+    ClusterOptions o = options;
+    o.fine_size = std::max(1u, o.fine_size);
+    o.coarse_size = std::max(o.fine_size, o.coarse_size);
+    Hierarchy h;
+    std::vector<float> boxes;
+    if (o.method == ClusterMethod::kmeans) boxes = triangle_boxes(positions, indices, triangle_count);
+
+    // Coarse level.
+    std::vector<uint32_t> chunk_sizes;
+    if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree) {
+        h.order.resize(triangle_count);
+        std::iota(h.order.begin(), h.order.end(), 0u);
+        kmeans_split(boxes.data(), h.order.data(), triangle_count, o.coarse_size, o.kmeans_branching,
+                     o.kmeans_max_iterations, o.seed, chunk_sizes);
+    } else {
+        h.order = morton_order(positions, indices, triangle_count);
+        for (size_t at = 0; at < triangle_count; at += o.coarse_size)
+            chunk_sizes.push_back(uint32_t(std::min<size_t>(o.coarse_size, triangle_count - at)));
+    }
+    std::vector<size_t> chunk_start(chunk_sizes.size() + 1, 0);
+    for (size_t c = 0; c < chunk_sizes.size(); ++c) chunk_start[c + 1] = chunk_start[c] + chunk_sizes[c];
+
+    // Fine level: chunks are independent; each writes only its own range and its own size list.
+    std::vector<std::vector<uint32_t>> fine(chunk_sizes.size());
+    std::atomic<size_t> next{0}, done{0};
+    auto work = [&](bool report) {
+        for (size_t c; (c = next.fetch_add(1)) < chunk_sizes.size();) {
+            split_chunk(boxes.data(), indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
+            size_t finished = done.fetch_add(1) + 1;
+            if (report && progress) progress(finished, chunk_sizes.size());
+        }
+    };
+    unsigned threads = o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+    threads = unsigned(std::min<size_t>(threads, std::max<size_t>(1, chunk_sizes.size())));
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, false);
+    work(true);
+    for (auto& t : pool) t.join();
+
+    h.fine_offsets.push_back(0);
+    h.coarse_offsets.push_back(0);
+    uint64_t below_half = 0;
+    for (const auto& sizes : fine) {
+        for (uint32_t s : sizes) {
+            h.fine_offsets.push_back(h.fine_offsets.back() + s);
+            below_half += uint64_t(s) * 2 < o.fine_size;
+        }
+        h.coarse_offsets.push_back(uint32_t(h.fine_offsets.size() - 1));
+    }
+    if (stats) {
+        stats->fine_below_half = below_half;
+        if (o.method == ClusterMethod::vco) {
+            std::vector<uint32_t> reordered(triangle_count * 3);
+            for (size_t i = 0; i < triangle_count; ++i)
+                for (int k = 0; k < 3; ++k) reordered[i * 3 + k] = indices[size_t(h.order[i]) * 3 + k];
+            stats->acmr_before = fifo_acmr(indices, triangle_count, vertex_count, o.vco_cache_size);
+            stats->acmr_after = fifo_acmr(reordered.data(), triangle_count, vertex_count, o.vco_cache_size);
+        }
+    }
+    return h;
+}
+
+}  // namespace cb

@@ -1,0 +1,218 @@
+// Hierarchical k-means++ over triangle boxes seen as 6-D points (min xyz, max xyz): the distance is
+// |min1 - min2|^2 + |max1 - max2|^2 and a centre is the mean box (Meister and Bittner's clustering of
+// triangles for BVH construction, used by the thesis, section 2.2.2).
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "cluster.h"
+#include "nearest_centre.h"
+
+namespace cb {
+namespace {
+
+uint64_t mix(uint64_t x) {  // splitmix64 finaliser: seeds for children, deterministic and well spread
+    x += 0x9e3779b97f4a7c15ULL;
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+    return x ^ (x >> 31);
+}
+
+struct Rng {
+    uint64_t state;
+    uint64_t next() { return state = mix(state); }
+    double uniform() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }
+};
+
+inline float distance2(const float* a, const float* b) {
+    float s = 0;
+    for (int k = 0; k < 6; ++k) {
+        float d = a[k] - b[k];
+        s += d * d;
+    }
+    return s;
+}
+
+class KMeans {
+public:
+    KMeans(const float* boxes, uint32_t max_size, uint32_t branching, uint32_t max_iterations)
+        : boxes_(boxes), max_size_(max_size), branching_(std::max(2u, branching)),
+          max_iterations_(std::max(1u, max_iterations)) {}
+
+    void split(uint32_t* tris, size_t n, uint64_t seed, std::vector<uint32_t>& leaves) {
+        if (n <= max_size_) {
+            if (n) leaves.push_back(uint32_t(n));
+            return;
+        }
+        size_t k = std::min<size_t>(branching_, (n + max_size_ - 1) / max_size_);
+        // Two leaves' worth: a balanced median cut gives two halves of at least max_size / 2, where a
+        // 2-means split of so few triangles often leaves a sliver of one or two.
+        if (k == 2) return median_split(tris, n, seed, leaves);
+
+        gather(tris, n);
+        size_t found = seed_centres(n, k, seed);
+        if (found < 2) return slice(tris, n, leaves);  // every box identical: any cut is as compact
+        lloyd(n, found);
+        std::vector<std::vector<uint32_t>> groups = group(tris, n, found);
+        merge_small(groups);
+        if (groups.size() < 2) return slice(tris, n, leaves);
+
+        // Write the groups back contiguously, then recurse into each.
+        size_t at = 0;
+        std::vector<size_t> starts;
+        for (const auto& g : groups) {
+            starts.push_back(at);
+            std::copy(g.begin(), g.end(), tris + at);
+            at += g.size();
+        }
+        for (size_t g = 0; g < groups.size(); ++g) split(tris + starts[g], groups[g].size(), mix(seed ^ (g + 1)), leaves);
+    }
+
+private:
+    void gather(const uint32_t* tris, size_t n) {
+        points_.resize(n * 6);
+        for (size_t i = 0; i < n; ++i) std::copy_n(boxes_ + size_t(tris[i]) * 6, 6, &points_[i * 6]);
+    }
+
+    // k-means++: the first centre uniformly, each next one with probability proportional to the squared
+    // distance to the nearest centre so far. Returns how many distinct centres exist (fewer than k when the
+    // points have fewer distinct values).
+    size_t seed_centres(size_t n, size_t k, uint64_t seed) {
+        Rng rng{seed};
+        centres_.assign(k * 6, 0.0f);
+        nearest_.resize(n);
+        size_t first = size_t(rng.next() % n);
+        std::copy_n(&points_[first * 6], 6, &centres_[0]);
+        for (size_t i = 0; i < n; ++i) nearest_[i] = distance2(&points_[i * 6], &centres_[0]);
+        size_t found = 1;
+        while (found < k) {
+            double total = 0;
+            for (size_t i = 0; i < n; ++i) total += nearest_[i];
+            if (!(total > 0)) break;
+            double target = rng.uniform() * total, run = 0;
+            size_t pick = n - 1;
+            for (size_t i = 0; i < n; ++i) {
+                run += nearest_[i];
+                if (run > target && nearest_[i] > 0) {
+                    pick = i;
+                    break;
+                }
+            }
+            if (!(nearest_[pick] > 0)) break;
+            float* c = &centres_[found * 6];
+            std::copy_n(&points_[pick * 6], 6, c);
+            for (size_t i = 0; i < n; ++i) nearest_[i] = std::min(nearest_[i], distance2(&points_[i * 6], c));
+            ++found;
+        }
+        centres_.resize(found * 6);
+        return found;
+    }
+
+    // Lloyd iterations until no assignment changes (or the cap). An empty cluster takes the point farthest
+    // from its own centre, so k clusters stay k.
+    void lloyd(size_t n, size_t k) {
+        assignment_.assign(n, uint32_t(-1));
+        std::vector<double> sum(k * 6);
+        std::vector<uint32_t> size(k);
+        for (uint32_t iteration = 0; iteration < max_iterations_; ++iteration) {
+            size_t changed = assign_nearest(points_.data(), n, centres_.data(), k, assignment_.data(), nearest_.data());
+            if (changed == 0) break;
+            std::fill(sum.begin(), sum.end(), 0.0);
+            std::fill(size.begin(), size.end(), 0u);
+            for (size_t i = 0; i < n; ++i) {
+                uint32_t a = assignment_[i];
+                ++size[a];
+                for (int d = 0; d < 6; ++d) sum[a * 6 + d] += points_[i * 6 + d];
+            }
+            for (size_t c = 0; c < k; ++c) {
+                if (size[c] == 0) {
+                    size_t far = size_t(std::max_element(nearest_.begin(), nearest_.end()) - nearest_.begin());
+                    std::copy_n(&points_[far * 6], 6, &centres_[c * 6]);
+                    nearest_[far] = 0;  // do not hand the same point to two empty clusters
+                    continue;
+                }
+                for (int d = 0; d < 6; ++d) centres_[c * 6 + d] = float(sum[c * 6 + d] / size[c]);
+            }
+        }
+    }
+
+    // Members of each cluster in their current order (a stable counting sort), empty ones dropped.
+    std::vector<std::vector<uint32_t>> group(const uint32_t* tris, size_t n, size_t k) {
+        std::vector<std::vector<uint32_t>> groups(k);
+        for (size_t i = 0; i < n; ++i) groups[assignment_[i]].push_back(tris[i]);
+        groups.erase(std::remove_if(groups.begin(), groups.end(), [](const auto& g) { return g.empty(); }), groups.end());
+        return groups;
+    }
+
+    // Merges each group under half the limit into the sibling whose mean box is nearest, while the merged
+    // group still fits one leaf: fewer slivers, no leaf over the limit.
+    void merge_small(std::vector<std::vector<uint32_t>>& groups) {
+        for (;;) {
+            size_t smallest = 0;
+            for (size_t g = 1; g < groups.size(); ++g)
+                if (groups[g].size() < groups[smallest].size()) smallest = g;
+            if (groups.size() < 2 || groups[smallest].size() * 2 >= max_size_) return;
+            float a[6];
+            mean_box(groups[smallest], a);
+            size_t best = SIZE_MAX;
+            float best_d = INFINITY;
+            for (size_t g = 0; g < groups.size(); ++g) {
+                if (g == smallest || groups[g].size() + groups[smallest].size() > max_size_) continue;
+                float b[6];
+                mean_box(groups[g], b);
+                float d = distance2(a, b);
+                if (d < best_d) best_d = d, best = g;
+            }
+            if (best == SIZE_MAX) return;
+            groups[best].insert(groups[best].end(), groups[smallest].begin(), groups[smallest].end());
+            groups.erase(groups.begin() + std::ptrdiff_t(smallest));
+        }
+    }
+
+    void mean_box(const std::vector<uint32_t>& g, float out[6]) const {
+        double s[6] = {};
+        for (uint32_t t : g)
+            for (int d = 0; d < 6; ++d) s[d] += boxes_[size_t(t) * 6 + d];
+        for (int d = 0; d < 6; ++d) out[d] = float(s[d] / double(g.size()));
+    }
+
+    // Halves at the median of box centres along the axis where they spread most.
+    void median_split(uint32_t* tris, size_t n, uint64_t seed, std::vector<uint32_t>& leaves) {
+        float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (size_t i = 0; i < n; ++i)
+            for (int k = 0; k < 3; ++k) {
+                float c = centre(tris[i], k);
+                lo[k] = std::min(lo[k], c), hi[k] = std::max(hi[k], c);
+            }
+        int axis = 0;
+        for (int k = 1; k < 3; ++k)
+            if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
+        size_t half = n / 2;
+        std::nth_element(tris, tris + half, tris + n, [&](uint32_t a, uint32_t b) {
+            float ca = centre(a, axis), cb = centre(b, axis);
+            return ca < cb || (ca == cb && a < b);  // a total order: the same cut on every run
+        });
+        split(tris, half, mix(seed ^ 1), leaves);
+        split(tris + half, n - half, mix(seed ^ 2), leaves);
+    }
+
+    float centre(uint32_t t, int axis) const { return boxes_[size_t(t) * 6 + axis] + boxes_[size_t(t) * 6 + 3 + axis]; }
+
+    void slice(uint32_t*, size_t n, std::vector<uint32_t>& leaves) const {
+        for (size_t at = 0; at < n; at += max_size_) leaves.push_back(uint32_t(std::min<size_t>(max_size_, n - at)));
+    }
+
+    const float* boxes_;
+    uint32_t max_size_, branching_, max_iterations_;
+    std::vector<float> points_, centres_, nearest_;
+    std::vector<uint32_t> assignment_;
+};
+
+}  // namespace
+
+void kmeans_split(const float* boxes, uint32_t* tris, size_t count, uint32_t max_size, uint32_t branching,
+                  uint32_t max_iterations, uint64_t seed, std::vector<uint32_t>& leaf_sizes) {
+    KMeans(boxes, std::max(1u, max_size), branching, max_iterations).split(tris, count, seed, leaf_sizes);
+}
+
+}  // namespace cb

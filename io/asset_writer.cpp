@@ -1,0 +1,106 @@
+#include "asset_writer.h"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <stdexcept>
+#include <unistd.h>
+
+namespace cb {
+namespace {
+
+template <class T>
+void append(std::vector<uint8_t>& out, const T* data, size_t count) {
+    const uint8_t* p = reinterpret_cast<const uint8_t*>(data);
+    out.insert(out.end(), p, p + count * sizeof(T));
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances) {
+    // Concatenate every mesh's arrays; records hold each mesh's offsets into them.
+    std::vector<MeshRecord> records;
+    std::vector<float> positions;
+    std::vector<uint32_t> triangles;
+    std::vector<ClusterRange> fine, coarse;
+    for (const AssetMesh& m : meshes) {
+        MeshRecord r{};
+        r.first_vertex = uint32_t(positions.size() / 3);
+        r.vertex_count = uint32_t(m.positions.size() / 3);
+        r.first_triangle = uint32_t(triangles.size() / 3);
+        r.triangle_count = uint32_t(m.triangles.size() / 3);
+        r.first_fine = uint32_t(fine.size());
+        r.fine_count = uint32_t(m.fine.size());
+        r.first_coarse = uint32_t(coarse.size());
+        r.coarse_count = uint32_t(m.coarse.size());
+        records.push_back(r);
+        positions.insert(positions.end(), m.positions.begin(), m.positions.end());
+        triangles.insert(triangles.end(), m.triangles.begin(), m.triangles.end());
+        fine.insert(fine.end(), m.fine.begin(), m.fine.end());
+        coarse.insert(coarse.end(), m.coarse.begin(), m.coarse.end());
+    }
+    std::vector<InstanceRecord> inst(instances.size());
+    for (size_t i = 0; i < instances.size(); ++i) {
+        inst[i] = InstanceRecord{};
+        inst[i].mesh = instances[i].mesh;
+        for (int col = 0; col < 4; ++col)
+            for (int row = 0; row < 3; ++row) inst[i].transform[col * 3 + row] = instances[i].world[size_t(col) * 4 + row];
+    }
+
+    struct Pending { SectionType type; uint32_t element_size; std::vector<uint8_t> bytes; uint64_t count; };
+    std::vector<Pending> sections;
+    auto add = [&](SectionType type, const auto& v, uint32_t element_size) {
+        Pending p{type, element_size, {}, 0};
+        append(p.bytes, v.data(), v.size());
+        p.count = p.bytes.size() / element_size;
+        sections.push_back(std::move(p));
+    };
+    add(SectionType::meshes, records, sizeof(MeshRecord));
+    add(SectionType::positions, positions, 12);
+    add(SectionType::triangles, triangles, 12);
+    add(SectionType::fine_clusters, fine, sizeof(ClusterRange));
+    add(SectionType::coarse_clusters, coarse, sizeof(ClusterRange));
+    add(SectionType::instances, inst, sizeof(InstanceRecord));
+
+    auto aligned = [](uint64_t x) { return (x + asset_alignment - 1) / asset_alignment * asset_alignment; };
+    std::vector<SectionEntry> table;
+    uint64_t at = aligned(sizeof(AssetHeader) + sections.size() * sizeof(SectionEntry));
+    for (const Pending& p : sections) {
+        table.push_back({uint32_t(p.type), p.element_size, at, p.bytes.size(), p.count});
+        at = aligned(at + p.bytes.size());
+    }
+    std::vector<uint8_t> out(sizeof(AssetHeader), 0);
+    append(out, table.data(), table.size());
+    for (size_t s = 0; s < sections.size(); ++s) {
+        out.resize(table[s].offset, 0);  // zero padding up to the aligned offset
+        out.insert(out.end(), sections[s].bytes.begin(), sections[s].bytes.end());
+    }
+    out.resize(aligned(out.size()), 0);
+
+    AssetHeader h{};
+    std::memcpy(h.magic, asset_magic, 8);
+    h.version = asset_version;
+    h.header_size = sizeof(AssetHeader);
+    h.section_count = uint32_t(sections.size());
+    h.file_size = out.size();
+    h.checksum = fnv1a64(out.data() + sizeof(AssetHeader), out.size() - sizeof(AssetHeader));
+    std::memcpy(out.data(), &h, sizeof h);
+    return out;
+}
+
+void write_file_atomic(const std::string& path, const std::vector<uint8_t>& bytes) {
+    std::string tmp = path + ".tmp" + std::to_string(getpid());
+    FILE* f = std::fopen(tmp.c_str(), "wb");
+    if (!f) throw std::runtime_error(path + ": cannot write (" + std::strerror(errno) + ")");
+    bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+    ok = (std::fflush(f) == 0) && ok;
+    ok = (std::fclose(f) == 0) && ok;
+    if (!ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
+        int err = errno;
+        std::remove(tmp.c_str());
+        throw std::runtime_error(path + ": cannot write (" + std::strerror(err) + ")");
+    }
+}
+
+}  // namespace cb

@@ -1,0 +1,27 @@
+// Writes the clusterbake asset (runtime/cb_asset.h, docs/FORMAT.md) from flat per-mesh arrays.
+#pragma once
+
+#include <cb_asset.h>
+
+#include <string>
+#include <vector>
+
+#include "scene.h"
+
+namespace cb {
+
+// One mesh as the asset stores it: triangles already in cluster order, ranges mesh-local.
+struct AssetMesh {
+    std::vector<float> positions;      // xyz per vertex
+    std::vector<uint32_t> triangles;   // 3 per triangle, in cluster order
+    std::vector<ClusterRange> fine;    // tiles the triangles
+    std::vector<ClusterRange> coarse;  // tiles the fine clusters
+};
+
+std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances);
+
+// Writes to a temporary file beside `path` and renames it over `path`, so a failure leaves any existing
+// file untouched. Throws std::runtime_error naming the path.
+void write_file_atomic(const std::string& path, const std::vector<uint8_t>& bytes);
+
+}  // namespace cb

@@ -1,0 +1,232 @@
+// clusterbake asset: layout constants and a validating read-only view. Header-only C++17, no
+// dependencies, no exceptions, no allocation. MIT licensed (runtime/LICENSE). Spec: docs/FORMAT.md.
+//
+//   cb::AssetView view;
+//   cb::AssetError e = cb::open_asset(bytes, size, &view);   // checks everything before any use
+//   if (e != cb::AssetError::ok) { ... cb::asset_error_text(e) ... }
+//
+// Every offset, count and index is checked once in open_asset; afterwards the view's arrays may be
+// indexed within the ranges its records state.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+
+namespace cb {
+
+constexpr char asset_magic[8] = {'C', 'L', 'B', 'A', 'K', 'E', '\r', '\n'};
+constexpr uint32_t asset_version = 1;
+constexpr uint32_t asset_alignment = 16;
+
+enum class SectionType : uint32_t {
+    meshes = 1,           // MeshRecord per mesh
+    positions = 2,        // float x, y, z per vertex, all meshes back to back
+    triangles = 3,        // uint32 x 3 per triangle, mesh-local vertex indices, in cluster order
+    fine_clusters = 4,    // ClusterRange per fine cluster: mesh-local triangle range
+    coarse_clusters = 5,  // ClusterRange per coarse cluster: mesh-local fine cluster range
+    instances = 6,        // InstanceRecord per instance
+};
+
+struct AssetHeader {          // 64 bytes at offset 0
+    char magic[8];
+    uint32_t version;
+    uint32_t flags;           // none defined in version 1: must be 0
+    uint32_t header_size;     // sizeof(AssetHeader)
+    uint32_t section_count;
+    uint64_t file_size;
+    uint64_t checksum;        // FNV-1a 64 of every byte after the header
+    uint8_t reserved[24];
+};
+
+struct SectionEntry {         // 32 bytes each, right after the header
+    uint32_t type;            // SectionType
+    uint32_t element_size;    // bytes per element
+    uint64_t offset;          // from the start of the file, a multiple of asset_alignment
+    uint64_t size;            // bytes
+    uint64_t count;           // elements: size == count * element_size
+};
+
+struct MeshRecord {           // 32 bytes
+    uint32_t first_vertex, vertex_count;      // into positions
+    uint32_t first_triangle, triangle_count;  // into triangles
+    uint32_t first_fine, fine_count;          // into fine_clusters
+    uint32_t first_coarse, coarse_count;      // into coarse_clusters
+};
+
+struct ClusterRange {         // 8 bytes
+    uint32_t first, count;
+};
+
+struct InstanceRecord {       // 112 bytes
+    uint32_t mesh;
+    uint32_t reserved;
+    uint64_t reserved2;
+    double transform[12];     // affine, column-major 3x4: columns x, y, z axes then translation
+};
+
+static_assert(sizeof(AssetHeader) == 64 && sizeof(SectionEntry) == 32 && sizeof(MeshRecord) == 32 &&
+                  sizeof(ClusterRange) == 8 && sizeof(InstanceRecord) == 112,
+              "asset records must have their documented sizes");
+
+enum class AssetError {
+    ok = 0,
+    too_small,
+    bad_magic,
+    bad_version,
+    bad_header,
+    size_mismatch,
+    bad_checksum,
+    bad_section_table,
+    misaligned_section,
+    section_out_of_bounds,
+    duplicate_section,
+    missing_section,
+    bad_element_size,
+    bad_mesh_range,
+    bad_cluster_range,
+    bad_index,
+    bad_instance,
+    non_finite,
+};
+
+inline const char* asset_error_text(AssetError e) {
+    switch (e) {
+        case AssetError::ok: return "ok";
+        case AssetError::too_small: return "file too small for a header";
+        case AssetError::bad_magic: return "not a clusterbake asset (bad magic)";
+        case AssetError::bad_version: return "unsupported version";
+        case AssetError::bad_header: return "malformed header";
+        case AssetError::size_mismatch: return "file size differs from the header's (truncated?)";
+        case AssetError::bad_checksum: return "checksum mismatch (corrupted)";
+        case AssetError::bad_section_table: return "section table out of bounds";
+        case AssetError::misaligned_section: return "section not 16-byte aligned";
+        case AssetError::section_out_of_bounds: return "section past the end of the file";
+        case AssetError::duplicate_section: return "section type appears twice";
+        case AssetError::missing_section: return "required section missing";
+        case AssetError::bad_element_size: return "section element size or count inconsistent";
+        case AssetError::bad_mesh_range: return "mesh record range out of bounds";
+        case AssetError::bad_cluster_range: return "cluster range out of bounds or not contiguous";
+        case AssetError::bad_index: return "triangle index out of range";
+        case AssetError::bad_instance: return "instance names a missing mesh";
+        case AssetError::non_finite: return "non-finite position or transform";
+    }
+    return "unknown error";
+}
+
+inline uint64_t fnv1a64(const uint8_t* p, size_t n, uint64_t h = 0xcbf29ce484222325ULL) {
+    for (size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 0x100000001b3ULL;
+    return h;
+}
+
+// Arrays point into the caller's bytes (which must stay alive and be 8-byte aligned for the doubles of
+// InstanceRecord; a memory-mapped file or a new[]-ed buffer is).
+struct AssetView {
+    const MeshRecord* meshes = nullptr;
+    uint32_t mesh_count = 0;
+    const float* positions = nullptr;
+    uint32_t vertex_count = 0;
+    const uint32_t* triangles = nullptr;
+    uint32_t triangle_count = 0;
+    const ClusterRange* fine = nullptr;
+    uint32_t fine_count = 0;
+    const ClusterRange* coarse = nullptr;
+    uint32_t coarse_count = 0;
+    const InstanceRecord* instances = nullptr;
+    uint32_t instance_count = 0;
+};
+
+namespace asset_detail {
+
+inline bool range_ok(uint64_t first, uint64_t count, uint64_t limit) { return first <= limit && count <= limit - first; }
+
+// Ranges must tile [0, total) in order: each starts where the previous ended.
+inline bool ranges_tile(const ClusterRange* r, uint32_t n, uint32_t total) {
+    uint64_t at = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        if (r[i].first != at || r[i].count == 0) return false;
+        at += r[i].count;
+    }
+    return at == total;
+}
+
+}  // namespace asset_detail
+
+inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
+    using namespace asset_detail;
+    const uint8_t* base = static_cast<const uint8_t*>(bytes);
+    if (!bytes || size < sizeof(AssetHeader)) return AssetError::too_small;
+    AssetHeader h;
+    std::memcpy(&h, base, sizeof h);
+    if (std::memcmp(h.magic, asset_magic, 8) != 0) return AssetError::bad_magic;
+    if (h.version != asset_version) return AssetError::bad_version;
+    if (h.header_size != sizeof(AssetHeader) || h.flags != 0) return AssetError::bad_header;
+    if (h.file_size != size) return AssetError::size_mismatch;
+    if (h.section_count > 64 || sizeof(AssetHeader) + uint64_t(h.section_count) * sizeof(SectionEntry) > size)
+        return AssetError::bad_section_table;
+    if (fnv1a64(base + sizeof(AssetHeader), size - sizeof(AssetHeader)) != h.checksum) return AssetError::bad_checksum;
+
+    struct Known { SectionType type; uint32_t element_size; bool required; const void** data; uint32_t* count; };
+    AssetView v;
+    const void* ptr[6] = {};
+    Known known[6] = {
+        {SectionType::meshes, sizeof(MeshRecord), true, &ptr[0], &v.mesh_count},
+        {SectionType::positions, 12, true, &ptr[1], &v.vertex_count},
+        {SectionType::triangles, 12, true, &ptr[2], &v.triangle_count},
+        {SectionType::fine_clusters, sizeof(ClusterRange), true, &ptr[3], &v.fine_count},
+        {SectionType::coarse_clusters, sizeof(ClusterRange), true, &ptr[4], &v.coarse_count},
+        {SectionType::instances, sizeof(InstanceRecord), true, &ptr[5], &v.instance_count},
+    };
+    bool seen[6] = {};
+    for (uint32_t s = 0; s < h.section_count; ++s) {
+        SectionEntry e;
+        std::memcpy(&e, base + sizeof(AssetHeader) + size_t(s) * sizeof(SectionEntry), sizeof e);
+        if (e.offset % asset_alignment != 0) return AssetError::misaligned_section;
+        if (!range_ok(e.offset, e.size, size)) return AssetError::section_out_of_bounds;
+        for (int k = 0; k < 6; ++k) {
+            if (e.type != uint32_t(known[k].type)) continue;  // unknown types are skipped: newer, optional data
+            if (seen[k]) return AssetError::duplicate_section;
+            seen[k] = true;
+            if (e.element_size != known[k].element_size || e.count > UINT32_MAX ||
+                e.size != e.count * uint64_t(e.element_size))
+                return AssetError::bad_element_size;
+            *known[k].data = base + e.offset;
+            *known[k].count = uint32_t(e.count);
+        }
+    }
+    for (int k = 0; k < 6; ++k)
+        if (known[k].required && !seen[k]) return AssetError::missing_section;
+    v.meshes = static_cast<const MeshRecord*>(ptr[0]);
+    v.positions = static_cast<const float*>(ptr[1]);
+    v.triangles = static_cast<const uint32_t*>(ptr[2]);
+    v.fine = static_cast<const ClusterRange*>(ptr[3]);
+    v.coarse = static_cast<const ClusterRange*>(ptr[4]);
+    v.instances = static_cast<const InstanceRecord*>(ptr[5]);
+
+    for (size_t i = 0; i < size_t(v.vertex_count) * 3; ++i)
+        if (!std::isfinite(v.positions[i])) return AssetError::non_finite;
+    for (uint32_t m = 0; m < v.mesh_count; ++m) {
+        const MeshRecord& r = v.meshes[m];
+        if (!range_ok(r.first_vertex, r.vertex_count, v.vertex_count) ||
+            !range_ok(r.first_triangle, r.triangle_count, v.triangle_count) ||
+            !range_ok(r.first_fine, r.fine_count, v.fine_count) || !range_ok(r.first_coarse, r.coarse_count, v.coarse_count))
+            return AssetError::bad_mesh_range;
+        // Fine clusters tile the mesh's triangles; coarse clusters tile its fine clusters.
+        if (!ranges_tile(v.fine + r.first_fine, r.fine_count, r.triangle_count) ||
+            !ranges_tile(v.coarse + r.first_coarse, r.coarse_count, r.fine_count))
+            return AssetError::bad_cluster_range;
+        const uint32_t* t = v.triangles + size_t(r.first_triangle) * 3;
+        for (size_t i = 0; i < size_t(r.triangle_count) * 3; ++i)
+            if (t[i] >= r.vertex_count) return AssetError::bad_index;
+    }
+    for (uint32_t i = 0; i < v.instance_count; ++i) {
+        if (v.instances[i].mesh >= v.mesh_count) return AssetError::bad_instance;
+        for (double d : v.instances[i].transform)
+            if (!std::isfinite(d)) return AssetError::non_finite;
+    }
+    *out = v;
+    return AssetError::ok;
+}
+
+}  // namespace cb

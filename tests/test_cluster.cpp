@@ -1,0 +1,347 @@
+// Clustering: the hierarchy's invariants on generated and real meshes, determinism across thread counts,
+// and the building blocks (Morton order, k-means, Forsyth, FIFO ACMR, patches, nearest centre).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <numeric>
+#include <random>
+
+#include "bake.h"
+#include "cluster.h"
+#include "load.h"
+#include "nearest_centre.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct TestMesh {
+    std::vector<float> positions;
+    std::vector<uint32_t> indices;
+    size_t vertices() const { return positions.size() / 3; }
+    size_t triangles() const { return indices.size() / 3; }
+};
+
+// A w x h grid of quads in the plane z = 0, two triangles each, triangles shuffled by `seed` (0: none).
+TestMesh grid(int w, int h, float scale = 1, float offset = 0, unsigned seed = 0) {
+    TestMesh m;
+    for (int j = 0; j <= h; ++j)
+        for (int i = 0; i <= w; ++i) m.positions.insert(m.positions.end(), {offset + i * scale, offset + j * scale, offset});
+    std::vector<std::array<uint32_t, 3>> tris;
+    for (int j = 0; j < h; ++j)
+        for (int i = 0; i < w; ++i) {
+            uint32_t a = uint32_t(j * (w + 1) + i), b = a + 1, c = a + uint32_t(w + 1), d = c + 1;
+            tris.push_back({a, b, c});
+            tris.push_back({b, d, c});
+        }
+    if (seed) std::shuffle(tris.begin(), tris.end(), std::mt19937(seed));
+    for (auto& t : tris) m.indices.insert(m.indices.end(), t.begin(), t.end());
+    return m;
+}
+
+bool shares_vertex(const uint32_t* a, const uint32_t* b) {
+    for (int x = 0; x < 3; ++x)
+        for (int y = 0; y < 3; ++y)
+            if (a[x] == b[y]) return true;
+    return false;
+}
+
+// Every invariant the hierarchy promises.
+void check_hierarchy(const cb::Hierarchy& h, const uint32_t* indices, size_t triangle_count, const cb::ClusterOptions& o) {
+    ASSERT_EQ(h.order.size(), triangle_count);
+    std::vector<uint32_t> sorted = h.order;
+    std::sort(sorted.begin(), sorted.end());
+    for (size_t i = 0; i < sorted.size(); ++i) ASSERT_EQ(sorted[i], i) << "order is not a permutation";
+    ASSERT_FALSE(h.fine_offsets.empty());
+    ASSERT_FALSE(h.coarse_offsets.empty());
+    EXPECT_EQ(h.fine_offsets.front(), 0u);
+    EXPECT_EQ(h.fine_offsets.back(), triangle_count);
+    EXPECT_EQ(h.coarse_offsets.front(), 0u);
+    EXPECT_EQ(h.coarse_offsets.back(), h.fine_count());
+    for (size_t f = 0; f < h.fine_count(); ++f) {
+        uint32_t n = h.fine_offsets[f + 1] - h.fine_offsets[f];
+        ASSERT_GE(n, 1u);
+        ASSERT_LE(n, o.fine_size) << "fine cluster " << f;
+    }
+    for (size_t c = 0; c < h.coarse_count(); ++c) {
+        ASSERT_LT(h.coarse_offsets[c], h.coarse_offsets[c + 1]) << "empty coarse cluster";
+        uint32_t tris = h.fine_offsets[h.coarse_offsets[c + 1]] - h.fine_offsets[h.coarse_offsets[c]];
+        ASSERT_LE(tris, o.coarse_size) << "coarse cluster " << c;
+    }
+    if (o.method == cb::ClusterMethod::vco) {  // every fine cluster is one connected patch
+        for (size_t f = 0; f < h.fine_count(); ++f) {
+            uint32_t first = h.fine_offsets[f], n = h.fine_offsets[f + 1] - first;
+            std::vector<bool> reached(n, false);
+            reached[0] = true;
+            for (bool grew = true; grew;) {
+                grew = false;
+                for (uint32_t i = 0; i < n; ++i)
+                    for (uint32_t j = 0; j < n; ++j)
+                        if (reached[i] && !reached[j] &&
+                            shares_vertex(indices + size_t(h.order[first + i]) * 3, indices + size_t(h.order[first + j]) * 3))
+                            reached[j] = grew = true;
+            }
+            ASSERT_TRUE(std::all_of(reached.begin(), reached.end(), [](bool b) { return b; })) << "patch " << f;
+        }
+    }
+}
+
+const cb::ClusterMethod all_methods[] = {cb::ClusterMethod::kmeans, cb::ClusterMethod::vco, cb::ClusterMethod::morton};
+
+cb::Hierarchy cluster(const TestMesh& m, cb::ClusterOptions o) {
+    return cb::build_hierarchy(m.positions.data(), m.vertices(), m.indices.data(), m.triangles(), o);
+}
+
+}  // namespace
+
+TEST(Cluster, InvariantsOnAGridForEveryMethodAndSize) {
+    TestMesh m = grid(70, 50, 1, 0, 7);  // 7000 shuffled triangles
+    for (cb::ClusterMethod method : all_methods)
+        for (uint32_t fine : {8u, 16u, 24u, 32u}) {
+            SCOPED_TRACE(std::string(cb::method_name(method)) + " fine " + std::to_string(fine));
+            cb::ClusterOptions o;
+            o.method = method;
+            o.fine_size = fine;
+            o.coarse_size = 1024;
+            check_hierarchy(cluster(m, o), m.indices.data(), m.triangles(), o);
+        }
+    cb::ClusterOptions tree;
+    tree.kmeans_coarse_from_tree = true;
+    tree.coarse_size = 1000;  // not a multiple of anything: the tree's leaves are at most this
+    check_hierarchy(cluster(m, tree), m.indices.data(), m.triangles(), tree);
+}
+
+TEST(Cluster, MortonChunksAreExactlyTheCoarseSize) {
+    TestMesh m = grid(40, 40, 1, 0, 3);  // 3200 triangles
+    cb::ClusterOptions o;
+    o.coarse_size = 1000;
+    cb::Hierarchy h = cluster(m, o);
+    ASSERT_EQ(h.coarse_count(), 4u);
+    for (size_t c = 0; c + 1 < h.coarse_count(); ++c)
+        EXPECT_EQ(h.fine_offsets[h.coarse_offsets[c + 1]] - h.fine_offsets[h.coarse_offsets[c]], 1000u);
+}
+
+TEST(Cluster, IdenticalForAnyThreadCount) {
+    TestMesh m = grid(120, 100, 0.5f, 3, 11);  // 24000 triangles, 12 coarse chunks
+    for (cb::ClusterMethod method : all_methods) {
+        cb::ClusterOptions o;
+        o.method = method;
+        o.threads = 1;
+        cb::Hierarchy one = cluster(m, o);
+        for (unsigned threads : {2u, 3u, 8u}) {
+            o.threads = threads;
+            cb::Hierarchy many = cluster(m, o);
+            EXPECT_EQ(one.order, many.order) << cb::method_name(method) << " threads " << threads;
+            EXPECT_EQ(one.fine_offsets, many.fine_offsets);
+            EXPECT_EQ(one.coarse_offsets, many.coarse_offsets);
+        }
+    }
+}
+
+TEST(Cluster, TinyMeshes) {
+    for (cb::ClusterMethod method : all_methods)
+        for (size_t n : {0u, 1u, 2u, 16u, 17u, 33u}) {
+            SCOPED_TRACE(std::string(cb::method_name(method)) + " " + std::to_string(n) + " triangles");
+            TestMesh full = grid(40, 1);
+            TestMesh m{full.positions, std::vector<uint32_t>(full.indices.begin(), full.indices.begin() + std::ptrdiff_t(n * 3))};
+            cb::ClusterOptions o;
+            o.method = method;
+            cb::Hierarchy h = cluster(m, o);
+            check_hierarchy(h, m.indices.data(), m.triangles(), o);
+            EXPECT_EQ(h.coarse_count(), n ? 1u : 0u);
+            if (method == cb::ClusterMethod::kmeans && n == 17) {  // F + 1: two halves, no sliver
+                ASSERT_EQ(h.fine_count(), 2u);
+                EXPECT_GE(h.fine_offsets[1], 8u);
+                EXPECT_GE(h.fine_offsets[2] - h.fine_offsets[1], 8u);
+            }
+        }
+}
+
+TEST(Cluster, DegenerateCoincidentAndCollinearInput) {
+    // 500 copies of one triangle, a repeated-index triangle, zero-area slivers, all points on a line.
+    TestMesh same;
+    same.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    for (int i = 0; i < 500; ++i) same.indices.insert(same.indices.end(), {0, 1, 2});
+    same.indices.insert(same.indices.end(), {0, 0, 1});
+    TestMesh line;
+    for (int i = 0; i < 300; ++i) line.positions.insert(line.positions.end(), {float(i), float(2 * i), float(-i)});
+    for (uint32_t i = 0; i + 2 < 300; ++i) line.indices.insert(line.indices.end(), {i, i + 1, i + 2});
+    for (const TestMesh* m : {&same, &line})
+        for (cb::ClusterMethod method : all_methods) {
+            SCOPED_TRACE(cb::method_name(method));
+            cb::ClusterOptions o;
+            o.method = method;
+            o.coarse_size = 128;
+            check_hierarchy(cluster(*m, o), m->indices.data(), m->triangles(), o);
+        }
+}
+
+TEST(Cluster, HugeCoordinatesKeepResolution) {
+    // A 1 m grid a million metres from the origin: Morton codes still separate every triangle.
+    TestMesh m = grid(64, 64, 1.0f, 1.0e6f, 5);
+    std::vector<uint32_t> order = cb::morton_order(m.positions.data(), m.indices.data(), m.triangles());
+    cb::ClusterOptions o;
+    o.coarse_size = 512;
+    cb::Hierarchy h = cluster(m, o);
+    check_hierarchy(h, m.indices.data(), m.triangles(), o);
+    // Compact chunks: each coarse chunk of the Morton order spans far less than the whole grid.
+    for (size_t c = 0; c < h.coarse_count(); ++c) {
+        float lo = INFINITY, hi = -INFINITY;
+        for (uint32_t i = h.fine_offsets[h.coarse_offsets[c]]; i < h.fine_offsets[h.coarse_offsets[c + 1]]; ++i)
+            for (int k = 0; k < 3; ++k) {
+                float x = m.positions[size_t(m.indices[size_t(h.order[i]) * 3 + k]) * 3];
+                lo = std::min(lo, x), hi = std::max(hi, x);
+            }
+        EXPECT_LE(hi - lo, 33.0f) << "chunk " << c;
+    }
+}
+
+TEST(Cluster, MortonOrderIsZOrder) {
+    // Eight tiny triangles at the corners of a cube: Z-order visits x first, then y, then z.
+    TestMesh m;
+    std::vector<int> corner_of_triangle = {7, 3, 5, 1, 6, 2, 4, 0};
+    for (int c : corner_of_triangle) {
+        float x = float(c & 1), y = float(c >> 1 & 1), z = float(c >> 2 & 1);
+        uint32_t base = uint32_t(m.vertices());
+        m.positions.insert(m.positions.end(), {x, y, z, x + 0.01f, y, z, x, y + 0.01f, z});
+        m.indices.insert(m.indices.end(), {base, base + 1, base + 2});
+    }
+    std::vector<uint32_t> order = cb::morton_order(m.positions.data(), m.indices.data(), m.triangles());
+    for (size_t i = 0; i < 8; ++i) EXPECT_EQ(corner_of_triangle[order[i]], int(i));
+}
+
+TEST(Cluster, KMeansIsMoreCompactThanMortonSlices) {
+    TestMesh m = grid(100, 100, 1, 0, 9);
+    auto mean_extent = [&](cb::ClusterMethod method) {
+        cb::ClusterOptions o;
+        o.method = method;
+        cb::Hierarchy h = cluster(m, o);
+        double sum = 0;
+        for (size_t f = 0; f < h.fine_count(); ++f) {
+            float lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+            for (uint32_t i = h.fine_offsets[f]; i < h.fine_offsets[f + 1]; ++i)
+                for (int k = 0; k < 3; ++k)
+                    for (int a = 0; a < 2; ++a) {
+                        float x = m.positions[size_t(m.indices[size_t(h.order[i]) * 3 + k]) * 3 + a];
+                        lo[a] = std::min(lo[a], x), hi[a] = std::max(hi[a], x);
+                    }
+            sum += (hi[0] - lo[0]) + (hi[1] - lo[1]);
+        }
+        return sum / double(h.fine_count());
+    };
+    EXPECT_LT(mean_extent(cb::ClusterMethod::kmeans), mean_extent(cb::ClusterMethod::morton));
+}
+
+TEST(Cluster, FifoAcmrByHand) {
+    uint32_t one[] = {0, 1, 2};
+    EXPECT_EQ(cb::fifo_acmr(one, 1, 3, 16), 3.0);
+    uint32_t quad[] = {0, 1, 2, 2, 1, 3};
+    EXPECT_EQ(cb::fifo_acmr(quad, 2, 4, 16), 2.0);
+    // A 3-entry FIFO: after 0 1 2 3, vertex 0 has left, so the second triangle misses all of 3, 0... twice.
+    uint32_t evict[] = {0, 1, 2, 3, 0, 1};
+    EXPECT_EQ(cb::fifo_acmr(evict, 2, 4, 3), 3.0);  // 0 1 2 miss; 3 miss (evicts 0); 0 miss (evicts 1); 1 miss
+}
+
+TEST(Cluster, ForsythBeatsAShuffledOrder) {
+    TestMesh m = grid(80, 80, 1, 0, 13);
+    std::vector<uint32_t> order = cb::forsyth_order(m.indices.data(), m.triangles(), m.vertices(), 32);
+    std::vector<uint32_t> sorted = order;
+    std::sort(sorted.begin(), sorted.end());
+    for (size_t i = 0; i < sorted.size(); ++i) ASSERT_EQ(sorted[i], i);
+    std::vector<uint32_t> reordered;
+    for (uint32_t t : order) reordered.insert(reordered.end(), m.indices.begin() + t * 3, m.indices.begin() + t * 3 + 3);
+    double before = cb::fifo_acmr(m.indices.data(), m.triangles(), m.vertices(), 32);
+    double after = cb::fifo_acmr(reordered.data(), m.triangles(), m.vertices(), 32);
+    EXPECT_GT(before, 2.0);
+    EXPECT_LT(after, 0.8);  // a regular grid's ideal is 0.5 plus the strip restarts
+}
+
+TEST(Cluster, ConnectedPatchesSplitDisjointTriangles) {
+    uint32_t indices[] = {0, 1, 2, 10, 11, 12, 2, 3, 4, 12, 13, 14, 20, 21, 22};
+    uint32_t tris[] = {0, 1, 2, 3, 4};
+    std::vector<uint32_t> sizes;
+    cb::connected_patches(indices, tris, 5, sizes);
+    EXPECT_EQ(sizes, (std::vector<uint32_t>{2, 2, 1}));
+    EXPECT_EQ(std::vector<uint32_t>(tris, tris + 5), (std::vector<uint32_t>{0, 2, 1, 3, 4}));
+}
+
+TEST(Cluster, NearestCentreStrategiesAgree) {
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(-1, 1);
+    std::vector<float> points(3000 * 6), centres(64 * 6);
+    for (float& p : points) p = u(rng);
+    for (float& c : centres) c = u(rng);
+    std::vector<uint32_t> a(3000, UINT32_MAX), b(3000, UINT32_MAX);
+    std::vector<float> da(3000), db(3000);
+    EXPECT_EQ(cb::assign_nearest_brute(points.data(), 3000, centres.data(), 64, a.data(), da.data()), 3000u);
+    EXPECT_EQ(cb::assign_nearest_flann(points.data(), 3000, centres.data(), 64, b.data(), db.data()), 3000u);
+    for (size_t i = 0; i < 3000; ++i) EXPECT_NEAR(da[i], db[i], 1e-5f);  // same distance (ties may differ)
+    EXPECT_GE(std::count_if(a.begin(), a.end(), [&, i = size_t(0)](uint32_t x) mutable { return x == b[i++]; }), 2990);
+}
+
+TEST(Cluster, EveryMeshOfEverySharedFile) {
+    fs::path root(CB_SHARED_DATA);
+    if (!fs::exists(root)) GTEST_SKIP() << "../shared/data is absent";
+    size_t files = 0;
+    for (const auto& e : fs::recursive_directory_iterator(root)) {
+        if (!e.is_regular_file() || cb::format_from_path(e.path().string()) == cb::FileFormat::unknown) continue;
+        cb::Scene scene;
+        try {
+            scene = cb::load_scene(e.path().string());
+        } catch (const cb::LoadError&) {
+            continue;  // the invalid-input files; the loader tests cover them
+        }
+        ++files;
+        for (cb::ClusterMethod method : all_methods) {
+            SCOPED_TRACE(e.path().string() + " " + cb::method_name(method));
+            cb::ClusterOptions o;
+            o.method = method;
+            for (const cb::Mesh& mesh : scene.meshes) {
+                cb::Hierarchy h = cb::build_hierarchy(mesh.positions.data(), mesh.vertex_count(), mesh.indices.data(),
+                                                      mesh.triangle_count(), o);
+                check_hierarchy(h, mesh.indices.data(), mesh.triangle_count(), o);
+                if (HasFatalFailure()) return;
+            }
+        }
+    }
+    EXPECT_GE(files, 30u);
+}
+
+TEST(Cluster, AssetRoundTripsThroughTheRuntimeView) {
+    cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    cb::ClusterOptions o;
+    cb::BakeStats stats;
+    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, o, stats);
+    std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
+    std::vector<uint64_t> aligned((bytes.size() + 7) / 8);
+    std::memcpy(aligned.data(), bytes.data(), bytes.size());
+    cb::AssetView view;
+    ASSERT_EQ(cb::open_asset(aligned.data(), bytes.size(), &view), cb::AssetError::ok);
+    EXPECT_EQ(view.mesh_count, scene.meshes.size());
+    EXPECT_EQ(view.instance_count, scene.instances.size());
+    EXPECT_EQ(view.triangle_count, stats.triangles);
+    EXPECT_EQ(view.fine_count, stats.fine_clusters);
+    // The clustered triangles are the original ones, permuted.
+    for (uint32_t m = 0; m < view.mesh_count; ++m) {
+        const cb::MeshRecord& r = view.meshes[m];
+        std::vector<std::array<uint32_t, 3>> a, b;
+        for (uint32_t t = 0; t < r.triangle_count; ++t) {
+            const uint32_t* x = view.triangles + size_t(r.first_triangle + t) * 3;
+            a.push_back({x[0], x[1], x[2]});
+            const uint32_t* y = scene.meshes[m].indices.data() + size_t(t) * 3;
+            b.push_back({y[0], y[1], y[2]});
+        }
+        std::sort(a.begin(), a.end());
+        std::sort(b.begin(), b.end());
+        EXPECT_EQ(a, b);
+    }
+    // Any single flipped byte is caught (checksum or structure), and every truncation.
+    for (size_t at : {size_t(3), size_t(70), bytes.size() / 2, bytes.size() - 1}) {
+        std::vector<uint64_t> bad = aligned;
+        reinterpret_cast<uint8_t*>(bad.data())[at] ^= 0x40;
+        EXPECT_NE(cb::open_asset(bad.data(), bytes.size(), &view), cb::AssetError::ok) << at;
+    }
+    for (size_t cut : {size_t(0), size_t(63), size_t(64), bytes.size() - 16})
+        EXPECT_NE(cb::open_asset(aligned.data(), cut, &view), cb::AssetError::ok) << cut;
+}
