@@ -6,8 +6,8 @@
 
 namespace cb {
 
-// Centre counts from which FLANN's exact k-d tree beats the brute-force scan (bench/bench_nearest_centre
-// measures both; see the crossover noted in nearest_centre.cpp).
+// The centre count from which FLANN's exact k-d tree beats the brute-force scan (bench_nearest_centre
+// measures both; the figures are in nearest_centre.cpp).
 extern const size_t flann_crossover;
 
 // Sets assignment[i] to the index of the centre nearest points[i] (ties: lowest index) and nearest_d2[i]

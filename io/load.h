@@ -15,8 +15,16 @@
 
 namespace cb {
 
+// One line of printable text, whatever the file held: control characters in names or tokens taken from the
+// input are replaced by '?'.
 struct LoadError : std::runtime_error {
-    using std::runtime_error::runtime_error;
+    explicit LoadError(std::string message) : std::runtime_error(printable(std::move(message))) {}
+
+    static std::string printable(std::string s) {
+        for (char& c : s)
+            if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+        return s;
+    }
 };
 
 enum class FileFormat { gltf, glb, obj, ply, off, stl, unknown };

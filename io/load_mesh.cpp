@@ -128,8 +128,8 @@ void check_ascii_stl(const uint8_t* data, size_t size, const std::string& name) 
         for (size_t k = 1; k < 4; ++k) {
             double v;
             if (!parse_double(tok[k], v) || !std::isfinite(v))
-                throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": '" +
-                                std::string(tok[k].substr(0, 40)) + "' is not a finite number");
+                throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": " + quoted(tok[k]) +
+                                " is not a finite number");
         }
     }
 }

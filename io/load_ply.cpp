@@ -50,17 +50,18 @@ class Body {
 public:
     Body(std::string_view bytes, Encoding enc, const std::string& name) : bytes_(bytes), enc_(enc), name_(name) {}
 
-    // Reads one value of `type` as double; throws on end of data or (ASCII) a malformed number.
-    double read(int type, const std::string& where) {
+    // Reads one value of `type` as double; throws on end of data or (ASCII) a malformed number. The
+    // element name and row only make the message.
+    double read(int type, const std::string& element, uint64_t row) {
         if (enc_ == Encoding::ascii) {
             std::string_view tok = next_token();
-            if (tok.empty()) fail(where + ": unexpected end of data");
+            if (tok.empty()) fail(element, row, "unexpected end of data");
             double v;
-            if (!parse_double(tok, v)) fail(where + ": '" + std::string(tok.substr(0, 40)) + "' is not a number");
+            if (!parse_double(tok, v)) fail(element, row, quoted(tok) + " is not a number");
             return v;
         }
         size_t n = type_size(type);
-        if (pos_ + n > bytes_.size()) fail(where + ": unexpected end of data");
+        if (pos_ + n > bytes_.size()) fail(element, row, "unexpected end of data");
         uint8_t b[8];
         std::memcpy(b, bytes_.data() + pos_, n);
         pos_ += n;
@@ -80,6 +81,9 @@ public:
     size_t remaining() const { return bytes_.size() - pos_; }
 
     [[noreturn]] void fail(const std::string& what) const { throw LoadError(name_ + ": " + what); }
+    [[noreturn]] void fail(const std::string& element, uint64_t row, const std::string& what) const {
+        fail(element + " " + std::to_string(row) + ": " + what);
+    }
 
 private:
     std::string_view next_token() {
@@ -128,7 +132,7 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
             if (tok[1] == "ascii") enc = Encoding::ascii;
             else if (tok[1] == "binary_little_endian") enc = Encoding::little;
             else if (tok[1] == "binary_big_endian") enc = Encoding::big;
-            else bad("unknown format '" + std::string(tok[1].substr(0, 40)) + "'");
+            else bad("unknown format " + quoted(tok[1]));
             has_format = true;
         } else if (tok[0] == "element") {
             long long count;
@@ -142,7 +146,7 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
                 p.count_type = type_code(tok[2]);
                 p.type = type_code(tok[3]);
                 p.name = tok[4];
-                if (p.count_type == 0 || (p.count_type & float_flag)) bad("bad list count type");
+                if (p.count_type == 0 || (p.count_type > 0 && (p.count_type & float_flag))) bad("bad list count type");
             } else if (tok.size() == 3) {
                 p.type = type_code(tok[1]);
                 p.name = tok[2];
@@ -175,8 +179,9 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
     std::vector<uint32_t> list;
     for (const Element& e : elements) {
         // Every record takes at least one byte (ASCII: one digit and a separator, so two): refuse counts the
-        // remaining data cannot hold before reserving anything.
-        if (!e.properties.empty() && e.count > body.remaining())
+        // remaining data cannot hold before reserving anything. An element without properties holds nothing.
+        if (e.properties.empty()) continue;
+        if (e.count > body.remaining())
             body.fail("element " + e.name + ": count " + std::to_string(e.count) + " exceeds the data (truncated?)");
         bool is_vertex = &e == vertex_el;
         int list_prop = (e.name == "face" || e.name == "tristrips")
@@ -184,30 +189,29 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
         if (is_vertex) mesh.positions.reserve(size_t(e.count) * 3);
         values.resize(e.properties.size());
         for (uint64_t r = 0; r < e.count; ++r) {
-            std::string where = e.name + " " + std::to_string(r);
             for (size_t p = 0; p < e.properties.size(); ++p) {
                 const Property& prop = e.properties[p];
                 if (!prop.list) {
-                    values[p] = body.read(prop.type, where);
+                    values[p] = body.read(prop.type, e.name, r);
                     continue;
                 }
-                double n = body.read(prop.count_type, where);
+                double n = body.read(prop.count_type, e.name, r);
                 if (!(n >= 0) || n > double(body.remaining()))
-                    body.fail(where + ": list length " + std::to_string(n) + " exceeds the data");
+                    body.fail(e.name, r, "list length " + std::to_string(n) + " exceeds the data");
                 bool keep = int(p) == list_prop;
                 if (keep) list.clear();
                 for (size_t k = 0; k < size_t(n); ++k) {
-                    double v = body.read(prop.type, where);
+                    double v = body.read(prop.type, e.name, r);
                     if (!keep) continue;
                     bool restart = e.name == "tristrips" && v == -1;
                     if (!restart && !(v >= 0 && v < double(vertex_count) && v == std::floor(v)))
-                        body.fail(where + ": index " + std::to_string(v) + " out of range (" +
+                        body.fail(e.name, r, "index " + std::to_string(v) + " out of range (" +
                                   std::to_string(vertex_count) + " vertices)");
                     list.push_back(restart ? UINT32_MAX : uint32_t(v));
                 }
                 if (!keep) continue;
                 if (e.name == "face") {
-                    if (list.size() < 3) body.fail(where + ": face with " + std::to_string(list.size()) + " vertices");
+                    if (list.size() < 3) body.fail(e.name, r, "face with " + std::to_string(list.size()) + " vertices");
                     for (size_t i = 1; i + 1 < list.size(); ++i)
                         mesh.indices.insert(mesh.indices.end(), {list[0], list[i], list[i + 1]});
                 } else {  // tristrips: runs separated by -1, every other triangle flipped

@@ -15,8 +15,6 @@
 namespace cb {
 namespace {
 
-std::string quote(std::string_view s) { return "'" + std::string(s.substr(0, 40)) + "'"; }
-
 // Positions must be finite and representable as float, since that is how they are stored.
 void push_position(Mesh& mesh, const double xyz[3], const std::string& where) {
     for (int k = 0; k < 3; ++k)
@@ -48,7 +46,7 @@ Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name)
             if (tok.size() < 4) throw LoadError(where + ": vertex needs 3 coordinates");
             double xyz[3];
             for (int k = 0; k < 3; ++k)
-                if (!parse_double(tok[1 + k], xyz[k])) throw LoadError(where + ": bad coordinate " + quote(tok[1 + k]));
+                if (!parse_double(tok[1 + k], xyz[k])) throw LoadError(where + ": bad coordinate " + quoted(tok[1 + k]));
             push_position(mesh, xyz, where + ": vertex " + std::to_string(mesh.vertex_count() + 1));
         } else if (tok[0] == "f") {
             saw_any = true;
@@ -57,7 +55,7 @@ Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name)
             for (size_t k = 1; k < tok.size(); ++k) {
                 std::string_view ref = tok[k].substr(0, tok[k].find('/'));  // v, v/vt, v//vn, v/vt/vn
                 long long i;
-                if (!parse_int(ref, i)) throw LoadError(where + ": bad face index " + quote(tok[k]));
+                if (!parse_int(ref, i)) throw LoadError(where + ": bad face index " + quoted(tok[k]));
                 long long resolved = i > 0 ? i - 1 : count + i;  // negative indices count back from the last vertex
                 if (i == 0 || resolved < 0 || resolved >= count)
                     throw LoadError(where + ": face index " + std::to_string(i) + " out of range (" +
@@ -89,7 +87,7 @@ Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name)
     size_t off = keyword.find("OFF");
     std::string_view prefix = off == std::string_view::npos ? keyword : keyword.substr(0, off);
     if (off == std::string_view::npos || prefix.find_first_not_of("STCN") != std::string_view::npos)
-        throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": not an OFF header " + quote(keyword));
+        throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": not an OFF header " + quoted(keyword));
     std::string_view rest = keyword.substr(off + 3);
     if (rest == "BINARY" || (tok.size() > 1 && tok[1] == "BINARY"))
         throw LoadError(name + ": binary OFF is not supported");
@@ -117,7 +115,7 @@ Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name)
         if (tok.size() < 3) throw LoadError(where + ": needs 3 coordinates");
         double xyz[3];
         for (int k = 0; k < 3; ++k)
-            if (!parse_double(tok[k], xyz[k])) throw LoadError(where + ": bad coordinate " + quote(tok[k]));
+            if (!parse_double(tok[k], xyz[k])) throw LoadError(where + ": bad coordinate " + quoted(tok[k]));
         push_position(mesh, xyz, where);
     }
     std::vector<uint32_t> poly;
@@ -130,12 +128,12 @@ Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name)
         std::string where = name + ": line " + std::to_string(reader.line_number) + ": face " + std::to_string(f);
         long long n;
         if (!parse_int(tok[0], n) || n < 3 || size_t(n) + 1 > tok.size())
-            throw LoadError(where + ": bad vertex count " + quote(tok[0]));
+            throw LoadError(where + ": bad vertex count " + quoted(tok[0]));
         poly.clear();
         for (long long k = 1; k <= n; ++k) {
             long long i;
             if (!parse_int(tok[size_t(k)], i) || i < 0 || i >= nv)
-                throw LoadError(where + ": index " + quote(tok[size_t(k)]) + " out of range (" + std::to_string(nv) +
+                throw LoadError(where + ": index " + quoted(tok[size_t(k)]) + " out of range (" + std::to_string(nv) +
                                 " vertices)");
             poly.push_back(uint32_t(i));
         }

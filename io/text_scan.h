@@ -65,4 +65,12 @@ inline bool parse_int(std::string_view s, long long& v) {
     return r.ec == std::errc() && r.ptr == s.data() + s.size();
 }
 
+// A token quoted for an error message: at most 40 characters, anything unprintable shown as '?', so the
+// message stays one line of text whatever the file holds.
+inline std::string quoted(std::string_view s) {
+    std::string out = "'";
+    for (char c : s.substr(0, 40)) out += (c >= 0x20 && c < 0x7f) ? c : '?';
+    return out + (s.size() > 40 ? "...'" : "'");
+}
+
 }  // namespace cb

@@ -1,6 +1,7 @@
 // OBJ, OFF, PLY and STL loading: features, the generated cubes in data/small, and broken input.
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <fstream>
 
 #include "load.h"
@@ -120,4 +121,47 @@ TEST(Formats, PlyAndStlErrors) {
                       " endloop\n endfacet\nendsolid x\n", cb::FileFormat::stl),
                  cb::LoadError);
     EXPECT_THROW(load("", cb::FileFormat::stl), cb::LoadError);
+}
+
+TEST(Formats, PlyFeatures) {
+    // Big-endian binary with a double coordinate, an extra property, and tristrips with a restart.
+    std::string ply = "ply\nformat binary_big_endian 1.0\ncomment made by hand\nelement vertex 4\nproperty double x\n"
+                      "property float y\nproperty float z\nproperty uchar red\nelement tristrips 1\n"
+                      "property list int int vertex_indices\nend_header\n";
+    auto be32 = [&](uint32_t v) { for (int i = 3; i >= 0; --i) ply.push_back(char(v >> (8 * i))); };
+    auto bef = [&](float f) { uint32_t v; std::memcpy(&v, &f, 4); be32(v); };
+    auto bed = [&](double d) { uint64_t v; std::memcpy(&v, &d, 8); for (int i = 7; i >= 0; --i) ply.push_back(char(v >> (8 * i))); };
+    float xyz[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+    for (auto& p : xyz) { bed(p[0]); bef(p[1]); bef(p[2]); ply.push_back(7); }
+    int strip[] = {0, 1, 2, 3, -1, 0, 1, 2};
+    be32(8);
+    for (int i : strip) be32(uint32_t(i));
+    cb::Scene s = load(ply, cb::FileFormat::ply);
+    const cb::Mesh& m = s.meshes[0];
+    EXPECT_EQ(m.positions[3 * 3 + 0], 1.0f);
+    EXPECT_EQ(m.positions[3 * 3 + 1], 1.0f);
+    // 0 1 2 3 gives (0,1,2) and (2,1,3); after the restart 0 1 2 gives (0,1,2).
+    EXPECT_EQ(std::vector<uint32_t>(m.indices.begin(), m.indices.end()), (std::vector<uint32_t>{0, 1, 2, 2, 1, 3, 0, 1, 2}));
+}
+
+TEST(Formats, PlyErrors) {
+    const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                             "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    EXPECT_EQ(error_of(head + "0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", cb::FileFormat::ply),
+              "t: face 0: index 3.000000 out of range (3 vertices)");
+    EXPECT_EQ(error_of(head + "0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n", cb::FileFormat::ply),
+              "t: vertex 1: position is not a finite float (nan)");
+    EXPECT_EQ(error_of(head + "0 0 0\n1 0 0\n", cb::FileFormat::ply), "t: vertex 2: unexpected end of data");
+    EXPECT_EQ(error_of("ply\nformat ascii 1.0\nelement vertex 3\n", cb::FileFormat::ply), "t: header has no end_header (truncated?)");
+    EXPECT_EQ(error_of("ply\nproperty float x\nend_header\n", cb::FileFormat::ply), "t: line 2: property before any element");
+    EXPECT_EQ(error_of("ply\nformat ascii 1.0\nelement vertex 99999999\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n",
+                       cb::FileFormat::ply),
+              "t: element vertex: count 99999999 exceeds the data (truncated?)");
+    // Found by fuzz_ply: an element without properties but a count near 2^63 used to spin for ever.
+    cb::Scene s = load("ply\nformat ascii 1.0\nelement junk 6148914691236517209\nelement vertex 3\nproperty float x\n"
+                       "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n", cb::FileFormat::ply);
+    EXPECT_EQ(s.meshes[0].vertex_count(), 3u);
+    // Binary garbage in an error message is made printable.
+    std::string bad = head + std::string("0 0 0\n1 0 \x01\x02zz\n0 1 0\n3 0 1 2\n");
+    EXPECT_EQ(error_of(bad, cb::FileFormat::ply), "t: vertex 1: '??zz' is not a number");
 }

@@ -1,0 +1,268 @@
+// Clustering benchmark: speed, memory, cache efficiency and compactness of each method, against
+// meshoptimizer's meshlets and vertex cache optimiser on the same input in the same run.
+//
+//   bench_cluster [--data DIR] [--fine 16] [--runs 5] [--big-copies 25] [--only NAME]
+//
+// Prints tables; asserts nothing. Times are medians of --runs runs (3 for the big scene).
+#include <meshoptimizer.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cluster.h"
+#include "load.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Input {
+    std::string name;
+    std::vector<float> positions;
+    std::vector<uint32_t> indices;
+    size_t vertices() const { return positions.size() / 3; }
+    size_t triangles() const { return indices.size() / 3; }
+};
+
+// Peak resident memory above the level at the start of a measurement (Linux: clear_refs resets VmHWM).
+struct PeakMemory {
+    long baseline_kb = 0;
+    static long read_kb(const char* key) {
+        std::ifstream in("/proc/self/status");
+        std::string k;
+        long v = -1;
+        while (in >> k) {
+            if (k == key) {
+                in >> v;
+                return v;
+            }
+        }
+        return -1;
+    }
+    void reset() {
+        std::ofstream("/proc/self/clear_refs") << "5";
+        baseline_kb = read_kb("VmRSS:");
+    }
+    double extra_mb() const {
+        long peak = read_kb("VmHWM:");
+        return peak < 0 || baseline_kb < 0 ? NAN : double(peak - baseline_kb) / 1024.0;
+    }
+};
+
+template <class F>
+double median_seconds(int runs, F&& f) {
+    std::vector<double> t;
+    for (int r = 0; r < runs; ++r) {
+        auto start = std::chrono::steady_clock::now();
+        f();
+        t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
+    std::sort(t.begin(), t.end());
+    return t[t.size() / 2];
+}
+
+struct Compactness {
+    double mean_radius = 0, max_radius = 0, mean_triangles = 0;  // radius: AABB half-diagonal / mesh diagonal
+    size_t clusters = 0;
+};
+
+// `cluster_of_position` lists triangles cluster by cluster; `sizes` gives each cluster's count.
+Compactness compactness(const Input& in, const std::vector<uint32_t>& tris, const std::vector<uint32_t>& sizes) {
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < in.positions.size(); ++i) lo[i % 3] = std::min(lo[i % 3], in.positions[i]), hi[i % 3] = std::max(hi[i % 3], in.positions[i]);
+    double diagonal = std::sqrt(double(hi[0] - lo[0]) * (hi[0] - lo[0]) + double(hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                double(hi[2] - lo[2]) * (hi[2] - lo[2]));
+    Compactness c;
+    size_t at = 0;
+    for (uint32_t n : sizes) {
+        float a[3] = {INFINITY, INFINITY, INFINITY}, b[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (size_t i = at; i < at + n; ++i)
+            for (int k = 0; k < 3; ++k) {
+                const float* p = &in.positions[size_t(in.indices[size_t(tris[i]) * 3 + k]) * 3];
+                for (int d = 0; d < 3; ++d) a[d] = std::min(a[d], p[d]), b[d] = std::max(b[d], p[d]);
+            }
+        double r = 0.5 * std::sqrt(double(b[0] - a[0]) * (b[0] - a[0]) + double(b[1] - a[1]) * (b[1] - a[1]) +
+                                   double(b[2] - a[2]) * (b[2] - a[2])) / diagonal;
+        c.mean_radius += r;
+        c.max_radius = std::max(c.max_radius, r);
+        at += n;
+    }
+    c.clusters = sizes.size();
+    c.mean_radius /= double(std::max<size_t>(1, sizes.size()));
+    c.mean_triangles = double(at) / double(std::max<size_t>(1, sizes.size()));
+    return c;
+}
+
+std::vector<uint32_t> permuted(const Input& in, const std::vector<uint32_t>& order) {
+    std::vector<uint32_t> out(order.size() * 3);
+    for (size_t i = 0; i < order.size(); ++i)
+        for (int k = 0; k < 3; ++k) out[i * 3 + k] = in.indices[size_t(order[i]) * 3 + k];
+    return out;
+}
+
+Input load_input(const fs::path& path) {
+    cb::Scene s = cb::load_scene(path.string());
+    Input in;
+    in.name = path.filename().string();
+    in.positions = s.meshes[0].positions;
+    in.indices = s.meshes[0].indices;
+    return in;
+}
+
+// `copies` rotated, scaled and translated copies of `base` merged into one mesh.
+Input big_scene(const Input& base, int copies) {
+    Input out;
+    out.name = std::to_string(copies) + "x " + base.name;
+    int side = int(std::ceil(std::sqrt(double(copies))));
+    for (int c = 0; c < copies; ++c) {
+        double angle = 0.7 * c, s = 1.0 + 0.05 * (c % 5), ca = std::cos(angle), sa = std::sin(angle);
+        double tx = (c % side) * 0.25, tz = (c / side) * 0.25;
+        uint32_t base_vertex = uint32_t(out.vertices());
+        for (size_t v = 0; v < base.vertices(); ++v) {
+            const float* p = &base.positions[v * 3];
+            out.positions.insert(out.positions.end(), {float(s * (ca * p[0] + sa * p[2]) + tx), float(s * p[1]),
+                                                       float(s * (-sa * p[0] + ca * p[2]) + tz)});
+        }
+        for (uint32_t i : base.indices) out.indices.push_back(base_vertex + i);
+    }
+    return out;
+}
+
+struct Row {
+    std::string method;
+    double seconds_1 = 0, seconds_n = 0, extra_mb = 0, acmr = 0;
+    Compactness c;
+};
+
+void print_row(const Input& in, const Row& r, unsigned threads) {
+    double t = double(in.triangles());
+    std::printf("| %-26s | %-22s | %8.2f | %8.2f | %7.1f | %6.3f | %7.0f | %6.2f | %7.4f | %7.4f |\n", in.name.c_str(),
+                r.method.c_str(), t / r.seconds_1 / 1e6, r.seconds_n > 0 ? t / r.seconds_n / 1e6 : NAN, r.extra_mb,
+                r.acmr, double(r.c.clusters), r.c.mean_triangles, r.c.mean_radius, r.c.max_radius);
+    (void)threads;
+}
+
+void run(const Input& in, uint32_t fine, int runs) {
+    unsigned hw = std::max(1u, std::thread::hardware_concurrency());
+    PeakMemory mem;
+    std::vector<Row> rows;
+    for (cb::ClusterMethod method : {cb::ClusterMethod::kmeans, cb::ClusterMethod::vco, cb::ClusterMethod::morton}) {
+        cb::ClusterOptions o;
+        o.method = method;
+        o.fine_size = fine;
+        cb::Hierarchy h;
+        Row r;
+        r.method = std::string("clusterbake ") + cb::method_name(method);
+        o.threads = 1;
+        mem.reset();
+        r.seconds_1 = median_seconds(runs, [&] {
+            h = cb::build_hierarchy(in.positions.data(), in.vertices(), in.indices.data(), in.triangles(), o);
+        });
+        r.extra_mb = mem.extra_mb();
+        o.threads = hw;
+        r.seconds_n = median_seconds(runs, [&] {
+            h = cb::build_hierarchy(in.positions.data(), in.vertices(), in.indices.data(), in.triangles(), o);
+        });
+        std::vector<uint32_t> ordered = permuted(in, h.order);
+        r.acmr = cb::fifo_acmr(ordered.data(), in.triangles(), in.vertices(), 32);
+        std::vector<uint32_t> sizes;
+        for (size_t f = 0; f < h.fine_count(); ++f) sizes.push_back(h.fine_offsets[f + 1] - h.fine_offsets[f]);
+        r.c = compactness(in, h.order, sizes);
+        rows.push_back(r);
+    }
+    {  // meshoptimizer's meshlets on the input order, at most `fine` triangles and 3 * fine vertices
+        size_t max_v = std::min<size_t>(255, size_t(fine) * 3);
+        size_t bound = meshopt_buildMeshletsBound(in.indices.size(), max_v, fine);
+        std::vector<meshopt_Meshlet> meshlets(bound);
+        std::vector<unsigned> mv(bound * max_v);
+        std::vector<unsigned char> mt(bound * fine * 3);
+        size_t count = 0;
+        Row r;
+        r.method = "meshopt_buildMeshlets";
+        mem.reset();
+        r.seconds_1 = median_seconds(runs, [&] {
+            count = meshopt_buildMeshlets(meshlets.data(), mv.data(), mt.data(), in.indices.data(), in.indices.size(),
+                                          in.positions.data(), in.vertices(), 12, max_v, fine, 0.0f);
+        });
+        r.extra_mb = mem.extra_mb();
+        r.seconds_n = 0;  // single-threaded API
+        // Map meshlet-local triangles back to triangles of the input by their vertex triples.
+        Input local = in;
+        local.indices.clear();
+        std::vector<uint32_t> tris, sizes;
+        for (size_t m = 0; m < count; ++m) {
+            const meshopt_Meshlet& ml = meshlets[m];
+            for (size_t t = 0; t < ml.triangle_count; ++t) {
+                for (int k = 0; k < 3; ++k) local.indices.push_back(mv[ml.vertex_offset + mt[ml.triangle_offset + t * 3 + k]]);
+                tris.push_back(uint32_t(tris.size()));
+            }
+            sizes.push_back(ml.triangle_count);
+        }
+        r.acmr = cb::fifo_acmr(local.indices.data(), local.indices.size() / 3, in.vertices(), 32);
+        r.c = compactness(local, tris, sizes);
+        rows.push_back(r);
+    }
+    for (const Row& r : rows) print_row(in, r, hw);
+
+    // Vertex cache order alone, whole mesh: our Forsyth against meshopt_optimizeVertexCache.
+    std::vector<uint32_t> ours, theirs(in.indices.size());
+    double t_ours = median_seconds(runs, [&] { ours = cb::forsyth_order(in.indices.data(), in.triangles(), in.vertices(), 32); });
+    double t_meshopt = median_seconds(runs, [&] {
+        meshopt_optimizeVertexCache(theirs.data(), in.indices.data(), in.indices.size(), in.vertices());
+    });
+    std::vector<uint32_t> ours_idx = permuted(in, ours);
+    double acmr_in = cb::fifo_acmr(in.indices.data(), in.triangles(), in.vertices(), 32);
+    double acmr_ours = cb::fifo_acmr(ours_idx.data(), in.triangles(), in.vertices(), 32);
+    double acmr_theirs = cb::fifo_acmr(theirs.data(), in.triangles(), in.vertices(), 32);
+    std::printf("|   vertex cache, %-20s | input ACMR %.3f | ours %.3f in %.1f ms | meshopt %.3f in %.1f ms | time ours/meshopt %.2f |\n",
+                in.name.c_str(), acmr_in, acmr_ours, t_ours * 1e3, acmr_theirs, t_meshopt * 1e3, t_ours / t_meshopt);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    fs::path data = fs::path(CB_SHARED_DATA);
+    uint32_t fine = 16;
+    int runs = 5, copies = 25;
+    std::string only;
+    for (int i = 1; i + 1 < argc; i += 2) {
+        std::string a = argv[i];
+        if (a == "--data") data = argv[i + 1];
+        else if (a == "--fine") fine = uint32_t(std::stoul(argv[i + 1]));
+        else if (a == "--runs") runs = std::stoi(argv[i + 1]);
+        else if (a == "--big-copies") copies = std::stoi(argv[i + 1]);
+        else if (a == "--only") only = argv[i + 1];
+    }
+    if (!fs::exists(data / "scanned")) {
+        std::fprintf(stderr, "bench_cluster: no scanned meshes under %s (pass --data DIR)\n", data.string().c_str());
+        return 1;
+    }
+    std::printf("fine size %u, %d runs (median), %u hardware threads; M tri/s = million triangles per second; "
+                "radius = cluster AABB half-diagonal / mesh diagonal; ACMR = FIFO 32 misses per triangle\n\n",
+                fine, runs, std::max(1u, std::thread::hardware_concurrency()));
+    std::printf("| input | method | M tri/s 1 thread | M tri/s all | extra MB | ACMR | clusters | tri/cluster | mean radius | max radius |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+    std::vector<fs::path> files;
+    for (const auto& e : fs::directory_iterator(data / "scanned")) files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    Input dragon;
+    for (const fs::path& f : files) {
+        if (!only.empty() && f.filename().string().find(only) == std::string::npos) continue;
+        Input in = load_input(f);
+        if (f.filename() == "dragon_vrip_res2_binary.ply") dragon = in;
+        run(in, fine, runs);
+    }
+    if (copies > 0) {
+        if (dragon.indices.empty()) dragon = load_input(data / "scanned/dragon_vrip_res2_binary.ply");
+        run(big_scene(dragon, copies), fine, std::min(runs, 3));
+    }
+    return 0;
+}
