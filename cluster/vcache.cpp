@@ -5,7 +5,8 @@
 // the next triangle is not biased towards one of them; older positions decay with a power law) plus a
 // bonus that grows as its remaining valence shrinks (finish off vertices before they leave the cache).
 // A triangle scores the sum of its vertices. Greedily emit the best triangle touching the cache; when
-// none does, take the next unemitted one in input order.
+// none does, continue from the most recently emitted vertex that still has triangles left (a dead-end
+// stack, so the walk stays local), and only when that is empty from the next unemitted one in input order.
 #include <algorithm>
 #include <cmath>
 
@@ -63,16 +64,23 @@ std::vector<uint32_t> forsyth_order(const uint32_t* indices, size_t triangle_cou
     cache.reserve(cache_size + 3);
     next_cache.reserve(cache_size + 3);
     size_t cursor = 0;  // every triangle before it is emitted
+    std::vector<uint32_t> dead_end;  // vertices of emitted triangles, most recent last
     uint32_t best = uint32_t(std::max_element(triangle_score.begin(), triangle_score.end()) - triangle_score.begin());
 
     while (order.size() < triangle_count) {
-        if (best == UINT32_MAX) {  // dead end: the first unemitted triangle in input order
+        while (best == UINT32_MAX && !dead_end.empty()) {
+            uint32_t v = dead_end.back();
+            dead_end.pop_back();
+            if (valence[v]) best = adjacency[first[v]];
+        }
+        if (best == UINT32_MAX) {  // nothing local left: the first unemitted triangle in input order
             while (emitted[cursor]) ++cursor;
             best = uint32_t(cursor);
         }
         order.push_back(best);
         emitted[best] = 1;
         const uint32_t* tri = indices + size_t(best) * 3;
+        dead_end.insert(dead_end.end(), {tri[0], tri[1], tri[2]});
 
         // Retire the triangle from its vertices' live lists.
         for (int k = 0; k < 3; ++k) {

@@ -118,3 +118,20 @@ TEST(Cli, FailedClusterLeavesTheOutputUntouched) {
     EXPECT_NE(v.err.find("too small"), std::string::npos) << v.err;
     EXPECT_EQ(run("cluster " + data("small/cube.obj") + " --method nonsense -o " + out.string()).code, 1);
 }
+
+TEST(Cli, AssetIsByteIdenticalForAnyThreadCount) {
+    auto dir = std::filesystem::temp_directory_path();
+    std::string a = (dir / ("cb_cli_t1_" + std::to_string(getpid()) + ".cbk")).string();
+    std::string b = (dir / ("cb_cli_t4_" + std::to_string(getpid()) + ".cbk")).string();
+    for (const char* method : {"kmeans", "vco", "morton"}) {
+        ASSERT_EQ(run("cluster " + data("default_scene.glb") + " --coarse 512 --threads 1 --method " + method + " -o " + a).code, 0);
+        ASSERT_EQ(run("cluster " + data("default_scene.glb") + " --coarse 512 --threads 4 --method " + method + " -o " + b).code, 0);
+        std::ifstream fa(a, std::ios::binary), fb(b, std::ios::binary);
+        std::string sa((std::istreambuf_iterator<char>(fa)), std::istreambuf_iterator<char>());
+        std::string sb((std::istreambuf_iterator<char>(fb)), std::istreambuf_iterator<char>());
+        EXPECT_FALSE(sa.empty());
+        EXPECT_TRUE(sa == sb) << method;
+    }
+    std::filesystem::remove(a);
+    std::filesystem::remove(b);
+}

@@ -345,3 +345,28 @@ TEST(Cluster, AssetRoundTripsThroughTheRuntimeView) {
     for (size_t cut : {size_t(0), size_t(63), size_t(64), bytes.size() - 16})
         EXPECT_NE(cb::open_asset(aligned.data(), cut, &view), cb::AssetError::ok) << cut;
 }
+
+TEST(Cluster, CityModelAtHugeCoordinates) {
+    // The 3dfier terrain sits at x ~ 85,000, y ~ 447,000 with a 524 m extent: Morton chunks and k-means
+    // clusters must stay local, not collapse because of the large offset.
+    fs::path file = fs::path(CB_SHARED_DATA) / "hard/3dfier_testarea/testarea.obj";
+    if (!fs::exists(file)) GTEST_SKIP() << "../shared/data is absent";
+    cb::Scene scene = cb::load_scene(file.string());
+    const cb::Mesh& m = scene.meshes[0];
+    cb::ClusterOptions o;
+    cb::Hierarchy h = cb::build_hierarchy(m.positions.data(), m.vertex_count(), m.indices.data(), m.triangle_count(), o);
+    check_hierarchy(h, m.indices.data(), m.triangle_count(), o);
+    double mean_extent = 0;
+    for (size_t f = 0; f < h.fine_count(); ++f) {
+        float lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+        for (uint32_t i = h.fine_offsets[f]; i < h.fine_offsets[f + 1]; ++i)
+            for (int k = 0; k < 3; ++k)
+                for (int a = 0; a < 2; ++a) {
+                    float x = m.positions[size_t(m.indices[size_t(h.order[i]) * 3 + k]) * 3 + a];
+                    lo[a] = std::min(lo[a], x), hi[a] = std::max(hi[a], x);
+                }
+        mean_extent += std::max(hi[0] - lo[0], hi[1] - lo[1]);
+    }
+    mean_extent /= double(h.fine_count());
+    EXPECT_LT(mean_extent, 40.0) << "fine clusters of a 524 m terrain should span metres, not the whole site";
+}
