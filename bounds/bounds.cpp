@@ -1,0 +1,595 @@
+// Bounding volume fitting. Every volume is fitted in double around a local origin (the centre of the
+// cluster's box), then stored in float: the shape parameters (centre, axes, end points) are rounded to
+// nearest, and only then are the extents and radii measured against those very floats, in double, with a
+// margin for the rounding of that measurement, and rounded up. So containment never depends on how well
+// the fit went: it holds by construction for the stored numbers.
+#include "bounds.h"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <vector>
+
+namespace cb {
+
+// Defined in obb_cgal.cpp: CGAL's optimal box frame, rows are axes. False when CGAL cannot fit one.
+bool cgal_optimal_frame(const double* points, size_t n, double frame[3][3]);
+
+namespace {
+
+using Vec = std::array<double, 3>;
+
+Vec sub(const double* a, const double* b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+double dot(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+Vec cross(const Vec& a, const Vec& b) { return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]}; }
+double norm(const Vec& a) { return std::sqrt(dot(a.data(), a.data())); }
+
+float round_up(double x) {
+    float f = float(x);
+    if (double(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+    return f;
+}
+float round_down(double x) {
+    float f = float(x);
+    if (double(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+    return f;
+}
+
+// Relative size of the rounding error of a double dot product or distance over float-derived inputs,
+// with room to spare (a handful of ulps of 2^-53), and far below a float ulp (2^-24).
+constexpr double measure_margin = 1e-14;
+
+// ------------------------------------------------------------------ oriented box
+
+struct Frame {
+    double axis[3][3];  // orthonormal rows, right-handed
+};
+
+void make_right_handed(Frame& f) {
+    Vec a{f.axis[0][0], f.axis[0][1], f.axis[0][2]}, b{f.axis[1][0], f.axis[1][1], f.axis[1][2]};
+    Vec c = cross(a, b);
+    for (int k = 0; k < 3; ++k) f.axis[2][k] = c[k];
+}
+
+// Extents of the points along a frame: lo/hi per axis.
+void extents(const double* pts, size_t n, const Frame& f, double lo[3], double hi[3]) {
+    for (int i = 0; i < 3; ++i) lo[i] = INFINITY, hi[i] = -INFINITY;
+    for (size_t v = 0; v < n; ++v)
+        for (int i = 0; i < 3; ++i) {
+            double d = dot(pts + v * 3, f.axis[i]);
+            lo[i] = std::min(lo[i], d), hi[i] = std::max(hi[i], d);
+        }
+}
+
+// Box cost: volume, with every side padded by a tiny fraction of the diagonal so flat and needle sets
+// still compare by area and length instead of all tying at zero.
+double frame_cost(const double* pts, size_t n, const Frame& f, double pad) {
+    double lo[3], hi[3];
+    extents(pts, n, f, lo, hi);
+    return (hi[0] - lo[0] + pad) * (hi[1] - lo[1] + pad) * (hi[2] - lo[2] + pad);
+}
+
+Frame eigen_frame(const Eigen::Matrix3d& cov) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(cov);
+    Frame f;
+    // Largest variance first.
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) f.axis[i][k] = solver.eigenvectors()(k, 2 - i);
+    make_right_handed(f);
+    return f;
+}
+
+Frame pca_frame(const double* pts, size_t n) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (size_t v = 0; v < n; ++v) mean += Eigen::Vector3d(pts[v * 3], pts[v * 3 + 1], pts[v * 3 + 2]);
+    mean /= double(n);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (size_t v = 0; v < n; ++v) {
+        Eigen::Vector3d d = Eigen::Vector3d(pts[v * 3], pts[v * 3 + 1], pts[v * 3 + 2]) - mean;
+        cov += d * d.transpose();
+    }
+    return eigen_frame(cov);
+}
+
+// Covariance of the triangles as continuous surfaces (Gottschalk, Lin and Manocha): each triangle weighs
+// by its area, so dense tessellation in one corner does not tilt the frame. False when the area is zero.
+bool area_frame(const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count,
+                const double* origin, Frame& out) {
+    Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d first = Eigen::Vector3d::Zero();
+    double total = 0;
+    for (size_t i = 0; i < count; ++i) {
+        Eigen::Vector3d p[3];
+        for (int k = 0; k < 3; ++k) {
+            const float* q = positions + size_t(indices[size_t(tris[i]) * 3 + k]) * 3;
+            p[k] = Eigen::Vector3d(q[0] - origin[0], q[1] - origin[1], q[2] - origin[2]);
+        }
+        double area = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).norm();
+        if (!(area > 0)) continue;
+        Eigen::Vector3d m = (p[0] + p[1] + p[2]) / 3.0;
+        second += area / 12.0 * (9.0 * m * m.transpose() + p[0] * p[0].transpose() + p[1] * p[1].transpose() + p[2] * p[2].transpose());
+        first += area * m;
+        total += area;
+    }
+    if (!(total > 0)) return false;
+    Eigen::Vector3d mean = first / total;
+    out = eigen_frame(second / total - mean * mean.transpose());
+    return true;
+}
+
+// 2-D convex hull (monotone chain), counter-clockwise, collinear points dropped.
+std::vector<std::array<double, 2>> hull2d(std::vector<std::array<double, 2>> p) {
+    std::sort(p.begin(), p.end());
+    p.erase(std::unique(p.begin(), p.end()), p.end());
+    if (p.size() < 3) return p;
+    auto turn = [](const auto& o, const auto& a, const auto& b) {
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    };
+    std::vector<std::array<double, 2>> h(2 * p.size());
+    size_t k = 0;
+    for (size_t i = 0; i < p.size(); ++i) {
+        while (k >= 2 && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    for (size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
+        while (k >= t && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    h.resize(k - 1);
+    return h;
+}
+
+// Keeps axis `fixed` of the frame and turns the other two to the minimum-area rectangle of the points
+// projected on their plane (one rectangle side lies on a hull edge: test every edge direction).
+Frame min_area_rect_frame(const double* pts, size_t n, const Frame& f, int fixed) {
+    int u = (fixed + 1) % 3, w = (fixed + 2) % 3;
+    std::vector<std::array<double, 2>> proj(n);
+    for (size_t v = 0; v < n; ++v) proj[v] = {dot(pts + v * 3, f.axis[u]), dot(pts + v * 3, f.axis[w])};
+    std::vector<std::array<double, 2>> h = hull2d(std::move(proj));
+    double best = INFINITY, best_c = 1, best_s = 0;
+    for (size_t e = 0; e < h.size() && h.size() >= 3; ++e) {
+        const auto& a = h[e];
+        const auto& b = h[(e + 1) % h.size()];
+        double dx = b[0] - a[0], dy = b[1] - a[1], len = std::hypot(dx, dy);
+        if (!(len > 0)) continue;
+        double c = dx / len, s = dy / len, lo0 = INFINITY, hi0 = -INFINITY, lo1 = INFINITY, hi1 = -INFINITY;
+        for (const auto& q : h) {
+            double x = c * q[0] + s * q[1], y = -s * q[0] + c * q[1];
+            lo0 = std::min(lo0, x), hi0 = std::max(hi0, x), lo1 = std::min(lo1, y), hi1 = std::max(hi1, y);
+        }
+        double area = (hi0 - lo0) * (hi1 - lo1);
+        if (area < best) best = area, best_c = c, best_s = s;
+    }
+    Frame out = f;
+    for (int k = 0; k < 3; ++k) {
+        out.axis[u][k] = best_c * f.axis[u][k] + best_s * f.axis[w][k];
+        out.axis[w][k] = -best_s * f.axis[u][k] + best_c * f.axis[w][k];
+    }
+    // Keep the rows in the fixed/u/w roles, then restore handedness.
+    Vec a{out.axis[0][0], out.axis[0][1], out.axis[0][2]}, b{out.axis[1][0], out.axis[1][1], out.axis[1][2]};
+    Vec c = cross(a, b);
+    if (dot(c.data(), out.axis[2]) < 0)
+        for (int k = 0; k < 3; ++k) out.axis[2][k] = -out.axis[2][k];
+    return out;
+}
+
+Frame best_frame(const double* pts, size_t n, ObbMethod method, const float* positions, const uint32_t* indices,
+                 const uint32_t* tris, size_t count, const double* origin) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t i = 0; i < n * 3; ++i) lo = std::min(lo, pts[i]), hi = std::max(hi, pts[i]);
+    double pad = std::max(hi - lo, 1e-300) * 1e-9;
+
+    if (method == ObbMethod::cgal_optimal) {
+        Frame f;
+        if (n >= 4 && cgal_optimal_frame(pts, n, f.axis)) {
+            make_right_handed(f);
+            return f;
+        }
+        method = ObbMethod::refined;  // CGAL needs 4 points or more
+    }
+    std::vector<Frame> candidates;
+    if (method == ObbMethod::pca || method == ObbMethod::refined) candidates.push_back(pca_frame(pts, n));
+    if (method == ObbMethod::pca_area || method == ObbMethod::refined) {
+        Frame f;
+        if (positions && area_frame(positions, indices, tris, count, origin, f)) candidates.push_back(f);
+        else if (method == ObbMethod::pca_area) candidates.push_back(pca_frame(pts, n));
+    }
+    if (method == ObbMethod::refined) {
+        size_t base = candidates.size();
+        for (size_t c = 0; c < base; ++c)
+            for (int fixed = 0; fixed < 3; ++fixed) candidates.push_back(min_area_rect_frame(pts, n, candidates[c], fixed));
+    }
+    size_t best = 0;
+    double best_cost = INFINITY;
+    for (size_t c = 0; c < candidates.size(); ++c) {
+        double cost = frame_cost(pts, n, candidates[c], pad);
+        if (cost < best_cost) best_cost = cost, best = c;
+    }
+    return candidates[best];
+}
+
+// Stores a frame as a float box that contains every world point (floats in `positions` order).
+Obb store_obb(const Frame& f, const double* local, size_t n, const double* origin, const double* world) {
+    double lo[3], hi[3];
+    extents(local, n, f, lo, hi);
+    double centre[3];
+    for (int k = 0; k < 3; ++k) {
+        centre[k] = origin[k];
+        for (int i = 0; i < 3; ++i) centre[k] += 0.5 * (lo[i] + hi[i]) * f.axis[i][k];
+    }
+    Obb b;
+    for (int k = 0; k < 3; ++k) b.center[k] = float(centre[k]);
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) b.axis[i][k] = float(f.axis[i][k]);
+    // Measure against the stored floats.
+    double c[3] = {b.center[0], b.center[1], b.center[2]};
+    for (int i = 0; i < 3; ++i) {
+        double a[3] = {b.axis[i][0], b.axis[i][1], b.axis[i][2]}, h = 0, scale = 0;
+        for (size_t v = 0; v < n; ++v) {
+            Vec d = sub(world + v * 3, c);
+            h = std::max(h, std::fabs(dot(d.data(), a)));
+            scale = std::max(scale, std::fabs(d[0] * a[0]) + std::fabs(d[1] * a[1]) + std::fabs(d[2] * a[2]));
+        }
+        b.half[i] = round_up(h + measure_margin * scale);
+    }
+    return b;
+}
+
+// ------------------------------------------------------------------ spheres and circles (Welzl, move to front)
+
+struct Ball {
+    double c[3];
+    double r2;  // negative: empty
+};
+
+Ball ball_of(const double* const* s, int k);
+
+Ball farthest_pair_ball(const double* const* s, int k) {
+    Ball best{{0, 0, 0}, -1};
+    for (int i = 0; i < k; ++i)
+        for (int j = i + 1; j < k; ++j) {
+            const double* pair[2] = {s[i], s[j]};
+            Ball b = ball_of(pair, 2);
+            if (b.r2 > best.r2) best = b;
+        }
+    return best;
+}
+
+Ball ball_of(const double* const* s, int k) {
+    Ball b{{0, 0, 0}, -1};
+    if (k == 0) return b;
+    if (k == 1) return {{s[0][0], s[0][1], s[0][2]}, 0};
+    if (k == 2) {
+        for (int i = 0; i < 3; ++i) b.c[i] = 0.5 * (s[0][i] + s[1][i]);
+        Vec d = sub(s[0], s[1]);
+        b.r2 = 0.25 * dot(d.data(), d.data());
+        return b;
+    }
+    Vec a = sub(s[1], s[0]), c = sub(s[2], s[0]);
+    if (k == 3) {
+        Vec n = cross(a, c);
+        double n2 = dot(n.data(), n.data());
+        double scale = dot(a.data(), a.data()) * dot(c.data(), c.data());
+        if (!(n2 > 1e-24 * scale)) return farthest_pair_ball(s, 3);  // collinear
+        Vec t1 = cross(n, a), t2 = cross(c, n);
+        double ca = dot(c.data(), c.data()), aa = dot(a.data(), a.data());
+        for (int i = 0; i < 3; ++i) b.c[i] = s[0][i] + (ca * t1[i] + aa * t2[i]) / (2 * n2);
+        Vec r = sub(b.c, s[0]);
+        b.r2 = dot(r.data(), r.data());
+        return b;
+    }
+    // k == 4: circumsphere, or (coplanar) the smallest 3-point ball that holds the fourth.
+    Vec d = sub(s[3], s[0]);
+    Eigen::Matrix3d m;
+    m << a[0], a[1], a[2], c[0], c[1], c[2], d[0], d[1], d[2];
+    double det = m.determinant(), scale = norm(a) * norm(c) * norm(d);
+    if (std::fabs(det) > 1e-12 * scale) {
+        Eigen::Vector3d rhs(0.5 * dot(a.data(), a.data()), 0.5 * dot(c.data(), c.data()), 0.5 * dot(d.data(), d.data()));
+        Eigen::Vector3d x = m.partialPivLu().solve(rhs);
+        for (int i = 0; i < 3; ++i) b.c[i] = s[0][i] + x[i];
+        b.r2 = x.squaredNorm();
+        return b;
+    }
+    Ball best{{0, 0, 0}, INFINITY};
+    for (int skip = 0; skip < 4; ++skip) {
+        const double* t[3];
+        int j = 0;
+        for (int i = 0; i < 4; ++i)
+            if (i != skip) t[j++] = s[i];
+        Ball cand = ball_of(t, 3);
+        Vec e = sub(s[skip], cand.c);
+        if (dot(e.data(), e.data()) <= cand.r2 * (1 + 1e-9) && cand.r2 < best.r2) best = cand;
+    }
+    return std::isfinite(best.r2) ? best : farthest_pair_ball(s, 4);
+}
+
+bool outside(const Ball& b, const double* p) {
+    Vec d = sub(p, b.c);
+    return dot(d.data(), d.data()) > b.r2 * (1 + 1e-12) + 1e-300;
+}
+
+// Gärtner's move-to-front Welzl: `order` is permuted as points move to the front.
+Ball welzl(const double* pts, std::vector<uint32_t>& order, size_t end, const double** support, int k, int max_support) {
+    Ball b = ball_of(support, k);
+    if (k == max_support) return b;
+    for (size_t i = 0; i < end; ++i) {
+        const double* p = pts + size_t(order[i]) * 3;
+        if (b.r2 >= 0 && !outside(b, p)) continue;
+        support[k] = p;
+        b = welzl(pts, order, i, support, k + 1, max_support);
+        std::rotate(order.begin(), order.begin() + std::ptrdiff_t(i), order.begin() + std::ptrdiff_t(i) + 1);
+    }
+    return b;
+}
+
+Ball min_ball(const double* pts, size_t n, int dims) {
+    std::vector<uint32_t> order(n);
+    std::iota(order.begin(), order.end(), 0u);
+    const double* support[4] = {};
+    return welzl(pts, order, n, support, 0, dims + 1);
+}
+
+// Stores a sphere around `centre` that contains every world point.
+Sphere store_sphere(const double* centre, const double* world, size_t n) {
+    Sphere s;
+    for (int k = 0; k < 3; ++k) s.center[k] = float(centre[k]);
+    double c[3] = {s.center[0], s.center[1], s.center[2]}, r = 0;
+    for (size_t v = 0; v < n; ++v) {
+        Vec d = sub(world + v * 3, c);
+        r = std::max(r, norm(d));
+    }
+    s.radius = round_up(r * (1 + measure_margin));
+    return s;
+}
+
+// ------------------------------------------------------------------ capsule
+
+double segment_distance(const double* p, const double* a, const double* b) {
+    Vec ab = sub(b, a), ap = sub(p, a);
+    double len2 = dot(ab.data(), ab.data());
+    double t = len2 > 0 ? std::clamp(dot(ap.data(), ab.data()) / len2, 0.0, 1.0) : 0.0;
+    double q[3] = {a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
+    return norm(sub(p, q));
+}
+
+// Axis from the box; radius from the minimal circle of the points projected on the plane across it;
+// the segment as short as containment allows.
+Capsule fit_capsule(const Frame& f, int major, const double* local, size_t n, const double* origin, const double* world) {
+    int u = (major + 1) % 3, w = (major + 2) % 3;
+    std::vector<double> plane(n * 3, 0.0);
+    for (size_t v = 0; v < n; ++v) plane[v * 3] = dot(local + v * 3, f.axis[u]), plane[v * 3 + 1] = dot(local + v * 3, f.axis[w]);
+    Ball circle = min_ball(plane.data(), n, 2);
+    double r = std::sqrt(std::max(0.0, circle.r2));
+    double lo = INFINITY, hi = -INFINITY;  // t range the segment must cover
+    for (size_t v = 0; v < n; ++v) {
+        double t = dot(local + v * 3, f.axis[major]);
+        double du = plane[v * 3] - circle.c[0], dw = plane[v * 3 + 1] - circle.c[1];
+        double s = std::sqrt(std::max(0.0, r * r - du * du - dw * dw));
+        lo = std::min(lo, t + s);  // the segment must start no later than t + s
+        hi = std::max(hi, t - s);  // and end no earlier than t - s
+    }
+    if (lo > hi) lo = hi = 0.5 * (lo + hi);
+    Capsule cap;
+    double a[3], b[3];
+    for (int k = 0; k < 3; ++k) {
+        double base = origin[k] + circle.c[0] * f.axis[u][k] + circle.c[1] * f.axis[w][k];
+        a[k] = base + lo * f.axis[major][k];
+        b[k] = base + hi * f.axis[major][k];
+        cap.a[k] = float(a[k]);
+        cap.b[k] = float(b[k]);
+    }
+    double fa[3] = {cap.a[0], cap.a[1], cap.a[2]}, fb[3] = {cap.b[0], cap.b[1], cap.b[2]};
+    double worst = 0, reach = norm(sub(fb, fa));
+    for (size_t v = 0; v < n; ++v) {
+        worst = std::max(worst, segment_distance(world + v * 3, fa, fb));
+        reach = std::max(reach, norm(sub(world + v * 3, fa)));
+    }
+    cap.radius = round_up(worst + measure_margin * reach);
+    return cap;
+}
+
+// ------------------------------------------------------------------ normal cones and slab
+
+struct Plane {
+    Vec n;      // unit normal (front side positive)
+    Vec point;  // a vertex, world
+};
+
+// An apex on the axis line through `centre`, strictly on the `sign` side of every plane as stored in float:
+// after rounding, its distance is re-measured and the apex pushed further along the axis until it clears
+// every plane by more than the measurement could err. False if it cannot be made to (never guess).
+bool place_apex(const std::vector<Plane>& planes, const Vec& axis, const double* centre, double sign, double extent,
+                float out[3]) {
+    // The lowest s with sign * dot(centre + s * axis - point, n) >= 0 for all planes (sign = -1 for the back).
+    double s = sign > 0 ? -INFINITY : INFINITY, min_cos = INFINITY;
+    for (const Plane& pl : planes) {
+        double along = dot(axis.data(), pl.n.data());  // > 0: every normal is within 90 degrees of the axis
+        Vec d = sub(pl.point.data(), centre);
+        double need = dot(d.data(), pl.n.data()) / along;
+        s = sign > 0 ? std::max(s, need) : std::min(s, need);
+        min_cos = std::min(min_cos, along);
+    }
+    double push = 1e-7 * extent;
+    for (int attempt = 0; attempt < 40; ++attempt) {
+        double p[3];
+        for (int k = 0; k < 3; ++k) p[k] = centre[k] + (s + sign * push) * axis[k];
+        for (int k = 0; k < 3; ++k) out[k] = float(p[k]);
+        // Signed clearance of the stored apex from the nearest plane, on the wanted side.
+        double stored[3] = {out[0], out[1], out[2]}, d = INFINITY, scale = 0;
+        for (const Plane& pl : planes) {
+            Vec e = sub(stored, pl.point.data());
+            d = std::min(d, sign * dot(e.data(), pl.n.data()));
+            scale = std::max(scale, norm(e));
+        }
+        double needed = 1e-12 * (scale + extent);
+        if (d > needed && std::isfinite(d)) return true;
+        if (!std::isfinite(d) || !std::isfinite(scale)) return false;
+        push = push * 4 + (needed - d) / min_cos;
+    }
+    return false;
+}
+
+Cone fit_cone(const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count, const double* centre,
+              double extent) {
+    Cone cone{};
+    cone.valid = false;
+    std::vector<Plane> planes;
+    Vec sum{0, 0, 0};
+    for (size_t i = 0; i < count; ++i) {
+        double p[3][3];
+        for (int k = 0; k < 3; ++k)
+            for (int j = 0; j < 3; ++j) p[k][j] = positions[size_t(indices[size_t(tris[i]) * 3 + k]) * 3 + j];
+        Vec n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+        double len = norm(n);
+        if (!(len > 0)) continue;  // zero area: no front side, never occludes
+        for (int k = 0; k < 3; ++k) sum[k] += n[k];
+        planes.push_back({{n[0] / len, n[1] / len, n[2] / len}, {p[0][0], p[0][1], p[0][2]}});
+    }
+    double sum_len = norm(sum);
+    if (planes.empty() || !(sum_len > 0)) return cone;
+    // The stored (float) axis is the one every angle is measured from.
+    for (int k = 0; k < 3; ++k) cone.axis[k] = float(sum[k] / sum_len);
+    Vec axis{cone.axis[0], cone.axis[1], cone.axis[2]};
+    double axis_len = norm(axis);
+    for (double& a : axis) a /= axis_len;
+    double min_cos = INFINITY;
+    for (const Plane& pl : planes) min_cos = std::min(min_cos, dot(axis.data(), pl.n.data()));
+    // Half-angle = 90 degrees - widest normal, less a margin that dwarfs the normals' rounding.
+    constexpr double angle_margin = 1e-6;
+    double widest = std::acos(std::clamp(min_cos, -1.0, 1.0));
+    double half = M_PI / 2 - widest - angle_margin;
+    if (!(half > 0)) return cone;
+    if (!place_apex(planes, axis, centre, +1, extent, cone.front_apex)) return cone;
+    if (!place_apex(planes, axis, centre, -1, extent, cone.back_apex)) return cone;
+    cone.cos_half_angle = round_up(std::cos(half));
+    cone.sin_half_angle = round_down(std::sin(half));
+    cone.valid = true;
+    return cone;
+}
+
+Slab fit_slab(const float axis_f[3], const double* world, size_t n) {
+    Slab s;
+    for (int k = 0; k < 3; ++k) s.axis[k] = axis_f[k];
+    double a[3] = {axis_f[0], axis_f[1], axis_f[2]}, lo = INFINITY, hi = -INFINITY, scale = 0;
+    for (size_t v = 0; v < n; ++v) {
+        double d = dot(world + v * 3, a);
+        lo = std::min(lo, d), hi = std::max(hi, d);
+        scale = std::max(scale, std::fabs(world[v * 3] * a[0]) + std::fabs(world[v * 3 + 1] * a[1]) + std::fabs(world[v * 3 + 2] * a[2]));
+    }
+    s.low = round_down(lo - measure_margin * scale);
+    s.high = round_up(hi + measure_margin * scale);
+    return s;
+}
+
+}  // namespace
+
+double obb_volume(const Obb& b) { return 8.0 * double(b.half[0]) * b.half[1] * b.half[2]; }
+
+Obb fit_obb(const double* local, size_t n, const double* origin, ObbMethod method, const float* positions,
+            const uint32_t* indices, const uint32_t* triangle_ids, size_t triangle_count) {
+    std::vector<double> world(n * 3);
+    for (size_t i = 0; i < n * 3; ++i) world[i] = local[i] + origin[i % 3];
+    Frame f = best_frame(local, n, method, positions, indices, triangle_ids, triangle_count, origin);
+    return store_obb(f, local, n, origin, world.data());
+}
+
+Sphere fit_sphere(const double* local, size_t n, const double* origin) {
+    std::vector<double> world(n * 3);
+    for (size_t i = 0; i < n * 3; ++i) world[i] = local[i] + origin[i % 3];
+    Ball b = min_ball(local, n, 3);
+    double c[3] = {b.c[0] + origin[0], b.c[1] + origin[1], b.c[2] + origin[2]};
+    return store_sphere(c, world.data(), n);
+}
+
+Sphere ritter_sphere(const double* local, size_t n, const double* origin) {
+    // Farthest point from the first, farthest from that, then grow to take in stragglers.
+    auto farthest = [&](const double* from) {
+        size_t best = 0;
+        double d = -1;
+        for (size_t v = 0; v < n; ++v) {
+            Vec e = sub(local + v * 3, from);
+            double dd = dot(e.data(), e.data());
+            if (dd > d) d = dd, best = v;
+        }
+        return local + best * 3;
+    };
+    const double* a = farthest(local);
+    const double* b = farthest(a);
+    double c[3] = {(a[0] + b[0]) / 2, (a[1] + b[1]) / 2, (a[2] + b[2]) / 2};
+    double r = norm(sub(a, b)) / 2;
+    for (size_t v = 0; v < n; ++v) {
+        double d = norm(sub(local + v * 3, c));
+        if (d > r) {
+            double nr = (r + d) / 2, k = (nr - r) / d;
+            for (int i = 0; i < 3; ++i) c[i] += (local[v * 3 + i] - c[i]) * k;
+            r = nr;
+        }
+    }
+    std::vector<double> world(n * 3);
+    for (size_t i = 0; i < n * 3; ++i) world[i] = local[i] + origin[i % 3];
+    double cw[3] = {c[0] + origin[0], c[1] + origin[1], c[2] + origin[2]};
+    return store_sphere(cw, world.data(), n);
+}
+
+ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const uint32_t* triangle_ids, size_t count,
+                         const BoundsOptions& options) {
+    ClusterBounds out{};
+    // The cluster's distinct vertices, in double, world and local (around the centre of their box).
+    std::vector<uint32_t> ids;
+    ids.reserve(count * 3);
+    for (size_t i = 0; i < count; ++i)
+        for (int k = 0; k < 3; ++k) ids.push_back(indices[size_t(triangle_ids[i]) * 3 + k]);
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    size_t n = ids.size();
+    std::vector<double> world(n * 3), local(n * 3);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < n; ++v)
+        for (int k = 0; k < 3; ++k) {
+            world[v * 3 + k] = positions[size_t(ids[v]) * 3 + k];
+            lo[k] = std::min(lo[k], world[v * 3 + k]), hi[k] = std::max(hi[k], world[v * 3 + k]);
+        }
+    double origin[3], extent = 0;
+    for (int k = 0; k < 3; ++k) origin[k] = 0.5 * (lo[k] + hi[k]), extent = std::max(extent, hi[k] - lo[k]);
+    for (size_t i = 0; i < n * 3; ++i) local[i] = world[i] - origin[i % 3];
+    if (n == 0) return out;
+
+    Frame frame = best_frame(local.data(), n, options.obb, positions, indices, triangle_ids, count, origin);
+    out.obb = store_obb(frame, local.data(), n, origin, world.data());
+    if (options.mask & bounds_sphere) {
+        Ball b = min_ball(local.data(), n, 3);
+        double c[3] = {b.c[0] + origin[0], b.c[1] + origin[1], b.c[2] + origin[2]};
+        out.sphere = store_sphere(c, world.data(), n);
+    }
+    if (options.mask & bounds_capsule) {
+        double e[3];
+        for (int i = 0; i < 3; ++i) e[i] = out.obb.half[i];
+        int major = int(std::max_element(e, e + 3) - e);
+        bool elongated = true;
+        for (int i = 0; i < 3; ++i)
+            if (i != major && e[major] < options.capsule_ratio * e[i]) elongated = false;
+        if (elongated) {
+            out.capsule = fit_capsule(frame, major, local.data(), n, origin, world.data());
+            out.has_capsule = true;
+        }
+    }
+    if (options.mask & (bounds_cone | bounds_slab)) {
+        double centre[3] = {origin[0], origin[1], origin[2]};
+        out.cone = fit_cone(positions, indices, triangle_ids, count, centre, std::max(extent, 1e-30));
+        if (options.mask & bounds_slab) {
+            // Across the mean normal; without one (no area, or normals cancelling), the box's thinnest axis.
+            float axis[3];
+            bool have = out.cone.axis[0] != 0 || out.cone.axis[1] != 0 || out.cone.axis[2] != 0;
+            int thin = int(std::min_element(out.obb.half, out.obb.half + 3) - out.obb.half);
+            for (int k = 0; k < 3; ++k) axis[k] = have ? out.cone.axis[k] : out.obb.axis[thin][k];
+            out.slab = fit_slab(axis, world.data(), n);
+        }
+    }
+    return out;
+}
+
+}  // namespace cb

@@ -1,0 +1,96 @@
+// Bounding volumes of a set of triangles: oriented box, minimal sphere, capsule, normal cones with apex,
+// slabs. Fitted in double in a frame local to the cluster, stored in float rounded outward: after rounding,
+// every vertex of the cluster is inside every stored volume, evaluated in double against the floats, at any
+// distance from the origin.
+//
+// Containment contracts (what "inside" means for the stored floats):
+//   Obb:     |dot(p - center, axis[i])| <= half[i] for i = 0, 1, 2 (axes are unit to float precision)
+//   Sphere:  |p - center| <= radius
+//   Capsule: distance(p, segment a..b) <= radius
+//   Slab:    low <= dot(p, axis) <= high
+// Cones are the other way round: every point strictly inside the front cone sees every non-degenerate
+// triangle of the cluster from its front side; see Cone.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+namespace cb {
+
+struct Obb {
+    float center[3];
+    float axis[3][3];  // right-handed, rows are the axes
+    float half[3];     // half extents along each axis
+};
+
+struct Sphere {
+    float center[3];
+    float radius;
+};
+
+struct Capsule {
+    float a[3], b[3];  // segment end points (equal when the capsule is a sphere)
+    float radius;
+};
+
+// Normal cone with apex (GeometryFX style). Front: a point p with angle(p - front_apex, axis) < half_angle
+// (p != apex) is strictly on the front side of every non-degenerate triangle, so in one-sided mode a light
+// there sees only front faces. Back: a viewer e with angle(back_apex - e, axis) < half_angle sees only back
+// faces (meshoptimizer's cluster cone test, for camera culling). `valid` false means never cull: the normals
+// spread 90 degrees or more, or every triangle has zero area.
+struct Cone {
+    float front_apex[3];
+    float back_apex[3];
+    float axis[3];
+    float cos_half_angle;  // rounded up: the stored cone is never wider than the proven one
+    float sin_half_angle;  // rounded down
+    bool valid;
+};
+
+struct Slab {
+    float axis[3];
+    float low, high;  // low rounded down, high rounded up
+};
+
+// Which volumes to fit.
+enum BoundsMask : uint32_t { bounds_obb = 1, bounds_sphere = 2, bounds_capsule = 4, bounds_cone = 8, bounds_slab = 16 };
+
+struct ClusterBounds {
+    Obb obb;
+    Sphere sphere;
+    Capsule capsule;
+    bool has_capsule;  // fitted only when the box's longest side is at least capsule_ratio times each other side
+    Cone cone;
+    Slab slab;
+};
+
+enum class ObbMethod {
+    pca,          // covariance of the vertices
+    pca_area,     // area-weighted covariance of the triangles (resists uneven tessellation)
+    refined,      // both PCA frames, each tightened by the minimum-area rectangle in its three planes (default)
+    cgal_optimal  // CGAL::oriented_bounding_box (slow reference; boxes from 4 points up)
+};
+
+struct BoundsOptions {
+    uint32_t mask = bounds_obb | bounds_sphere | bounds_capsule | bounds_cone | bounds_slab;
+    ObbMethod obb = ObbMethod::refined;
+    double capsule_ratio = 2.0;
+};
+
+// The triangles are `count` indices into `triangle_ids`, each a triangle of `indices` (3 per triangle)
+// over `positions` (xyz floats). Pure: no state, safe to call from many threads.
+ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const uint32_t* triangle_ids,
+                         size_t count, const BoundsOptions& options);
+
+// ---- the pieces, for tests and benchmarks. Points are xyz doubles, already relative to a local origin.
+
+Obb fit_obb(const double* points, size_t n, const double* origin, ObbMethod method,
+            const float* positions = nullptr, const uint32_t* indices = nullptr, const uint32_t* triangle_ids = nullptr,
+            size_t triangle_count = 0);
+Sphere fit_sphere(const double* points, size_t n, const double* origin);
+Sphere ritter_sphere(const double* points, size_t n, const double* origin);  // Ritter's approximation, a baseline
+
+// Volume of a stored box, for tightness comparisons.
+double obb_volume(const Obb& b);
+
+}  // namespace cb
