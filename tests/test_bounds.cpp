@@ -1,0 +1,279 @@
+// Bounding volumes: containment of every vertex in every stored (float) volume, checked in double; cone
+// soundness checked with CGAL's exact orientation predicate; the hard cases one by one.
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <numeric>
+#include <random>
+
+#include "bounds.h"
+#include "cluster.h"
+#include "load.h"
+
+namespace fs = std::filesystem;
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+
+namespace {
+
+struct Soup {
+    std::vector<float> positions;
+    std::vector<uint32_t> indices;
+    std::vector<uint32_t> all() const {
+        std::vector<uint32_t> t(indices.size() / 3);
+        std::iota(t.begin(), t.end(), 0u);
+        return t;
+    }
+};
+
+bool finite(const cb::ClusterBounds& b) {
+    const float* begin = reinterpret_cast<const float*>(&b.obb);
+    for (size_t i = 0; i < sizeof(cb::Obb) / 4; ++i)
+        if (!std::isfinite(begin[i])) return false;
+    const float* s = reinterpret_cast<const float*>(&b.sphere);
+    for (size_t i = 0; i < 4; ++i)
+        if (!std::isfinite(s[i])) return false;
+    if (b.has_capsule)
+        for (float v : {b.capsule.a[0], b.capsule.a[1], b.capsule.a[2], b.capsule.b[0], b.capsule.b[1], b.capsule.b[2], b.capsule.radius})
+            if (!std::isfinite(v)) return false;
+    for (float v : {b.slab.axis[0], b.slab.axis[1], b.slab.axis[2], b.slab.low, b.slab.high})
+        if (!std::isfinite(v)) return false;
+    if (b.cone.valid)
+        for (float v : {b.cone.front_apex[0], b.cone.front_apex[1], b.cone.front_apex[2], b.cone.back_apex[0],
+                        b.cone.back_apex[1], b.cone.back_apex[2], b.cone.axis[0], b.cone.axis[1], b.cone.axis[2],
+                        b.cone.cos_half_angle, b.cone.sin_half_angle})
+            if (!std::isfinite(v)) return false;
+    return true;
+}
+
+double segment_distance(const double p[3], const float a[3], const float b[3]) {
+    double ab[3], ap[3], len2 = 0, t = 0;
+    for (int k = 0; k < 3; ++k) ab[k] = double(b[k]) - a[k], ap[k] = p[k] - a[k], len2 += ab[k] * ab[k], t += ap[k] * ab[k];
+    t = len2 > 0 ? std::clamp(t / len2, 0.0, 1.0) : 0.0;
+    double d2 = 0;
+    for (int k = 0; k < 3; ++k) d2 += (p[k] - (a[k] + t * ab[k])) * (p[k] - (a[k] + t * ab[k]));
+    return std::sqrt(d2);
+}
+
+// Counts vertices outside each stored volume (all must be zero).
+size_t containment_misses(const cb::ClusterBounds& b, const float* positions, const uint32_t* indices,
+                          const uint32_t* tris, size_t count) {
+    size_t misses = 0;
+    for (size_t i = 0; i < count; ++i)
+        for (int k = 0; k < 3; ++k) {
+            const float* q = positions + size_t(indices[size_t(tris[i]) * 3 + k]) * 3;
+            double p[3] = {q[0], q[1], q[2]};
+            for (int a = 0; a < 3; ++a) {
+                double d = 0;
+                for (int j = 0; j < 3; ++j) d += (p[j] - b.obb.center[j]) * double(b.obb.axis[a][j]);
+                misses += std::fabs(d) > b.obb.half[a];
+            }
+            double r2 = 0;
+            for (int j = 0; j < 3; ++j) r2 += (p[j] - b.sphere.center[j]) * (p[j] - b.sphere.center[j]);
+            misses += std::sqrt(r2) > b.sphere.radius;
+            if (b.has_capsule) misses += segment_distance(p, b.capsule.a, b.capsule.b) > b.capsule.radius;
+            double s = p[0] * double(b.slab.axis[0]) + p[1] * double(b.slab.axis[1]) + p[2] * double(b.slab.axis[2]);
+            misses += s < b.slab.low || s > b.slab.high;
+        }
+    return misses;
+}
+
+// Random points strictly inside the front cone must see every non-degenerate triangle from the front, and
+// points inside the back cone from the back, by CGAL's exact orientation. Returns the violations.
+size_t cone_violations(const cb::ClusterBounds& b, const float* positions, const uint32_t* indices, const uint32_t* tris,
+                       size_t count, std::mt19937& rng, int samples) {
+    if (!b.cone.valid) return 0;
+    double axis[3] = {b.cone.axis[0], b.cone.axis[1], b.cone.axis[2]};
+    double len = std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+    for (double& a : axis) a /= len;
+    // Two unit vectors across the axis.
+    double helper[3] = {std::fabs(axis[0]) < 0.9 ? 1.0 : 0.0, std::fabs(axis[0]) < 0.9 ? 0.0 : 1.0, 0.0};
+    double u[3] = {axis[1] * helper[2] - axis[2] * helper[1], axis[2] * helper[0] - axis[0] * helper[2], axis[0] * helper[1] - axis[1] * helper[0]};
+    double ul = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    for (double& x : u) x /= ul;
+    double w[3] = {axis[1] * u[2] - axis[2] * u[1], axis[2] * u[0] - axis[0] * u[2], axis[0] * u[1] - axis[1] * u[0]};
+    double half = std::atan2(double(b.cone.sin_half_angle), double(b.cone.cos_half_angle));
+    double reach = 4.0 * (b.sphere.radius + 1e-3f);
+    std::uniform_real_distribution<double> unit(0, 1);
+    size_t bad = 0;
+    for (int s = 0; s < samples; ++s)
+        for (int side : {+1, -1}) {
+            double theta = half * 0.999 * unit(rng), phi = 2 * M_PI * unit(rng), t = reach * (1e-6 + unit(rng));
+            double dir[3];
+            for (int k = 0; k < 3; ++k)
+                dir[k] = std::cos(theta) * axis[k] + std::sin(theta) * (std::cos(phi) * u[k] + std::sin(phi) * w[k]);
+            const float* apex = side > 0 ? b.cone.front_apex : b.cone.back_apex;
+            K::Point_3 p(apex[0] + side * t * dir[0], apex[1] + side * t * dir[1], apex[2] + side * t * dir[2]);
+            for (size_t i = 0; i < count; ++i) {
+                K::Point_3 v[3];
+                for (int k = 0; k < 3; ++k) {
+                    const float* q = positions + size_t(indices[size_t(tris[i]) * 3 + k]) * 3;
+                    v[k] = K::Point_3(q[0], q[1], q[2]);
+                }
+                if (CGAL::collinear(v[0], v[1], v[2])) continue;  // zero area: no front side
+                CGAL::Orientation o = CGAL::orientation(v[0], v[1], v[2], p);
+                bad += side > 0 ? o != CGAL::POSITIVE : o != CGAL::NEGATIVE;
+            }
+        }
+    return bad;
+}
+
+// expect_cone: 1 valid, 0 invalid, -1 either (inputs whose floats may collapse)
+void check_all(const Soup& s, const char* what, int expect_cone) {
+    SCOPED_TRACE(what);
+    std::vector<uint32_t> tris = s.all();
+    for (cb::ObbMethod method : {cb::ObbMethod::pca, cb::ObbMethod::pca_area, cb::ObbMethod::refined, cb::ObbMethod::cgal_optimal}) {
+        cb::BoundsOptions o;
+        o.obb = method;
+        cb::ClusterBounds b = cb::fit_bounds(s.positions.data(), s.indices.data(), tris.data(), tris.size(), o);
+        EXPECT_TRUE(finite(b));
+        EXPECT_EQ(containment_misses(b, s.positions.data(), s.indices.data(), tris.data(), tris.size()), 0u) << int(method);
+        std::mt19937 rng(1);
+        EXPECT_EQ(cone_violations(b, s.positions.data(), s.indices.data(), tris.data(), tris.size(), rng, 50), 0u);
+        if (expect_cone >= 0) EXPECT_EQ(b.cone.valid, expect_cone == 1);
+    }
+}
+
+Soup translated(Soup s, double by) {
+    for (float& p : s.positions) p = float(double(p) + by);
+    return s;
+}
+
+Soup bumpy_patch(int n, float size, float bump) {  // a height field facing +z: a valid cone
+    Soup s;
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i)
+            s.positions.insert(s.positions.end(), {size * i / n, size * j / n, bump * std::sin(float(i * 1.3 + j * 0.7))});
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1), d = c + 1;
+            s.indices.insert(s.indices.end(), {a, b, c, b, d, c});
+        }
+    return s;
+}
+
+}  // namespace
+
+TEST(Bounds, OneTriangle) { check_all({{0, 0, 0, 1, 0, 0, 0, 1, 0}, {0, 1, 2}}, "one triangle", true); }
+
+TEST(Bounds, ZeroAreaAndRepeatedIndex) {
+    check_all({{0, 0, 0, 1, 0, 0, 2, 0, 0}, {0, 1, 2, 0, 0, 1}}, "only zero-area triangles", false);
+    check_all({{0, 0, 0, 1, 0, 0, 0, 1, 0, 2, 0, 0}, {0, 1, 2, 0, 1, 3, 2, 2, 2}}, "mixed", true);
+}
+
+TEST(Bounds, AllCoplanar) { check_all(bumpy_patch(4, 1, 0), "flat patch", true); }
+
+TEST(Bounds, AllCollinear) {
+    Soup s;
+    for (int i = 0; i < 10; ++i) s.positions.insert(s.positions.end(), {float(i), float(2 * i), float(3 * i)});
+    for (uint32_t i = 0; i + 2 < 10; ++i) s.indices.insert(s.indices.end(), {i, i + 1, i + 2});
+    check_all(s, "collinear", false);
+}
+
+TEST(Bounds, DuplicateVertices) {
+    Soup s = bumpy_patch(3, 1, 0.2f);
+    size_t n = s.positions.size();
+    s.positions.insert(s.positions.end(), s.positions.begin(), s.positions.begin() + std::ptrdiff_t(n));  // every vertex twice
+    size_t half = s.indices.size();
+    for (size_t i = 0; i < half; ++i) s.indices.push_back(s.indices[i] + uint32_t(n / 3));
+    check_all(s, "duplicates", true);
+}
+
+TEST(Bounds, FarFromTheOrigin) {
+    for (double offset : {1e6, 1e7, -3e7}) {
+        check_all(translated(bumpy_patch(4, 10, 1), offset), "10-unit patch far away", -1);
+        // A cluster of size 1e-6 far from the origin: its floats collapse onto one or a few points.
+        check_all(translated(bumpy_patch(2, 1e-6f, 2e-7f), offset), "tiny patch far away", -1);
+    }
+}
+
+TEST(Bounds, TinyNearTheOrigin) { check_all(bumpy_patch(3, 1e-6f, 3e-7f), "tiny patch", true); }
+
+TEST(Bounds, NeedleTriangles) {
+    Soup s;
+    for (int i = 0; i < 8; ++i) {
+        uint32_t b = uint32_t(s.positions.size() / 3);
+        float y = float(i) * 1e-3f;
+        s.positions.insert(s.positions.end(), {0, y, 0, 100, y + 1e-4f, 0, 50, y, 1e-5f});
+        s.indices.insert(s.indices.end(), {b, b + 1, b + 2});
+    }
+    check_all(s, "needles", true);
+}
+
+TEST(Bounds, NormalsThatCancel) {
+    // Both faces of a square: the mean normal is zero, so there is no cone: never cull.
+    check_all({{0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, {0, 1, 2, 0, 2, 3, 0, 2, 1, 0, 3, 2}}, "two-sided square", false);
+    // A closed box: normals spread over every direction.
+    Soup box;
+    box.positions = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
+    box.indices = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 2, 3, 7, 2, 7, 6, 1, 2, 6, 1, 6, 5, 0, 4, 7, 0, 7, 3};
+    check_all(box, "closed box", false);
+}
+
+TEST(Bounds, RotatedBoxIsFoundExactly) {
+    // The 8 corners of a 4 x 2 x 1 box turned by a rotation: the refined fit recovers the volume 8.
+    double c = std::cos(0.4), s = std::sin(0.4), c2 = std::cos(1.1), s2 = std::sin(1.1);
+    std::vector<double> pts;
+    for (int i = 0; i < 8; ++i) {
+        double x = (i & 1 ? 2 : -2), y = (i & 2 ? 1 : -1), z = (i & 4 ? 0.5 : -0.5);
+        double x1 = c * x - s * y, y1 = s * x + c * y;       // about z
+        double y2 = c2 * y1 - s2 * z, z2 = s2 * y1 + c2 * z;  // about x
+        pts.insert(pts.end(), {x1, y2, z2});
+    }
+    double origin[3] = {0, 0, 0};
+    cb::Obb refined = cb::fit_obb(pts.data(), 8, origin, cb::ObbMethod::refined);
+    EXPECT_NEAR(cb::obb_volume(refined), 8.0, 1e-4);
+    cb::Obb optimal = cb::fit_obb(pts.data(), 8, origin, cb::ObbMethod::cgal_optimal);
+    EXPECT_NEAR(cb::obb_volume(optimal), 8.0, 1e-3);
+}
+
+TEST(Bounds, MinimalSphereIsMinimal) {
+    // Regular tetrahedron with circumradius 1, plus interior points: the minimal sphere has radius 1.
+    std::vector<double> pts = {1, 1, 1, 1, -1, -1, -1, 1, -1, -1, -1, 1, 0.1, 0.2, 0.1, -0.3, 0, 0.2};
+    for (double& p : pts) p /= std::sqrt(3.0);
+    double origin[3] = {0, 0, 0};
+    cb::Sphere s = cb::fit_sphere(pts.data(), 6, origin);
+    EXPECT_NEAR(s.radius, 1.0, 1e-6);
+    cb::Sphere r = cb::ritter_sphere(pts.data(), 6, origin);
+    EXPECT_GE(r.radius, s.radius);
+}
+
+TEST(Bounds, EveryClusterOfEverySharedFile) {
+    fs::path root(CB_SHARED_DATA);
+    if (!fs::exists(root)) GTEST_SKIP() << "../shared/data is absent";
+    size_t clusters = 0, misses = 0, violations = 0, cones = 0;
+    std::mt19937 rng(7);
+    for (const auto& e : fs::recursive_directory_iterator(root)) {
+        if (!e.is_regular_file() || cb::format_from_path(e.path().string()) == cb::FileFormat::unknown) continue;
+        cb::Scene scene;
+        try {
+            scene = cb::load_scene(e.path().string());
+        } catch (const cb::LoadError&) {
+            continue;
+        }
+        for (const cb::Mesh& m : scene.meshes) {
+            cb::ClusterOptions co;
+            cb::Hierarchy h = cb::build_hierarchy(m.positions.data(), m.vertex_count(), m.indices.data(), m.triangle_count(), co);
+            auto check = [&](uint32_t first, uint32_t count, int samples) {
+                cb::ClusterBounds b = cb::fit_bounds(m.positions.data(), m.indices.data(), h.order.data() + first, count, {});
+                ++clusters;
+                cones += b.cone.valid;
+                EXPECT_TRUE(finite(b)) << e.path();
+                misses += containment_misses(b, m.positions.data(), m.indices.data(), h.order.data() + first, count);
+                violations += cone_violations(b, m.positions.data(), m.indices.data(), h.order.data() + first, count, rng, samples);
+            };
+            for (size_t f = 0; f < h.fine_count(); ++f) check(h.fine_offsets[f], h.fine_offsets[f + 1] - h.fine_offsets[f], 1);
+            for (size_t c = 0; c < h.coarse_count(); ++c) {
+                uint32_t a = h.fine_offsets[h.coarse_offsets[c]], b = h.fine_offsets[h.coarse_offsets[c + 1]];
+                check(a, b - a, 2);
+            }
+        }
+    }
+    std::printf("%zu clusters, %zu with a valid cone\n", clusters, cones);
+    EXPECT_GT(clusters, 40000u);
+    EXPECT_EQ(misses, 0u);
+    EXPECT_EQ(violations, 0u);
+    EXPECT_GT(cones, clusters / 2);
+}
