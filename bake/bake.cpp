@@ -1,7 +1,10 @@
 #include "bake.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <numeric>
+#include <thread>
 
 namespace cb {
 
@@ -57,6 +60,54 @@ std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& o
     }
     stats.cluster_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return meshes;
+}
+
+void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats) {
+    auto start = std::chrono::steady_clock::now();
+    // One work item per cluster: (mesh, level, index, first triangle, triangle count).
+    struct Item { uint32_t mesh, fine, index, first, count; };
+    std::vector<Item> items;
+    std::vector<std::vector<uint32_t>> ids(meshes.size());
+    for (uint32_t m = 0; m < meshes.size(); ++m) {
+        AssetMesh& am = meshes[m];
+        ids[m].resize(am.triangles.size() / 3);
+        std::iota(ids[m].begin(), ids[m].end(), 0u);  // triangles are already in cluster order
+        for (LevelVolumes* v : {&am.fine_volumes, &am.coarse_volumes}) *v = LevelVolumes{};
+        for (uint32_t f = 0; f < am.fine.size(); ++f) items.push_back({m, 1, f, am.fine[f].first, am.fine[f].count});
+        for (uint32_t c = 0; c < am.coarse.size(); ++c) {
+            const ClusterRange& r = am.coarse[c];
+            uint32_t first = am.fine[r.first].first, last = am.fine[r.first + r.count - 1].first + am.fine[r.first + r.count - 1].count;
+            items.push_back({m, 0, c, first, last - first});
+        }
+    }
+    std::vector<ClusterBounds> fitted(items.size());
+    std::atomic<size_t> next{0};
+    auto work = [&] {
+        for (size_t i; (i = next.fetch_add(1)) < items.size();) {
+            const Item& it = items[i];
+            const AssetMesh& am = meshes[it.mesh];
+            fitted[i] = fit_bounds(am.positions.data(), am.triangles.data(), ids[it.mesh].data() + it.first, it.count, options);
+        }
+    };
+    unsigned n = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < n; ++t) pool.emplace_back(work);
+    work();
+    for (auto& t : pool) t.join();
+
+    for (size_t i = 0; i < items.size(); ++i) {  // in item order: deterministic
+        const Item& it = items[i];
+        LevelVolumes& v = it.fine ? meshes[it.mesh].fine_volumes : meshes[it.mesh].coarse_volumes;
+        const ClusterBounds& b = fitted[i];
+        if (options.mask & bounds_obb) v.obbs.push_back(b.obb);
+        if (options.mask & bounds_sphere) v.spheres.push_back(b.sphere);
+        if (options.mask & bounds_capsule) v.capsules.push_back(b.capsule);
+        if (options.mask & bounds_cone) v.cones.push_back(b.cone);
+        if (options.mask & bounds_slab) v.slabs.push_back(b.slab);
+        stats.valid_cones += b.cone.valid;
+        stats.capsules += b.has_capsule;
+    }
+    stats.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 }  // namespace cb

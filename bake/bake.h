@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "asset_writer.h"
+#include "bounds.h"
 #include "cluster.h"
 #include "scene.h"
 
@@ -19,6 +20,8 @@ struct BakeStats {
     uint32_t coarse_min = 0, coarse_max = 0; // triangles per coarse cluster
     double acmr_before = 0, acmr_after = 0;  // triangle-weighted over meshes (vco only)
     double cluster_seconds = 0;
+    double fit_seconds = 0;
+    uint64_t valid_cones = 0, capsules = 0;  // fine and coarse clusters together
 };
 
 // Mesh `m` of the scene in cluster order, ranges mesh-local.
@@ -27,5 +30,9 @@ AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h);
 // Clusters every mesh of the scene. `progress(mesh, mesh_count, chunk, chunk_count)` when set.
 std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& options, BakeStats& stats,
                                      const std::function<void(size_t, size_t, size_t, size_t)>& progress = {});
+
+// Fits the volumes in options.mask for every fine and coarse cluster of every mesh, in parallel over
+// clusters (`threads`, 0 = all); the result does not depend on the thread count.
+void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats);
 
 }  // namespace cb

@@ -510,7 +510,7 @@ bool place_apex(const std::vector<Plane>& planes, const Vec& axis, const double*
 Cone fit_cone(const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count, const double* centre,
               double extent) {
     Cone cone{};
-    cone.valid = false;
+    cone.valid = 0;
     std::vector<Plane> planes;
     Vec sum{0, 0, 0};
     for (size_t i = 0; i < count; ++i) {
@@ -541,7 +541,7 @@ Cone fit_cone(const float* positions, const uint32_t* indices, const uint32_t* t
     if (!place_apex(planes, axis, centre, -1, extent, cone.back_apex)) return cone;
     cone.cos_half_angle = round_up(std::cos(half));
     cone.sin_half_angle = round_down(std::sin(half));
-    cone.valid = true;
+    cone.valid = 1;
     return cone;
 }
 
@@ -562,6 +562,25 @@ Slab fit_slab(const float axis_f[3], const double* world, size_t n) {
 }  // namespace
 
 double obb_volume(const Obb& b) { return 8.0 * double(b.half[0]) * b.half[1] * b.half[2]; }
+
+bool parse_bounds_mask(const std::string& text, uint32_t& mask) {
+    if (text == "auto") return mask = bounds_auto, true;
+    if (text == "all") return mask = bounds_all, true;
+    mask = 0;
+    size_t at = 0;
+    while (at <= text.size()) {
+        size_t end = std::min(text.find(',', at), text.size());
+        std::string word = text.substr(at, end - at);
+        if (word == "obb") mask |= bounds_obb;
+        else if (word == "sphere") mask |= bounds_sphere;
+        else if (word == "capsule") mask |= bounds_capsule;
+        else if (word == "cone") mask |= bounds_cone;
+        else if (word == "slab") mask |= bounds_slab;
+        else return false;
+        at = end + 1;
+    }
+    return mask != 0;
+}
 
 Obb fit_obb(const double* local, size_t n, const double* origin, ObbMethod method, const float* positions,
             const uint32_t* indices, const uint32_t* triangle_ids, size_t triangle_count) {
@@ -649,6 +668,14 @@ ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const 
         if (elongated) {
             out.capsule = fit_capsule(frame, major, local.data(), n, origin, world.data());
             out.has_capsule = true;
+        } else {  // the sphere, as a capsule of zero length: still a valid, containing capsule
+            if (!(options.mask & bounds_sphere)) {
+                Ball b = min_ball(local.data(), n, 3);
+                double c[3] = {b.c[0] + origin[0], b.c[1] + origin[1], b.c[2] + origin[2]};
+                out.sphere = store_sphere(c, world.data(), n);
+            }
+            for (int k = 0; k < 3; ++k) out.capsule.a[k] = out.capsule.b[k] = out.sphere.center[k];
+            out.capsule.radius = out.sphere.radius;
         }
     }
     if (options.mask & (bounds_cone | bounds_slab)) {

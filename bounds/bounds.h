@@ -9,56 +9,30 @@
 //   Capsule: distance(p, segment a..b) <= radius
 //   Slab:    low <= dot(p, axis) <= high
 // Cones are the other way round: every point strictly inside the front cone sees every non-degenerate
-// triangle of the cluster from its front side; see Cone.
+// triangle of the cluster from its front side; see Cone in runtime/cb_asset.h.
 #pragma once
+
+#include <cb_asset.h>  // the volume structs: Obb, Sphere, Capsule, Cone, Slab
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 
 namespace cb {
 
-struct Obb {
-    float center[3];
-    float axis[3][3];  // right-handed, rows are the axes
-    float half[3];     // half extents along each axis
-};
-
-struct Sphere {
-    float center[3];
-    float radius;
-};
-
-struct Capsule {
-    float a[3], b[3];  // segment end points (equal when the capsule is a sphere)
-    float radius;
-};
-
-// Normal cone with apex (GeometryFX style). Front: a point p with angle(p - front_apex, axis) < half_angle
-// (p != apex) is strictly on the front side of every non-degenerate triangle, so in one-sided mode a light
-// there sees only front faces. Back: a viewer e with angle(back_apex - e, axis) < half_angle sees only back
-// faces (meshoptimizer's cluster cone test, for camera culling). `valid` false means never cull: the normals
-// spread 90 degrees or more, or every triangle has zero area.
-struct Cone {
-    float front_apex[3];
-    float back_apex[3];
-    float axis[3];
-    float cos_half_angle;  // rounded up: the stored cone is never wider than the proven one
-    float sin_half_angle;  // rounded down
-    bool valid;
-};
-
-struct Slab {
-    float axis[3];
-    float low, high;  // low rounded down, high rounded up
-};
-
 // Which volumes to fit.
 enum BoundsMask : uint32_t { bounds_obb = 1, bounds_sphere = 2, bounds_capsule = 4, bounds_cone = 8, bounds_slab = 16 };
+constexpr uint32_t bounds_all = 31;
+// What the shadow runtime (clustered partitioned shadow volumes) reads: boxes, and cones for one-sided skips.
+constexpr uint32_t bounds_auto = bounds_obb | bounds_cone;
+
+// Parses "auto", "all" or a comma list of obb, sphere, capsule, cone, slab. False on an unknown word.
+bool parse_bounds_mask(const std::string& text, uint32_t& mask);
 
 struct ClusterBounds {
     Obb obb;
     Sphere sphere;
-    Capsule capsule;
+    Capsule capsule;   // the sphere as a zero-length capsule unless has_capsule
     bool has_capsule;  // fitted only when the box's longest side is at least capsule_ratio times each other side
     Cone cone;
     Slab slab;

@@ -69,12 +69,32 @@ struct ClusterArgs {
     std::string file, out, method = "kmeans";
     cb::ClusterOptions options;
     bool json = false, quiet = false;
+    bool fit = false;  // bake: fit bounds too
+    std::string bounds = "auto", obb = "refined";
+    double capsule_ratio = 2.0;
 };
 
-int run_cluster(const ClusterArgs& a) {
+// `cluster` (geometry and hierarchy only) and `bake` (with bounds) share this.
+int run_bake(const ClusterArgs& a) {
     cb::ClusterOptions options = a.options;
     if (!cb::parse_method(a.method, options.method)) {
         std::fprintf(stderr, "clusterbake: unknown method '%s' (kmeans, vco, morton)\n", a.method.c_str());
+        return 1;
+    }
+    cb::BoundsOptions bounds;
+    bounds.capsule_ratio = a.capsule_ratio;
+    if (a.fit && !cb::parse_bounds_mask(a.bounds, bounds.mask)) {
+        std::fprintf(stderr, "clusterbake: --bounds takes auto, all or a list of obb,sphere,capsule,cone,slab (got '%s')\n",
+                     a.bounds.c_str());
+        return 1;
+    }
+    const std::pair<const char*, cb::ObbMethod> obb_methods[] = {{"refined", cb::ObbMethod::refined}, {"pca", cb::ObbMethod::pca},
+                                                                 {"pca-area", cb::ObbMethod::pca_area}, {"cgal", cb::ObbMethod::cgal_optimal}};
+    bool known_obb = false;
+    for (const auto& [name, m] : obb_methods)
+        if (a.obb == name) bounds.obb = m, known_obb = true;
+    if (!known_obb) {
+        std::fprintf(stderr, "clusterbake: --obb takes refined, pca, pca-area or cgal (got '%s')\n", a.obb.c_str());
         return 1;
     }
     auto t0 = std::chrono::steady_clock::now();
@@ -96,6 +116,7 @@ int run_cluster(const ClusterArgs& a) {
         if (show) std::fprintf(stderr, "\rclustering mesh %zu/%zu: chunk %zu/%zu   ", m + 1, mc, c, cc);
     });
     if (show) std::fprintf(stderr, "\n");
+    if (a.fit) cb::fit_scene_bounds(meshes, bounds, options.threads, stats);
 
     auto t1 = std::chrono::steady_clock::now();
     std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
@@ -123,7 +144,14 @@ int run_cluster(const ClusterArgs& a) {
                             {"cluster_seconds", stats.cluster_seconds},
                             {"write_seconds", write_s},
                             {"triangles_per_second", tps},
-                            {"asset_bytes", bytes.size()}};
+                            {"asset_bytes", bytes.size()},
+                            {"bytes_per_triangle", stats.triangles ? double(bytes.size()) / double(stats.triangles) : 0.0}};
+        if (a.fit) {
+            j["bounds"] = a.bounds;
+            j["fit_seconds"] = stats.fit_seconds;
+            if (bounds.mask & cb::bounds_cone) j["valid_cones"] = stats.valid_cones;
+            if (bounds.mask & cb::bounds_capsule) j["capsules"] = stats.capsules;
+        }
         if (options.method == cb::ClusterMethod::vco) {
             j["acmr_before"] = stats.acmr_before;
             j["acmr_after"] = stats.acmr_after;
@@ -141,8 +169,18 @@ int run_cluster(const ClusterArgs& a) {
                 (unsigned long long)stats.fine_below_half);
     if (options.method == cb::ClusterMethod::vco)
         std::printf("  ACMR (FIFO %u) %.3f -> %.3f\n", options.vco_cache_size, stats.acmr_before, stats.acmr_after);
-    std::printf("  load %.3f s, cluster %.3f s (%.2f M triangles/s), write %.3f s, asset %zu bytes\n", load_s,
-                stats.cluster_seconds, tps / 1e6, write_s, bytes.size());
+    if (a.fit) {
+        std::printf("  bounds %s (obb %s): fitted in %.3f s", a.bounds.c_str(), a.obb.c_str(), stats.fit_seconds);
+        unsigned long long clusters = stats.fine_clusters + stats.coarse_clusters;
+        if (bounds.mask & cb::bounds_cone)
+            std::printf("; %llu of %llu clusters have a valid cone", (unsigned long long)stats.valid_cones, clusters);
+        if (bounds.mask & cb::bounds_capsule)
+            std::printf("; %llu of %llu are capsules", (unsigned long long)stats.capsules, clusters);
+        std::printf("\n");
+    }
+    std::printf("  load %.3f s, cluster %.3f s (%.2f M triangles/s), write %.3f s, asset %zu bytes (%.1f per triangle)\n",
+                load_s, stats.cluster_seconds, tps / 1e6, write_s, bytes.size(),
+                stats.triangles ? double(bytes.size()) / double(stats.triangles) : 0.0);
     return 0;
 }
 
@@ -166,6 +204,15 @@ int run_validate(const std::string& file) {
     std::printf("  meshes %u, instances %u, vertices %u, triangles %u, fine clusters %u, coarse clusters %u\n",
                 view.mesh_count, view.instance_count, view.vertex_count, view.triangle_count, view.fine_count,
                 view.coarse_count);
+    for (auto [name, level] : {std::pair{"fine", &view.fine_bounds}, std::pair{"coarse", &view.coarse_bounds}}) {
+        std::string kinds;
+        if (level->obbs) kinds += " obb";
+        if (level->spheres) kinds += " sphere";
+        if (level->capsules) kinds += " capsule";
+        if (level->cones) kinds += " cone";
+        if (level->slabs) kinds += " slab";
+        std::printf("  %s bounds:%s\n", name, kinds.empty() ? " none" : kinds.c_str());
+    }
     return 0;
 }
 
@@ -181,22 +228,32 @@ int main(int argc, char** argv) {
     info->add_option("files", info_files, "Scene files (.gltf .glb .obj .ply .off .stl)")->required();
     info->add_flag("--json", info_json, "Print a JSON array, one object per file");
 
-    ClusterArgs ca;
-    CLI::App* cluster = app.add_subcommand("cluster", "Cluster every mesh into coarse and fine clusters and write an asset");
-    cluster->add_option("file", ca.file, "Scene file")->required();
-    cluster->add_option("-o,--output", ca.out, "Output asset (.cbk); written atomically")->required();
-    cluster->add_option("--method", ca.method, "kmeans (default), vco or morton");
-    cluster->add_option("--coarse", ca.options.coarse_size, "Triangles per coarse cluster (default 2048)");
-    cluster->add_option("--fine", ca.options.fine_size, "Maximum triangles per fine cluster (default 16)");
-    cluster->add_option("--threads", ca.options.threads, "Worker threads, 0 = all (output is identical for any count)");
-    cluster->add_option("--seed", ca.options.seed, "Seed of k-means++ (default 1)");
-    cluster->add_option("--k0", ca.options.kmeans_branching, "k-means children per node (default 8)");
-    cluster->add_option("--iterations", ca.options.kmeans_max_iterations, "Cap on Lloyd iterations per node (default 16)");
-    cluster->add_flag("--coarse-from-tree", ca.options.kmeans_coarse_from_tree,
-                      "kmeans: take the coarse level from the top of the k-means tree instead of Morton chunks");
-    cluster->add_option("--cache", ca.options.vco_cache_size, "vco: vertex cache size (default 32)");
-    cluster->add_flag("--json", ca.json, "Print the summary as JSON");
-    cluster->add_flag("-q,--quiet", ca.quiet, "No progress on stderr");
+    ClusterArgs ca, ba;
+    ba.fit = true;
+    auto clustering_options = [](CLI::App* c, ClusterArgs& a) {
+        c->add_option("file", a.file, "Scene file")->required();
+        c->add_option("-o,--output", a.out, "Output asset (.cbk); written atomically")->required();
+        c->add_option("--method", a.method, "kmeans (default), vco or morton");
+        c->add_option("--coarse", a.options.coarse_size, "Triangles per coarse cluster (default 2048)");
+        c->add_option("--fine", a.options.fine_size, "Maximum triangles per fine cluster (default 16)");
+        c->add_option("--threads", a.options.threads, "Worker threads, 0 = all (output is identical for any count)");
+        c->add_option("--seed", a.options.seed, "Seed of k-means++ (default 1)");
+        c->add_option("--k0", a.options.kmeans_branching, "k-means children per node (default 8)");
+        c->add_option("--iterations", a.options.kmeans_max_iterations, "Cap on Lloyd iterations per node (default 16)");
+        c->add_flag("--coarse-from-tree", a.options.kmeans_coarse_from_tree,
+                    "kmeans: take the coarse level from the top of the k-means tree instead of Morton chunks");
+        c->add_option("--cache", a.options.vco_cache_size, "vco: vertex cache size (default 32)");
+        c->add_flag("--json", a.json, "Print the summary as JSON");
+        c->add_flag("-q,--quiet", a.quiet, "No progress on stderr");
+    };
+    CLI::App* cluster = app.add_subcommand("cluster", "Cluster every mesh into coarse and fine clusters and write an asset (no bounds)");
+    clustering_options(cluster, ca);
+    CLI::App* bake = app.add_subcommand("bake", "Load, cluster, fit bounding volumes and write the asset");
+    clustering_options(bake, ba);
+    bake->add_option("--bounds", ba.bounds,
+                     "auto (what the shadow runtime reads: obb,cone), all, or a list of obb,sphere,capsule,cone,slab");
+    bake->add_option("--obb", ba.obb, "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow)");
+    bake->add_option("--capsule-ratio", ba.capsule_ratio, "Fit a capsule when the box's longest side is this many times each other (default 2)");
 
     std::string validate_file;
     CLI::App* validate = app.add_subcommand("validate", "Check an asset's structure, ranges and checksum");
@@ -206,7 +263,8 @@ int main(int argc, char** argv) {
 
     try {
         if (*info) return run_info(info_files, info_json);
-        if (*cluster) return run_cluster(ca);
+        if (*cluster) return run_bake(ca);
+        if (*bake) return run_bake(ba);
         if (*validate) return run_validate(validate_file);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "clusterbake: %s\n", e.what());

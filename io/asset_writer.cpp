@@ -5,6 +5,7 @@
 #include <cstring>
 #include <filesystem>
 #include <stdexcept>
+#include <type_traits>
 #include <unistd.h>
 
 namespace cb {
@@ -62,6 +63,26 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
     add(SectionType::fine_clusters, fine, sizeof(ClusterRange));
     add(SectionType::coarse_clusters, coarse, sizeof(ClusterRange));
     add(SectionType::instances, inst, sizeof(InstanceRecord));
+
+    // Bounds: a section per volume kind and level that every mesh with clusters carries.
+    auto level_section = [&](SectionType type, bool fine, auto member) {
+        using Record = typename std::remove_reference_t<decltype(meshes[0].fine_volumes.*member)>::value_type;
+        std::vector<Record> all;
+        for (const AssetMesh& m : meshes) {
+            const LevelVolumes& v = fine ? m.fine_volumes : m.coarse_volumes;
+            size_t clusters = fine ? m.fine.size() : m.coarse.size();
+            if ((v.*member).size() != clusters) return;  // not fitted (for every mesh): no section
+            all.insert(all.end(), (v.*member).begin(), (v.*member).end());
+        }
+        add(type, all, sizeof(Record));
+    };
+    for (bool fine : {true, false}) {
+        level_section(fine ? SectionType::fine_obbs : SectionType::coarse_obbs, fine, &LevelVolumes::obbs);
+        level_section(fine ? SectionType::fine_spheres : SectionType::coarse_spheres, fine, &LevelVolumes::spheres);
+        level_section(fine ? SectionType::fine_capsules : SectionType::coarse_capsules, fine, &LevelVolumes::capsules);
+        level_section(fine ? SectionType::fine_cones : SectionType::coarse_cones, fine, &LevelVolumes::cones);
+        level_section(fine ? SectionType::fine_slabs : SectionType::coarse_slabs, fine, &LevelVolumes::slabs);
+    }
 
     auto aligned = [](uint64_t x) { return (x + asset_alignment - 1) / asset_alignment * asset_alignment; };
     std::vector<SectionEntry> table;

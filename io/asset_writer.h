@@ -10,14 +10,25 @@
 
 namespace cb {
 
+// Bounding volumes of one level's clusters; each vector empty, or one record per cluster.
+struct LevelVolumes {
+    std::vector<Obb> obbs;
+    std::vector<Sphere> spheres;
+    std::vector<Capsule> capsules;
+    std::vector<Cone> cones;
+    std::vector<Slab> slabs;
+};
+
 // One mesh as the asset stores it: triangles already in cluster order, ranges mesh-local.
 struct AssetMesh {
     std::vector<float> positions;      // xyz per vertex
     std::vector<uint32_t> triangles;   // 3 per triangle, in cluster order
     std::vector<ClusterRange> fine;    // tiles the triangles
     std::vector<ClusterRange> coarse;  // tiles the fine clusters
+    LevelVolumes fine_volumes, coarse_volumes;
 };
 
+// Bounds sections are written for the volumes every mesh has (each mesh one record per cluster).
 std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances);
 
 // Writes to a temporary file beside `path` and renames it over `path`, so a failure leaves any existing

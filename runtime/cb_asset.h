@@ -27,6 +27,52 @@ enum class SectionType : uint32_t {
     fine_clusters = 4,    // ClusterRange per fine cluster: mesh-local triangle range
     coarse_clusters = 5,  // ClusterRange per coarse cluster: mesh-local fine cluster range
     instances = 6,        // InstanceRecord per instance
+    // Bounds, each optional, one record per cluster of its level (see the volume structs below).
+    fine_obbs = 7,
+    coarse_obbs = 8,
+    fine_spheres = 9,
+    coarse_spheres = 10,
+    fine_capsules = 11,
+    coarse_capsules = 12,
+    fine_cones = 13,
+    coarse_cones = 14,
+    fine_slabs = 15,
+    coarse_slabs = 16,
+};
+
+// Bounding volumes, stored in float and rounded outward: every vertex of the cluster is inside, evaluated
+// in double against these floats.
+struct Obb {               // 60 bytes. Inside: |dot(p - center, axis[i])| <= half[i], i = 0, 1, 2
+    float center[3];
+    float axis[3][3];      // right-handed, unit to float precision
+    float half[3];
+};
+
+struct Sphere {            // 16 bytes. Inside: |p - center| <= radius
+    float center[3];
+    float radius;
+};
+
+struct Capsule {           // 28 bytes. Inside: distance(p, segment a-b) <= radius; a == b for a sphere
+    float a[3], b[3];
+    float radius;
+};
+
+// Normal cone with apex. When `valid`, a point p != front_apex with angle(p - front_apex, axis) below the
+// half-angle is strictly on the front side of every triangle of the cluster that has an area, and a point
+// e with angle(back_apex - e, axis) below it strictly on the back side. `valid` 0: never cull.
+struct Cone {              // 48 bytes
+    float front_apex[3];
+    float back_apex[3];
+    float axis[3];         // unit to float precision
+    float cos_half_angle;  // rounded up (never wider than proven)
+    float sin_half_angle;  // rounded down
+    uint32_t valid;
+};
+
+struct Slab {              // 20 bytes. Inside: low <= dot(p, axis) <= high
+    float axis[3];
+    float low, high;
 };
 
 struct AssetHeader {          // 64 bytes at offset 0
@@ -67,8 +113,18 @@ struct InstanceRecord {       // 112 bytes
 };
 
 static_assert(sizeof(AssetHeader) == 64 && sizeof(SectionEntry) == 32 && sizeof(MeshRecord) == 32 &&
-                  sizeof(ClusterRange) == 8 && sizeof(InstanceRecord) == 112,
+                  sizeof(ClusterRange) == 8 && sizeof(InstanceRecord) == 112 && sizeof(Obb) == 60 &&
+                  sizeof(Sphere) == 16 && sizeof(Capsule) == 28 && sizeof(Cone) == 48 && sizeof(Slab) == 20,
               "asset records must have their documented sizes");
+
+// Per level (fine or coarse): each pointer null when the asset has no such section.
+struct LevelBounds {
+    const Obb* obbs = nullptr;
+    const Sphere* spheres = nullptr;
+    const Capsule* capsules = nullptr;
+    const Cone* cones = nullptr;
+    const Slab* slabs = nullptr;
+};
 
 enum class AssetError {
     ok = 0,
@@ -89,6 +145,7 @@ enum class AssetError {
     bad_index,
     bad_instance,
     non_finite,
+    bad_bounds_count,
 };
 
 inline const char* asset_error_text(AssetError e) {
@@ -110,7 +167,8 @@ inline const char* asset_error_text(AssetError e) {
         case AssetError::bad_cluster_range: return "cluster range out of bounds or not contiguous";
         case AssetError::bad_index: return "triangle index out of range";
         case AssetError::bad_instance: return "instance names a missing mesh";
-        case AssetError::non_finite: return "non-finite position or transform";
+        case AssetError::non_finite: return "non-finite position, transform or bound";
+        case AssetError::bad_bounds_count: return "bounds section count differs from its cluster count";
     }
     return "unknown error";
 }
@@ -135,11 +193,23 @@ struct AssetView {
     uint32_t coarse_count = 0;
     const InstanceRecord* instances = nullptr;
     uint32_t instance_count = 0;
+    LevelBounds fine_bounds, coarse_bounds;
 };
 
 namespace asset_detail {
 
 inline bool range_ok(uint64_t first, uint64_t count, uint64_t limit) { return first <= limit && count <= limit - first; }
+
+template <class T>
+bool all_finite(const T* records, uint32_t count) {  // every float of the records
+    const uint8_t* bytes = reinterpret_cast<const uint8_t*>(records);
+    for (size_t i = 0; i < size_t(count) * (sizeof(T) / 4); ++i) {
+        float f;
+        std::memcpy(&f, bytes + i * 4, 4);
+        if (!std::isfinite(f)) return false;
+    }
+    return true;
+}
 
 // Ranges must tile [0, total) in order: each starts where the previous ended.
 inline bool ranges_tile(const ClusterRange* r, uint32_t n, uint32_t total) {
@@ -169,22 +239,34 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
 
     struct Known { SectionType type; uint32_t element_size; bool required; const void** data; uint32_t* count; };
     AssetView v;
-    const void* ptr[6] = {};
-    Known known[6] = {
+    constexpr int known_count = 16;
+    const void* ptr[known_count] = {};
+    uint32_t bound_count[10] = {};
+    Known known[known_count] = {
         {SectionType::meshes, sizeof(MeshRecord), true, &ptr[0], &v.mesh_count},
         {SectionType::positions, 12, true, &ptr[1], &v.vertex_count},
         {SectionType::triangles, 12, true, &ptr[2], &v.triangle_count},
         {SectionType::fine_clusters, sizeof(ClusterRange), true, &ptr[3], &v.fine_count},
         {SectionType::coarse_clusters, sizeof(ClusterRange), true, &ptr[4], &v.coarse_count},
         {SectionType::instances, sizeof(InstanceRecord), true, &ptr[5], &v.instance_count},
+        {SectionType::fine_obbs, sizeof(Obb), false, &ptr[6], &bound_count[0]},
+        {SectionType::coarse_obbs, sizeof(Obb), false, &ptr[7], &bound_count[1]},
+        {SectionType::fine_spheres, sizeof(Sphere), false, &ptr[8], &bound_count[2]},
+        {SectionType::coarse_spheres, sizeof(Sphere), false, &ptr[9], &bound_count[3]},
+        {SectionType::fine_capsules, sizeof(Capsule), false, &ptr[10], &bound_count[4]},
+        {SectionType::coarse_capsules, sizeof(Capsule), false, &ptr[11], &bound_count[5]},
+        {SectionType::fine_cones, sizeof(Cone), false, &ptr[12], &bound_count[6]},
+        {SectionType::coarse_cones, sizeof(Cone), false, &ptr[13], &bound_count[7]},
+        {SectionType::fine_slabs, sizeof(Slab), false, &ptr[14], &bound_count[8]},
+        {SectionType::coarse_slabs, sizeof(Slab), false, &ptr[15], &bound_count[9]},
     };
-    bool seen[6] = {};
+    bool seen[known_count] = {};
     for (uint32_t s = 0; s < h.section_count; ++s) {
         SectionEntry e;
         std::memcpy(&e, base + sizeof(AssetHeader) + size_t(s) * sizeof(SectionEntry), sizeof e);
         if (e.offset % asset_alignment != 0) return AssetError::misaligned_section;
         if (!range_ok(e.offset, e.size, size)) return AssetError::section_out_of_bounds;
-        for (int k = 0; k < 6; ++k) {
+        for (int k = 0; k < known_count; ++k) {
             if (e.type != uint32_t(known[k].type)) continue;  // unknown types are skipped: newer, optional data
             if (seen[k]) return AssetError::duplicate_section;
             seen[k] = true;
@@ -195,14 +277,32 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
             *known[k].count = uint32_t(e.count);
         }
     }
-    for (int k = 0; k < 6; ++k)
+    for (int k = 0; k < known_count; ++k)
         if (known[k].required && !seen[k]) return AssetError::missing_section;
+    // A bounds section holds one record per cluster of its level.
+    for (int b = 0; b < 10; ++b)
+        if (seen[6 + b] && bound_count[b] != (b % 2 == 0 ? v.fine_count : v.coarse_count)) return AssetError::bad_bounds_count;
     v.meshes = static_cast<const MeshRecord*>(ptr[0]);
     v.positions = static_cast<const float*>(ptr[1]);
     v.triangles = static_cast<const uint32_t*>(ptr[2]);
     v.fine = static_cast<const ClusterRange*>(ptr[3]);
     v.coarse = static_cast<const ClusterRange*>(ptr[4]);
     v.instances = static_cast<const InstanceRecord*>(ptr[5]);
+    LevelBounds* level[2] = {&v.fine_bounds, &v.coarse_bounds};
+    for (int l = 0; l < 2; ++l) {
+        level[l]->obbs = static_cast<const Obb*>(ptr[6 + l]);
+        level[l]->spheres = static_cast<const Sphere*>(ptr[8 + l]);
+        level[l]->capsules = static_cast<const Capsule*>(ptr[10 + l]);
+        level[l]->cones = static_cast<const Cone*>(ptr[12 + l]);
+        level[l]->slabs = static_cast<const Slab*>(ptr[14 + l]);
+        uint32_t n = l == 0 ? v.fine_count : v.coarse_count;
+        if (!all_finite(level[l]->obbs, level[l]->obbs ? n : 0) || !all_finite(level[l]->spheres, level[l]->spheres ? n : 0) ||
+            !all_finite(level[l]->capsules, level[l]->capsules ? n : 0) || !all_finite(level[l]->slabs, level[l]->slabs ? n : 0))
+            return AssetError::non_finite;
+        for (uint32_t i = 0; level[l]->cones && i < n; ++i)
+            if (level[l]->cones[i].valid > 1 || (level[l]->cones[i].valid && !all_finite(&level[l]->cones[i], 1)))
+                return AssetError::non_finite;
+    }
 
     for (size_t i = 0; i < size_t(v.vertex_count) * 3; ++i)
         if (!std::isfinite(v.positions[i])) return AssetError::non_finite;

@@ -9,6 +9,7 @@
 #include <numeric>
 #include <random>
 
+#include "bake.h"
 #include "bounds.h"
 #include "cluster.h"
 #include "load.h"
@@ -132,7 +133,7 @@ void check_all(const Soup& s, const char* what, int expect_cone) {
         EXPECT_EQ(containment_misses(b, s.positions.data(), s.indices.data(), tris.data(), tris.size()), 0u) << int(method);
         std::mt19937 rng(1);
         EXPECT_EQ(cone_violations(b, s.positions.data(), s.indices.data(), tris.data(), tris.size(), rng, 50), 0u);
-        if (expect_cone >= 0) EXPECT_EQ(b.cone.valid, expect_cone == 1);
+        if (expect_cone >= 0) EXPECT_EQ(bool(b.cone.valid), expect_cone == 1);
     }
 }
 
@@ -276,4 +277,51 @@ TEST(Bounds, EveryClusterOfEverySharedFile) {
     EXPECT_EQ(misses, 0u);
     EXPECT_EQ(violations, 0u);
     EXPECT_GT(cones, clusters / 2);
+}
+
+TEST(Bounds, AssetBoundsContainEveryVertexOfTheirCluster) {
+    cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    cb::BakeStats stats;
+    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, {}, stats);
+    cb::BoundsOptions all;
+    cb::fit_scene_bounds(meshes, all, 2, stats);
+    std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
+    std::vector<uint64_t> aligned((bytes.size() + 7) / 8);
+    std::memcpy(aligned.data(), bytes.data(), bytes.size());
+    cb::AssetView view;
+    ASSERT_EQ(cb::open_asset(aligned.data(), bytes.size(), &view), cb::AssetError::ok);
+    size_t misses = 0, violations = 0, checked = 0;
+    std::mt19937 rng(3);
+    for (uint32_t m = 0; m < view.mesh_count; ++m) {
+        const cb::MeshRecord& r = view.meshes[m];
+        const float* positions = view.positions + size_t(r.first_vertex) * 3;
+        const uint32_t* tris = view.triangles + size_t(r.first_triangle) * 3;
+        std::vector<uint32_t> ids(r.triangle_count);
+        std::iota(ids.begin(), ids.end(), 0u);
+        auto check = [&](const cb::LevelBounds& level, uint32_t cluster, uint32_t first, uint32_t count) {
+            cb::ClusterBounds b{};
+            b.obb = level.obbs[cluster];
+            b.sphere = level.spheres[cluster];
+            b.capsule = level.capsules[cluster];
+            b.has_capsule = true;  // a sphere-as-capsule must contain the cluster too
+            b.cone = level.cones[cluster];
+            b.slab = level.slabs[cluster];
+            misses += containment_misses(b, positions, tris, ids.data() + first, count);
+            violations += cone_violations(b, positions, tris, ids.data() + first, count, rng, 2);
+            ++checked;
+        };
+        for (uint32_t f = 0; f < r.fine_count; ++f) {
+            const cb::ClusterRange& c = view.fine[r.first_fine + f];
+            check(view.fine_bounds, r.first_fine + f, c.first, c.count);
+        }
+        for (uint32_t c = 0; c < r.coarse_count; ++c) {
+            const cb::ClusterRange& range = view.coarse[r.first_coarse + c];
+            const cb::ClusterRange& a = view.fine[r.first_fine + range.first];
+            const cb::ClusterRange& z = view.fine[r.first_fine + range.first + range.count - 1];
+            check(view.coarse_bounds, r.first_coarse + c, a.first, z.first + z.count - a.first);
+        }
+    }
+    EXPECT_EQ(checked, size_t(view.fine_count) + view.coarse_count);
+    EXPECT_EQ(misses, 0u);
+    EXPECT_EQ(violations, 0u);
 }

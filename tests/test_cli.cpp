@@ -124,8 +124,8 @@ TEST(Cli, AssetIsByteIdenticalForAnyThreadCount) {
     std::string a = (dir / ("cb_cli_t1_" + std::to_string(getpid()) + ".cbk")).string();
     std::string b = (dir / ("cb_cli_t4_" + std::to_string(getpid()) + ".cbk")).string();
     for (const char* method : {"kmeans", "vco", "morton"}) {
-        ASSERT_EQ(run("cluster " + data("default_scene.glb") + " --coarse 512 --threads 1 --method " + method + " -o " + a).code, 0);
-        ASSERT_EQ(run("cluster " + data("default_scene.glb") + " --coarse 512 --threads 4 --method " + method + " -o " + b).code, 0);
+        ASSERT_EQ(run("bake " + data("default_scene.glb") + " --bounds all --coarse 512 --threads 1 --method " + method + " -o " + a).code, 0);
+        ASSERT_EQ(run("bake " + data("default_scene.glb") + " --bounds all --coarse 512 --threads 4 --method " + method + " -o " + b).code, 0);
         std::ifstream fa(a, std::ios::binary), fb(b, std::ios::binary);
         std::string sa((std::istreambuf_iterator<char>(fa)), std::istreambuf_iterator<char>());
         std::string sb((std::istreambuf_iterator<char>(fb)), std::istreambuf_iterator<char>());
@@ -134,4 +134,28 @@ TEST(Cli, AssetIsByteIdenticalForAnyThreadCount) {
     }
     std::filesystem::remove(a);
     std::filesystem::remove(b);
+}
+
+TEST(Cli, BakeWritesTheChosenBounds) {
+    auto out = std::filesystem::temp_directory_path() / ("cb_cli_bake_" + std::to_string(getpid()) + ".cbk");
+    CliRun r = run("bake " + data("default_scene.glb") + " -o " + out.string() + " --json");
+    ASSERT_EQ(r.code, 0) << r.err;
+    auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["bounds"], "auto");
+    EXPECT_GT(j["valid_cones"].get<int>(), 0);
+    CliRun v = run("validate " + out.string());
+    EXPECT_NE(v.out.find("fine bounds: obb cone"), std::string::npos) << v.out;
+    EXPECT_NE(v.out.find("coarse bounds: obb cone"), std::string::npos) << v.out;
+
+    ASSERT_EQ(run("bake " + data("small/cube.obj") + " --bounds sphere,slab -o " + out.string()).code, 0);
+    v = run("validate " + out.string());
+    EXPECT_NE(v.out.find("fine bounds: sphere slab"), std::string::npos) << v.out;
+
+    ASSERT_EQ(run("cluster " + data("small/cube.obj") + " -o " + out.string()).code, 0);
+    v = run("validate " + out.string());
+    EXPECT_NE(v.out.find("fine bounds: none"), std::string::npos) << v.out;
+
+    EXPECT_EQ(run("bake " + data("small/cube.obj") + " --bounds obb,box -o " + out.string()).code, 1);
+    EXPECT_EQ(run("bake " + data("small/cube.obj") + " --obb best -o " + out.string()).code, 1);
+    std::filesystem::remove(out);
 }
