@@ -144,7 +144,7 @@ struct Row {
 
 void print_row(const Input& in, const Row& r, unsigned threads) {
     double t = double(in.triangles());
-    std::printf("| %-26s | %-22s | %8.2f | %8.2f | %7.1f | %6.3f | %7.0f | %6.2f | %7.4f | %7.4f |\n", in.name.c_str(),
+    std::printf("| %-26s | %-25s | %8.2f | %8.2f | %7.1f | %6.3f | %7.0f | %6.2f | %7.4f | %7.4f |\n", in.name.c_str(),
                 r.method.c_str(), t / r.seconds_1 / 1e6, r.seconds_n > 0 ? t / r.seconds_n / 1e6 : NAN, r.extra_mb,
                 r.acmr, double(r.c.clusters), r.c.mean_triangles, r.c.mean_radius, r.c.max_radius);
     (void)threads;
@@ -178,19 +178,23 @@ void run(const Input& in, uint32_t fine, int runs) {
         r.c = compactness(in, h.order, sizes);
         rows.push_back(r);
     }
-    {  // meshoptimizer's meshlets on the input order, at most `fine` triangles and 3 * fine vertices
-        size_t max_v = std::min<size_t>(255, size_t(fine) * 3);
-        size_t bound = meshopt_buildMeshletsBound(in.indices.size(), max_v, fine);
+    // meshoptimizer's meshlets on the input order, at most `limit` triangles and 3 * limit vertices: once at
+    // our maximum size, once at the k-means mean size rounded to a multiple of 4 (meshoptimizer's rule), so
+    // compactness is also compared at equal cluster counts.
+    uint32_t kmeans_mean = uint32_t(std::lround(rows[0].c.mean_triangles / 4.0)) * 4;
+    for (uint32_t limit : {fine, std::max(4u, kmeans_mean)}) {
+        size_t max_v = std::min<size_t>(255, size_t(limit) * 3);
+        size_t bound = meshopt_buildMeshletsBound(in.indices.size(), max_v, limit);
         std::vector<meshopt_Meshlet> meshlets(bound);
         std::vector<unsigned> mv(bound * max_v);
-        std::vector<unsigned char> mt(bound * fine * 3);
+        std::vector<unsigned char> mt(bound * limit * 3);
         size_t count = 0;
         Row r;
-        r.method = "meshopt_buildMeshlets";
+        r.method = "meshopt_buildMeshlets " + std::to_string(limit);
         mem.reset();
         r.seconds_1 = median_seconds(runs, [&] {
             count = meshopt_buildMeshlets(meshlets.data(), mv.data(), mt.data(), in.indices.data(), in.indices.size(),
-                                          in.positions.data(), in.vertices(), 12, max_v, fine, 0.0f);
+                                          in.positions.data(), in.vertices(), 12, max_v, limit, 0.0f);
         });
         r.extra_mb = mem.extra_mb();
         r.seconds_n = 0;  // single-threaded API
