@@ -6,7 +6,7 @@ cd "$(dirname "$0")/.."
 runs=${1:-3000}
 cmake -S . -B build-fuzz -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCLUSTERBAKE_FUZZ=ON -DCLUSTERBAKE_TESTS=OFF -DCLUSTERBAKE_BENCH=OFF >/dev/null
-cmake --build build-fuzz --target fuzz_gltf fuzz_obj fuzz_off fuzz_ply fuzz_stl
+cmake --build build-fuzz --target fuzz_gltf fuzz_obj fuzz_off fuzz_ply fuzz_stl fuzz_asset clusterbake
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 seed() {  # seed FORMAT FILE...
@@ -19,10 +19,14 @@ seed obj data/small/*.obj $shared/hard/deg_faces.obj $shared/hard/wallhole.obj $
 seed off data/small/*.off $shared/hard/comments.off $shared/hard/whitespace.off
 seed ply data/small/*.ply
 seed stl data/small/*.stl $shared/hard/soup.stl
-for format in gltf obj off ply stl; do
+mkdir -p "$work/asset"  # assets baked here, with and without bounds, by the instrumented tool itself
+./build-fuzz/cli/clusterbake bake data/small/cube.obj --bounds all -o "$work/asset/cube_all.cbk" >/dev/null
+./build-fuzz/cli/clusterbake cluster data/small/primitive_modes.gltf -o "$work/asset/modes.cbk" >/dev/null
+./build-fuzz/cli/clusterbake bake data/small/cube_binary.stl --fine 4 --coarse 8 -o "$work/asset/cube_small.cbk" >/dev/null
+for format in gltf obj off ply stl asset; do
   echo "fuzz_$format: $runs runs from $(ls "$work/$format" | wc -l) seeds"
   ./build-fuzz/fuzz/fuzz_$format -runs="$runs" -max_len=65536 -rss_limit_mb=2048 -timeout=20 \
     -print_final_stats=0 "$work/$format" 2>"$work/$format.log" || { tail -40 "$work/$format.log"; exit 1; }
   grep -E "^#[0-9]+ *DONE" "$work/$format.log" || tail -2 "$work/$format.log"
 done
-echo "fuzz smoke: 5 targets, no crash"
+echo "fuzz smoke: 6 targets, no crash"
