@@ -1,0 +1,217 @@
+// The runtime's exact predicates and shadow queries against CGAL: orientation signs, the segment test's
+// semantics, and whole queries over baked assets against a brute-force exact oracle.
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <gtest/gtest.h>
+
+#include <cb_exact.h>
+#include <cb_shadow.h>
+
+#include <filesystem>
+#include <random>
+
+#include "bake.h"
+#include "load.h"
+
+namespace fs = std::filesystem;
+using Epick = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Epeck = CGAL::Exact_predicates_exact_constructions_kernel;
+
+namespace {
+
+int cgal_orient(const double* a, const double* b, const double* c, const double* d) {
+    // CGAL: positive when d is on the positive side of plane a, b, c (sign of | b-a, c-a, d-a |).
+    // cb::exact::orient3d(a, b, c, d) is the sign of | a-d, b-d, c-d |, which is minus that.
+    CGAL::Orientation o = CGAL::orientation(Epick::Point_3(a[0], a[1], a[2]), Epick::Point_3(b[0], b[1], b[2]),
+                                            Epick::Point_3(c[0], c[1], c[2]), Epick::Point_3(d[0], d[1], d[2]));
+    return -int(o);
+}
+
+// The same semantics as cb::segment_triangle, built from CGAL's exact intersection construction instead.
+cb::SegmentTest oracle(const double* p, const double* q, const double* a, const double* b, const double* c) {
+    cb::SegmentTest r;
+    Epeck::Point_3 P(p[0], p[1], p[2]), Q(q[0], q[1], q[2]), A(a[0], a[1], a[2]), B(b[0], b[1], b[2]), C(c[0], c[1], c[2]);
+    if (CGAL::collinear(A, B, C)) return r;
+    CGAL::Orientation op = CGAL::orientation(A, B, C, P), oq = CGAL::orientation(A, B, C, Q);
+    if (op == CGAL::COPLANAR && oq == CGAL::COPLANAR) return r;
+    Epeck::Segment_3 s(P, Q);
+    Epeck::Triangle_3 t(A, B, C);
+    if (!CGAL::do_intersect(s, t)) return r;
+    auto hit = CGAL::intersection(s, t);
+    const Epeck::Point_3* x = boost::get<Epeck::Point_3>(&*hit);
+    if (!x) return r;  // a segment piece would mean coplanar, excluded above
+    bool on_edge = CGAL::collinear(A, B, *x) || CGAL::collinear(B, C, *x) || CGAL::collinear(C, A, *x);
+    r.touching = on_edge || op == CGAL::COPLANAR || oq == CGAL::COPLANAR;
+    Epeck::FT tt = ((*x - P) * (Q - P)) / ((Q - P) * (Q - P));
+    r.blocks = tt >= Epeck::FT(cb::self_shadow_fraction);
+    return r;
+}
+
+}  // namespace
+
+TEST(Exact, OrientationAgreesWithCgal) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-1, 1);
+    std::uniform_int_distribution<int> small(-4, 4);
+    size_t exact_path = 0, zeros = 0;
+    for (int i = 0; i < 200000; ++i) {
+        double pts[4][3];
+        int kind = i % 4;
+        for (auto& p : pts)
+            for (double& x : p) x = u(rng);
+        if (kind == 1) {  // exactly coplanar: z = x + 2y on small integers, then offset far away
+            for (auto& p : pts) {
+                p[0] = small(rng), p[1] = small(rng), p[2] = p[0] + 2 * p[1];
+                for (double& x : p) x += 1e7;
+            }
+        } else if (kind == 2) {  // coplanar, moved off zero (subnormals are outside the predicate's domain),
+                                 // then the last point nudged by one ulp
+            for (auto& p : pts) p[0] = small(rng) * 0.5 + 10, p[1] = small(rng) * 0.25 + 10, p[2] = p[0] - p[1] + 10;
+            pts[3][2] = std::nextafter(pts[3][2], 100.0);
+        } else if (kind == 3) {  // float coordinates far out, as assets hold them
+            for (auto& p : pts)
+                for (double& x : p) x = double(float(4e6 + 3 * u(rng)));
+        }
+        int ours = cb::exact::orient3d(pts[0], pts[1], pts[2], pts[3]);
+        int theirs = cgal_orient(pts[0], pts[1], pts[2], pts[3]);
+        ASSERT_EQ(ours, theirs) << "case " << i;
+        zeros += ours == 0;
+        exact_path += cb::exact::sign(cb::exact::orient3d_exact(pts[0], pts[1], pts[2], pts[3])) != ours;
+    }
+    EXPECT_EQ(exact_path, 0u) << "filtered and exact evaluations disagree";
+    EXPECT_GT(zeros, 40000u);  // the coplanar family really is coplanar
+}
+
+TEST(Exact, SegmentTestAgreesWithCgalOracle) {
+    std::mt19937 rng(9);
+    std::uniform_int_distribution<int> grid(-3, 3);  // small integer grids: many exact contacts
+    std::uniform_real_distribution<double> u(-2, 2);
+    size_t touching = 0, blocks = 0, checked = 0;
+    for (int i = 0; i < 60000; ++i) {
+        double p[3], q[3], a[3], b[3], c[3];
+        bool on_grid = i % 2 == 0;
+        for (double* v : {p, q, a, b, c})
+            for (int k = 0; k < 3; ++k) v[k] = on_grid ? grid(rng) : u(rng);
+        if (i % 6 == 1) {  // the query point on the triangle (self-shadowing), light anywhere
+            double s = (i % 5) * 0.125, t = (i % 3) * 0.25;
+            for (int k = 0; k < 3; ++k) p[k] = a[k] + s * (b[k] - a[k]) + t * (c[k] - a[k]);
+        }
+        cb::SegmentTest ours = cb::segment_triangle(p, q, a, b, c), theirs = oracle(p, q, a, b, c);
+        ASSERT_EQ(ours.blocks, theirs.blocks) << "case " << i;
+        ASSERT_EQ(ours.touching, theirs.touching) << "case " << i;
+        touching += ours.touching;
+        blocks += ours.blocks;
+        ++checked;
+    }
+    std::printf("%zu segment tests: %zu block, %zu touching\n", checked, blocks, touching);
+    EXPECT_GT(touching, 1000u);
+    EXPECT_GT(blocks, 1000u);
+}
+
+namespace {
+
+struct Baked {
+    std::vector<uint64_t> storage;
+    cb::AssetView view;
+};
+
+Baked bake(const std::string& file) {
+    cb::Scene scene = cb::load_scene(file);
+    cb::BakeStats stats;
+    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, {}, stats);
+    cb::BoundsOptions b;
+    b.mask = cb::bounds_auto;
+    cb::fit_scene_bounds(meshes, b, 0, stats);
+    std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
+    Baked out;
+    out.storage.resize((bytes.size() + 7) / 8);
+    std::memcpy(out.storage.data(), bytes.data(), bytes.size());
+    EXPECT_EQ(cb::open_asset(out.storage.data(), bytes.size(), &out.view), cb::AssetError::ok);
+    return out;
+}
+
+// Brute force over every triangle of every instance, with CGAL's exact construction.
+bool oracle_occluded(const cb::AssetView& v, const double* p, const double* light, bool& touching) {
+    touching = false;
+    for (uint32_t i = 0; i < v.instance_count; ++i) {
+        double inv[12], lp[3], ll[3];
+        if (!cb::invert_instance(v.instances[i].transform, inv)) continue;
+        cb::apply_instance(inv, p, lp);
+        cb::apply_instance(inv, light, ll);
+        const cb::MeshRecord& m = v.meshes[v.instances[i].mesh];
+        for (uint32_t t = 0; t < m.triangle_count; ++t) {
+            double c[3][3];
+            for (int k = 0; k < 3; ++k)
+                for (int j = 0; j < 3; ++j)
+                    c[k][j] = v.positions[(size_t(m.first_vertex) + v.triangles[(size_t(m.first_triangle) + t) * 3 + k]) * 3 + j];
+            cb::SegmentTest s = oracle(lp, ll, c[0], c[1], c[2]);
+            touching |= s.touching;
+            if (s.blocks) return true;
+        }
+    }
+    return false;
+}
+
+}  // namespace
+
+TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
+    std::vector<std::string> files = {std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"};
+    for (const char* f : {"scanned/spot_low_resolution.obj", "scanned/bunny_npm.obj", "hard/tube.obj", "hard/v405.off"})
+        if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back((fs::path(CB_SHARED_DATA) / f).string());
+    size_t queries = 0, disagreements = 0, touching = 0, shadowed = 0;
+    for (const std::string& file : files) {
+        SCOPED_TRACE(file);
+        Baked b = bake(file);
+        const cb::AssetView& v = b.view;
+        // World bounds of the instanced vertices.
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        std::vector<std::array<double, 3>> surface;
+        for (uint32_t i = 0; i < v.instance_count; ++i) {
+            const cb::MeshRecord& m = v.meshes[v.instances[i].mesh];
+            for (uint32_t k = 0; k < m.vertex_count; ++k) {
+                const float* q = v.positions + (size_t(m.first_vertex) + k) * 3;
+                double local[3] = {q[0], q[1], q[2]}, w[3];
+                cb::apply_instance(v.instances[i].transform, local, w);
+                for (int j = 0; j < 3; ++j) lo[j] = std::min(lo[j], w[j]), hi[j] = std::max(hi[j], w[j]);
+                if (k % 3 == 0) surface.push_back({w[0], w[1], w[2]});  // points on the surfaces
+            }
+        }
+        double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+        std::mt19937 rng(11);
+        std::uniform_real_distribution<double> u(0, 1);
+        // Lights: far outside, grazing the top of the bounds, inside the bounds, and exactly on a vertex
+        // (so on the planes of every triangle around it).
+        const cb::MeshRecord& m0 = v.meshes[v.instances[0].mesh];
+        const float* on = v.positions + (size_t(m0.first_vertex) + m0.vertex_count / 2) * 3;
+        double on_vertex[3] = {on[0], on[1], on[2]}, on_world[3];
+        cb::apply_instance(v.instances[0].transform, on_vertex, on_world);
+        double lights[4][3] = {{lo[0] - 2 * size, hi[1] + 3 * size, lo[2] - size},
+                               {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])},
+                               {lo[0] + 0.4 * (hi[0] - lo[0]), lo[1] + 0.6 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
+                               {on_world[0], on_world[1], on_world[2]}};
+        size_t per_light = v.triangle_count > 20000 ? 60 : 400;
+        for (const auto& light : lights)
+            for (size_t k = 0; k < per_light; ++k) {
+                double p[3];
+                if (k % 2 == 0) {
+                    const auto& s = surface[(k * 7919) % surface.size()];
+                    p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                } else {
+                    for (int j = 0; j < 3; ++j) p[j] = lo[j] + (hi[j] - lo[j]) * (1.2 * u(rng) - 0.1);
+                }
+                cb::QueryStats stats;
+                bool ours = cb::occluded_reference(v, p, light, &stats);
+                bool t = false;
+                bool exact = oracle_occluded(v, p, light, t);
+                disagreements += ours != exact;
+                touching += t;
+                shadowed += exact;
+                ++queries;
+            }
+    }
+    std::printf("%zu queries, %zu in shadow, %zu touching (per the oracle), %zu disagreements\n", queries, shadowed,
+                touching, disagreements);
+    EXPECT_EQ(disagreements, 0u);
+    EXPECT_GT(shadowed, queries / 10);
+    EXPECT_LT(shadowed, queries * 9 / 10);
+}
