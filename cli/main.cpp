@@ -3,10 +3,13 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+
+#include <cb_shadow.h>
 
 #include "bake.h"
 #include "load.h"
@@ -184,23 +187,36 @@ int run_bake(const ClusterArgs& a) {
     return 0;
 }
 
-int run_validate(const std::string& file) {
+// An asset file read into 8-byte aligned storage (the view's instance doubles need it) and opened.
+struct LoadedAsset {
+    std::vector<uint64_t> storage;
+    size_t size = 0;
+    cb::AssetView view;
+};
+
+bool load_asset(const std::string& file, LoadedAsset& out) {
     std::ifstream in(file, std::ios::binary);
     if (!in) {
         std::fprintf(stderr, "%s: cannot open\n", file.c_str());
-        return exit_bad_input;
+        return false;
     }
     std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    // The view needs 8-byte alignment for the instance doubles: copy into storage that has it.
-    std::vector<uint64_t> aligned((raw.size() + 7) / 8);
-    std::memcpy(aligned.data(), raw.data(), raw.size());
-    cb::AssetView view;
-    cb::AssetError e = cb::open_asset(aligned.data(), raw.size(), &view);
+    out.size = raw.size();
+    out.storage.assign((raw.size() + 7) / 8, 0);
+    std::memcpy(out.storage.data(), raw.data(), raw.size());
+    cb::AssetError e = cb::open_asset(out.storage.data(), out.size, &out.view);
     if (e != cb::AssetError::ok) {
         std::fprintf(stderr, "%s: %s\n", file.c_str(), cb::asset_error_text(e));
-        return exit_bad_input;
+        return false;
     }
-    std::printf("%s: valid clusterbake asset v%u, %zu bytes\n", file.c_str(), cb::asset_version, raw.size());
+    return true;
+}
+
+int run_validate(const std::string& file) {
+    LoadedAsset asset;
+    if (!load_asset(file, asset)) return exit_bad_input;
+    const cb::AssetView& view = asset.view;
+    std::printf("%s: valid clusterbake asset v%u, %zu bytes\n", file.c_str(), cb::asset_version, asset.size);
     std::printf("  meshes %u, instances %u, vertices %u, triangles %u, fine clusters %u, coarse clusters %u\n",
                 view.mesh_count, view.instance_count, view.vertex_count, view.triangle_count, view.fine_count,
                 view.coarse_count);
@@ -212,6 +228,87 @@ int run_validate(const std::string& file) {
         if (level->cones) kinds += " cone";
         if (level->slabs) kinds += " slab";
         std::printf("  %s bounds:%s\n", name, kinds.empty() ? " none" : kinds.c_str());
+    }
+    return 0;
+}
+
+struct QueryArgs {
+    std::string asset, light, points, out;
+    bool binary = false, stats = false;
+};
+
+// Points from text lines "x y z" (blank lines and # comments skipped) or raw little-endian float32 triples.
+bool read_points(const QueryArgs& a, std::vector<double>& pts) {
+    std::ifstream in(a.points, std::ios::binary);
+    if (!in) {
+        std::fprintf(stderr, "%s: cannot open\n", a.points.c_str());
+        return false;
+    }
+    if (a.binary) {
+        std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        if (raw.size() % 12 != 0) {
+            std::fprintf(stderr, "%s: %zu bytes is not a whole number of float32 triples\n", a.points.c_str(), raw.size());
+            return false;
+        }
+        for (size_t i = 0; i < raw.size(); i += 4) {
+            float f;
+            std::memcpy(&f, raw.data() + i, 4);
+            pts.push_back(f);
+        }
+    } else {
+        std::string line;
+        for (size_t n = 1; std::getline(in, line); ++n) {
+            size_t hash = line.find('#');
+            if (hash != std::string::npos) line.resize(hash);
+            if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+            double x, y, z;
+            char extra;
+            if (std::sscanf(line.c_str(), "%lf %lf %lf %c", &x, &y, &z, &extra) != 3) {
+                std::fprintf(stderr, "%s: line %zu: expected 'x y z'\n", a.points.c_str(), n);
+                return false;
+            }
+            pts.insert(pts.end(), {x, y, z});
+        }
+    }
+    for (size_t i = 0; i < pts.size(); ++i)
+        if (!std::isfinite(pts[i])) {
+            std::fprintf(stderr, "%s: point %zu: coordinate is not finite\n", a.points.c_str(), i / 3);
+            return false;
+        }
+    return true;
+}
+
+int run_query(const QueryArgs& a) {
+    double light[3];
+    char extra;
+    if (std::sscanf(a.light.c_str(), "%lf,%lf,%lf%c", &light[0], &light[1], &light[2], &extra) != 3 ||
+        !std::isfinite(light[0]) || !std::isfinite(light[1]) || !std::isfinite(light[2])) {
+        std::fprintf(stderr, "clusterbake: --light takes X,Y,Z (got '%s')\n", a.light.c_str());
+        return 1;
+    }
+    LoadedAsset asset;
+    if (!load_asset(a.asset, asset)) return exit_bad_input;
+    std::vector<double> pts;
+    if (!read_points(a, pts)) return exit_bad_input;
+
+    auto start = std::chrono::steady_clock::now();
+    cb::QueryStats stats;
+    std::string answers;
+    answers.reserve(pts.size() / 3 * 2);
+    size_t shadowed = 0;
+    for (size_t i = 0; i < pts.size(); i += 3) {
+        bool occluded = cb::occluded_reference(asset.view, &pts[i], light, &stats);
+        shadowed += occluded;
+        answers += occluded ? "1\n" : "0\n";
+    }
+    double seconds = seconds_since(start);
+    std::fwrite(answers.data(), 1, answers.size(), stdout);
+    if (a.stats) {
+        size_t n = pts.size() / 3;
+        std::fprintf(stderr, "%zu queries, %zu in shadow, %.3f s (%.0f queries/s); per query %.1f clusters and %.1f triangles "
+                     "tested; %llu queries with a touching contact\n",
+                     n, shadowed, seconds, n / std::max(seconds, 1e-9), n ? double(stats.clusters_tested) / double(n) : 0.0,
+                     n ? double(stats.triangles_tested) / double(n) : 0.0, (unsigned long long)stats.touching);
     }
     return 0;
 }
@@ -259,6 +356,15 @@ int main(int argc, char** argv) {
     CLI::App* validate = app.add_subcommand("validate", "Check an asset's structure, ranges and checksum");
     validate->add_option("file", validate_file, "Asset file")->required();
 
+    QueryArgs qa;
+    CLI::App* query = app.add_subcommand(
+        "query", "Answer point-light shadow queries (two-sided occluders, exact): one 0/1 line per point on stdout");
+    query->add_option("asset", qa.asset, "Asset (.cbk)")->required();
+    query->add_option("--light", qa.light, "Light position X,Y,Z in world space")->required();
+    query->add_option("--points", qa.points, "Points: text lines 'x y z', or float32 triples with --binary")->required();
+    query->add_flag("--binary", qa.binary, "Points file holds raw little-endian float32 x, y, z triples");
+    query->add_flag("--stats", qa.stats, "Print query time and traversal counts on stderr");
+
     CLI11_PARSE(app, argc, argv);
 
     try {
@@ -266,6 +372,7 @@ int main(int argc, char** argv) {
         if (*cluster) return run_bake(ca);
         if (*bake) return run_bake(ba);
         if (*validate) return run_validate(validate_file);
+        if (*query) return run_query(qa);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "clusterbake: %s\n", e.what());
         return 1;

@@ -159,3 +159,24 @@ TEST(Cli, BakeWritesTheChosenBounds) {
     EXPECT_EQ(run("bake " + data("small/cube.obj") + " --obb best -o " + out.string()).code, 1);
     std::filesystem::remove(out);
 }
+
+TEST(Cli, QueryAnswersOneLinePerPoint) {
+    auto dir = std::filesystem::temp_directory_path();
+    std::string asset = (dir / ("cb_cli_q_" + std::to_string(getpid()) + ".cbk")).string();
+    std::string pts = (dir / ("cb_cli_q_" + std::to_string(getpid()) + ".txt")).string();
+    ASSERT_EQ(run("bake " + data("default_scene.glb") + " -o " + asset).code, 0);
+    // Under blob_a with the light straight above; above the blob; on the open ground far from everything.
+    std::ofstream(pts) << "-4 0.05 2\n# a comment\n-4 5 2\n\n15 0.01 15\n";
+    CliRun r = run("query " + asset + " --light -4,30,2 --points " + pts + " --stats");
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.out, "1\n0\n0\n");
+    EXPECT_NE(r.err.find("3 queries, 1 in shadow"), std::string::npos) << r.err;
+    EXPECT_EQ(run("query " + asset + " --light 1,2 --points " + pts).code, 1);
+    std::ofstream(pts) << "1 2\n";
+    CliRun bad = run("query " + asset + " --light 1,2,3 --points " + pts);
+    EXPECT_EQ(bad.code, 2);
+    EXPECT_EQ(bad.err, pts + ": line 1: expected 'x y z'\n");
+    EXPECT_EQ(run("query " + pts + " --light 1,2,3 --points " + pts).code, 2);  // not an asset
+    std::filesystem::remove(asset);
+    std::filesystem::remove(pts);
+}

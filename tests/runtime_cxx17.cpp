@@ -1,0 +1,34 @@
+// Builds the runtime headers as an embedding engine would: C++17, -fno-exceptions, -fno-rtti, no other
+// library. Opens an asset baked from the default scene and answers two queries whose answers the scene
+// fixes: a point on the ground under blob_a is in shadow of a light straight above, a point above the
+// blob is not. Usage: runtime_cxx17 ASSET
+#include <cb_asset.h>
+#include <cb_exact.h>
+#include <cb_shadow.h>
+
+#include <cstdio>
+#include <cstdlib>
+
+int main(int argc, char** argv) {
+    if (argc != 2) return 2;
+    FILE* f = std::fopen(argv[1], "rb");
+    if (!f) return 2;
+    std::fseek(f, 0, SEEK_END);
+    long size = std::ftell(f);
+    std::fseek(f, 0, SEEK_SET);
+    // malloc returns memory aligned for any standard type, as the view's doubles need.
+    void* bytes = std::malloc(size_t(size));
+    if (!bytes || std::fread(bytes, 1, size_t(size), f) != size_t(size)) return 2;
+    std::fclose(f);
+    cb::AssetView view;
+    cb::AssetError e = cb::open_asset(bytes, size_t(size), &view);
+    if (e != cb::AssetError::ok) {
+        std::printf("open_asset: %s\n", cb::asset_error_text(e));
+        return 1;
+    }
+    const double light[3] = {-4, 30, 2}, under[3] = {-4, 0.05, 2}, above[3] = {-4, 5, 2};
+    bool a = cb::occluded_reference(view, under, light), b = cb::occluded_reference(view, above, light);
+    std::printf("under the blob: %s, above it: %s\n", a ? "shadow" : "lit", b ? "shadow" : "lit");
+    std::free(bytes);
+    return a && !b ? 0 : 1;
+}
