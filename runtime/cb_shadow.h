@@ -19,6 +19,7 @@
 // the segment may touch. The clustered shadow volume structure (per light) builds on both.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 
@@ -88,6 +89,101 @@ inline bool segment_may_touch_box(const Obb& box, const double* p, const double*
         double dq = (q[0] - box.center[0]) * ax + (q[1] - box.center[1]) * ay + (q[2] - box.center[2]) * az;
         double reach = box.half[i] + 1e-9 * (std::fabs(dp) + std::fabs(dq) + box.half[i]);
         if ((dp > reach && dq > reach) || (dp < -reach && dq < -reach)) return false;
+    }
+    return true;
+}
+
+// The shadow volume of a box seen from a point light, the building block of the clustered structure
+// (the thesis's figure 2.7): four planes through the light that enclose every ray from the light through
+// the box, closed by the box's distance from the light. Any point a triangle in the box can shadow lies
+// inside: the blocking point X is in the box and p lies on the ray from the light through X, beyond X.
+struct ShadowVolume {
+    double normal[4][3];  // inside: dot(normal[k], p - light) >= 0 for every k (with a margin, see below)
+    double near;          // no point closer than this to the light can be shadowed by the box
+    bool valid;           // false: the light is inside or level with the box; test its cluster for every point
+};
+
+// Builds the volume; the light is in the box's frame. The planes come from the central projection of the
+// box's 8 corners onto the plane across the direction to the box, bounded by a rectangle whose sides follow
+// the box axis that looks longest from the light.
+inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
+    ShadowVolume v{};
+    double c[3] = {box.center[0], box.center[1], box.center[2]}, d[3], len = 0;
+    for (int k = 0; k < 3; ++k) d[k] = c[k] - light[k], len += d[k] * d[k];
+    len = std::sqrt(len);
+    if (!(len > 0)) return v;
+    for (double& x : d) x /= len;
+    double corner[8][3];
+    for (int i = 0; i < 8; ++i)
+        for (int k = 0; k < 3; ++k)
+            corner[i][k] = c[k] + (i & 1 ? 1 : -1) * double(box.half[0]) * box.axis[0][k] +
+                           (i & 2 ? 1 : -1) * double(box.half[1]) * box.axis[1][k] +
+                           (i & 4 ? 1 : -1) * double(box.half[2]) * box.axis[2][k] - light[k];
+    // Every corner must be clearly in front of the light; otherwise no pyramid through the light holds the
+    // box (the light is inside it or level with it): never build a wrong plane.
+    double depth[8], reach = 0;
+    for (int i = 0; i < 8; ++i) {
+        depth[i] = corner[i][0] * d[0] + corner[i][1] * d[1] + corner[i][2] * d[2];
+        reach = std::max(reach, std::sqrt(corner[i][0] * corner[i][0] + corner[i][1] * corner[i][1] + corner[i][2] * corner[i][2]));
+    }
+    for (double z : depth)
+        if (!(z > 1e-6 * reach)) return v;
+    // u: the box axis with the longest extent across the view direction, made perpendicular to it.
+    double u[3] = {0, 0, 0}, best = -1;
+    for (int i = 0; i < 3; ++i) {
+        double a[3] = {box.axis[i][0], box.axis[i][1], box.axis[i][2]};
+        double along = a[0] * d[0] + a[1] * d[1] + a[2] * d[2], w[3], wl = 0;
+        for (int k = 0; k < 3; ++k) w[k] = a[k] - along * d[k], wl += w[k] * w[k];
+        wl = std::sqrt(wl);
+        if (wl * box.half[i] > best && wl > 1e-6) {
+            best = wl * box.half[i];
+            for (int k = 0; k < 3; ++k) u[k] = w[k] / wl;
+        }
+    }
+    if (best < 0) {  // every axis along the view direction: any perpendicular will do
+        double h[3] = {std::fabs(d[0]) < 0.6 ? 1.0 : 0.0, std::fabs(d[0]) < 0.6 ? 0.0 : 1.0, 0.0};
+        double along = h[0] * d[0] + h[1] * d[1] + h[2] * d[2], wl = 0;
+        for (int k = 0; k < 3; ++k) u[k] = h[k] - along * d[k], wl += u[k] * u[k];
+        for (double& x : u) x /= std::sqrt(wl);
+    }
+    double w[3] = {d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]};
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (int i = 0; i < 8; ++i) {
+        double x = (corner[i][0] * u[0] + corner[i][1] * u[1] + corner[i][2] * u[2]) / depth[i];
+        double y = (corner[i][0] * w[0] + corner[i][1] * w[1] + corner[i][2] * w[2]) / depth[i];
+        lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y), hi[1] = std::max(hi[1], y);
+    }
+    // Widen the rectangle a little: the projections above round, and a plane must never cut the box.
+    double slack = 1e-9 * (1 + std::max({std::fabs(lo[0]), std::fabs(hi[0]), std::fabs(lo[1]), std::fabs(hi[1])}));
+    lo[0] -= slack, lo[1] -= slack, hi[0] += slack, hi[1] += slack;
+    for (int k = 0; k < 3; ++k) {
+        v.normal[0][k] = u[k] - lo[0] * d[k];   // x >= lo
+        v.normal[1][k] = -u[k] + hi[0] * d[k];  // x <= hi
+        v.normal[2][k] = w[k] - lo[1] * d[k];
+        v.normal[3][k] = -w[k] + hi[1] * d[k];
+    }
+    // Closing distance: from the light to the nearest point of the box, shortened for rounding.
+    double q[3] = {0, 0, 0}, dist2 = 0;
+    for (int i = 0; i < 3; ++i) {
+        double t = -(d[0] * box.axis[i][0] + d[1] * box.axis[i][1] + d[2] * box.axis[i][2]) * len;  // (light - c) . axis
+        t = std::max(-double(box.half[i]), std::min(double(box.half[i]), t));
+        for (int k = 0; k < 3; ++k) q[k] += t * box.axis[i][k];
+    }
+    for (int k = 0; k < 3; ++k) dist2 += (c[k] + q[k] - light[k]) * (c[k] + q[k] - light[k]);
+    v.near = std::sqrt(dist2) * (1 - 1e-7);
+    v.valid = true;
+    return v;
+}
+
+// Conservative membership: true for every point a triangle in the box can shadow.
+inline bool inside_shadow_volume(const ShadowVolume& v, const double* light, const double* p) {
+    if (!v.valid) return true;
+    double e[3] = {p[0] - light[0], p[1] - light[1], p[2] - light[2]};
+    double dist = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+    if (dist < v.near) return false;
+    for (const double* n : v.normal) {
+        double nl = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (n[0] * e[0] + n[1] * e[1] + n[2] * e[2] < -1e-9 * nl * dist) return false;
     }
     return true;
 }

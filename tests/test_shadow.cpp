@@ -215,3 +215,72 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
     EXPECT_GT(shadowed, queries / 10);
     EXPECT_LT(shadowed, queries * 9 / 10);
 }
+
+TEST(Shadow, ShadowVolumesHoldEverythingTheirBoxCanShadow) {
+    // Random boxes and lights; every point p beyond a point X of the box, on the ray from the light through
+    // X, must be inside the volume. Lights inside or level with the box must give an invalid volume
+    // (which means: always test the cluster).
+    std::mt19937 rng(21);
+    std::uniform_real_distribution<double> u(-1, 1), pos(0, 1);
+    size_t valid = 0, invalid = 0, misses = 0, rejected = 0, samples = 0;
+    for (int i = 0; i < 20000; ++i) {
+        cb::Obb box{};
+        double a[3] = {u(rng), u(rng), u(rng)}, b[3] = {u(rng), u(rng), u(rng)};
+        double al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        for (double& x : a) x /= al;
+        double ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        for (int k = 0; k < 3; ++k) b[k] -= ab * a[k];
+        double bl = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+        for (double& x : b) x /= bl;
+        double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+        double scale = i % 3 == 0 ? 1e6 : 1;  // far from the origin too
+        for (int k = 0; k < 3; ++k) {
+            box.axis[0][k] = float(a[k]), box.axis[1][k] = float(b[k]), box.axis[2][k] = float(c[k]);
+            box.center[k] = float(u(rng) * 10 + scale);
+        }
+        for (int k = 0; k < 3; ++k) box.half[k] = float(i % 7 == 0 ? 0.0 : 0.01 + 3 * pos(rng));  // flat boxes too
+        double light[3];
+        for (int k = 0; k < 3; ++k) light[k] = box.center[k] + u(rng) * (i % 4 == 0 ? 3.0 : 40.0);
+        cb::ShadowVolume v = cb::make_shadow_volume(box, light);
+        valid += v.valid;
+        invalid += !v.valid;
+        for (int s = 0; s < 20; ++s) {
+            double x[3], p[3], t = 1 + 5 * pos(rng) * pos(rng);
+            for (int k = 0; k < 3; ++k) x[k] = box.center[k];
+            for (int j = 0; j < 3; ++j) {
+                double r = (s < 8 ? ((s >> (j % 3)) & 1 ? 1 : -1) : u(rng)) * box.half[j];  // corners and inside
+                for (int k = 0; k < 3; ++k) x[k] += r * box.axis[j][k];
+            }
+            for (int k = 0; k < 3; ++k) p[k] = light[k] + t * (x[k] - light[k]);
+            misses += !cb::inside_shadow_volume(v, light, p);
+            ++samples;
+        }
+        // The box's point nearest the light (where the closing distance is tight), itself and beyond.
+        double nearest[3] = {box.center[0], box.center[1], box.center[2]};
+        for (int j = 0; j < 3; ++j) {
+            double t = 0;
+            for (int k = 0; k < 3; ++k) t += (light[k] - box.center[k]) * box.axis[j][k];
+            t = std::clamp(t, -double(box.half[j]), double(box.half[j]));
+            for (int k = 0; k < 3; ++k) nearest[k] += t * box.axis[j][k];
+        }
+        for (double t : {1.0, 1.5}) {
+            double p[3];
+            for (int k = 0; k < 3; ++k) p[k] = light[k] + t * (nearest[k] - light[k]);
+            misses += !cb::inside_shadow_volume(v, light, p);
+            ++samples;
+        }
+        // And it does cull: the point halfway between the light and the box's nearest point is outside.
+        if (v.valid) {
+            double mid[3];
+            for (int k = 0; k < 3; ++k) mid[k] = light[k] + 0.5 * v.near / std::sqrt(
+                (box.center[0] - light[0]) * (box.center[0] - light[0]) + (box.center[1] - light[1]) * (box.center[1] - light[1]) +
+                (box.center[2] - light[2]) * (box.center[2] - light[2])) * (box.center[k] - light[k]);
+            rejected += !cb::inside_shadow_volume(v, light, mid);
+        }
+    }
+    std::printf("%zu valid volumes, %zu lights inside or level (invalid), %zu samples, %zu missed\n", valid, invalid, samples, misses);
+    EXPECT_EQ(misses, 0u);
+    EXPECT_GT(valid, 10000u);
+    EXPECT_GT(invalid, 100u);
+    EXPECT_EQ(rejected, valid);
+}
