@@ -171,6 +171,8 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     EXPECT_EQ(r.code, 0) << r.err;
     EXPECT_EQ(r.out, "1\n0\n0\n");
     EXPECT_NE(r.err.find("3 queries, 1 in shadow"), std::string::npos) << r.err;
+    CliRun ref = run("query " + asset + " --light -4,30,2 --points " + pts + " --reference");
+    EXPECT_EQ(ref.out, r.out);
     EXPECT_EQ(run("query " + asset + " --light 1,2 --points " + pts).code, 1);
     std::ofstream(pts) << "1 2\n";
     CliRun bad = run("query " + asset + " --light 1,2,3 --points " + pts);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cb_exact.h>
+#include <cb_cpsv.h>
 #include <cb_shadow.h>
 
 #include <filesystem>
@@ -283,4 +284,72 @@ TEST(Shadow, ShadowVolumesHoldEverythingTheirBoxCanShadow) {
     EXPECT_GT(valid, 10000u);
     EXPECT_GT(invalid, 100u);
     EXPECT_EQ(rejected, valid);
+}
+
+TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
+    std::vector<std::string> files = {std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"};
+    for (const char* f : {"scanned/bunny_npm.obj", "scanned/dragon_vrip_res4.ply", "hard/tube.obj", "hard/3dfier_testarea/testarea.obj",
+                          "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf"})
+        if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back((fs::path(CB_SHARED_DATA) / f).string());
+    size_t queries = 0, disagreements = 0, shadowed = 0;
+    uint64_t tested_tree = 0, tested_reference = 0;
+    for (const std::string& file : files) {
+        SCOPED_TRACE(file);
+        Baked b = bake(file);
+        const cb::AssetView& v = b.view;
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        std::vector<std::array<double, 3>> surface;
+        for (uint32_t i = 0; i < v.instance_count; ++i) {
+            const cb::MeshRecord& m = v.meshes[v.instances[i].mesh];
+            for (uint32_t k = 0; k < m.vertex_count; ++k) {
+                const float* q = v.positions + (size_t(m.first_vertex) + k) * 3;
+                double local[3] = {q[0], q[1], q[2]}, w[3];
+                cb::apply_instance(v.instances[i].transform, local, w);
+                for (int j = 0; j < 3; ++j) lo[j] = std::min(lo[j], w[j]), hi[j] = std::max(hi[j], w[j]);
+                surface.push_back({w[0], w[1], w[2]});
+            }
+        }
+        double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+        std::mt19937 rng(17);
+        std::uniform_real_distribution<double> u(0, 1);
+        const auto& sv = surface[surface.size() / 3];
+        double lights[4][3] = {{lo[0] - size, hi[1] + 2 * size, lo[2] - 0.5 * size},
+                               {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])},
+                               {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
+                               {sv[0], sv[1], sv[2]}};
+        for (const auto& light : lights) {
+            std::vector<cb::ClusterShadowTree> trees(v.instance_count);
+            size_t stack = 0;
+            for (uint32_t i = 0; i < v.instance_count; ++i) {
+                trees[i].build(v, i, light);
+                stack = std::max(stack, trees[i].stack_size());
+            }
+            std::vector<uint32_t> scratch(stack);
+            for (int k = 0; k < 2500; ++k) {
+                double p[3];
+                if (k % 2 == 0) {
+                    const auto& s = surface[size_t(k * 104729) % surface.size()];
+                    p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                } else {
+                    for (int j = 0; j < 3; ++j) p[j] = lo[j] + (hi[j] - lo[j]) * (1.2 * u(rng) - 0.1);
+                }
+                cb::QueryStats a, r;
+                bool tree = false;
+                for (const cb::ClusterShadowTree& t : trees)
+                    if (t.occluded(p, scratch.data(), &a)) {
+                        tree = true;
+                        break;
+                    }
+                bool reference = cb::occluded_reference(v, p, light, &r);
+                disagreements += tree != reference;
+                shadowed += reference;
+                tested_tree += a.triangles_tested, tested_reference += r.triangles_tested;
+                ++queries;
+            }
+        }
+    }
+    std::printf("%zu queries, %zu in shadow, %zu disagreements; triangles tested per query: tree %.1f, reference %.1f\n",
+                queries, shadowed, disagreements, double(tested_tree) / double(queries), double(tested_reference) / double(queries));
+    EXPECT_EQ(disagreements, 0u);
+    EXPECT_GT(queries, 50000u);
 }
