@@ -88,6 +88,7 @@ public:
     }
 
     size_t node_count() const { return nodes_.size(); }
+    size_t memory_bytes() const { return nodes_.capacity() * sizeof(Node) + always_.capacity() * sizeof(uint32_t); }
     size_t always_tested() const { return always_.size(); }
 
 private:

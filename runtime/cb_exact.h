@@ -106,20 +106,27 @@ inline Expansion orient3d_exact(const double* a, const double* b, const double* 
     return det;
 }
 
-// Sign of | a - d, b - d, c - d |: +1, 0 or -1, exact. Positive when d sees a, b, c clockwise (equivalently,
-// a is on the side that (b - d) x (c - d) points to).
-inline int orient3d(const double* a, const double* b, const double* c, const double* d) {
+// The determinant | a - d, b - d, c - d | in double, and a bound on its error: the exact value lies within
+// `bound` of `det`.
+inline double orient3d_estimate(const double* a, const double* b, const double* c, const double* d, double& bound) {
     double adx = a[0] - d[0], ady = a[1] - d[1], adz = a[2] - d[2];
     double bdx = b[0] - d[0], bdy = b[1] - d[1], bdz = b[2] - d[2];
     double cdx = c[0] - d[0], cdy = c[1] - d[1], cdz = c[2] - d[2];
     double bc = bdy * cdz - bdz * cdy, ca = bdz * cdx - bdx * cdz, ab = bdx * cdy - bdy * cdx;
-    double det = adx * bc + ady * ca + adz * ab;
     double permanent = std::fabs(adx) * (std::fabs(bdy * cdz) + std::fabs(bdz * cdy)) +
                        std::fabs(ady) * (std::fabs(bdz * cdx) + std::fabs(bdx * cdz)) +
                        std::fabs(adz) * (std::fabs(bdx * cdy) + std::fabs(bdy * cdx));
     // Shewchuk's first error bound for this evaluation is (7 + 56 eps) eps * permanent, eps = 2^-53;
-    // 1e-15 is above it. Non-finite values fall through to the exact path, which then decides.
-    double bound = 1e-15 * permanent;
+    // 1e-15 is above it.
+    bound = 1e-15 * permanent;
+    return adx * bc + ady * ca + adz * ab;
+}
+
+// Sign of | a - d, b - d, c - d |: +1, 0 or -1, exact. Positive when d sees a, b, c clockwise (equivalently,
+// a is on the side that (b - d) x (c - d) points to).
+inline int orient3d(const double* a, const double* b, const double* c, const double* d) {
+    double bound, det = orient3d_estimate(a, b, c, d, bound);
+    // Non-finite values fall through to the exact path, which then decides.
     if (det > bound) return 1;
     if (-det > bound) return -1;
     return sign(orient3d_exact(a, b, c, d));

@@ -40,7 +40,9 @@ struct SegmentTest {
 // The segment p -> q against the closed triangle a, b, c, exactly.
 inline SegmentTest segment_triangle(const double* p, const double* q, const double* a, const double* b, const double* c) {
     SegmentTest r;
-    int sp = exact::orient3d(a, b, c, p), sq = exact::orient3d(a, b, c, q);
+    double bp, bq, ep = exact::orient3d_estimate(a, b, c, p, bp), eq = exact::orient3d_estimate(a, b, c, q, bq);
+    int sp = ep > bp ? 1 : -ep > bp ? -1 : exact::sign(exact::orient3d_exact(a, b, c, p));
+    int sq = eq > bq ? 1 : -eq > bq ? -1 : exact::sign(exact::orient3d_exact(a, b, c, q));
     if (sp == 0 && sq == 0) return r;           // coplanar (or no area): edge-on, never blocks
     if (sp == sq) return r;                     // both ends strictly on one side
     // The line through p and q must pass through the closed triangle: no two edge orientations of
@@ -52,6 +54,14 @@ inline SegmentTest segment_triangle(const double* p, const double* q, const doub
     // when (1 - f) Dp + f Dq has Dp's sign or is zero (Dp and Dq have opposite signs or Dq is zero).
     if (sp == 0) return r;                      // at the query point itself: t = 0 < f
     if (sq == 0) return r.blocks = true, r;     // at the light: t = 1
+    // In double first: the estimate of (1 - f) Dp + f Dq is off by at most the bounds' blend and its own
+    // rounding; only when that cannot decide, exactly.
+    double mix_estimate = (1 - self_shadow_fraction) * ep + self_shadow_fraction * eq;
+    double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * bq + 4e-16 * (std::fabs(ep) + std::fabs(eq));
+    if (std::fabs(mix_estimate) > mix_bound) {
+        r.blocks = (mix_estimate > 0 ? 1 : -1) == sp;
+        return r;
+    }
     exact::Expansion dp = exact::orient3d_exact(a, b, c, p), dq = exact::orient3d_exact(a, b, c, q);
     exact::Expansion mix = exact::scaled_by_power_of_two(dq, self_shadow_fraction);
     exact::add(mix, dp);

@@ -1,0 +1,264 @@
+// Shadow query benchmark: clusterbake's per-light shadow volume trees against Embree 3 on the same points.
+// The points are what a camera sees: the first hits of a W x W view (found with Embree), then each point's
+// segment to the light. Prints build time, queries per second on 1 and 2 threads, traversal counts, memory,
+// and how often the two disagree (Embree is not exact: grazing contacts, and its near bound differs from
+// our self-shadowing policy). Asserts nothing.
+//
+//   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--only NAME]
+#include <embree3/rtcore.h>
+
+#include <cb_cpsv.h>
+#include <cb_shadow.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bake.h"
+#include "load.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+double seconds_of(std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+std::atomic<long long> embree_bytes{0}, embree_peak{0};
+bool monitor(void*, ssize_t bytes, bool) {
+    long long now = embree_bytes += bytes;
+    long long peak = embree_peak.load();
+    while (now > peak && !embree_peak.compare_exchange_weak(peak, now)) {
+    }
+    return true;
+}
+
+struct Input {
+    std::string name;
+    cb::Scene scene;
+};
+
+// World-space triangle soup of the scene, for Embree.
+void flatten(const cb::Scene& s, std::vector<float>& v, std::vector<unsigned>& t) {
+    for (const cb::Instance& inst : s.instances) {
+        const cb::Mesh& m = s.meshes[inst.mesh];
+        unsigned base = unsigned(v.size() / 3);
+        for (size_t k = 0; k < m.vertex_count(); ++k) {
+            auto w = cb::transform_point(inst.world, m.positions[k * 3], m.positions[k * 3 + 1], m.positions[k * 3 + 2]);
+            v.insert(v.end(), {float(w[0]), float(w[1]), float(w[2])});
+        }
+        for (uint32_t i : m.indices) t.push_back(base + i);
+    }
+}
+
+void run(const Input& in, int view) {
+    // Bake with the default options and open the asset as the runtime would.
+    cb::BakeStats bs;
+    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(in.scene, {}, bs);
+    cb::BoundsOptions bo;
+    bo.mask = cb::bounds_auto;
+    cb::fit_scene_bounds(meshes, bo, 0, bs);
+    std::vector<uint8_t> bytes = cb::encode_asset(meshes, in.scene.instances);
+    std::vector<uint64_t> storage((bytes.size() + 7) / 8);
+    std::memcpy(storage.data(), bytes.data(), bytes.size());
+    cb::AssetView asset;
+    if (cb::open_asset(storage.data(), bytes.size(), &asset) != cb::AssetError::ok) return;
+
+    std::vector<float> v;
+    std::vector<unsigned> t;
+    flatten(in.scene, v, t);
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < v.size(); ++i) lo[i % 3] = std::min(lo[i % 3], v[i]), hi[i % 3] = std::max(hi[i % 3], v[i]);
+    double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+    double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
+
+    embree_bytes = 0, embree_peak = 0;
+    RTCDevice device = rtcNewDevice("threads=2");
+    rtcSetDeviceMemoryMonitorFunction(device, monitor, nullptr);
+    auto t0 = std::chrono::steady_clock::now();
+    RTCScene scene = rtcNewScene(device);
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    std::memcpy(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, v.size() / 3), v.data(), v.size() * 4);
+    std::memcpy(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, t.size() / 3), t.data(), t.size() * 4);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(scene);
+    double embree_build = seconds_of(t0);
+
+    // Camera: looking at the centre from a diagonal; the points are the first hits.
+    double eye[3] = {centre[0] + 1.2 * size, centre[1] + 0.8 * size, centre[2] + 1.5 * size};
+    double fw[3], right[3], up[3] = {0, 1, 0}, len = 0;
+    for (int k = 0; k < 3; ++k) fw[k] = centre[k] - eye[k], len += fw[k] * fw[k];
+    for (double& x : fw) x /= std::sqrt(len);
+    right[0] = fw[1] * up[2] - fw[2] * up[1], right[1] = fw[2] * up[0] - fw[0] * up[2], right[2] = fw[0] * up[1] - fw[1] * up[0];
+    len = std::sqrt(right[0] * right[0] + right[1] * right[1] + right[2] * right[2]);
+    for (double& x : right) x /= len;
+    up[0] = right[1] * fw[2] - right[2] * fw[1], up[1] = right[2] * fw[0] - right[0] * fw[2], up[2] = right[0] * fw[1] - right[1] * fw[0];
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    std::vector<double> pts;
+    for (int y = 0; y < view; ++y)
+        for (int x = 0; x < view; ++x) {
+            double sx = (x + 0.5) / view * 2 - 1, sy = (y + 0.5) / view * 2 - 1;
+            RTCRayHit rh{};
+            rh.ray.org_x = float(eye[0]), rh.ray.org_y = float(eye[1]), rh.ray.org_z = float(eye[2]);
+            rh.ray.dir_x = float(fw[0] + 0.5 * (sx * right[0] + sy * up[0]));
+            rh.ray.dir_y = float(fw[1] + 0.5 * (sx * right[1] + sy * up[1]));
+            rh.ray.dir_z = float(fw[2] + 0.5 * (sx * right[2] + sy * up[2]));
+            rh.ray.tnear = 0, rh.ray.tfar = INFINITY, rh.ray.mask = 0xffffffff;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(scene, &ctx, &rh);
+            if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+            pts.insert(pts.end(), {rh.ray.org_x + double(rh.ray.tfar) * rh.ray.dir_x, rh.ray.org_y + double(rh.ray.tfar) * rh.ray.dir_y,
+                                   rh.ray.org_z + double(rh.ray.tfar) * rh.ray.dir_z});
+        }
+    size_t n = pts.size() / 3;
+
+    const double lights[2][3] = {{centre[0] - 0.8 * size, centre[1] + 1.5 * size, centre[2] + 0.3 * size},  // outside
+                                 {centre[0] + 0.1 * size, centre[1] + 0.05 * size, centre[2] - 0.1 * size}};  // inside the bounds
+    for (int li = 0; li < 2; ++li) {
+        const double* light = lights[li];
+        // Ours: build the trees (one per instance), then query, on 1 and 2 threads.
+        auto b0 = std::chrono::steady_clock::now();
+        std::vector<cb::ClusterShadowTree> trees(asset.instance_count);
+        size_t stack = 0, always = 0;
+        for (uint32_t i = 0; i < asset.instance_count; ++i) {
+            trees[i].build(asset, i, light);
+            stack = std::max(stack, trees[i].stack_size());
+            always += trees[i].always_tested();
+        }
+        double build = seconds_of(b0);
+        std::vector<uint8_t> ours(n), embree1(n), embree16(n);
+        cb::QueryStats stats;
+        auto ours_pass = [&](unsigned threads) {
+            auto s = std::chrono::steady_clock::now();
+            std::vector<std::thread> pool;
+            std::vector<cb::QueryStats> st(threads);
+            for (unsigned th = 0; th < threads; ++th)
+                pool.emplace_back([&, th] {
+                    std::vector<uint32_t> scratch(stack);
+                    for (size_t i = th; i < n; i += threads) {
+                        bool o = false;
+                        for (const cb::ClusterShadowTree& tr : trees)
+                            if (tr.occluded(&pts[i * 3], scratch.data(), &st[th])) {
+                                o = true;
+                                break;
+                            }
+                        ours[i] = o;
+                    }
+                });
+            for (auto& p : pool) p.join();
+            stats = {};
+            for (auto& s2 : st) stats.clusters_tested += s2.clusters_tested, stats.triangles_tested += s2.triangles_tested;
+            return seconds_of(s);
+        };
+        auto embree_pass = [&](unsigned threads, bool packets) {
+            auto s = std::chrono::steady_clock::now();
+            std::vector<std::thread> pool;
+            for (unsigned th = 0; th < threads; ++th)
+                pool.emplace_back([&, th] {
+                    RTCIntersectContext c;
+                    rtcInitIntersectContext(&c);
+                    size_t chunk = (n + threads - 1) / threads, begin = th * chunk, end = std::min(n, begin + chunk);
+                    if (!packets) {
+                        for (size_t i = begin; i < end; ++i) {
+                            RTCRay r{};
+                            r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
+                            r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]), r.dir_z = float(light[2] - pts[i * 3 + 2]);
+                            r.tnear = float(cb::self_shadow_fraction), r.tfar = 1.0f, r.mask = 0xffffffff;
+                            rtcOccluded1(scene, &c, &r);
+                            embree1[i] = r.tfar < 0;
+                        }
+                        return;
+                    }
+                    for (size_t i = begin; i < end; i += 16) {
+                        RTCRay16 r{};
+                        alignas(64) int valid[16];
+                        for (int k = 0; k < 16; ++k) {
+                            size_t j = std::min(i + k, end - 1);
+                            valid[k] = i + k < end ? -1 : 0;
+                            r.org_x[k] = float(pts[j * 3]), r.org_y[k] = float(pts[j * 3 + 1]), r.org_z[k] = float(pts[j * 3 + 2]);
+                            r.dir_x[k] = float(light[0] - pts[j * 3]), r.dir_y[k] = float(light[1] - pts[j * 3 + 1]), r.dir_z[k] = float(light[2] - pts[j * 3 + 2]);
+                            r.tnear[k] = float(cb::self_shadow_fraction), r.tfar[k] = 1.0f, r.mask[k] = 0xffffffff;
+                        }
+                        rtcOccluded16(valid, scene, &c, &r);
+                        for (int k = 0; k < 16 && i + k < end; ++k) embree16[i + k] = r.tfar[k] < 0;
+                    }
+                });
+            for (auto& p : pool) p.join();
+            return seconds_of(s);
+        };
+        double ours1 = ours_pass(1), ours2 = ours_pass(2);
+        double e1 = embree_pass(1, false), e2 = embree_pass(2, false), p1 = embree_pass(1, true), p2 = embree_pass(2, true);
+        size_t shadowed = 0, differ = 0;
+        for (size_t i = 0; i < n; ++i) shadowed += ours[i], differ += ours[i] != embree1[i];
+        double mq = double(n) / 1e6;
+        size_t ours_bytes = bytes.size();
+        for (const cb::ClusterShadowTree& tr : trees) ours_bytes += tr.memory_bytes();
+        std::printf("| %-16s | %s | %zu | %.0f%% | %.1f ms | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %.0f ms | %.2f / %.2f | %.1f | %.1f | %zu | %.1f / %.1f | %zu (%.3f%%) |\n",
+                    in.name.c_str(), li == 0 ? "outside" : "inside", n, 100.0 * double(shadowed) / double(n), build * 1e3,
+                    mq / ours1, mq / ours2, mq / e1, mq / e2, mq / p1, mq / p2, embree_build * 1e3, (build + ours1) / e1,
+                    (build + ours2) / e2, double(stats.clusters_tested) / double(n), double(stats.triangles_tested) / double(n),
+                    always, double(ours_bytes) / 1048576.0, double(embree_peak) / 1048576.0, differ, 100.0 * double(differ) / double(n));
+    }
+    rtcReleaseScene(scene);
+    rtcReleaseDevice(device);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    fs::path data = fs::path(CB_SHARED_DATA);
+    int view = 1024, copies = 25;
+    std::string only;
+    for (int i = 1; i + 1 < argc; i += 2) {
+        std::string a = argv[i];
+        if (a == "--data") data = argv[i + 1];
+        else if (a == "--view") view = std::stoi(argv[i + 1]);
+        else if (a == "--copies") copies = std::stoi(argv[i + 1]);
+        else if (a == "--only") only = argv[i + 1];
+    }
+    std::printf("%dx%d view; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = (our build + "
+                "our queries) / Embree's queries alone, 1 / 2 threads (below 1: we are faster); memory: our asset + "
+                "trees / Embree's peak\n\n", view, view);
+    std::printf("| scene | light | points | in shadow | our build | ours M q/s | Embree occluded1 M q/s | Embree occluded16 M q/s | "
+                "Embree build | ours vs Embree | clusters/query | triangles/query | always tested | MB ours / Embree | disagree |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::vector<Input> inputs;
+    for (const char* f : {"scanned/dragon_vrip_res2_binary.ply", "scanned/horse.ply"})
+        if (only.empty() || std::string(f).find(only) != std::string::npos)
+            inputs.push_back({fs::path(f).filename().string(), cb::load_scene((data / f).string())});
+    if (copies > 0 && (only.empty() || only == "big")) {
+        // The dragon copied `copies` times on a grid with turns, merged into one mesh.
+        cb::Scene base = cb::load_scene((data / "scanned/dragon_vrip_res2_binary.ply").string());
+        cb::Scene big;
+        cb::Mesh merged;
+        int side = int(std::ceil(std::sqrt(double(copies))));
+        for (int c = 0; c < copies; ++c) {
+            double a = 0.7 * c, ca = std::cos(a), sa = std::sin(a);
+            uint32_t offset = uint32_t(merged.vertex_count());
+            const cb::Mesh& m = base.meshes[0];
+            for (size_t k = 0; k < m.vertex_count(); ++k) {
+                const float* p = &m.positions[k * 3];
+                merged.positions.insert(merged.positions.end(), {float(ca * p[0] + sa * p[2] + (c % side) * 0.25), p[1],
+                                                                 float(-sa * p[0] + ca * p[2] + (c / side) * 0.25)});
+            }
+            for (uint32_t i : m.indices) merged.indices.push_back(offset + i);
+        }
+        merged.primitives.push_back({0, uint32_t(merged.triangle_count()), false});
+        big.meshes.push_back(std::move(merged));
+        big.instances.push_back({0, cb::identity_transform(), "big"});
+        inputs.push_back({std::to_string(copies) + "x dragon", std::move(big)});
+    }
+    for (const Input& in : inputs) run(in, view);
+    return 0;
+}
