@@ -158,7 +158,9 @@ void run(const Input& in, int view) {
                 });
             for (auto& p : pool) p.join();
             stats = {};
-            for (auto& s2 : st) stats.clusters_tested += s2.clusters_tested, stats.triangles_tested += s2.triangles_tested;
+            for (auto& s2 : st)
+                stats.nodes_visited += s2.nodes_visited, stats.clusters_tested += s2.clusters_tested,
+                    stats.triangles_tested += s2.triangles_tested;
             return seconds_of(s);
         };
         auto embree_pass = [&](unsigned threads, bool packets) {
@@ -204,10 +206,11 @@ void run(const Input& in, int view) {
         double mq = double(n) / 1e6;
         size_t ours_bytes = bytes.size();
         for (const cb::ClusterShadowTree& tr : trees) ours_bytes += tr.memory_bytes();
-        std::printf("| %-16s | %s | %zu | %.0f%% | %.1f ms | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %.0f ms | %.2f / %.2f | %.1f | %.1f | %zu | %.1f / %.1f | %zu (%.3f%%) |\n",
+        std::printf("| %-16s | %s | %zu | %.0f%% | %.1f ms | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %.0f ms | %.2f / %.2f | %.1f | %.1f | %.1f | %zu | %.1f / %.1f | %zu (%.3f%%) |\n",
                     in.name.c_str(), li == 0 ? "outside" : "inside", n, 100.0 * double(shadowed) / double(n), build * 1e3,
                     mq / ours1, mq / ours2, mq / e1, mq / e2, mq / p1, mq / p2, embree_build * 1e3, (build + ours1) / e1,
-                    (build + ours2) / e2, double(stats.clusters_tested) / double(n), double(stats.triangles_tested) / double(n),
+                    (build + ours2) / e2, double(stats.nodes_visited) / double(n), double(stats.clusters_tested) / double(n),
+                    double(stats.triangles_tested) / double(n),
                     always, double(ours_bytes) / 1048576.0, double(embree_peak) / 1048576.0, differ, 100.0 * double(differ) / double(n));
     }
     rtcReleaseScene(scene);
@@ -231,8 +234,8 @@ int main(int argc, char** argv) {
                 "our queries) / Embree's queries alone, 1 / 2 threads (below 1: we are faster); memory: our asset + "
                 "trees / Embree's peak\n\n", view, view);
     std::printf("| scene | light | points | in shadow | our build | ours M q/s | Embree occluded1 M q/s | Embree occluded16 M q/s | "
-                "Embree build | ours vs Embree | clusters/query | triangles/query | always tested | MB ours / Embree | disagree |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+                "Embree build | ours vs Embree | nodes/query | clusters/query | triangles/query | always tested | MB ours / Embree | disagree |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     std::vector<Input> inputs;
     for (const char* f : {"scanned/dragon_vrip_res2_binary.ply", "scanned/horse.ply"})
         if (only.empty() || std::string(f).find(only) != std::string::npos)

@@ -73,6 +73,7 @@ public:
         if (root_ != none) stack[top++] = root_;
         while (top) {
             const Node& node = nodes_[stack[--top]];
+            if (stats) ++stats->nodes_visited;
             if (node.cluster != none) {  // cluster node: its triangles, then the volumes inside it
                 if (dist >= node.near && test_cluster(node.cluster, p, stats)) return true;
                 if (node.child[0] != none) stack[top++] = node.child[0];
@@ -80,7 +81,8 @@ public:
             }
             double s = node.n[0] * e[0] + node.n[1] * e[1] + node.n[2] * e[2];
             double tol = 1e-9 * node.n_length * dist;  // near the plane: both sides
-            if (node.child[2] != none) stack[top++] = node.child[2];
+            if (node.child[2] != none && std::fabs(s) <= (node.straddle_sine + 1e-9) * node.n_length * dist)
+                stack[top++] = node.child[2];
             if (s <= tol && node.child[1] != none) stack[top++] = node.child[1];
             if (s >= -tol && node.child[0] != none) stack[top++] = node.child[0];
         }
@@ -95,6 +97,9 @@ private:
     struct Node {
         double n[3] = {0, 0, 0};  // plane through the light; inside: dot(n, p - light) >= 0
         double n_length = 0;
+        // Plane nodes: every point of every volume in the straddling subtree makes an angle with the plane
+        // whose sine is at most this; a point farther from the plane skips that subtree.
+        double straddle_sine = 0;
         double near = 0;          // cluster nodes: closing distance
         uint32_t cluster = none;  // none for plane nodes
         uint32_t child[3] = {none, none, none};  // plane: inside, outside, straddling; cluster: inside
@@ -129,27 +134,40 @@ private:
         }
         double rays[4][3];
         edge_rays(v, rays);
+        // Every direction in the cone is a positive mix of the rays, whose length is at least `spread` times
+        // the mix's weight: |cos| against any plane is at most max over rays / spread.
+        double dir[3] = {0, 0, 0};
+        for (const double* r : rays)
+            for (int k = 0; k < 3; ++k) dir[k] += r[k];
+        double dl = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]), spread = 1;
+        for (const double* r : rays) spread = std::min(spread, (r[0] * dir[0] + r[1] * dir[1] + r[2] * dir[2]) / dl);
         // Walk down while the volume falls clearly on one side; stop at the first empty slot, named by its
         // parent and child index (pointers into nodes_ would not survive the appends below).
         uint32_t parent = none, at = root_;
         int which = 0;
         uint32_t depth = 0;
         while (at != none) {
-            const Node& node = nodes_[at];
+            const Node node = nodes_[at];  // a copy: the straddle bound is written back below
             ++depth;
             if (node.cluster != none) {  // past an earlier volume's chain: into its subtree
                 which = 0;
             } else {
                 bool in = true, out = true;
+                double widest = 0;
                 for (const double* r : rays) {
                     double s = (node.n[0] * r[0] + node.n[1] * r[1] + node.n[2] * r[2]) / node.n_length;
                     in &= s > 1e-9;
                     out &= s < -1e-9;
+                    widest = std::max(widest, std::fabs(s));
                 }
                 which = in ? 0 : out ? 1 : 2;
+                if (which == 2) {
+                    double sine = spread > 0 ? std::min(1.0, widest / spread) : 1.0;
+                    nodes_[at].straddle_sine = std::max(node.straddle_sine, sine);
+                }
             }
             parent = at;
-            at = node.child[which];
+            at = nodes_[at].child[which];
         }
         // The chain: plane 0 -inside-> plane 1 -> plane 2 -> plane 3 -> cluster node.
         uint32_t first = uint32_t(nodes_.size());

@@ -199,6 +199,7 @@ inline bool inside_shadow_volume(const ShadowVolume& v, const double* light, con
 }
 
 struct QueryStats {
+    uint64_t nodes_visited = 0;     // tree nodes (ClusterShadowTree only)
     uint64_t clusters_tested = 0;   // fine clusters whose triangles were tested
     uint64_t triangles_tested = 0;
     uint64_t touching = 0;          // queries whose answer involved a touching contact
