@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_common.h"
 #include "bounds.h"
 #include "cluster.h"
 #include "load.h"
@@ -193,31 +194,19 @@ void far_spheres(const std::string& name, cb::Mesh m, uint32_t fine, double offs
 }  // namespace
 
 int main(int argc, char** argv) {
-    fs::path data = fs::path(CB_SHARED_DATA);
-    uint32_t fine = 16;
-    int runs = 3;
-    std::string only;
-    for (int i = 1; i + 1 < argc; i += 2) {
-        std::string a = argv[i];
-        if (a == "--data") data = argv[i + 1];
-        else if (a == "--fine") fine = uint32_t(std::stoul(argv[i + 1]));
-        else if (a == "--runs") runs = std::stoi(argv[i + 1]);
-        else if (a == "--only") only = argv[i + 1];
-    }
-    if (!fs::exists(data / "scanned")) {
-        std::fprintf(stderr, "bench_bounds: no scanned meshes under %s (pass --data DIR)\n", data.string().c_str());
-        return 1;
-    }
+    cb::bench::Options defaults;
+    defaults.runs = 3;
+    cb::bench::Options o = cb::bench::parse_options(argc, argv, defaults);
+    std::vector<fs::path> files = cb::bench::scanned_meshes(o, "bench_bounds");
+    if (files.empty()) return 1;
+    uint32_t fine = o.fine;
+    int runs = o.runs;
     std::printf("k-means fine clusters of at most %u triangles; times are microseconds per cluster (median of %d); "
                 "OBB columns give volume / CGAL optimal volume as mean / worst\n\n", fine, runs);
     std::printf("| mesh | clusters | PCA us | PCA-area us | refined us | CGAL us | PCA vol | PCA-area vol | refined vol |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|\n");
-    std::vector<fs::path> files;
-    for (const auto& e : fs::directory_iterator(data / "scanned")) files.push_back(e.path());
-    std::sort(files.begin(), files.end());
     std::vector<std::pair<std::string, cb::Mesh>> meshes;
     for (const fs::path& f : files) {
-        if (!only.empty() && f.filename().string().find(only) == std::string::npos) continue;
         cb::Scene s = cb::load_scene(f.string());
         run(f.filename().string(), s.meshes[0], fine, runs);
         meshes.emplace_back(f.filename().string(), s.meshes[0]);

@@ -1,7 +1,7 @@
 // Clustering benchmark: speed, memory, cache efficiency and compactness of each method, against
 // meshoptimizer's meshlets and vertex cache optimiser on the same input in the same run.
 //
-//   bench_cluster [--data DIR] [--fine 16] [--runs 5] [--big-copies 25] [--only NAME]
+//   bench_cluster [--data DIR] [--fine 16] [--runs 5] [--copies 25] [--only NAME]
 //
 // Prints tables; asserts nothing. Times are medians of --runs runs (3 for the big scene).
 #include <meshoptimizer.h>
@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench_common.h"
 #include "cluster.h"
 #include "load.h"
 
@@ -57,17 +58,7 @@ struct PeakMemory {
     }
 };
 
-template <class F>
-double median_seconds(int runs, F&& f) {
-    std::vector<double> t;
-    for (int r = 0; r < runs; ++r) {
-        auto start = std::chrono::steady_clock::now();
-        f();
-        t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-    }
-    std::sort(t.begin(), t.end());
-    return t[t.size() / 2];
-}
+using cb::bench::median_seconds;
 
 struct Compactness {
     double mean_radius = 0, max_radius = 0, mean_triangles = 0;  // radius: AABB half-diagonal / mesh diagonal
@@ -117,23 +108,13 @@ Input load_input(const fs::path& path) {
     return in;
 }
 
-// `copies` rotated, scaled and translated copies of `base` merged into one mesh.
 Input big_scene(const Input& base, int copies) {
-    Input out;
-    out.name = std::to_string(copies) + "x " + base.name;
-    int side = int(std::ceil(std::sqrt(double(copies))));
-    for (int c = 0; c < copies; ++c) {
-        double angle = 0.7 * c, s = 1.0 + 0.05 * (c % 5), ca = std::cos(angle), sa = std::sin(angle);
-        double tx = (c % side) * 0.25, tz = (c / side) * 0.25;
-        uint32_t base_vertex = uint32_t(out.vertices());
-        for (size_t v = 0; v < base.vertices(); ++v) {
-            const float* p = &base.positions[v * 3];
-            out.positions.insert(out.positions.end(), {float(s * (ca * p[0] + sa * p[2]) + tx), float(s * p[1]),
-                                                       float(s * (-sa * p[0] + ca * p[2]) + tz)});
-        }
-        for (uint32_t i : base.indices) out.indices.push_back(base_vertex + i);
-    }
-    return out;
+    cb::Mesh m;
+    m.name = base.name;
+    m.positions = base.positions;
+    m.indices = base.indices;
+    cb::Mesh merged = cb::bench::merged_copies(m, copies);
+    return {std::to_string(copies) + "x " + base.name, std::move(merged.positions), std::move(merged.indices)};
 }
 
 struct Row {
@@ -233,40 +214,23 @@ void run(const Input& in, uint32_t fine, int runs) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    fs::path data = fs::path(CB_SHARED_DATA);
-    uint32_t fine = 16;
-    int runs = 5, copies = 25;
-    std::string only;
-    for (int i = 1; i + 1 < argc; i += 2) {
-        std::string a = argv[i];
-        if (a == "--data") data = argv[i + 1];
-        else if (a == "--fine") fine = uint32_t(std::stoul(argv[i + 1]));
-        else if (a == "--runs") runs = std::stoi(argv[i + 1]);
-        else if (a == "--big-copies") copies = std::stoi(argv[i + 1]);
-        else if (a == "--only") only = argv[i + 1];
-    }
-    if (!fs::exists(data / "scanned")) {
-        std::fprintf(stderr, "bench_cluster: no scanned meshes under %s (pass --data DIR)\n", data.string().c_str());
-        return 1;
-    }
+    cb::bench::Options o = cb::bench::parse_options(argc, argv, {});
+    std::vector<fs::path> files = cb::bench::scanned_meshes(o, "bench_cluster");
+    if (files.empty()) return 1;
     std::printf("fine size %u, %d runs (median), %u hardware threads; M tri/s = million triangles per second; "
                 "radius = cluster AABB half-diagonal / mesh diagonal; ACMR = FIFO 32 misses per triangle\n\n",
-                fine, runs, std::max(1u, std::thread::hardware_concurrency()));
+                o.fine, o.runs, std::max(1u, std::thread::hardware_concurrency()));
     std::printf("| input | method | M tri/s 1 thread | M tri/s all | extra MB | ACMR | clusters | tri/cluster | mean radius | max radius |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
-    std::vector<fs::path> files;
-    for (const auto& e : fs::directory_iterator(data / "scanned")) files.push_back(e.path());
-    std::sort(files.begin(), files.end());
     Input dragon;
     for (const fs::path& f : files) {
-        if (!only.empty() && f.filename().string().find(only) == std::string::npos) continue;
         Input in = load_input(f);
         if (f.filename() == "dragon_vrip_res2_binary.ply") dragon = in;
-        run(in, fine, runs);
+        run(in, o.fine, o.runs);
     }
-    if (copies > 0) {
-        if (dragon.indices.empty()) dragon = load_input(data / "scanned/dragon_vrip_res2_binary.ply");
-        run(big_scene(dragon, copies), fine, std::min(runs, 3));
+    if (o.copies > 0) {
+        if (dragon.indices.empty()) dragon = load_input(o.data / "scanned/dragon_vrip_res2_binary.ply");
+        run(big_scene(dragon, o.copies), o.fine, std::min(o.runs, 3));
     }
     return 0;
 }

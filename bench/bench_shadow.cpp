@@ -4,7 +4,7 @@
 // and how often the two disagree (Embree is not exact: grazing contacts, and its near bound differs from
 // our self-shadowing policy). Asserts nothing.
 //
-//   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--only NAME]
+//   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--only NAME] (NAME "big": only the big scene)
 #include <embree3/rtcore.h>
 
 #include <cb_cpsv.h>
@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "bake.h"
+#include "bench_common.h"
 #include "load.h"
 
 namespace fs = std::filesystem;
@@ -220,48 +221,23 @@ void run(const Input& in, int view) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    fs::path data = fs::path(CB_SHARED_DATA);
-    int view = 1024, copies = 25;
-    std::string only;
-    for (int i = 1; i + 1 < argc; i += 2) {
-        std::string a = argv[i];
-        if (a == "--data") data = argv[i + 1];
-        else if (a == "--view") view = std::stoi(argv[i + 1]);
-        else if (a == "--copies") copies = std::stoi(argv[i + 1]);
-        else if (a == "--only") only = argv[i + 1];
-    }
+    cb::bench::Options o = cb::bench::parse_options(argc, argv, {});
     std::printf("%dx%d view; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = (our build + "
                 "our queries) / Embree's queries alone, 1 / 2 threads (below 1: we are faster); memory: our asset + "
-                "trees / Embree's peak\n\n", view, view);
+                "trees / Embree's peak\n\n", o.view, o.view);
     std::printf("| scene | light | points | in shadow | our build | ours M q/s | Embree occluded1 M q/s | Embree occluded16 M q/s | "
                 "Embree build | ours vs Embree | nodes/query | clusters/query | triangles/query | always tested | MB ours / Embree | disagree |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     std::vector<Input> inputs;
     for (const char* f : {"scanned/dragon_vrip_res2_binary.ply", "scanned/horse.ply"})
-        if (only.empty() || std::string(f).find(only) != std::string::npos)
-            inputs.push_back({fs::path(f).filename().string(), cb::load_scene((data / f).string())});
-    if (copies > 0 && (only.empty() || only == "big")) {
-        // The dragon copied `copies` times on a grid with turns, merged into one mesh.
-        cb::Scene base = cb::load_scene((data / "scanned/dragon_vrip_res2_binary.ply").string());
+        if (cb::bench::wanted(o, f)) inputs.push_back({fs::path(f).filename().string(), cb::load_scene((o.data / f).string())});
+    if (o.copies > 0 && cb::bench::wanted(o, "big")) {
+        cb::Scene base = cb::load_scene((o.data / "scanned/dragon_vrip_res2_binary.ply").string());
         cb::Scene big;
-        cb::Mesh merged;
-        int side = int(std::ceil(std::sqrt(double(copies))));
-        for (int c = 0; c < copies; ++c) {
-            double a = 0.7 * c, ca = std::cos(a), sa = std::sin(a);
-            uint32_t offset = uint32_t(merged.vertex_count());
-            const cb::Mesh& m = base.meshes[0];
-            for (size_t k = 0; k < m.vertex_count(); ++k) {
-                const float* p = &m.positions[k * 3];
-                merged.positions.insert(merged.positions.end(), {float(ca * p[0] + sa * p[2] + (c % side) * 0.25), p[1],
-                                                                 float(-sa * p[0] + ca * p[2] + (c / side) * 0.25)});
-            }
-            for (uint32_t i : m.indices) merged.indices.push_back(offset + i);
-        }
-        merged.primitives.push_back({0, uint32_t(merged.triangle_count()), false});
-        big.meshes.push_back(std::move(merged));
+        big.meshes.push_back(cb::bench::merged_copies(base.meshes[0], o.copies));
         big.instances.push_back({0, cb::identity_transform(), "big"});
-        inputs.push_back({std::to_string(copies) + "x dragon", std::move(big)});
+        inputs.push_back({std::to_string(o.copies) + "x dragon", std::move(big)});
     }
-    for (const Input& in : inputs) run(in, view);
+    for (const Input& in : inputs) run(in, o.view);
     return 0;
 }

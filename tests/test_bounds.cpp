@@ -13,6 +13,7 @@
 #include "bounds.h"
 #include "cluster.h"
 #include "load.h"
+#include "shared_scenes.h"
 
 namespace fs = std::filesystem;
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
@@ -242,18 +243,10 @@ TEST(Bounds, MinimalSphereIsMinimal) {
 }
 
 TEST(Bounds, EveryClusterOfEverySharedFile) {
-    fs::path root(CB_SHARED_DATA);
-    if (!fs::exists(root)) GTEST_SKIP() << "../shared/data is absent";
+    if (!fs::exists(CB_SHARED_DATA)) GTEST_SKIP() << "../shared/data is absent";
     size_t clusters = 0, misses = 0, violations = 0, cones = 0;
     std::mt19937 rng(7);
-    for (const auto& e : fs::recursive_directory_iterator(root)) {
-        if (!e.is_regular_file() || cb::format_from_path(e.path().string()) == cb::FileFormat::unknown) continue;
-        cb::Scene scene;
-        try {
-            scene = cb::load_scene(e.path().string());
-        } catch (const cb::LoadError&) {
-            continue;
-        }
+    cb::test::for_each_shared_scene([&](const std::string& path, const cb::Scene& scene) {
         for (const cb::Mesh& m : scene.meshes) {
             cb::ClusterOptions co;
             cb::Hierarchy h = cb::build_hierarchy(m.positions.data(), m.vertex_count(), m.indices.data(), m.triangle_count(), co);
@@ -261,7 +254,7 @@ TEST(Bounds, EveryClusterOfEverySharedFile) {
                 cb::ClusterBounds b = cb::fit_bounds(m.positions.data(), m.indices.data(), h.order.data() + first, count, {});
                 ++clusters;
                 cones += b.cone.valid;
-                EXPECT_TRUE(finite(b)) << e.path();
+                EXPECT_TRUE(finite(b)) << path;
                 misses += containment_misses(b, m.positions.data(), m.indices.data(), h.order.data() + first, count);
                 violations += cone_violations(b, m.positions.data(), m.indices.data(), h.order.data() + first, count, rng, samples);
             };
@@ -271,7 +264,7 @@ TEST(Bounds, EveryClusterOfEverySharedFile) {
                 check(a, b - a, 2);
             }
         }
-    }
+    });
     std::printf("%zu clusters, %zu with a valid cone\n", clusters, cones);
     EXPECT_GT(clusters, 40000u);
     EXPECT_EQ(misses, 0u);

@@ -11,6 +11,7 @@
 #include "cluster.h"
 #include "load.h"
 #include "nearest_centre.h"
+#include "shared_scenes.h"
 
 namespace fs = std::filesystem;
 
@@ -85,6 +86,24 @@ void check_hierarchy(const cb::Hierarchy& h, const uint32_t* indices, size_t tri
             ASSERT_TRUE(std::all_of(reached.begin(), reached.end(), [](bool b) { return b; })) << "patch " << f;
         }
     }
+}
+
+// Per fine cluster, the extent of its vertices' x and y ranges, combined by `reduce(width, height)`;
+// returns the mean over the clusters.
+template <class Reduce>
+double mean_xy_extent(const float* positions, const uint32_t* indices, const cb::Hierarchy& h, Reduce reduce) {
+    double sum = 0;
+    for (size_t f = 0; f < h.fine_count(); ++f) {
+        float lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+        for (uint32_t i = h.fine_offsets[f]; i < h.fine_offsets[f + 1]; ++i)
+            for (int k = 0; k < 3; ++k)
+                for (int a = 0; a < 2; ++a) {
+                    float x = positions[size_t(indices[size_t(h.order[i]) * 3 + k]) * 3 + a];
+                    lo[a] = std::min(lo[a], x), hi[a] = std::max(hi[a], x);
+                }
+        sum += reduce(double(hi[0] - lo[0]), double(hi[1] - lo[1]));
+    }
+    return sum / double(h.fine_count());
 }
 
 const cb::ClusterMethod all_methods[] = {cb::ClusterMethod::kmeans, cb::ClusterMethod::vco, cb::ClusterMethod::morton};
@@ -216,19 +235,7 @@ TEST(Cluster, KMeansIsMoreCompactThanMortonSlices) {
     auto mean_extent = [&](cb::ClusterMethod method) {
         cb::ClusterOptions o;
         o.method = method;
-        cb::Hierarchy h = cluster(m, o);
-        double sum = 0;
-        for (size_t f = 0; f < h.fine_count(); ++f) {
-            float lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-            for (uint32_t i = h.fine_offsets[f]; i < h.fine_offsets[f + 1]; ++i)
-                for (int k = 0; k < 3; ++k)
-                    for (int a = 0; a < 2; ++a) {
-                        float x = m.positions[size_t(m.indices[size_t(h.order[i]) * 3 + k]) * 3 + a];
-                        lo[a] = std::min(lo[a], x), hi[a] = std::max(hi[a], x);
-                    }
-            sum += (hi[0] - lo[0]) + (hi[1] - lo[1]);
-        }
-        return sum / double(h.fine_count());
+        return mean_xy_extent(m.positions.data(), m.indices.data(), cluster(m, o), [](double w, double h) { return w + h; });
     };
     EXPECT_LT(mean_extent(cb::ClusterMethod::kmeans), mean_extent(cb::ClusterMethod::morton));
 }
@@ -281,20 +288,10 @@ TEST(Cluster, NearestCentreStrategiesAgree) {
 }
 
 TEST(Cluster, EveryMeshOfEverySharedFile) {
-    fs::path root(CB_SHARED_DATA);
-    if (!fs::exists(root)) GTEST_SKIP() << "../shared/data is absent";
-    size_t files = 0;
-    for (const auto& e : fs::recursive_directory_iterator(root)) {
-        if (!e.is_regular_file() || cb::format_from_path(e.path().string()) == cb::FileFormat::unknown) continue;
-        cb::Scene scene;
-        try {
-            scene = cb::load_scene(e.path().string());
-        } catch (const cb::LoadError&) {
-            continue;  // the invalid-input files; the loader tests cover them
-        }
-        ++files;
+    if (!fs::exists(CB_SHARED_DATA)) GTEST_SKIP() << "../shared/data is absent";
+    size_t files = cb::test::for_each_shared_scene([&](const std::string& path, const cb::Scene& scene) {
         for (cb::ClusterMethod method : all_methods) {
-            SCOPED_TRACE(e.path().string() + " " + cb::method_name(method));
+            SCOPED_TRACE(path + " " + cb::method_name(method));
             cb::ClusterOptions o;
             o.method = method;
             for (const cb::Mesh& mesh : scene.meshes) {
@@ -304,7 +301,7 @@ TEST(Cluster, EveryMeshOfEverySharedFile) {
                 if (HasFatalFailure()) return;
             }
         }
-    }
+    });
     EXPECT_GE(files, 30u);
 }
 
@@ -356,17 +353,6 @@ TEST(Cluster, CityModelAtHugeCoordinates) {
     cb::ClusterOptions o;
     cb::Hierarchy h = cb::build_hierarchy(m.positions.data(), m.vertex_count(), m.indices.data(), m.triangle_count(), o);
     check_hierarchy(h, m.indices.data(), m.triangle_count(), o);
-    double mean_extent = 0;
-    for (size_t f = 0; f < h.fine_count(); ++f) {
-        float lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-        for (uint32_t i = h.fine_offsets[f]; i < h.fine_offsets[f + 1]; ++i)
-            for (int k = 0; k < 3; ++k)
-                for (int a = 0; a < 2; ++a) {
-                    float x = m.positions[size_t(m.indices[size_t(h.order[i]) * 3 + k]) * 3 + a];
-                    lo[a] = std::min(lo[a], x), hi[a] = std::max(hi[a], x);
-                }
-        mean_extent += std::max(hi[0] - lo[0], hi[1] - lo[1]);
-    }
-    mean_extent /= double(h.fine_count());
+    double mean_extent = mean_xy_extent(m.positions.data(), m.indices.data(), h, [](double w, double h) { return std::max(w, h); });
     EXPECT_LT(mean_extent, 40.0) << "fine clusters of a 524 m terrain should span metres, not the whole site";
 }

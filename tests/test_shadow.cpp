@@ -153,6 +153,28 @@ bool oracle_occluded(const cb::AssetView& v, const double* p, const double* ligh
     return false;
 }
 
+// The instanced vertices in world space (every `stride`-th: points on the surfaces) and their bounds.
+struct WorldSample {
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    std::vector<std::array<double, 3>> surface;
+    double size() const { return std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]}); }
+};
+
+WorldSample sample_world(const cb::AssetView& v, uint32_t stride) {
+    WorldSample w;
+    for (uint32_t i = 0; i < v.instance_count; ++i) {
+        const cb::MeshRecord& m = v.meshes[v.instances[i].mesh];
+        for (uint32_t k = 0; k < m.vertex_count; ++k) {
+            const float* q = v.positions + (size_t(m.first_vertex) + k) * 3;
+            double local[3] = {q[0], q[1], q[2]}, p[3];
+            cb::apply_instance(v.instances[i].transform, local, p);
+            for (int j = 0; j < 3; ++j) w.lo[j] = std::min(w.lo[j], p[j]), w.hi[j] = std::max(w.hi[j], p[j]);
+            if (k % stride == 0) w.surface.push_back({p[0], p[1], p[2]});
+        }
+    }
+    return w;
+}
+
 }  // namespace
 
 TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
@@ -164,20 +186,10 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
         SCOPED_TRACE(file);
         Baked b = bake(file);
         const cb::AssetView& v = b.view;
-        // World bounds of the instanced vertices.
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        std::vector<std::array<double, 3>> surface;
-        for (uint32_t i = 0; i < v.instance_count; ++i) {
-            const cb::MeshRecord& m = v.meshes[v.instances[i].mesh];
-            for (uint32_t k = 0; k < m.vertex_count; ++k) {
-                const float* q = v.positions + (size_t(m.first_vertex) + k) * 3;
-                double local[3] = {q[0], q[1], q[2]}, w[3];
-                cb::apply_instance(v.instances[i].transform, local, w);
-                for (int j = 0; j < 3; ++j) lo[j] = std::min(lo[j], w[j]), hi[j] = std::max(hi[j], w[j]);
-                if (k % 3 == 0) surface.push_back({w[0], w[1], w[2]});  // points on the surfaces
-            }
-        }
-        double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+        WorldSample world = sample_world(v, 3);
+        const double *lo = world.lo, *hi = world.hi;
+        const auto& surface = world.surface;
+        double size = world.size();
         std::mt19937 rng(11);
         std::uniform_real_distribution<double> u(0, 1);
         // Lights: far outside, grazing the top of the bounds, inside the bounds, and exactly on a vertex
@@ -297,19 +309,10 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
         SCOPED_TRACE(file);
         Baked b = bake(file);
         const cb::AssetView& v = b.view;
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        std::vector<std::array<double, 3>> surface;
-        for (uint32_t i = 0; i < v.instance_count; ++i) {
-            const cb::MeshRecord& m = v.meshes[v.instances[i].mesh];
-            for (uint32_t k = 0; k < m.vertex_count; ++k) {
-                const float* q = v.positions + (size_t(m.first_vertex) + k) * 3;
-                double local[3] = {q[0], q[1], q[2]}, w[3];
-                cb::apply_instance(v.instances[i].transform, local, w);
-                for (int j = 0; j < 3; ++j) lo[j] = std::min(lo[j], w[j]), hi[j] = std::max(hi[j], w[j]);
-                surface.push_back({w[0], w[1], w[2]});
-            }
-        }
-        double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+        WorldSample world = sample_world(v, 1);
+        const double *lo = world.lo, *hi = world.hi;
+        const auto& surface = world.surface;
+        double size = world.size();
         std::mt19937 rng(17);
         std::uniform_real_distribution<double> u(0, 1);
         const auto& sv = surface[surface.size() / 3];
