@@ -8,12 +8,40 @@
 
 namespace cb {
 
+// Every edge used exactly twice, once in each direction: a closed, consistently wound surface, on which
+// one-sided and two-sided shadows agree for points outside the solid.
+bool is_closed(const Mesh& mesh) {
+    std::vector<uint64_t> edges;
+    edges.reserve(mesh.indices.size());
+    for (size_t t = 0; t < mesh.triangle_count(); ++t)
+        for (int k = 0; k < 3; ++k)
+            edges.push_back(uint64_t(mesh.indices[t * 3 + k]) << 32 | mesh.indices[t * 3 + (k + 1) % 3]);
+    if (edges.empty()) return false;
+    std::sort(edges.begin(), edges.end());
+    for (size_t i = 0; i < edges.size(); ++i) {
+        if (i + 1 < edges.size() && edges[i + 1] == edges[i]) return false;  // the same directed edge twice
+        uint64_t reverse = edges[i] << 32 | edges[i] >> 32;
+        if (!std::binary_search(edges.begin(), edges.end(), reverse)) return false;
+    }
+    return true;
+}
+
 AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h) {
     AssetMesh out;
     out.positions = mesh.positions;
     out.triangles.resize(h.order.size() * 3);
     for (size_t i = 0; i < h.order.size(); ++i)
         for (int k = 0; k < 3; ++k) out.triangles[i * 3 + k] = mesh.indices[size_t(h.order[i]) * 3 + k];
+    // Sidedness follows each triangle to its place in the cluster order.
+    std::vector<uint8_t> sided(mesh.triangle_count(), 0);
+    for (const Primitive& p : mesh.primitives)
+        if (p.double_sided) std::fill_n(sided.begin() + p.first_triangle, p.triangle_count, 1);
+    bool any = std::find(sided.begin(), sided.end(), 1) != sided.end();
+    if (any) {
+        out.double_sided.resize(h.order.size());
+        for (size_t i = 0; i < h.order.size(); ++i) out.double_sided[i] = sided[h.order[i]];
+    }
+    out.flags = (is_closed(mesh) ? mesh_closed : 0) | (any ? mesh_has_double_sided : 0);
     for (size_t f = 0; f < h.fine_count(); ++f)
         out.fine.push_back({h.fine_offsets[f], h.fine_offsets[f + 1] - h.fine_offsets[f]});
     for (size_t c = 0; c < h.coarse_count(); ++c)

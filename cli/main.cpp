@@ -221,6 +221,14 @@ int run_validate(const std::string& file) {
     std::printf("  meshes %u, instances %u, vertices %u, triangles %u, fine clusters %u, coarse clusters %u\n",
                 view.mesh_count, view.instance_count, view.vertex_count, view.triangle_count, view.fine_count,
                 view.coarse_count);
+    if (view.mesh_flags) {
+        uint32_t closed = 0;
+        for (uint32_t m = 0; m < view.mesh_count; ++m) closed += view.mesh_flags[m] & cb::mesh_closed ? 1 : 0;
+        size_t sided = 0;
+        for (size_t t = 0; t < view.triangle_count; ++t) sided += view.double_sided(t);
+        std::printf("  closed meshes %u of %u (one-sided shadows equal two-sided ones outside them); double-sided triangles %zu\n",
+                    closed, view.mesh_count, sided);
+    }
     for (auto [name, level] : {std::pair{"fine", &view.fine_bounds}, std::pair{"coarse", &view.coarse_bounds}}) {
         std::string kinds;
         if (level->obbs) kinds += " obb";
@@ -235,7 +243,7 @@ int run_validate(const std::string& file) {
 
 struct QueryArgs {
     std::string asset, light, points, out;
-    bool binary = false, stats = false, reference = false;
+    bool binary = false, stats = false, reference = false, one_sided = false;
 };
 
 // Points from text lines "x y z" (blank lines and # comments skipped) or raw little-endian float32 triples.
@@ -295,9 +303,10 @@ int run_query(const QueryArgs& a) {
     // One clustered shadow tree per instance for this light (unless --reference).
     auto build_start = std::chrono::steady_clock::now();
     std::vector<cb::ClusterShadowTree> trees(a.reference ? 0 : asset.view.instance_count);
-    size_t stack_size = 0, nodes = 0, always = 0;
+    size_t stack_size = 0, nodes = 0, always = 0, skipped = 0;
     for (uint32_t i = 0; i < trees.size(); ++i) {
-        trees[i].build(asset.view, i, light);
+        trees[i].build(asset.view, i, light, a.one_sided);
+        skipped += trees[i].skipped_clusters();
         stack_size = std::max(stack_size, trees[i].stack_size());
         nodes += trees[i].node_count();
         always += trees[i].always_tested();
@@ -313,7 +322,7 @@ int run_query(const QueryArgs& a) {
     for (size_t i = 0; i < pts.size(); i += 3) {
         bool occluded = false;
         if (a.reference) {
-            occluded = cb::occluded_reference(asset.view, &pts[i], light, &stats);
+            occluded = cb::occluded_reference(asset.view, &pts[i], light, &stats, a.one_sided);
         } else {
             for (const cb::ClusterShadowTree& t : trees)
                 if (t.occluded(&pts[i], stack.data(), &stats)) {
@@ -330,7 +339,8 @@ int run_query(const QueryArgs& a) {
         size_t n = pts.size() / 3;
         if (!a.reference)
             std::fprintf(stderr, "build %.3f s: %zu trees, %zu nodes, %zu clusters tested for every point (light inside or level "
-                         "with their box)\n", build_seconds, trees.size(), nodes, always);
+                         "with their box), %zu skipped (one-sided, light in their front cone)\n",
+                         build_seconds, trees.size(), nodes, always, skipped);
         std::fprintf(stderr, "%zu queries, %zu in shadow, %.3f s (%.0f queries/s); per query %.1f clusters and %.1f triangles "
                      "tested\n",
                      n, shadowed, seconds, n / std::max(seconds, 1e-9), n ? double(stats.clusters_tested) / double(n) : 0.0,
@@ -386,11 +396,13 @@ int main(int argc, char** argv) {
 
     QueryArgs qa;
     CLI::App* query = app.add_subcommand(
-        "query", "Answer point-light shadow queries (two-sided occluders, exact): one 0/1 line per point on stdout");
+        "query", "Answer point-light shadow queries (exact; two-sided occluders unless --one-sided): one 0/1 line per point on stdout");
     query->add_option("asset", qa.asset, "Asset (.cbk)")->required();
     query->add_option("--light", qa.light, "Light position X,Y,Z in world space")->required();
     query->add_option("--points", qa.points, "Points: text lines 'x y z', or float32 triples with --binary")->required();
     query->add_flag("--binary", qa.binary, "Points file holds raw little-endian float32 x, y, z triples");
+    query->add_flag("--one-sided", qa.one_sided, "One-sided occluders: a triangle blocks only when the light is behind it "
+                                                  "(double-sided glTF primitives stay two-sided)");
     query->add_flag("--stats", qa.stats, "Print build and query time and traversal counts on stderr");
     query->add_flag("--reference", qa.reference, "Use the reference traversal (every cluster box the segment may touch) "
                                                   "instead of the per-light clustered shadow trees; same answers");

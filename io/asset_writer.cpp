@@ -64,6 +64,19 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
     add(SectionType::coarse_clusters, coarse, sizeof(ClusterRange));
     add(SectionType::instances, inst, sizeof(InstanceRecord));
 
+    // Sidedness, one bit per triangle of the whole triangle array, and the per-mesh flags.
+    std::vector<uint32_t> sided((triangles.size() / 3 + 31) / 32, 0), flags;
+    for (size_t m = 0; m < meshes.size(); ++m) {
+        flags.push_back(meshes[m].flags);
+        for (size_t t = 0; t < meshes[m].double_sided.size(); ++t)
+            if (meshes[m].double_sided[t]) {
+                size_t bit = records[m].first_triangle + t;
+                sided[bit / 32] |= 1u << (bit % 32);
+            }
+    }
+    add(SectionType::double_sided, sided, 4);
+    add(SectionType::mesh_flags, flags, 4);
+
     // Bounds: a section per volume kind and level that every mesh with clusters carries.
     auto level_section = [&](SectionType type, bool fine, auto member) {
         using Record = typename std::remove_reference_t<decltype(meshes[0].fine_volumes.*member)>::value_type;

@@ -26,6 +26,8 @@ struct AssetMesh {
     std::vector<ClusterRange> fine;    // tiles the triangles
     std::vector<ClusterRange> coarse;  // tiles the fine clusters
     LevelVolumes fine_volumes, coarse_volumes;
+    std::vector<uint8_t> double_sided;  // per triangle in cluster order (empty: all single-sided)
+    uint32_t flags = 0;                 // MeshFlags
 };
 
 // Bounds sections are written for the volumes every mesh has (each mesh one record per cluster).

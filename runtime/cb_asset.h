@@ -38,6 +38,13 @@ enum class SectionType : uint32_t {
     coarse_cones = 14,
     fine_slabs = 15,
     coarse_slabs = 16,
+    double_sided = 17,    // uint32 words: bit t of the whole triangle array set when triangle t is double-sided
+    mesh_flags = 18,      // uint32 per mesh: MeshFlags
+};
+
+enum MeshFlags : uint32_t {
+    mesh_closed = 1,           // every edge is shared by exactly two triangles, wound opposite ways
+    mesh_has_double_sided = 2, // some triangle is double-sided
 };
 
 // Bounding volumes, stored in float and rounded outward: every vertex of the cluster is inside, evaluated
@@ -168,7 +175,7 @@ inline const char* asset_error_text(AssetError e) {
         case AssetError::bad_index: return "triangle index out of range";
         case AssetError::bad_instance: return "instance names a missing mesh";
         case AssetError::non_finite: return "non-finite position, transform or bound";
-        case AssetError::bad_bounds_count: return "bounds section count differs from its cluster count";
+        case AssetError::bad_bounds_count: return "a per-cluster, per-triangle or per-mesh section has the wrong count";
     }
     return "unknown error";
 }
@@ -194,6 +201,12 @@ struct AssetView {
     const InstanceRecord* instances = nullptr;
     uint32_t instance_count = 0;
     LevelBounds fine_bounds, coarse_bounds;
+    const uint32_t* double_sided_bits = nullptr;  // null: every triangle single-sided
+    const uint32_t* mesh_flags = nullptr;         // null: no flags known
+
+    bool double_sided(size_t triangle) const {
+        return double_sided_bits && (double_sided_bits[triangle / 32] >> (triangle % 32) & 1);
+    }
 };
 
 namespace asset_detail {
@@ -239,9 +252,9 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
 
     struct Known { SectionType type; uint32_t element_size; bool required; const void** data; uint32_t* count; };
     AssetView v;
-    constexpr int known_count = 16;
+    constexpr int known_count = 18;
     const void* ptr[known_count] = {};
-    uint32_t bound_count[10] = {};
+    uint32_t bound_count[10] = {}, extra_count[2] = {};
     Known known[known_count] = {
         {SectionType::meshes, sizeof(MeshRecord), true, &ptr[0], &v.mesh_count},
         {SectionType::positions, 12, true, &ptr[1], &v.vertex_count},
@@ -259,6 +272,8 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
         {SectionType::coarse_cones, sizeof(Cone), false, &ptr[13], &bound_count[7]},
         {SectionType::fine_slabs, sizeof(Slab), false, &ptr[14], &bound_count[8]},
         {SectionType::coarse_slabs, sizeof(Slab), false, &ptr[15], &bound_count[9]},
+        {SectionType::double_sided, 4, false, &ptr[16], &extra_count[0]},
+        {SectionType::mesh_flags, 4, false, &ptr[17], &extra_count[1]},
     };
     bool seen[known_count] = {};
     for (uint32_t s = 0; s < h.section_count; ++s) {
@@ -279,6 +294,10 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
     }
     for (int k = 0; k < known_count; ++k)
         if (known[k].required && !seen[k]) return AssetError::missing_section;
+    if (seen[16] && extra_count[0] != (uint64_t(v.triangle_count) + 31) / 32) return AssetError::bad_bounds_count;
+    if (seen[17] && extra_count[1] != v.mesh_count) return AssetError::bad_bounds_count;
+    v.double_sided_bits = static_cast<const uint32_t*>(ptr[16]);
+    v.mesh_flags = static_cast<const uint32_t*>(ptr[17]);
     // A bounds section holds one record per cluster of its level.
     for (int b = 0; b < 10; ++b)
         if (seen[6 + b] && bound_count[b] != (b % 2 == 0 ? v.fine_count : v.coarse_count)) return AssetError::bad_bounds_count;

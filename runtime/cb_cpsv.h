@@ -30,9 +30,13 @@ class ClusterShadowTree {
 public:
     static constexpr uint32_t none = 0xffffffffu;
 
-    // One instance of the asset's meshes, for one light given in world space.
-    void build(const AssetView& view, uint32_t instance, const double* world_light) {
+    // One instance of the asset's meshes, for one light given in world space. In one-sided mode
+    // (cb_shadow.h), clusters whose front cone holds the light, and that have no double-sided triangle,
+    // cannot block anything and are left out.
+    void build(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided = false) {
         view_ = &view;
+        one_sided_ = one_sided;
+        skipped_ = 0;
         nodes_.clear();
         always_.clear();
         root_ = none;
@@ -92,6 +96,7 @@ public:
     size_t node_count() const { return nodes_.size(); }
     size_t memory_bytes() const { return nodes_.capacity() * sizeof(Node) + always_.capacity() * sizeof(uint32_t); }
     size_t always_tested() const { return always_.size(); }
+    size_t skipped_clusters() const { return skipped_; }  // one-sided: clusters the light sees from the front
 
 private:
     struct Node {
@@ -126,6 +131,16 @@ private:
     }
 
     void insert(uint32_t f) {
+        if (one_sided_ && view_->fine_bounds.cones && light_in_front_cone(view_->fine_bounds.cones[mesh_->first_fine + f], light_)) {
+            const ClusterRange& r = view_->fine[mesh_->first_fine + f];
+            bool any_double = false;
+            for (uint32_t t = r.first; t < r.first + r.count && !any_double; ++t)
+                any_double = view_->double_sided(size_t(mesh_->first_triangle) + t);
+            if (!any_double) {
+                ++skipped_;
+                return;
+            }
+        }
         ShadowVolume v = view_->fine_bounds.obbs ? make_shadow_volume(view_->fine_bounds.obbs[mesh_->first_fine + f], light_)
                                                  : ShadowVolume{};
         if (!v.valid) {
@@ -196,7 +211,8 @@ private:
             for (int k = 0; k < 3; ++k)
                 for (int j = 0; j < 3; ++j) corner[k][j] = pos[size_t(tri[size_t(t) * 3 + k]) * 3 + j];
             if (stats) ++stats->triangles_tested;
-            if (segment_triangle(p, light_, corner[0], corner[1], corner[2]).blocks) return true;
+            bool two_sided = !one_sided_ || view_->double_sided(size_t(mesh_->first_triangle) + t);
+            if (segment_triangle(p, light_, corner[0], corner[1], corner[2], two_sided).blocks) return true;
         }
         return false;
     }
@@ -204,7 +220,8 @@ private:
     const AssetView* view_ = nullptr;
     const MeshRecord* mesh_ = nullptr;
     double inverse_[12] = {}, light_[3] = {};
-    bool usable_ = false;
+    bool usable_ = false, one_sided_ = false;
+    size_t skipped_ = 0;
     std::vector<Node> nodes_;
     std::vector<uint32_t> always_;
     uint32_t root_ = none;

@@ -2,7 +2,10 @@
 // a triangle? Header-only C++17, no dependencies, no exceptions, no allocation. MIT licensed.
 //
 // Semantics, exact for every input (all predicates are exact, cb_exact.h):
-// - Two-sided occluders: every triangle with an area blocks, whichever way it faces.
+// - Two-sided occluders (the default): every triangle with an area blocks, whichever way it faces.
+//   One-sided (an option, for closed models): a triangle blocks only when the light is strictly behind it
+//   (on the side its counter-clockwise winding faces away from), unless the asset marks it double-sided
+//   (glTF doubleSided primitives stay two-sided). For points outside a closed mesh both modes agree.
 // - The query segment runs from the point p to the light L. A triangle blocks when the segment meets the
 //   closed triangle at a parameter t (p + t (L - p)) of at least 2^-13. So a point on a surface does not
 //   shadow itself, nor is it shadowed by anything closer than 2^-13 of its distance to the light
@@ -37,12 +40,15 @@ struct SegmentTest {
     bool touching = false;  // boundary contact (see above), whether or not it blocks
 };
 
-// The segment p -> q against the closed triangle a, b, c, exactly.
-inline SegmentTest segment_triangle(const double* p, const double* q, const double* a, const double* b, const double* c) {
+// The segment p -> q against the closed triangle a, b, c, exactly. With `two_sided` false the triangle only
+// blocks when q (the light) is strictly behind it.
+inline SegmentTest segment_triangle(const double* p, const double* q, const double* a, const double* b, const double* c,
+                                   bool two_sided = true) {
     SegmentTest r;
     double bp, bq, ep = exact::orient3d_estimate(a, b, c, p, bp), eq = exact::orient3d_estimate(a, b, c, q, bq);
     int sp = ep > bp ? 1 : -ep > bp ? -1 : exact::sign(exact::orient3d_exact(a, b, c, p));
     int sq = eq > bq ? 1 : -eq > bq ? -1 : exact::sign(exact::orient3d_exact(a, b, c, q));
+    if (!two_sided && sq != 1) return r;        // one-sided: the light sees its front, or lies in its plane
     if (sp == 0 && sq == 0) return r;           // coplanar (or no area): edge-on, never blocks
     if (sp == sq) return r;                     // both ends strictly on one side
     // The line through p and q must pass through the closed triangle: no two edge orientations of
@@ -198,6 +204,17 @@ inline bool inside_shadow_volume(const ShadowVolume& v, const double* light, con
     return true;
 }
 
+// True only when the light is clearly inside the cluster's front cone (the stored cone's cosine rounded up,
+// plus a margin): then it sees every triangle of the cluster from the front.
+inline bool light_in_front_cone(const Cone& c, const double* light) {
+    if (!c.valid) return false;
+    double v[3] = {light[0] - c.front_apex[0], light[1] - c.front_apex[1], light[2] - c.front_apex[2]};
+    double a[3] = {c.axis[0], c.axis[1], c.axis[2]};
+    double vl = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    if (!(vl > 0) || !(al > 0)) return false;
+    return v[0] * a[0] + v[1] * a[1] + v[2] * a[2] > al * vl * (double(c.cos_half_angle) + 1e-9);
+}
+
 struct QueryStats {
     uint64_t nodes_visited = 0;     // tree nodes (ClusterShadowTree only)
     uint64_t clusters_tested = 0;   // fine clusters whose triangles were tested
@@ -207,7 +224,8 @@ struct QueryStats {
 
 // Reference query: every instance, every fine cluster whose box the segment may touch (all clusters when
 // the asset has no fine boxes), every triangle of those, exactly. Returns true when p is in shadow.
-inline bool occluded_reference(const AssetView& v, const double* p, const double* light, QueryStats* stats = nullptr) {
+inline bool occluded_reference(const AssetView& v, const double* p, const double* light, QueryStats* stats = nullptr,
+                               bool one_sided = false) {
     bool touched = false;
     for (uint32_t i = 0; i < v.instance_count; ++i) {
         const InstanceRecord& inst = v.instances[i];
@@ -227,7 +245,8 @@ inline bool occluded_reference(const AssetView& v, const double* p, const double
                 for (int k = 0; k < 3; ++k)
                     for (int j = 0; j < 3; ++j) corner[k][j] = pos[size_t(tri[size_t(t) * 3 + k]) * 3 + j];
                 if (stats) ++stats->triangles_tested;
-                SegmentTest s = segment_triangle(lp, ll, corner[0], corner[1], corner[2]);
+                bool two_sided = !one_sided || v.double_sided(size_t(mesh.first_triangle) + t);
+                SegmentTest s = segment_triangle(lp, ll, corner[0], corner[1], corner[2], two_sided);
                 touched |= s.touching;
                 if (s.blocks) {
                     if (stats && touched) ++stats->touching;

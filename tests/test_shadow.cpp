@@ -29,10 +29,14 @@ int cgal_orient(const double* a, const double* b, const double* c, const double*
 }
 
 // The same semantics as cb::segment_triangle, built from CGAL's exact intersection construction instead.
-cb::SegmentTest oracle(const double* p, const double* q, const double* a, const double* b, const double* c) {
+// One-sided (two_sided false): only a triangle with the light (q) strictly on its negative side, CGAL's
+// side opposite the counter-clockwise normal, can block.
+cb::SegmentTest oracle(const double* p, const double* q, const double* a, const double* b, const double* c,
+                       bool two_sided = true) {
     cb::SegmentTest r;
     Epeck::Point_3 P(p[0], p[1], p[2]), Q(q[0], q[1], q[2]), A(a[0], a[1], a[2]), B(b[0], b[1], b[2]), C(c[0], c[1], c[2]);
     if (CGAL::collinear(A, B, C)) return r;
+    if (!two_sided && CGAL::orientation(A, B, C, Q) != CGAL::NEGATIVE) return r;
     CGAL::Orientation op = CGAL::orientation(A, B, C, P), oq = CGAL::orientation(A, B, C, Q);
     if (op == CGAL::COPLANAR && oq == CGAL::COPLANAR) return r;
     Epeck::Segment_3 s(P, Q);
@@ -97,7 +101,8 @@ TEST(Exact, SegmentTestAgreesWithCgalOracle) {
             double s = (i % 5) * 0.125, t = (i % 3) * 0.25;
             for (int k = 0; k < 3; ++k) p[k] = a[k] + s * (b[k] - a[k]) + t * (c[k] - a[k]);
         }
-        cb::SegmentTest ours = cb::segment_triangle(p, q, a, b, c), theirs = oracle(p, q, a, b, c);
+        bool two_sided = i % 3 != 2;
+        cb::SegmentTest ours = cb::segment_triangle(p, q, a, b, c, two_sided), theirs = oracle(p, q, a, b, c, two_sided);
         ASSERT_EQ(ours.blocks, theirs.blocks) << "case " << i;
         ASSERT_EQ(ours.touching, theirs.touching) << "case " << i;
         touching += ours.touching;
@@ -132,7 +137,7 @@ Baked bake(const std::string& file) {
 }
 
 // Brute force over every triangle of every instance, with CGAL's exact construction.
-bool oracle_occluded(const cb::AssetView& v, const double* p, const double* light, bool& touching) {
+bool oracle_occluded(const cb::AssetView& v, const double* p, const double* light, bool& touching, bool one_sided) {
     touching = false;
     for (uint32_t i = 0; i < v.instance_count; ++i) {
         double inv[12], lp[3], ll[3];
@@ -145,7 +150,7 @@ bool oracle_occluded(const cb::AssetView& v, const double* p, const double* ligh
             for (int k = 0; k < 3; ++k)
                 for (int j = 0; j < 3; ++j)
                     c[k][j] = v.positions[(size_t(m.first_vertex) + v.triangles[(size_t(m.first_triangle) + t) * 3 + k]) * 3 + j];
-            cb::SegmentTest s = oracle(lp, ll, c[0], c[1], c[2]);
+            cb::SegmentTest s = oracle(lp, ll, c[0], c[1], c[2], !one_sided || v.double_sided(size_t(m.first_triangle) + t));
             touching |= s.touching;
             if (s.blocks) return true;
         }
@@ -181,7 +186,7 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
     std::vector<std::string> files = {std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"};
     for (const char* f : {"scanned/spot_low_resolution.obj", "scanned/bunny_npm.obj", "hard/tube.obj", "hard/v405.off"})
         if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back((fs::path(CB_SHARED_DATA) / f).string());
-    size_t queries = 0, disagreements = 0, touching = 0, shadowed = 0;
+    size_t queries = 0, disagreements = 0, touching = 0, shadowed = 0, one_sided_differs = 0;
     for (const std::string& file : files) {
         SCOPED_TRACE(file);
         Baked b = bake(file);
@@ -212,18 +217,22 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
                 } else {
                     for (int j = 0; j < 3; ++j) p[j] = lo[j] + (hi[j] - lo[j]) * (1.2 * u(rng) - 0.1);
                 }
-                cb::QueryStats stats;
-                bool ours = cb::occluded_reference(v, p, light, &stats);
-                bool t = false;
-                bool exact = oracle_occluded(v, p, light, t);
-                disagreements += ours != exact;
-                touching += t;
-                shadowed += exact;
-                ++queries;
+                for (bool one_sided : {false, true}) {
+                    cb::QueryStats stats;
+                    bool ours = cb::occluded_reference(v, p, light, &stats, one_sided);
+                    bool t = false;
+                    bool exact = oracle_occluded(v, p, light, t, one_sided);
+                    disagreements += ours != exact;
+                    touching += t;
+                    shadowed += exact;
+                    one_sided_differs += one_sided && ours != cb::occluded_reference(v, p, light, nullptr, false);
+                    ++queries;
+                }
             }
     }
-    std::printf("%zu queries, %zu in shadow, %zu touching (per the oracle), %zu disagreements\n", queries, shadowed,
-                touching, disagreements);
+    std::printf("%zu queries (two-sided and one-sided), %zu in shadow, %zu touching (per the oracle), %zu disagreements; "
+                "one-sided answer differs from two-sided for %zu\n", queries, shadowed, touching, disagreements, one_sided_differs);
+    EXPECT_GT(one_sided_differs, 0u);  // the mode is really exercised
     EXPECT_EQ(disagreements, 0u);
     EXPECT_GT(shadowed, queries / 10);
     EXPECT_LT(shadowed, queries * 9 / 10);
@@ -303,7 +312,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
     for (const char* f : {"scanned/bunny_npm.obj", "scanned/dragon_vrip_res4.ply", "hard/tube.obj", "hard/3dfier_testarea/testarea.obj",
                           "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf"})
         if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back((fs::path(CB_SHARED_DATA) / f).string());
-    size_t queries = 0, disagreements = 0, shadowed = 0;
+    size_t queries = 0, disagreements = 0, shadowed = 0, skipped = 0;
     uint64_t tested_tree = 0, tested_reference = 0;
     for (const std::string& file : files) {
         SCOPED_TRACE(file);
@@ -320,15 +329,18 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
                                {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])},
                                {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
                                {sv[0], sv[1], sv[2]}};
-        for (const auto& light : lights) {
+        for (int variant = 0; variant < 8; ++variant) {
+            const double* light = lights[variant % 4];
+            bool one_sided = variant >= 4;
             std::vector<cb::ClusterShadowTree> trees(v.instance_count);
             size_t stack = 0;
             for (uint32_t i = 0; i < v.instance_count; ++i) {
-                trees[i].build(v, i, light);
+                trees[i].build(v, i, light, one_sided);
                 stack = std::max(stack, trees[i].stack_size());
+                skipped += trees[i].skipped_clusters();
             }
             std::vector<uint32_t> scratch(stack);
-            for (int k = 0; k < 2500; ++k) {
+            for (int k = 0; k < 1500; ++k) {
                 double p[3];
                 if (k % 2 == 0) {
                     const auto& s = surface[size_t(k * 104729) % surface.size()];
@@ -343,7 +355,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
                         tree = true;
                         break;
                     }
-                bool reference = cb::occluded_reference(v, p, light, &r);
+                bool reference = cb::occluded_reference(v, p, light, &r, one_sided);
                 disagreements += tree != reference;
                 shadowed += reference;
                 tested_tree += a.triangles_tested, tested_reference += r.triangles_tested;
@@ -351,8 +363,10 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
             }
         }
     }
-    std::printf("%zu queries, %zu in shadow, %zu disagreements; triangles tested per query: tree %.1f, reference %.1f\n",
-                queries, shadowed, disagreements, double(tested_tree) / double(queries), double(tested_reference) / double(queries));
+    std::printf("%zu queries (two- and one-sided), %zu in shadow, %zu disagreements; triangles tested per query: tree %.1f, "
+                "reference %.1f; one-sided builds skipped %zu clusters (light in their front cone)\n",
+                queries, shadowed, disagreements, double(tested_tree) / double(queries), double(tested_reference) / double(queries), skipped);
     EXPECT_EQ(disagreements, 0u);
     EXPECT_GT(queries, 50000u);
+    EXPECT_GT(skipped, 0u);
 }
