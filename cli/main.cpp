@@ -316,27 +316,20 @@ int run_query(const QueryArgs& a) {
 
     auto start = std::chrono::steady_clock::now();
     cb::QueryStats stats;
-    std::string answers;
-    answers.reserve(pts.size() / 3 * 2);
-    size_t shadowed = 0;
-    for (size_t i = 0; i < pts.size(); i += 3) {
-        bool occluded = false;
-        if (a.reference) {
-            occluded = cb::occluded_reference(asset.view, &pts[i], light, &stats, a.one_sided);
-        } else {
-            for (const cb::ClusterShadowTree& t : trees)
-                if (t.occluded(&pts[i], stack.data(), &stats)) {
-                    occluded = true;
-                    break;
-                }
-        }
-        shadowed += occluded;
-        answers += occluded ? "1\n" : "0\n";
+    size_t n = pts.size() / 3;
+    std::vector<uint8_t> shadow(n);
+    if (a.reference) {
+        for (size_t i = 0; i < n; ++i) shadow[i] = cb::occluded_reference(asset.view, &pts[i * 3], light, &stats, a.one_sided);
+    } else {
+        cb::occluded_batch(trees.data(), trees.size(), pts.data(), n, shadow.data(), stack.data(), &stats);
     }
     double seconds = seconds_since(start);
+    std::string answers;
+    answers.reserve(n * 2);
+    size_t shadowed = 0;
+    for (uint8_t s : shadow) answers += s ? "1\n" : "0\n", shadowed += s;
     std::fwrite(answers.data(), 1, answers.size(), stdout);
     if (a.stats) {
-        size_t n = pts.size() / 3;
         if (!a.reference)
             std::fprintf(stderr, "build %.3f s: %zu trees, %zu nodes, %zu clusters tested for every point (light inside or level "
                          "with their box), %zu skipped (one-sided, light in their front cone)\n",

@@ -228,4 +228,15 @@ private:
     uint32_t depth_ = 0;
 };
 
+// The batch form: `trees` holds one tree per instance, all built for the same light; out[i] is 1 when point
+// i (xyz doubles) is in shadow. `stack` holds the largest stack_size() of the trees. The trees are const:
+// callers may split the points across threads, each with its own stack.
+inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, const double* points, size_t n, uint8_t* out,
+                           uint32_t* stack, QueryStats* stats = nullptr) {
+    for (size_t i = 0; i < n; ++i) {
+        out[i] = 0;
+        for (size_t t = 0; t < tree_count && !out[i]; ++t) out[i] = trees[t].occluded(points + i * 3, stack, stats) ? 1 : 0;
+    }
+}
+
 }  // namespace cb

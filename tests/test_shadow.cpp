@@ -370,3 +370,110 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
     EXPECT_GT(queries, 50000u);
     EXPECT_GT(skipped, 0u);
 }
+
+namespace {
+
+// A scene of one mesh and one identity instance, baked in memory.
+Baked bake_mesh(std::vector<float> positions, std::vector<uint32_t> indices) {
+    cb::Scene scene;
+    cb::Mesh m;
+    m.positions = std::move(positions);
+    m.indices = std::move(indices);
+    m.primitives.push_back({0, uint32_t(m.triangle_count()), false});
+    scene.meshes.push_back(std::move(m));
+    scene.instances.push_back({0, cb::identity_transform(), "hard"});
+    cb::BakeStats stats;
+    cb::ClusterOptions co;
+    co.fine_size = 8;
+    co.coarse_size = 64;
+    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, co, stats);
+    cb::BoundsOptions bo;
+    bo.mask = cb::bounds_auto;
+    cb::fit_scene_bounds(meshes, bo, 1, stats);
+    std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
+    Baked out;
+    out.storage.resize((bytes.size() + 7) / 8);
+    std::memcpy(out.storage.data(), bytes.data(), bytes.size());
+    EXPECT_EQ(cb::open_asset(out.storage.data(), bytes.size(), &out.view), cb::AssetError::ok);
+    return out;
+}
+
+}  // namespace
+
+TEST(Shadow, HardCasesAgreeWithTheOracle) {
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> u(-1, 1);
+    struct Case {
+        const char* name;
+        std::vector<float> positions;
+        std::vector<uint32_t> indices;
+        std::vector<std::array<double, 3>> lights;
+    };
+    std::vector<Case> cases;
+    for (double offset : {0.0, 1e6}) {
+        // A flat, zero-thickness grid (coplanar clusters, flat boxes) at z = 0 around (offset, offset).
+        Case flat{offset == 0 ? "flat grid" : "flat grid at 1e6", {}, {}, {}};
+        for (int j = 0; j <= 8; ++j)
+            for (int i = 0; i <= 8; ++i) flat.positions.insert(flat.positions.end(), {float(offset + i), float(offset + j), 0.0f});
+        for (uint32_t j = 0; j < 8; ++j)
+            for (uint32_t i = 0; i < 8; ++i) {
+                uint32_t a = j * 9 + i;
+                flat.indices.insert(flat.indices.end(), {a, a + 1, a + 9, a + 1, a + 10, a + 9});
+            }
+        // Lights: above, exactly in the plane (on the grid and beside it), and inside a flat box.
+        flat.lights = {{offset + 4.3, offset + 3.7, 6}, {offset + 4, offset + 4, 0}, {offset - 3, offset + 4.5, 0},
+                       {offset + 2.5, offset + 2.5, 0}};
+        cases.push_back(flat);
+    }
+    // Needles: long, thin triangles fanned around the origin, and a light among them (inside their boxes).
+    Case needles{"needles", {}, {}, {{0.1, 0.05, 0.02}, {30, 5, 2}}};
+    for (int i = 0; i < 40; ++i) {
+        double a = i * 0.157;
+        uint32_t b = uint32_t(needles.positions.size() / 3);
+        needles.positions.insert(needles.positions.end(), {0.0f, 0.0f, float(0.01 * i), float(20 * std::cos(a)), float(20 * std::sin(a)),
+                                                           float(0.01 * i), float(20 * std::cos(a + 1e-3)), float(20 * std::sin(a + 1e-3)),
+                                                           float(0.01 * i + 0.05)});
+        needles.indices.insert(needles.indices.end(), {b, b + 1, b + 2});
+    }
+    cases.push_back(needles);
+
+    size_t queries = 0, disagreements = 0, tree_disagreements = 0, touching = 0;
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.name);
+        Baked b = bake_mesh(c.positions, c.indices);
+        const cb::AssetView& v = b.view;
+        WorldSample world = sample_world(v, 1);
+        for (const auto& light : c.lights)
+            for (bool one_sided : {false, true}) {
+                cb::ClusterShadowTree tree;
+                tree.build(v, 0, light.data(), one_sided);
+                std::vector<uint32_t> stack(tree.stack_size());
+                for (int k = 0; k < 600; ++k) {
+                    double p[3];
+                    if (k % 3 == 0) {  // on the surface: a vertex
+                        const auto& s = world.surface[size_t(k) % world.surface.size()];
+                        p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                    } else if (k % 3 == 1) {  // in the plane z = 0 (coplanar with the flat grid)
+                        p[0] = world.lo[0] + (world.hi[0] - world.lo[0]) * (1.4 * (u(rng) + 1) / 2 - 0.2);
+                        p[1] = world.lo[1] + (world.hi[1] - world.lo[1]) * (1.4 * (u(rng) + 1) / 2 - 0.2);
+                        p[2] = 0;
+                    } else {  // around, below and above
+                        for (int j = 0; j < 3; ++j) p[j] = 0.5 * (world.lo[j] + world.hi[j]) + (world.hi[j] - world.lo[j] + 2) * u(rng);
+                    }
+                    bool t = false;
+                    bool exact = oracle_occluded(v, p, light.data(), t, one_sided);
+                    bool ref = cb::occluded_reference(v, p, light.data(), nullptr, one_sided);
+                    bool fast = tree.occluded(p, stack.data());
+                    disagreements += ref != exact;
+                    tree_disagreements += fast != exact;
+                    touching += t;
+                    ++queries;
+                }
+            }
+    }
+    std::printf("%zu hard-case queries, %zu touching; disagreements with the oracle: reference %zu, tree %zu\n", queries,
+                touching, disagreements, tree_disagreements);
+    EXPECT_EQ(disagreements, 0u);
+    EXPECT_EQ(tree_disagreements, 0u);
+    EXPECT_GT(touching, 100u);
+}
