@@ -146,16 +146,13 @@ void run(const Input& in, int view) {
             std::vector<cb::QueryStats> st(threads);
             for (unsigned th = 0; th < threads; ++th)
                 pool.emplace_back([&, th] {
+                    // Contiguous halves: interleaved points would have the threads write neighbouring bytes.
                     std::vector<uint32_t> scratch(stack);
-                    for (size_t i = th; i < n; i += threads) {
-                        bool o = false;
-                        for (const cb::ClusterShadowTree& tr : trees)
-                            if (tr.occluded(&pts[i * 3], scratch.data(), &st[th])) {
-                                o = true;
-                                break;
-                            }
-                        ours[i] = o;
-                    }
+                    size_t chunk = (n + threads - 1) / threads, begin = th * chunk, end = std::min(n, begin + chunk);
+                    cb::QueryStats local;  // per thread, copied out once: counters in one shared array would false-share
+                    if (begin < end)
+                        cb::occluded_batch(trees.data(), trees.size(), &pts[begin * 3], end - begin, &ours[begin], scratch.data(), &local);
+                    st[th] = local;
                 });
             for (auto& p : pool) p.join();
             stats = {};
