@@ -1,16 +1,20 @@
-// Clustered partitioned shadow volumes (the thesis's CPSV, chapter 2): per point light, a ternary tree of
-// planes through the light (a TOP-tree) over the shadow volumes of the fine clusters' boxes. A query walks
-// the tree to the few clusters whose volume holds the point and tests their triangles exactly
-// (cb_shadow.h), so its answers are those of occluded_reference, faster.
+// Clustered partitioned shadow volumes (the thesis's CPSV, chapter 2): per point light, ternary trees of
+// planes through the light (TOP-trees) over the shadow volumes of cluster boxes. A query walks the trees to
+// the few clusters whose volume holds the point and tests their triangles exactly (cb_shadow.h), so its
+// answers are those of occluded_reference, faster.
 //
-// The tree. Each volume is a chain of its 4 planes: the inside branch of one plane leads to the next, and
+// A tree. Each volume is a chain of its 4 planes: the inside branch of one plane leads to the next, and
 // the last to a cluster node. A plane node has three children: inside (volumes entirely on its inside),
-// outside (entirely outside) and straddling (both); a query follows the side its point is on and always the
-// straddling child. A cluster node tests its cluster when the point is beyond the closing distance, then
-// goes on into its own subtree: volumes inserted later that lie inside this one. Nothing is dropped there:
-// a cluster's volume is only conservative, so a point inside it may still be lit by it and shadowed by a
-// later one. Volumes go in, one by one, in a shuffled order (fixed seed) that keeps the tree balanced.
-// Clusters whose box holds the light, or is level with it, have no volume and are tested for every point.
+// outside (entirely outside) and straddling (both); a query follows the side its point is on, and the
+// straddling child unless the point is farther from the plane than any volume down there reaches. A
+// cluster node acts when the point is beyond the closing distance, then goes on into its own subtree:
+// volumes inserted later that lie inside this one. Nothing is dropped there: a volume is only conservative,
+// so a point inside it may still be lit by its cluster and shadowed by a later one. Volumes go in, one by
+// one, in a shuffled order (fixed seed) that keeps the trees balanced. Clusters whose box holds the light,
+// or is level with it, have no volume: they are tested for every point that gets that far.
+//
+// Two levels: a tree over the coarse clusters' volumes whose cluster nodes enter a tree over that coarse
+// cluster's fine clusters (when the asset has coarse boxes; otherwise one tree over the fine clusters).
 //
 // Building allocates (std::vector); queries do not: the caller passes a stack of stack_size() entries.
 // Header-only C++17, no exceptions. MIT licensed (runtime/LICENSE).
@@ -32,60 +36,143 @@ public:
 
     // One instance of the asset's meshes, for one light given in world space. In one-sided mode
     // (cb_shadow.h), clusters whose front cone holds the light, and that have no double-sided triangle,
-    // cannot block anything and are left out.
-    void build(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided = false) {
+    // cannot block anything and are left out. `two_levels` false builds one tree over the fine clusters
+    // even when the asset has coarse boxes.
+    void build(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided = false,
+               bool two_levels = true) {
         view_ = &view;
         one_sided_ = one_sided;
         skipped_ = 0;
         nodes_.clear();
-        always_.clear();
+        always_fine_.clear();
+        always_coarse_.clear();
         root_ = none;
         depth_ = 0;
+        top_always_ = {};
         usable_ = invert_instance(view.instances[instance].transform, inverse_);
         if (!usable_) return;  // a singular transform flattens the mesh: it blocks nothing
         apply_instance(inverse_, world_light, light_);
         mesh_ = &view.meshes[view.instances[instance].mesh];
-        uint32_t n = mesh_->fine_count;
-        // Shuffled insertion order, the same for every build (xorshift with a fixed seed).
-        std::vector<uint32_t> order(n);
-        for (uint32_t i = 0; i < n; ++i) order[i] = i;
-        uint64_t state = 0x9e3779b97f4a7c15ULL;
-        for (uint32_t i = n; i > 1; --i) {
-            state ^= state << 13, state ^= state >> 7, state ^= state << 17;
-            uint32_t j = uint32_t(state % i);
-            uint32_t t = order[i - 1];
-            order[i - 1] = order[j];
-            order[j] = t;
+
+        if (!two_levels || !view.coarse_bounds.obbs) {
+            // One level: every fine cluster in one tree; always-tested ones in one list.
+            uint32_t fine_depth = 0;
+            root_ = build_fine_tree(0, mesh_->fine_count, fine_depth, always_fine_);
+            top_always_ = {0, uint32_t(always_fine_.size())};
+            depth_ = fine_depth;
+            return;
         }
-        for (uint32_t f : order) insert(f);
+        // Two levels: a fine tree per coarse cluster, then the coarse tree over them.
+        std::vector<uint32_t> fine_roots(mesh_->coarse_count, none);
+        std::vector<Range> fine_always(mesh_->coarse_count);
+        std::vector<bool> wanted(mesh_->coarse_count, true);
+        uint32_t fine_depth = 0;
+        for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
+            const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
+            if (one_sided_ && skippable(view.coarse_bounds.cones, mesh_->first_coarse + c, coarse_triangles(c))) {
+                skipped_ += r.count;
+                wanted[c] = false;
+                continue;
+            }
+            uint32_t first_always = uint32_t(always_fine_.size()), depth = 0;
+            fine_roots[c] = build_fine_tree(r.first, r.count, depth, always_fine_);
+            fine_always[c] = {first_always, uint32_t(always_fine_.size()) - first_always};
+            fine_depth = std::max(fine_depth, depth);
+        }
+        uint32_t coarse_depth = 0;
+        for (uint32_t c : shuffled(mesh_->coarse_count)) {
+            if (!wanted[c]) continue;
+            ShadowVolume v = make_shadow_volume(view.coarse_bounds.obbs[mesh_->first_coarse + c], light_);
+            Node leaf;
+            leaf.kind = Node::coarse;
+            leaf.child[1] = fine_roots[c];
+            leaf.always = fine_always[c];
+            if (!v.valid) {  // the light is in or level with this coarse box: enter its fine tree every time
+                always_coarse_.push_back(uint32_t(nodes_.size()));
+                nodes_.push_back(leaf);
+                continue;
+            }
+            leaf.near = v.near;
+            insert(root_, v, leaf, coarse_depth);
+        }
+        depth_ = coarse_depth + fine_depth + 1;
     }
 
-    // Entries the query stack needs: the tree's depth plus the pending siblings along a path.
-    size_t stack_size() const { return size_t(depth_) * 2 + 2; }
+    // Entries the query stack needs: pending siblings along the deepest path through both levels.
+    size_t stack_size() const { return size_t(depth_) * 2 + 4; }
 
     // True when the segment from world point p to the light is blocked by this instance. `stack` holds
     // stack_size() entries.
     bool occluded(const double* world_p, uint32_t* stack, QueryStats* stats = nullptr) const {
         if (!usable_) return false;
-        double p[3];
-        apply_instance(inverse_, world_p, p);
-        double e[3] = {p[0] - light_[0], p[1] - light_[1], p[2] - light_[2]};
-        double dist = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
-        for (uint32_t f : always_)
-            if (test_cluster(f, p, stats)) return true;
+        Query q;
+        apply_instance(inverse_, world_p, q.p);
+        for (int k = 0; k < 3; ++k) q.e[k] = q.p[k] - light_[k];
+        q.dist = std::sqrt(q.e[0] * q.e[0] + q.e[1] * q.e[1] + q.e[2] * q.e[2]);
+        q.stats = stats;
+        for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count; ++i)
+            if (test_cluster(always_fine_[i], q)) return true;
+        for (uint32_t node : always_coarse_)  // coarse clusters around the light, one walk each
+            if (walk(node, stack, q)) return true;
+        return root_ != none && walk(root_, stack, q);
+    }
+
+    size_t node_count() const { return nodes_.size(); }
+    size_t memory_bytes() const {
+        return nodes_.capacity() * sizeof(Node) + (always_fine_.capacity() + always_coarse_.capacity()) * sizeof(uint32_t);
+    }
+    size_t always_tested() const { return always_fine_.size(); }
+    size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the light sees from the front
+
+private:
+    struct Range {
+        uint32_t first = 0, count = 0;
+    };
+
+    struct Node {
+        enum Kind : uint32_t { plane, fine, coarse };
+        double n[3] = {0, 0, 0};  // plane through the light; inside: dot(n, p - light) >= 0
+        double n_length = 0;
+        // Plane nodes: every point of every volume in the straddling subtree makes an angle with the plane
+        // whose sine is at most this; a point farther from the plane skips that subtree.
+        double straddle_sine = 0;
+        double near = 0;          // cluster nodes: closing distance
+        Kind kind = plane;
+        uint32_t cluster = none;  // fine nodes: the fine cluster (mesh-local)
+        // plane: inside, outside, straddling. fine: [0] the volumes inside. coarse: [0] the volumes
+        // inside, [1] the root of its fine tree.
+        uint32_t child[3] = {none, none, none};
+        Range always;             // coarse nodes: its fine clusters tested whenever it is entered
+    };
+
+    struct Query {
+        double p[3], e[3], dist;
+        QueryStats* stats;
+    };
+
+    bool walk(uint32_t start, uint32_t* stack, const Query& q) const {
         size_t top = 0;
-        if (root_ != none) stack[top++] = root_;
+        stack[top++] = start;
         while (top) {
             const Node& node = nodes_[stack[--top]];
-            if (stats) ++stats->nodes_visited;
-            if (node.cluster != none) {  // cluster node: its triangles, then the volumes inside it
-                if (dist >= node.near && test_cluster(node.cluster, p, stats)) return true;
+            if (q.stats) ++q.stats->nodes_visited;
+            if (node.kind == Node::fine) {  // its triangles, then the volumes inside it
+                if (q.dist >= node.near && test_cluster(node.cluster, q)) return true;
                 if (node.child[0] != none) stack[top++] = node.child[0];
                 continue;
             }
-            double s = node.n[0] * e[0] + node.n[1] * e[1] + node.n[2] * e[2];
-            double tol = 1e-9 * node.n_length * dist;  // near the plane: both sides
-            if (node.child[2] != none && std::fabs(s) <= (node.straddle_sine + 1e-9) * node.n_length * dist)
+            if (node.kind == Node::coarse) {  // into its fine tree, then the coarse volumes inside it
+                if (node.child[0] != none) stack[top++] = node.child[0];
+                if (q.dist >= node.near) {
+                    for (uint32_t i = node.always.first; i < node.always.first + node.always.count; ++i)
+                        if (test_cluster(always_fine_[i], q)) return true;
+                    if (node.child[1] != none) stack[top++] = node.child[1];
+                }
+                continue;
+            }
+            double s = node.n[0] * q.e[0] + node.n[1] * q.e[1] + node.n[2] * q.e[2];
+            double tol = 1e-9 * node.n_length * q.dist;  // near the plane: both sides
+            if (node.child[2] != none && std::fabs(s) <= (node.straddle_sine + 1e-9) * node.n_length * q.dist)
                 stack[top++] = node.child[2];
             if (s <= tol && node.child[1] != none) stack[top++] = node.child[1];
             if (s >= -tol && node.child[0] != none) stack[top++] = node.child[0];
@@ -93,22 +180,58 @@ public:
         return false;
     }
 
-    size_t node_count() const { return nodes_.size(); }
-    size_t memory_bytes() const { return nodes_.capacity() * sizeof(Node) + always_.capacity() * sizeof(uint32_t); }
-    size_t always_tested() const { return always_.size(); }
-    size_t skipped_clusters() const { return skipped_; }  // one-sided: clusters the light sees from the front
+    // Insertion order for n items, the same for every build (xorshift with a fixed seed).
+    static std::vector<uint32_t> shuffled(uint32_t n) {
+        std::vector<uint32_t> order(n);
+        for (uint32_t i = 0; i < n; ++i) order[i] = i;
+        uint64_t state = 0x9e3779b97f4a7c15ULL;
+        for (uint32_t i = n; i > 1; --i) {
+            state ^= state << 13, state ^= state >> 7, state ^= state << 17;
+            std::swap(order[i - 1], order[state % i]);
+        }
+        return order;
+    }
 
-private:
-    struct Node {
-        double n[3] = {0, 0, 0};  // plane through the light; inside: dot(n, p - light) >= 0
-        double n_length = 0;
-        // Plane nodes: every point of every volume in the straddling subtree makes an angle with the plane
-        // whose sine is at most this; a point farther from the plane skips that subtree.
-        double straddle_sine = 0;
-        double near = 0;          // cluster nodes: closing distance
-        uint32_t cluster = none;  // none for plane nodes
-        uint32_t child[3] = {none, none, none};  // plane: inside, outside, straddling; cluster: inside
-    };
+    Range coarse_triangles(uint32_t c) const {
+        const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
+        const ClusterRange& a = view_->fine[mesh_->first_fine + r.first];
+        const ClusterRange& z = view_->fine[mesh_->first_fine + r.first + r.count - 1];
+        return {a.first, z.first + z.count - a.first};
+    }
+
+    // One-sided: a cluster the light sees entirely from the front, with no double-sided triangle.
+    bool skippable(const Cone* cones, uint32_t index, Range triangles) const {
+        if (!cones || !light_in_front_cone(cones[index], light_)) return false;
+        for (uint32_t t = triangles.first; t < triangles.first + triangles.count; ++t)
+            if (view_->double_sided(size_t(mesh_->first_triangle) + t)) return false;
+        return true;
+    }
+
+    // A tree over the fine clusters [first, first + count) of the mesh; returns its root. Clusters without
+    // a volume go to `always`.
+    uint32_t build_fine_tree(uint32_t first, uint32_t count, uint32_t& depth, std::vector<uint32_t>& always) {
+        uint32_t root = none;
+        for (uint32_t i : shuffled(count)) {
+            uint32_t f = first + i;
+            const ClusterRange& r = view_->fine[mesh_->first_fine + f];
+            if (one_sided_ && skippable(view_->fine_bounds.cones, mesh_->first_fine + f, {r.first, r.count})) {
+                ++skipped_;
+                continue;
+            }
+            ShadowVolume v = view_->fine_bounds.obbs ? make_shadow_volume(view_->fine_bounds.obbs[mesh_->first_fine + f], light_)
+                                                     : ShadowVolume{};
+            if (!v.valid) {
+                always.push_back(f);
+                continue;
+            }
+            Node leaf;
+            leaf.kind = Node::fine;
+            leaf.cluster = f;
+            leaf.near = v.near;
+            insert(root, v, leaf, depth);
+        }
+        return root;
+    }
 
     // The 4 edge rays of a volume's cone: where pairs of its planes meet.
     static void edge_rays(const ShadowVolume& v, double rays[4][3]) {
@@ -125,28 +248,8 @@ private:
         }
     }
 
-    uint32_t add_node(const Node& n) {
-        nodes_.push_back(n);
-        return uint32_t(nodes_.size() - 1);
-    }
-
-    void insert(uint32_t f) {
-        if (one_sided_ && view_->fine_bounds.cones && light_in_front_cone(view_->fine_bounds.cones[mesh_->first_fine + f], light_)) {
-            const ClusterRange& r = view_->fine[mesh_->first_fine + f];
-            bool any_double = false;
-            for (uint32_t t = r.first; t < r.first + r.count && !any_double; ++t)
-                any_double = view_->double_sided(size_t(mesh_->first_triangle) + t);
-            if (!any_double) {
-                ++skipped_;
-                return;
-            }
-        }
-        ShadowVolume v = view_->fine_bounds.obbs ? make_shadow_volume(view_->fine_bounds.obbs[mesh_->first_fine + f], light_)
-                                                 : ShadowVolume{};
-        if (!v.valid) {
-            always_.push_back(f);
-            return;
-        }
+    // Inserts volume `v` ending in `leaf` into the tree rooted at `root` (a variable outside nodes_).
+    void insert(uint32_t& root, const ShadowVolume& v, const Node& leaf, uint32_t& max_depth) {
         double rays[4][3];
         edge_rays(v, rays);
         // Every direction in the cone is a positive mix of the rays, whose length is at least `spread` times
@@ -158,13 +261,13 @@ private:
         for (const double* r : rays) spread = std::min(spread, (r[0] * dir[0] + r[1] * dir[1] + r[2] * dir[2]) / dl);
         // Walk down while the volume falls clearly on one side; stop at the first empty slot, named by its
         // parent and child index (pointers into nodes_ would not survive the appends below).
-        uint32_t parent = none, at = root_;
+        uint32_t parent = none, at = root;
         int which = 0;
         uint32_t depth = 0;
         while (at != none) {
             const Node node = nodes_[at];  // a copy: the straddle bound is written back below
             ++depth;
-            if (node.cluster != none) {  // past an earlier volume's chain: into its subtree
+            if (node.kind != Node::plane) {  // past an earlier volume's chain: into its subtree
                 which = 0;
             } else {
                 bool in = true, out = true;
@@ -184,35 +287,32 @@ private:
             parent = at;
             at = nodes_[at].child[which];
         }
-        // The chain: plane 0 -inside-> plane 1 -> plane 2 -> plane 3 -> cluster node.
+        // The chain: plane 0 -inside-> plane 1 -> plane 2 -> plane 3 -> the leaf.
         uint32_t first = uint32_t(nodes_.size());
         for (int k = 0; k < 4; ++k) {
             Node plane;
             for (int j = 0; j < 3; ++j) plane.n[j] = v.normal[k][j];
             plane.n_length = std::sqrt(plane.n[0] * plane.n[0] + plane.n[1] * plane.n[1] + plane.n[2] * plane.n[2]);
             plane.child[0] = first + uint32_t(k) + 1;
-            add_node(plane);
+            nodes_.push_back(plane);
         }
-        Node leaf;
-        leaf.cluster = f;
-        leaf.near = v.near;
-        add_node(leaf);
-        (parent == none ? root_ : nodes_[parent].child[which]) = first;
-        depth_ = std::max(depth_, depth + 5);
+        nodes_.push_back(leaf);
+        (parent == none ? root : nodes_[parent].child[which]) = first;
+        max_depth = std::max(max_depth, depth + 5);
     }
 
-    bool test_cluster(uint32_t f, const double* p, QueryStats* stats) const {
+    bool test_cluster(uint32_t f, const Query& q) const {
         const ClusterRange& range = view_->fine[mesh_->first_fine + f];
         const float* pos = view_->positions + size_t(mesh_->first_vertex) * 3;
         const uint32_t* tri = view_->triangles + size_t(mesh_->first_triangle) * 3;
-        if (stats) ++stats->clusters_tested;
+        if (q.stats) ++q.stats->clusters_tested;
         for (uint32_t t = range.first; t < range.first + range.count; ++t) {
             double corner[3][3];
             for (int k = 0; k < 3; ++k)
                 for (int j = 0; j < 3; ++j) corner[k][j] = pos[size_t(tri[size_t(t) * 3 + k]) * 3 + j];
-            if (stats) ++stats->triangles_tested;
+            if (q.stats) ++q.stats->triangles_tested;
             bool two_sided = !one_sided_ || view_->double_sided(size_t(mesh_->first_triangle) + t);
-            if (segment_triangle(p, light_, corner[0], corner[1], corner[2], two_sided).blocks) return true;
+            if (segment_triangle(q.p, light_, corner[0], corner[1], corner[2], two_sided).blocks) return true;
         }
         return false;
     }
@@ -223,7 +323,9 @@ private:
     bool usable_ = false, one_sided_ = false;
     size_t skipped_ = 0;
     std::vector<Node> nodes_;
-    std::vector<uint32_t> always_;
+    std::vector<uint32_t> always_fine_;    // fine clusters tested without a volume (ranges per coarse node)
+    std::vector<uint32_t> always_coarse_;  // coarse nodes entered for every query
+    Range top_always_;                     // one level: the always-tested fine clusters
     uint32_t root_ = none;
     uint32_t depth_ = 0;
 };

@@ -329,18 +329,18 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
                                {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])},
                                {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
                                {sv[0], sv[1], sv[2]}};
-        for (int variant = 0; variant < 8; ++variant) {
+        for (int variant = 0; variant < 16; ++variant) {
             const double* light = lights[variant % 4];
-            bool one_sided = variant >= 4;
+            bool one_sided = variant / 4 % 2 == 1, two_levels = variant >= 8;
             std::vector<cb::ClusterShadowTree> trees(v.instance_count);
             size_t stack = 0;
             for (uint32_t i = 0; i < v.instance_count; ++i) {
-                trees[i].build(v, i, light, one_sided);
+                trees[i].build(v, i, light, one_sided, two_levels);
                 stack = std::max(stack, trees[i].stack_size());
                 skipped += trees[i].skipped_clusters();
             }
             std::vector<uint32_t> scratch(stack);
-            for (int k = 0; k < 1500; ++k) {
+            for (int k = 0; k < 800; ++k) {
                 double p[3];
                 if (k % 2 == 0) {
                     const auto& s = surface[size_t(k * 104729) % surface.size()];
@@ -363,7 +363,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
             }
         }
     }
-    std::printf("%zu queries (two- and one-sided), %zu in shadow, %zu disagreements; triangles tested per query: tree %.1f, "
+    std::printf("%zu queries (one and two levels, two- and one-sided), %zu in shadow, %zu disagreements; triangles tested per query: tree %.1f, "
                 "reference %.1f; one-sided builds skipped %zu clusters (light in their front cone)\n",
                 queries, shadowed, disagreements, double(tested_tree) / double(queries), double(tested_reference) / double(queries), skipped);
     EXPECT_EQ(disagreements, 0u);
@@ -444,11 +444,12 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
         const cb::AssetView& v = b.view;
         WorldSample world = sample_world(v, 1);
         for (const auto& light : c.lights)
-            for (bool one_sided : {false, true}) {
+            for (int variant = 0; variant < 4; ++variant) {
+                bool one_sided = variant % 2 == 1, two_levels = variant >= 2;
                 cb::ClusterShadowTree tree;
-                tree.build(v, 0, light.data(), one_sided);
+                tree.build(v, 0, light.data(), one_sided, two_levels);
                 std::vector<uint32_t> stack(tree.stack_size());
-                for (int k = 0; k < 600; ++k) {
+                for (int k = 0; k < 300; ++k) {
                     double p[3];
                     if (k % 3 == 0) {  // on the surface: a vertex
                         const auto& s = world.surface[size_t(k) % world.surface.size()];
