@@ -7,8 +7,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <new>
 
 namespace cb {
+
+Scene load_scene_unguarded(const std::string& path);
 
 Transform multiply(const Transform& a, const Transform& b) {
     Transform r{};
@@ -92,6 +95,15 @@ FileFormat format_from_path(std::string_view path) {
 }
 
 Scene load_scene(const std::string& path) {
+    try {
+        return load_scene_unguarded(path);
+    } catch (const std::bad_alloc&) {
+        // A file can still describe more than this machine holds; say so rather than crash.
+        throw LoadError(path + ": out of memory while loading");
+    }
+}
+
+Scene load_scene_unguarded(const std::string& path) {
     FileFormat format = format_from_path(path);
     if (format == FileFormat::unknown)
         throw LoadError(path + ": unknown file type (expected .gltf .glb .obj .ply .off .stl)");

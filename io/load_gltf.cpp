@@ -206,6 +206,11 @@ std::vector<double> read_accessor(Context ctx, int accessor_index, int want_type
     if (acc.count > std::numeric_limits<uint32_t>::max())
         ctx.fail("count " + std::to_string(acc.count) + " exceeds 2^32-1");
 
+    // Without a bufferView an accessor is zeros (plus sparse values): its count costs no bytes of the file,
+    // so cap it rather than let a small file ask for gigabytes.
+    constexpr size_t max_zero_filled = size_t(1) << 24;
+    if (acc.bufferView < 0 && acc.count > max_zero_filled)
+        ctx.fail("count " + std::to_string(acc.count) + " without a bufferView (zero-filled) exceeds 16 M elements");
     std::vector<double> out(acc.count * ncomp, 0.0);
     if (acc.bufferView >= 0) {
         StridedRange r = view_range(ctx, acc.bufferView, acc.byteOffset, acc.count, csize * ncomp, true);
@@ -449,7 +454,7 @@ public:
     }
 
 private:
-    static constexpr size_t max_instances = 50'000'000;  // a node DAG can multiply paths exponentially
+    static constexpr size_t max_instances = 4'000'000;  // a node DAG can multiply paths exponentially
 
     void visit(int node_index, const Transform& parent) {
         const auto& nodes = ctx_.model.nodes;
@@ -461,7 +466,7 @@ private:
         Transform world = multiply(parent, node_local(node_ctx, node));
         if (node.mesh >= 0) {
             if (size_t(node.mesh) >= ctx_.model.meshes.size()) node_ctx.fail("mesh " + std::to_string(node.mesh) + " does not exist");
-            if (scene_.instances.size() >= max_instances) node_ctx.fail("more than 50 million instances");
+            if (scene_.instances.size() >= max_instances) node_ctx.fail("more than 4 million instances");
             scene_.instances.push_back({mesh_id(node.mesh), world, node.name});
         }
         on_path_[node_index] = true;

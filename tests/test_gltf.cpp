@@ -336,3 +336,26 @@ TEST(Gltf, DracoCountsMustAgreeWithTheAccessors) {
     doc["bufferViews"][doc["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]["bufferView"].get<int>()]["byteLength"] = 20;
     EXPECT_THROW(load_text(doc.dump(), "t.gltf", dir), cb::LoadError);
 }
+
+TEST(Gltf, HugeZeroFilledAccessorIsRefused) {
+    // Three vertices' worth of file asking for four billion zero positions: an error, not an allocation.
+    GltfWriter w = one_mesh_scene(triangle());
+    w.doc["accessors"].push_back({{"componentType", 5126}, {"count", 4000000000u}, {"type", "VEC3"}});
+    w.doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = w.doc["accessors"].size() - 1;
+    EXPECT_NE(error_of(w.gltf_embedded()).find("without a bufferView (zero-filled) exceeds 16 M elements"), std::string::npos);
+}
+
+TEST(Gltf, ExponentialNodeDagIsCapped) {
+    // 30 levels, each node the child of two parents: 2^30 paths to the mesh node.
+    GltfWriter w = one_mesh_scene(triangle());
+    w.doc["nodes"] = json::array();
+    w.node({{"mesh", 0}});
+    int below[2] = {0, 0};  // the two nodes of the level beneath (level 0: the mesh node, twice)
+    for (int level = 1; level <= 30; ++level) {
+        int a = w.node({{"children", {below[0], below[1]}}});
+        int b = w.node({{"children", {below[0], below[1]}}});
+        below[0] = a, below[1] = b;
+    }
+    w.doc["scenes"] = json::array({{{"nodes", {int(w.doc["nodes"].size()) - 1}}}});
+    EXPECT_NE(error_of(w.gltf_embedded()).find("more than 4 million instances"), std::string::npos);
+}
