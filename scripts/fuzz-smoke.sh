@@ -26,7 +26,7 @@ mkdir -p "$work/asset"  # assets baked here, with and without bounds, by the ins
 for format in gltf obj off ply stl asset; do
   echo "fuzz_$format: $runs runs from $(ls "$work/$format" | wc -l) seeds"
   ./build-fuzz/fuzz/fuzz_$format -runs="$runs" -max_len=65536 -rss_limit_mb=2048 -timeout=20 \
-    -print_final_stats=0 "$work/$format" 2>"$work/$format.log" || { tail -40 "$work/$format.log"; exit 1; }
+    -print_final_stats=0 -artifact_prefix=build-fuzz/artifact- "$work/$format" 2>"$work/$format.log" || { tail -40 "$work/$format.log"; exit 1; }
   grep -E "^#[0-9]+ *DONE" "$work/$format.log" || tail -2 "$work/$format.log"
 done
 echo "fuzz smoke: 6 targets, no crash"
