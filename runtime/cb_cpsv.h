@@ -302,19 +302,7 @@ private:
     }
 
     bool test_cluster(uint32_t f, const Query& q) const {
-        const ClusterRange& range = view_->fine[mesh_->first_fine + f];
-        const float* pos = view_->positions + size_t(mesh_->first_vertex) * 3;
-        const uint32_t* tri = view_->triangles + size_t(mesh_->first_triangle) * 3;
-        if (q.stats) ++q.stats->clusters_tested;
-        for (uint32_t t = range.first; t < range.first + range.count; ++t) {
-            double corner[3][3];
-            for (int k = 0; k < 3; ++k)
-                for (int j = 0; j < 3; ++j) corner[k][j] = pos[size_t(tri[size_t(t) * 3 + k]) * 3 + j];
-            if (q.stats) ++q.stats->triangles_tested;
-            bool two_sided = !one_sided_ || view_->double_sided(size_t(mesh_->first_triangle) + t);
-            if (segment_triangle(q.p, light_, corner[0], corner[1], corner[2], two_sided).blocks) return true;
-        }
-        return false;
+        return cluster_blocks(*view_, *mesh_, f, q.p, light_, one_sided_, q.stats);
     }
 
     const AssetView* view_ = nullptr;

@@ -224,39 +224,44 @@ struct QueryStats {
 
 // Reference query: every instance, every fine cluster whose box the segment may touch (all clusters when
 // the asset has no fine boxes), every triangle of those, exactly. Returns true when p is in shadow.
+// The triangles of fine cluster `f` (mesh-local) of `mesh`, in the mesh's frame, exactly; true at the first
+// that blocks. Sets *touched when a tested triangle was touched.
+inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double* p, const double* light,
+                           bool one_sided, QueryStats* stats, bool* touched = nullptr) {
+    const ClusterRange& range = v.fine[mesh.first_fine + f];
+    const float* pos = v.positions + size_t(mesh.first_vertex) * 3;
+    const uint32_t* tri = v.triangles + size_t(mesh.first_triangle) * 3;
+    if (stats) ++stats->clusters_tested;
+    for (uint32_t t = range.first; t < range.first + range.count; ++t) {
+        double corner[3][3];
+        for (int k = 0; k < 3; ++k)
+            for (int j = 0; j < 3; ++j) corner[k][j] = pos[size_t(tri[size_t(t) * 3 + k]) * 3 + j];
+        if (stats) ++stats->triangles_tested;
+        bool two_sided = !one_sided || v.double_sided(size_t(mesh.first_triangle) + t);
+        SegmentTest s = segment_triangle(p, light, corner[0], corner[1], corner[2], two_sided);
+        if (touched) *touched |= s.touching;
+        if (s.blocks) return true;
+    }
+    return false;
+}
+
 inline bool occluded_reference(const AssetView& v, const double* p, const double* light, QueryStats* stats = nullptr,
                                bool one_sided = false) {
-    bool touched = false;
-    for (uint32_t i = 0; i < v.instance_count; ++i) {
+    bool touched = false, blocked = false;
+    for (uint32_t i = 0; i < v.instance_count && !blocked; ++i) {
         const InstanceRecord& inst = v.instances[i];
         double inv[12], lp[3], ll[3];
         if (!invert_instance(inst.transform, inv)) continue;
         apply_instance(inv, p, lp);
         apply_instance(inv, light, ll);
         const MeshRecord& mesh = v.meshes[inst.mesh];
-        const float* pos = v.positions + size_t(mesh.first_vertex) * 3;
-        const uint32_t* tri = v.triangles + size_t(mesh.first_triangle) * 3;
-        for (uint32_t f = 0; f < mesh.fine_count; ++f) {
+        for (uint32_t f = 0; f < mesh.fine_count && !blocked; ++f) {
             if (v.fine_bounds.obbs && !segment_may_touch_box(v.fine_bounds.obbs[mesh.first_fine + f], lp, ll)) continue;
-            if (stats) ++stats->clusters_tested;
-            const ClusterRange& range = v.fine[mesh.first_fine + f];
-            for (uint32_t t = range.first; t < range.first + range.count; ++t) {
-                double corner[3][3];
-                for (int k = 0; k < 3; ++k)
-                    for (int j = 0; j < 3; ++j) corner[k][j] = pos[size_t(tri[size_t(t) * 3 + k]) * 3 + j];
-                if (stats) ++stats->triangles_tested;
-                bool two_sided = !one_sided || v.double_sided(size_t(mesh.first_triangle) + t);
-                SegmentTest s = segment_triangle(lp, ll, corner[0], corner[1], corner[2], two_sided);
-                touched |= s.touching;
-                if (s.blocks) {
-                    if (stats && touched) ++stats->touching;
-                    return true;
-                }
-            }
+            blocked = cluster_blocks(v, mesh, f, lp, ll, one_sided, stats, &touched);
         }
     }
     if (stats && touched) ++stats->touching;
-    return false;
+    return blocked;
 }
 
 }  // namespace cb
