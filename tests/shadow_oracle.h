@@ -11,12 +11,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstring>
 #include <string>
 #include <vector>
 
-#include "bake.h"
-#include "load.h"
+#include "baked.h"
 
 namespace cb::test {
 
@@ -46,26 +44,6 @@ inline cb::SegmentTest oracle(const double* p, const double* q, const double* a,
     return r;
 }
 
-
-struct Baked {
-    std::vector<uint64_t> storage;
-    cb::AssetView view;
-};
-
-inline Baked bake(const std::string& file) {
-    cb::Scene scene = cb::load_scene(file);
-    cb::BakeStats stats;
-    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, {}, stats);
-    cb::BoundsOptions b;
-    b.mask = cb::bounds_auto;
-    cb::fit_scene_bounds(meshes, b, 0, stats);
-    std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
-    Baked out;
-    out.storage.resize((bytes.size() + 7) / 8);
-    std::memcpy(out.storage.data(), bytes.data(), bytes.size());
-    if (cb::open_asset(out.storage.data(), bytes.size(), &out.view) != cb::AssetError::ok) out.view = cb::AssetView{};
-    return out;
-}
 
 // Brute force over every triangle of every instance, with CGAL's exact construction.
 inline bool oracle_occluded(const cb::AssetView& v, const double* p, const double* light, bool& touching, bool one_sided) {

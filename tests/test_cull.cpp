@@ -7,8 +7,7 @@
 
 #include <random>
 
-#include "bake.h"
-#include "load.h"
+#include "baked.h"
 
 namespace {
 
@@ -76,17 +75,9 @@ bool triangle_inside(const double tri[3][3], const cb::Frustum& f, double inset)
 }  // namespace
 
 TEST(Cull, ConservativeAndEffectiveOnTheDefaultScene) {
-    cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
-    cb::BakeStats bs;
-    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, {}, bs);
-    cb::BoundsOptions bo;
-    bo.mask = cb::bounds_auto;
-    cb::fit_scene_bounds(meshes, bo, 0, bs);
-    std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
-    std::vector<uint64_t> storage((bytes.size() + 7) / 8);
-    std::memcpy(storage.data(), bytes.data(), bytes.size());
-    cb::AssetView v;
-    ASSERT_EQ(cb::open_asset(storage.data(), bytes.size(), &v), cb::AssetError::ok);
+    cb::test::Baked baked = cb::test::bake(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    ASSERT_GT(baked.view.mesh_count, 0u) << "bake failed";
+    const cb::AssetView& v = baked.view;
 
     std::mt19937 rng(4);
     std::uniform_real_distribution<double> u(-1, 1);

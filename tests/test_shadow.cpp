@@ -290,7 +290,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
 
 namespace {
 
-// A scene of one mesh and one identity instance, baked in memory.
+// A scene of one mesh and one identity instance, baked in memory with small clusters.
 Baked bake_mesh(std::vector<float> positions, std::vector<uint32_t> indices) {
     cb::Scene scene;
     cb::Mesh m;
@@ -299,20 +299,10 @@ Baked bake_mesh(std::vector<float> positions, std::vector<uint32_t> indices) {
     m.primitives.push_back({0, uint32_t(m.triangle_count()), false});
     scene.meshes.push_back(std::move(m));
     scene.instances.push_back({0, cb::identity_transform(), "hard"});
-    cb::BakeStats stats;
     cb::ClusterOptions co;
     co.fine_size = 8;
     co.coarse_size = 64;
-    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, co, stats);
-    cb::BoundsOptions bo;
-    bo.mask = cb::bounds_auto;
-    cb::fit_scene_bounds(meshes, bo, 1, stats);
-    std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
-    Baked out;
-    out.storage.resize((bytes.size() + 7) / 8);
-    std::memcpy(out.storage.data(), bytes.data(), bytes.size());
-    EXPECT_EQ(cb::open_asset(out.storage.data(), bytes.size(), &out.view), cb::AssetError::ok);
-    return out;
+    return cb::test::bake_scene(scene, co, cb::bounds_auto, 1);
 }
 
 }  // namespace
@@ -358,6 +348,7 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
     for (const Case& c : cases) {
         SCOPED_TRACE(c.name);
         Baked b = bake_mesh(c.positions, c.indices);
+        ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
         const cb::AssetView& v = b.view;
         WorldSample world = sample_world(v, 1);
         for (const auto& light : c.lights)

@@ -1,0 +1,37 @@
+// Test helper: a scene clustered, fitted and encoded in memory, then opened as the runtime opens a file.
+#pragma once
+
+#include <cb_asset.h>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "bake.h"
+#include "load.h"
+
+namespace cb::test {
+
+struct Baked {
+    std::vector<uint64_t> storage;  // 8-byte aligned, as the view's instance doubles need
+    cb::AssetView view;             // empty when the bytes did not open (tests check mesh_count)
+};
+
+inline Baked bake_scene(const cb::Scene& scene, const cb::ClusterOptions& clustering = {},
+                        uint32_t bounds = cb::bounds_auto, unsigned threads = 0) {
+    cb::BakeStats stats;
+    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, clustering, stats);
+    cb::BoundsOptions b;
+    b.mask = bounds;
+    cb::fit_scene_bounds(meshes, b, threads, stats);
+    std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
+    Baked out;
+    out.storage.resize((bytes.size() + 7) / 8);
+    std::memcpy(out.storage.data(), bytes.data(), bytes.size());
+    if (cb::open_asset(out.storage.data(), bytes.size(), &out.view) != cb::AssetError::ok) out.view = cb::AssetView{};
+    return out;
+}
+
+inline Baked bake(const std::string& file) { return bake_scene(cb::load_scene(file)); }
+
+}  // namespace cb::test
