@@ -127,10 +127,10 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
         const Item& it = items[i];
         LevelVolumes& v = it.fine ? meshes[it.mesh].fine_volumes : meshes[it.mesh].coarse_volumes;
         const ClusterBounds& b = fitted[i];
-        if (options.mask & bounds_obb) v.obbs.push_back(b.obb);
+        if (options.mask & (bounds_obb | bounds_cone)) v.obbs.push_back(b.packed_obb);  // cones are stored relative to boxes
         if (options.mask & bounds_sphere) v.spheres.push_back(b.sphere);
         if (options.mask & bounds_capsule) v.capsules.push_back(b.capsule);
-        if (options.mask & bounds_cone) v.cones.push_back(b.cone);
+        if (options.mask & bounds_cone) v.cones.push_back(b.packed_cone);
         if (options.mask & bounds_slab) v.slabs.push_back(b.slab);
         stats.valid_cones += b.cone.valid;
         stats.capsules += b.has_capsule;

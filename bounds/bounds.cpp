@@ -43,6 +43,9 @@ float round_down(double x) {
 // with room to spare (a handful of ulps of 2^-53), and far below a float ulp (2^-24).
 constexpr double measure_margin = 1e-14;
 
+// Two float steps of a unit vector's component: how far a decoded axis may move between compilers.
+constexpr double axis_step = 1.2e-7;
+
 // ------------------------------------------------------------------ oriented box
 
 struct Frame {
@@ -287,8 +290,40 @@ Frame best_frame(const double* pts, size_t n, ObbMethod method, const float* pos
     return best;
 }
 
-// Stores a frame as a float box that contains every world point (floats in `positions` order).
-Obb store_obb(const Frame& f, const double* local, size_t n, const double* origin, const double* world) {
+// The frame's rotation (rows are the axes, right-handed) as a packed unit quaternion.
+void pack_rotation(const Frame& f, PackedObb& out) {
+    // m(r, c): column c is axis c.
+    auto m = [&](int r, int c) { return f.axis[c][r]; };
+    double q[4], t = m(0, 0) + m(1, 1) + m(2, 2);  // x, y, z, w
+    if (t > 0) {
+        double s = 2 * std::sqrt(t + 1);
+        q[3] = s / 4, q[0] = (m(2, 1) - m(1, 2)) / s, q[1] = (m(0, 2) - m(2, 0)) / s, q[2] = (m(1, 0) - m(0, 1)) / s;
+    } else if (m(0, 0) >= m(1, 1) && m(0, 0) >= m(2, 2)) {
+        double s = 2 * std::sqrt(std::max(0.0, 1 + m(0, 0) - m(1, 1) - m(2, 2)));
+        q[3] = (m(2, 1) - m(1, 2)) / s, q[0] = s / 4, q[1] = (m(0, 1) + m(1, 0)) / s, q[2] = (m(0, 2) + m(2, 0)) / s;
+    } else if (m(1, 1) >= m(2, 2)) {
+        double s = 2 * std::sqrt(std::max(0.0, 1 + m(1, 1) - m(0, 0) - m(2, 2)));
+        q[3] = (m(0, 2) - m(2, 0)) / s, q[0] = (m(0, 1) + m(1, 0)) / s, q[1] = s / 4, q[2] = (m(1, 2) + m(2, 1)) / s;
+    } else {
+        double s = 2 * std::sqrt(std::max(0.0, 1 + m(2, 2) - m(0, 0) - m(1, 1)));
+        q[3] = (m(1, 0) - m(0, 1)) / s, q[0] = (m(0, 2) + m(2, 0)) / s, q[1] = (m(1, 2) + m(2, 1)) / s, q[2] = s / 4;
+    }
+    int largest = 0;
+    for (int i = 1; i < 4; ++i)
+        if (std::fabs(q[i]) > std::fabs(q[largest])) largest = i;
+    double sign = q[largest] < 0 ? -1 : 1;
+    out.largest = uint16_t(largest);
+    for (int i = 0, k = 0; i < 4; ++i) {
+        if (i == largest) continue;
+        double v = std::round(sign * q[i] * (32767.0 * 1.4142135623730951));
+        out.rotation[k++] = int16_t(std::clamp(v, -32767.0, 32767.0));
+    }
+}
+
+// Stores a frame as a packed box that contains every world point: the rotation quantised first, then the
+// centre rounded and the extents measured against the decoded axes (floats in `positions` order). The
+// extents also allow each decoded axis component to move by two float steps (another compiler's decode).
+PackedObb store_obb(const Frame& f, const double* local, size_t n, const double* origin, const double* world) {
     double lo[3], hi[3];
     extents(local, n, f, lo, hi);
     double centre[3];
@@ -296,22 +331,22 @@ Obb store_obb(const Frame& f, const double* local, size_t n, const double* origi
         centre[k] = origin[k];
         for (int i = 0; i < 3; ++i) centre[k] += 0.5 * (lo[i] + hi[i]) * f.axis[i][k];
     }
-    Obb b;
-    for (int k = 0; k < 3; ++k) b.center[k] = float(centre[k]);
-    for (int i = 0; i < 3; ++i)
-        for (int k = 0; k < 3; ++k) b.axis[i][k] = float(f.axis[i][k]);
-    // Measure against the stored floats.
+    PackedObb p{};
+    pack_rotation(f, p);
+    for (int k = 0; k < 3; ++k) p.center[k] = float(centre[k]);
+    Obb b = unpack_obb(p);
     double c[3] = {b.center[0], b.center[1], b.center[2]};
     for (int i = 0; i < 3; ++i) {
         double a[3] = {b.axis[i][0], b.axis[i][1], b.axis[i][2]}, h = 0, scale = 0;
         for (size_t v = 0; v < n; ++v) {
             Vec d = sub(world + v * 3, c);
-            h = std::max(h, std::fabs(dot(d.data(), a)));
+            double l1 = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]);
+            h = std::max(h, std::fabs(dot(d.data(), a)) + axis_step * l1);
             scale = std::max(scale, std::fabs(d[0] * a[0]) + std::fabs(d[1] * a[1]) + std::fabs(d[2] * a[2]));
         }
-        b.half[i] = round_up(h + measure_margin * scale);
+        p.half[i] = round_up(h + measure_margin * scale);
     }
-    return b;
+    return p;
 }
 
 // ------------------------------------------------------------------ spheres and circles (Welzl, move to front)
@@ -492,11 +527,13 @@ struct Plane {
     Vec point;  // a vertex, world
 };
 
-// An apex on the axis line through `centre`, strictly on the `sign` side of every plane as stored in float:
-// after rounding, its distance is re-measured and the apex pushed further along the axis until it clears
-// every plane by more than the measurement could err. False if it cannot be made to (never guess).
+// An apex on the axis line through `centre`, strictly on the `sign` side of every plane as decoded: the
+// distance along the axis is rounded to float and the apex computed as unpack_cone does, then its
+// clearance re-measured, and the apex pushed further until it clears every plane by more than the
+// measurement could err or another compiler's decode could move it (two float steps of its coordinates).
+// False if it cannot be made to (never guess).
 bool place_apex(const std::vector<Plane>& planes, const Vec& axis, const double* centre, double sign, double extent,
-                float out[3]) {
+                float& stored_s) {
     // The lowest s with sign * dot(centre + s * axis - point, n) >= 0 for all planes (sign = -1 for the back).
     double s = sign > 0 ? -INFINITY : INFINITY, min_cos = INFINITY;
     for (const Plane& pl : planes) {
@@ -508,17 +545,20 @@ bool place_apex(const std::vector<Plane>& planes, const Vec& axis, const double*
     }
     double push = 1e-7 * extent;
     for (int attempt = 0; attempt < 40; ++attempt) {
-        double p[3];
-        for (int k = 0; k < 3; ++k) p[k] = centre[k] + (s + sign * push) * axis[k];
-        for (int k = 0; k < 3; ++k) out[k] = float(p[k]);
+        stored_s = float(s + sign * push);
+        double stored[3], coord = 0;
+        for (int k = 0; k < 3; ++k) {
+            stored[k] = float(centre[k] + double(stored_s) * axis[k]);
+            coord = std::max(coord, std::fabs(stored[k]));
+        }
         // Signed clearance of the stored apex from the nearest plane, on the wanted side.
-        double stored[3] = {out[0], out[1], out[2]}, d = INFINITY, scale = 0;
+        double d = INFINITY, scale = 0;
         for (const Plane& pl : planes) {
             Vec e = sub(stored, pl.point.data());
             d = std::min(d, sign * dot(e.data(), pl.n.data()));
             scale = std::max(scale, norm(e));
         }
-        double needed = 1e-12 * (scale + extent);
+        double needed = 1e-12 * (scale + extent) + 2 * axis_step * coord;
         if (d > needed && std::isfinite(d)) return true;
         if (!std::isfinite(d) || !std::isfinite(scale)) return false;
         push = push * 4 + (needed - d) / min_cos;
@@ -526,10 +566,28 @@ bool place_apex(const std::vector<Plane>& planes, const Vec& axis, const double*
     return false;
 }
 
-Cone fit_cone(const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count, const double* centre,
-              double extent) {
-    Cone cone{};
-    cone.valid = 0;
+// The direction of the normals' sum as stored (octahedral) and decoded; false without one.
+bool cone_axis(size_t planes, const Vec& sum, PackedCone& packed, Vec& axis) {
+    double l1 = std::fabs(sum[0]) + std::fabs(sum[1]) + std::fabs(sum[2]);
+    if (planes == 0 || !(l1 > 0)) return false;
+    double x = sum[0] / l1, y = sum[1] / l1;
+    if (sum[2] < 0) {
+        double fx = (1 - std::fabs(y)) * (x < 0 ? -1 : 1), fy = (1 - std::fabs(x)) * (y < 0 ? -1 : 1);
+        x = fx, y = fy;
+    }
+    packed.axis[0] = int16_t(std::clamp(std::round(x * 32767), -32767.0, 32767.0));
+    packed.axis[1] = int16_t(std::clamp(std::round(y * 32767), -32767.0, 32767.0));
+    unpack_octahedral(packed.axis, axis.data());
+    return true;
+}
+
+// A packed cone for the triangles; `centre` is the decoded centre of the cluster's box. `normal` gets the
+// stored axis direction whenever the triangles have one (zero otherwise), valid cone or not.
+PackedCone fit_cone(const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count, const double* centre,
+                    double extent, float normal[3]) {
+    PackedCone none{};
+    none.cos_half_angle = 2;  // no valid cone
+    normal[0] = normal[1] = normal[2] = 0;
     std::vector<Plane> planes;
     Vec sum{0, 0, 0};
     for (size_t i = 0; i < count; ++i) {
@@ -542,11 +600,12 @@ Cone fit_cone(const float* positions, const uint32_t* indices, const uint32_t* t
         for (int k = 0; k < 3; ++k) sum[k] += n[k];
         planes.push_back({{n[0] / len, n[1] / len, n[2] / len}, {p[0][0], p[0][1], p[0][2]}});
     }
-    double sum_len = norm(sum);
-    if (planes.empty() || !(sum_len > 0)) return cone;
-    // The stored (float) axis is the one every angle is measured from.
-    for (int k = 0; k < 3; ++k) cone.axis[k] = float(sum[k] / sum_len);
-    Vec axis{cone.axis[0], cone.axis[1], cone.axis[2]};
+    PackedCone cone{};
+    Vec decoded;
+    if (!cone_axis(planes.size(), sum, cone, decoded)) return none;
+    // Angles are measured from the axis the runtime reads: the decoded one rounded to float.
+    for (int k = 0; k < 3; ++k) normal[k] = float(decoded[k]);
+    Vec axis{normal[0], normal[1], normal[2]};
     double axis_len = norm(axis);
     for (double& a : axis) a /= axis_len;
     double min_cos = INFINITY;
@@ -555,12 +614,12 @@ Cone fit_cone(const float* positions, const uint32_t* indices, const uint32_t* t
     constexpr double angle_margin = 1e-6;
     double widest = std::acos(std::clamp(min_cos, -1.0, 1.0));
     double half = M_PI / 2 - widest - angle_margin;
-    if (!(half > 0)) return cone;
-    if (!place_apex(planes, axis, centre, +1, extent, cone.front_apex)) return cone;
-    if (!place_apex(planes, axis, centre, -1, extent, cone.back_apex)) return cone;
+    if (!(half > 0)) return none;
+    // The apexes lie on the decoded (double) axis line through the box centre, as unpack_cone computes
+    // them; any line would do, as long as they clear every plane.
+    if (!place_apex(planes, decoded, centre, +1, extent, cone.front)) return none;
+    if (!place_apex(planes, decoded, centre, -1, extent, cone.back)) return none;
     cone.cos_half_angle = round_up(std::cos(half));
-    cone.sin_half_angle = round_down(std::sin(half));
-    cone.valid = 1;
     return cone;
 }
 
@@ -606,7 +665,7 @@ Obb fit_obb(const double* local, size_t n, const double* origin, ObbMethod metho
     std::vector<double> world(n * 3);
     for (size_t i = 0; i < n * 3; ++i) world[i] = local[i] + origin[i % 3];
     Frame f = best_frame(local, n, method, positions, indices, triangle_ids, triangle_count, origin);
-    return store_obb(f, local, n, origin, world.data());
+    return unpack_obb(store_obb(f, local, n, origin, world.data()));
 }
 
 Sphere fit_sphere(const double* local, size_t n, const double* origin) {
@@ -671,7 +730,8 @@ ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const 
     if (n == 0) return out;
 
     Frame frame = best_frame(local.data(), n, options.obb, positions, indices, triangle_ids, count, origin);
-    out.obb = store_obb(frame, local.data(), n, origin, world.data());
+    out.packed_obb = store_obb(frame, local.data(), n, origin, world.data());
+    out.obb = unpack_obb(out.packed_obb);
     if (options.mask & bounds_sphere) {
         Ball b = min_ball(local.data(), n, 3);
         double c[3] = {b.c[0] + origin[0], b.c[1] + origin[1], b.c[2] + origin[2]};
@@ -698,14 +758,16 @@ ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const 
         }
     }
     if (options.mask & (bounds_cone | bounds_slab)) {
-        double centre[3] = {origin[0], origin[1], origin[2]};
-        out.cone = fit_cone(positions, indices, triangle_ids, count, centre, std::max(extent, 1e-30));
+        double centre[3] = {out.obb.center[0], out.obb.center[1], out.obb.center[2]};
+        float normal[3];
+        out.packed_cone = fit_cone(positions, indices, triangle_ids, count, centre, std::max(extent, 1e-30), normal);
+        out.cone = unpack_cone(out.packed_cone, out.packed_obb);
         if (options.mask & bounds_slab) {
             // Across the mean normal; without one (no area, or normals cancelling), the box's thinnest axis.
             float axis[3];
-            bool have = out.cone.axis[0] != 0 || out.cone.axis[1] != 0 || out.cone.axis[2] != 0;
+            bool have = normal[0] != 0 || normal[1] != 0 || normal[2] != 0;
             int thin = int(std::min_element(out.obb.half, out.obb.half + 3) - out.obb.half);
-            for (int k = 0; k < 3; ++k) axis[k] = have ? out.cone.axis[k] : out.obb.axis[thin][k];
+            for (int k = 0; k < 3; ++k) axis[k] = have ? normal[k] : out.obb.axis[thin][k];
             out.slab = fit_slab(axis, world.data(), n);
         }
     }

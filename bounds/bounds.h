@@ -29,12 +29,15 @@ constexpr uint32_t bounds_auto = bounds_obb | bounds_cone;
 // Parses "auto", "all" or a comma list of obb, sphere, capsule, cone, slab. False on an unknown word.
 bool parse_bounds_mask(const std::string& text, uint32_t& mask);
 
+// Boxes and cones come packed, as the asset stores them, and decoded, as the runtime reads them.
 struct ClusterBounds {
-    Obb obb;
+    PackedObb packed_obb;
+    Obb obb;           // unpack_obb(packed_obb)
     Sphere sphere;
     Capsule capsule;   // the sphere as a zero-length capsule unless has_capsule
     bool has_capsule;  // fitted only when the box's longest side is at least capsule_ratio times each other side
-    Cone cone;
+    PackedCone packed_cone;
+    Cone cone;         // unpack_cone(packed_cone, packed_obb)
     Slab slab;
 };
 

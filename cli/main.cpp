@@ -363,7 +363,9 @@ int main(int argc, char** argv) {
         c->add_option("-o,--output", a.out, "Output asset (.cbk); written atomically")->required();
         c->add_option("--method", a.method, "kmeans (default), vco or morton");
         c->add_option("--coarse", a.options.coarse_size, "Triangles per coarse cluster (default 2048)");
-        c->add_option("--fine", a.options.fine_size, "Maximum triangles per fine cluster (default 16)");
+        // 85 triangles have at most 255 distinct corners: every cluster fits the asset's 8-bit local indices.
+        c->add_option("--fine", a.options.fine_size, "Maximum triangles per fine cluster, 1 to 85 (default 16)")
+            ->check(CLI::Range(1, 85));
         c->add_option("--threads", a.options.threads, "Worker threads, 0 = all (output is identical for any count)");
         c->add_option("--seed", a.options.seed, "Seed of k-means++ (default 1)");
         c->add_option("--k0", a.options.kmeans_branching, "k-means children per node (default 8)");
@@ -400,7 +402,11 @@ int main(int argc, char** argv) {
     query->add_flag("--reference", qa.reference, "Use the reference traversal (every cluster box the segment may touch) "
                                                   "instead of the per-light clustered shadow trees; same answers");
 
-    CLI11_PARSE(app, argc, argv);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e) == 0 ? 0 : 1;  // --help is a success; every bad option is exit code 1
+    }
 
     try {
         if (*info) return run_info(info_files, info_json);

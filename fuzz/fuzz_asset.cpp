@@ -18,18 +18,18 @@ void walk(const cb::AssetView& v) {
     for (uint32_t m = 0; m < v.mesh_count; ++m) {
         const cb::MeshRecord& r = v.meshes[m];
         for (uint32_t f = 0; f < r.fine_count; ++f) {
-            const cb::ClusterRange& c = v.fine[r.first_fine + f];
-            for (uint32_t t = c.first; t < c.first + c.count; ++t)
-                for (int k = 0; k < 3; ++k) {
-                    uint32_t i = v.triangles[(size_t(r.first_triangle) + t) * 3 + k];
-                    acc += v.positions[(size_t(r.first_vertex) + i) * 3];
-                }
-            if (v.fine_bounds.obbs) acc += v.fine_bounds.obbs[r.first_fine + f].half[2];
-            if (v.fine_bounds.cones) acc += v.fine_bounds.cones[r.first_fine + f].axis[2];
+            const cb::FineCluster& c = v.fine[r.first_fine + f];
+            for (uint32_t t = c.first_triangle; t < c.first_triangle + c.triangle_count; ++t) {
+                uint32_t id[3];
+                v.triangle(r, f, t, id);
+                for (int k = 0; k < 3; ++k) acc += v.position(r, id[k])[0];
+            }
+            if (v.fine_bounds.obbs) acc += v.fine_bounds.obb(r.first_fine + f).half[2];
+            if (v.fine_bounds.cones) acc += v.fine_bounds.cone(r.first_fine + f).axis[2];
         }
         for (uint32_t c = 0; c < r.coarse_count; ++c) {
             const cb::ClusterRange& range = v.coarse[r.first_coarse + c];
-            acc += float(v.fine[r.first_fine + range.first + range.count - 1].count);
+            acc += float(v.fine[r.first_fine + range.first + range.count - 1].triangle_count);
             if (v.coarse_bounds.spheres) acc += v.coarse_bounds.spheres[r.first_coarse + c].radius;
         }
     }

@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <algorithm>
 #include <filesystem>
 #include <stdexcept>
 #include <type_traits>
@@ -17,28 +18,87 @@ void append(std::vector<uint8_t>& out, const T* data, size_t count) {
     out.insert(out.end(), p, p + count * sizeof(T));
 }
 
+// The stored geometry of one mesh: vertices renumbered by first use, each fine cluster's corners as 8-bit
+// indices into its list of new vertices followed by reused ones.
+struct CompactMesh {
+    std::vector<float> positions;
+    std::vector<uint8_t> local;
+    std::vector<uint16_t> refs;
+    std::vector<FineCluster> fine;
+};
+
+CompactMesh compact(const AssetMesh& m) {
+    CompactMesh out;
+    const uint32_t unseen = UINT32_MAX;
+    std::vector<uint32_t> renumbered(m.positions.size() / 3, unseen);
+    std::vector<uint32_t> list;  // the current cluster's vertex list, in renumbered indices
+    uint32_t next = 0;
+    for (const ClusterRange& r : m.fine) {
+        if (r.count == 0 || r.count > 255) throw std::invalid_argument("a fine cluster holds " + std::to_string(r.count) + " triangles (1 to 255 can be stored)");
+        FineCluster f{};
+        f.first_triangle = r.first;
+        f.first_vertex = next;
+        f.first_ref = uint32_t(out.refs.size());
+        f.triangle_count = uint8_t(r.count);
+        // New vertices first, in order of first use, then reused ones in order of first use. A vertex too far
+        // back for a 16-bit reference is stored again (same coordinates, so the same triangles).
+        std::vector<uint32_t> reused;
+        for (uint32_t t = r.first; t < r.first + r.count; ++t)
+            for (int k = 0; k < 3; ++k) {
+                uint32_t v = m.triangles[size_t(t) * 3 + k];
+                if (renumbered[v] == unseen || (renumbered[v] < f.first_vertex && f.first_vertex - renumbered[v] > 65535)) {
+                    renumbered[v] = next++;
+                    out.positions.insert(out.positions.end(), &m.positions[size_t(v) * 3], &m.positions[size_t(v) * 3] + 3);
+                } else if (renumbered[v] < f.first_vertex && std::find(reused.begin(), reused.end(), renumbered[v]) == reused.end()) {
+                    reused.push_back(renumbered[v]);
+                }
+            }
+        uint32_t fresh = next - f.first_vertex;
+        if (fresh + reused.size() > max_cluster_vertices)
+            throw std::invalid_argument("a fine cluster uses more than " + std::to_string(max_cluster_vertices) + " vertices");
+        f.vertex_count = uint8_t(fresh);
+        f.ref_count = uint8_t(reused.size());
+        for (uint32_t t = r.first; t < r.first + r.count; ++t)
+            for (int k = 0; k < 3; ++k) {
+                uint32_t v = renumbered[m.triangles[size_t(t) * 3 + k]];
+                uint32_t local = v >= f.first_vertex ? v - f.first_vertex
+                                                     : fresh + uint32_t(std::find(reused.begin(), reused.end(), v) - reused.begin());
+                out.local.push_back(uint8_t(local));
+            }
+        for (uint32_t v : reused) out.refs.push_back(uint16_t(f.first_vertex - v));
+        out.fine.push_back(f);
+    }
+    return out;
+}
+
 }  // namespace
 
 std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances) {
     // Concatenate every mesh's arrays; records hold each mesh's offsets into them.
     std::vector<MeshRecord> records;
     std::vector<float> positions;
-    std::vector<uint32_t> triangles;
-    std::vector<ClusterRange> fine, coarse;
+    std::vector<uint8_t> triangles;
+    std::vector<uint16_t> refs;
+    std::vector<FineCluster> fine;
+    std::vector<ClusterRange> coarse;
     for (const AssetMesh& m : meshes) {
+        CompactMesh c = compact(m);
         MeshRecord r{};
         r.first_vertex = uint32_t(positions.size() / 3);
-        r.vertex_count = uint32_t(m.positions.size() / 3);
+        r.vertex_count = uint32_t(c.positions.size() / 3);
         r.first_triangle = uint32_t(triangles.size() / 3);
         r.triangle_count = uint32_t(m.triangles.size() / 3);
         r.first_fine = uint32_t(fine.size());
         r.fine_count = uint32_t(m.fine.size());
         r.first_coarse = uint32_t(coarse.size());
         r.coarse_count = uint32_t(m.coarse.size());
+        r.first_ref = uint32_t(refs.size());
+        r.ref_count = uint32_t(c.refs.size());
         records.push_back(r);
-        positions.insert(positions.end(), m.positions.begin(), m.positions.end());
-        triangles.insert(triangles.end(), m.triangles.begin(), m.triangles.end());
-        fine.insert(fine.end(), m.fine.begin(), m.fine.end());
+        positions.insert(positions.end(), c.positions.begin(), c.positions.end());
+        triangles.insert(triangles.end(), c.local.begin(), c.local.end());
+        refs.insert(refs.end(), c.refs.begin(), c.refs.end());
+        fine.insert(fine.end(), c.fine.begin(), c.fine.end());
         coarse.insert(coarse.end(), m.coarse.begin(), m.coarse.end());
     }
     std::vector<InstanceRecord> inst(instances.size());
@@ -59,22 +119,26 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
     };
     add(SectionType::meshes, records, sizeof(MeshRecord));
     add(SectionType::positions, positions, 12);
-    add(SectionType::triangles, triangles, 12);
-    add(SectionType::fine_clusters, fine, sizeof(ClusterRange));
+    add(SectionType::triangles, triangles, 3);
+    add(SectionType::vertex_refs, refs, 2);
+    add(SectionType::fine_clusters, fine, sizeof(FineCluster));
     add(SectionType::coarse_clusters, coarse, sizeof(ClusterRange));
     add(SectionType::instances, inst, sizeof(InstanceRecord));
 
-    // Sidedness, one bit per triangle of the whole triangle array, and the per-mesh flags.
+    // Sidedness, one bit per triangle of the whole triangle array (only when some triangle is double-sided),
+    // and the per-mesh flags.
     std::vector<uint32_t> sided((triangles.size() / 3 + 31) / 32, 0), flags;
+    bool any_double_sided = false;
     for (size_t m = 0; m < meshes.size(); ++m) {
         flags.push_back(meshes[m].flags);
         for (size_t t = 0; t < meshes[m].double_sided.size(); ++t)
             if (meshes[m].double_sided[t]) {
                 size_t bit = records[m].first_triangle + t;
                 sided[bit / 32] |= 1u << (bit % 32);
+                any_double_sided = true;
             }
     }
-    add(SectionType::double_sided, sided, 4);
+    if (any_double_sided) add(SectionType::double_sided, sided, 4);
     add(SectionType::mesh_flags, flags, 4);
 
     // Bounds: a section per volume kind and level that every mesh with clusters carries.
@@ -84,16 +148,18 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
         for (const AssetMesh& m : meshes) {
             const LevelVolumes& v = fine ? m.fine_volumes : m.coarse_volumes;
             size_t clusters = fine ? m.fine.size() : m.coarse.size();
-            if ((v.*member).size() != clusters) return;  // not fitted (for every mesh): no section
+            if ((v.*member).size() != clusters) return false;  // not fitted (for every mesh): no section
             all.insert(all.end(), (v.*member).begin(), (v.*member).end());
         }
         add(type, all, sizeof(Record));
+        return true;
     };
     for (bool fine : {true, false}) {
-        level_section(fine ? SectionType::fine_obbs : SectionType::coarse_obbs, fine, &LevelVolumes::obbs);
+        bool boxes = level_section(fine ? SectionType::fine_obbs : SectionType::coarse_obbs, fine, &LevelVolumes::obbs);
         level_section(fine ? SectionType::fine_spheres : SectionType::coarse_spheres, fine, &LevelVolumes::spheres);
         level_section(fine ? SectionType::fine_capsules : SectionType::coarse_capsules, fine, &LevelVolumes::capsules);
-        level_section(fine ? SectionType::fine_cones : SectionType::coarse_cones, fine, &LevelVolumes::cones);
+        if (boxes)  // a cone's apexes are stored relative to its box
+            level_section(fine ? SectionType::fine_cones : SectionType::coarse_cones, fine, &LevelVolumes::cones);
         level_section(fine ? SectionType::fine_slabs : SectionType::coarse_slabs, fine, &LevelVolumes::slabs);
     }
 

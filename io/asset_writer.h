@@ -11,15 +11,17 @@
 namespace cb {
 
 // Bounding volumes of one level's clusters; each vector empty, or one record per cluster.
+// Boxes and cones in their stored, packed form (decode with unpack_obb / unpack_cone); cones need boxes.
 struct LevelVolumes {
-    std::vector<Obb> obbs;
+    std::vector<PackedObb> obbs;
     std::vector<Sphere> spheres;
     std::vector<Capsule> capsules;
-    std::vector<Cone> cones;
+    std::vector<PackedCone> cones;
     std::vector<Slab> slabs;
 };
 
-// One mesh as the asset stores it: triangles already in cluster order, ranges mesh-local.
+// One mesh before encoding: triangles already in cluster order, ranges mesh-local. The encoder renumbers
+// the vertices in order of first use (dropping unused ones) and turns the indices into per-cluster local ones.
 struct AssetMesh {
     std::vector<float> positions;      // xyz per vertex
     std::vector<uint32_t> triangles;   // 3 per triangle, in cluster order
@@ -30,7 +32,9 @@ struct AssetMesh {
     uint32_t flags = 0;                 // MeshFlags
 };
 
-// Bounds sections are written for the volumes every mesh has (each mesh one record per cluster).
+// Bounds sections are written for the volumes every mesh has (each mesh one record per cluster). Throws
+// std::invalid_argument when a fine cluster has more than 255 triangles or its corners more than
+// max_cluster_vertices distinct vertices.
 std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances);
 
 // Writes to a temporary file beside `path` and renames it over `path`, so a failure leaves any existing

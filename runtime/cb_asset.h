@@ -17,14 +17,15 @@
 namespace cb {
 
 constexpr char asset_magic[8] = {'C', 'L', 'B', 'A', 'K', 'E', '\r', '\n'};
-constexpr uint32_t asset_version = 1;
+constexpr uint32_t asset_version = 2;
 constexpr uint32_t asset_alignment = 16;
+constexpr uint32_t max_cluster_vertices = 256;  // a fine cluster's vertex list, addressed by 8-bit local indices
 
 enum class SectionType : uint32_t {
     meshes = 1,           // MeshRecord per mesh
-    positions = 2,        // float x, y, z per vertex, all meshes back to back
-    triangles = 3,        // uint32 x 3 per triangle, mesh-local vertex indices, in cluster order
-    fine_clusters = 4,    // ClusterRange per fine cluster: mesh-local triangle range
+    positions = 2,        // float x, y, z per vertex, all meshes back to back; each mesh's in order of first use
+    triangles = 3,        // uint8 x 3 per triangle: indices into its fine cluster's vertex list, in cluster order
+    fine_clusters = 4,    // FineCluster per fine cluster
     coarse_clusters = 5,  // ClusterRange per coarse cluster: mesh-local fine cluster range
     instances = 6,        // InstanceRecord per instance
     // Bounds, each optional, one record per cluster of its level (see the volume structs below).
@@ -34,12 +35,13 @@ enum class SectionType : uint32_t {
     coarse_spheres = 10,
     fine_capsules = 11,
     coarse_capsules = 12,
-    fine_cones = 13,
+    fine_cones = 13,      // need the same level's obbs: a cone's apexes sit on the line through its box centre
     coarse_cones = 14,
     fine_slabs = 15,
     coarse_slabs = 16,
     double_sided = 17,    // uint32 words: bit t of the whole triangle array set when triangle t is double-sided
     mesh_flags = 18,      // uint32 per mesh: MeshFlags
+    vertex_refs = 19,     // uint16 per entry: fine clusters' reused vertices, as distances back from first_vertex
 };
 
 enum MeshFlags : uint32_t {
@@ -47,9 +49,10 @@ enum MeshFlags : uint32_t {
     mesh_has_double_sided = 2, // some triangle is double-sided
 };
 
-// Bounding volumes, stored in float and rounded outward: every vertex of the cluster is inside, evaluated
-// in double against these floats.
-struct Obb {               // 60 bytes. Inside: |dot(p - center, axis[i])| <= half[i], i = 0, 1, 2
+// Bounding volumes as the runtime uses them, rounded outward: every vertex of the cluster is inside,
+// evaluated in double against these floats. Boxes and cones are stored packed (PackedObb, PackedCone) and
+// decoded by unpack_obb / unpack_cone; the fitter measures against the decoded values.
+struct Obb {               // Inside: |dot(p - center, axis[i])| <= half[i], i = 0, 1, 2
     float center[3];
     float axis[3][3];      // right-handed, unit to float precision
     float half[3];
@@ -68,13 +71,30 @@ struct Capsule {           // 28 bytes. Inside: distance(p, segment a-b) <= radi
 // Normal cone with apex. When `valid`, a point p != front_apex with angle(p - front_apex, axis) below the
 // half-angle is strictly on the front side of every triangle of the cluster that has an area, and a point
 // e with angle(back_apex - e, axis) below it strictly on the back side. `valid` 0: never cull.
-struct Cone {              // 48 bytes
+struct Cone {
     float front_apex[3];
     float back_apex[3];
     float axis[3];         // unit to float precision
     float cos_half_angle;  // rounded up (never wider than proven)
     float sin_half_angle;  // rounded down
     uint32_t valid;
+};
+
+// A box as stored: centre and half-extents as floats, the rotation as a unit quaternion in "smallest three"
+// form (the largest component, made positive, is left out and recomputed).
+struct PackedObb {         // 32 bytes
+    float center[3];
+    float half[3];
+    int16_t rotation[3];   // the three other components, each times 32767 * sqrt(2)
+    uint16_t largest;      // which component (0..3: x, y, z, w) was left out
+};
+
+// A cone as stored: its axis in octahedral form, its apexes as distances along the axis from the centre of
+// the same cluster's box (so cones need boxes). cos_half_angle 2: no valid cone.
+struct PackedCone {        // 16 bytes
+    int16_t axis[2];       // octahedral, each times 32767
+    float front, back;     // apex = box centre + front (back) * axis, computed in double, rounded to float
+    float cos_half_angle;  // rounded up; the sine is derived and rounded down
 };
 
 struct Slab {              // 20 bytes. Inside: low <= dot(p, axis) <= high
@@ -101,11 +121,26 @@ struct SectionEntry {         // 32 bytes each, right after the header
     uint64_t count;           // elements: size == count * element_size
 };
 
-struct MeshRecord {           // 32 bytes
+struct MeshRecord {           // 40 bytes
     uint32_t first_vertex, vertex_count;      // into positions
     uint32_t first_triangle, triangle_count;  // into triangles
     uint32_t first_fine, fine_count;          // into fine_clusters
     uint32_t first_coarse, coarse_count;      // into coarse_clusters
+    uint32_t first_ref, ref_count;            // into vertex_refs
+};
+
+// A fine cluster: a range of the mesh's triangles whose corners index the cluster's vertex list, which is
+// its own new vertices (a range of the mesh's positions) followed by reused ones from earlier clusters (a
+// range of vertex_refs, each entry the distance back from first_vertex, 1 to 65535; a vertex farther back
+// is stored again as a new one). Each of the three ranges starts where the previous cluster's ended.
+struct FineCluster {          // 16 bytes, all mesh-local
+    uint32_t first_triangle;
+    uint32_t first_vertex;
+    uint32_t first_ref;
+    uint8_t triangle_count;   // 1 or more
+    uint8_t vertex_count;     // new vertices
+    uint8_t ref_count;        // reused vertices; vertex_count + ref_count <= max_cluster_vertices
+    uint8_t reserved;         // 0
 };
 
 struct ClusterRange {         // 8 bytes
@@ -119,18 +154,79 @@ struct InstanceRecord {       // 112 bytes
     double transform[12];     // affine, column-major 3x4: columns x, y, z axes then translation
 };
 
-static_assert(sizeof(AssetHeader) == 64 && sizeof(SectionEntry) == 32 && sizeof(MeshRecord) == 32 &&
-                  sizeof(ClusterRange) == 8 && sizeof(InstanceRecord) == 112 && sizeof(Obb) == 60 &&
-                  sizeof(Sphere) == 16 && sizeof(Capsule) == 28 && sizeof(Cone) == 48 && sizeof(Slab) == 20,
+static_assert(sizeof(AssetHeader) == 64 && sizeof(SectionEntry) == 32 && sizeof(MeshRecord) == 40 &&
+                  sizeof(FineCluster) == 16 && sizeof(ClusterRange) == 8 && sizeof(InstanceRecord) == 112 &&
+                  sizeof(PackedObb) == 32 && sizeof(Sphere) == 16 && sizeof(Capsule) == 28 &&
+                  sizeof(PackedCone) == 16 && sizeof(Slab) == 20,
               "asset records must have their documented sizes");
 
-// Per level (fine or coarse): each pointer null when the asset has no such section.
+// ---- decoding boxes and cones. Deterministic double arithmetic rounded to float; the fitter measures
+// its stored extents and apexes against these decoded values with a margin of a few float steps, so a
+// compiler that contracts a multiply-add here differently still decodes a conservative volume.
+
+inline Obb unpack_obb(const PackedObb& p) {
+    double q[4], sum = 0;
+    for (int i = 0, k = 0; i < 4; ++i) {
+        if (i == int(p.largest & 3)) continue;
+        q[i] = double(p.rotation[k++]) / (32767.0 * 1.4142135623730951);
+        sum += q[i] * q[i];
+    }
+    q[p.largest & 3] = std::sqrt(sum < 1 ? 1 - sum : 0);
+    double len = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    double x = q[0] / len, y = q[1] / len, z = q[2] / len, w = q[3] / len;
+    // Columns of the rotation matrix: the box axes.
+    const double axis[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)},
+                               {2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)},
+                               {2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)}};
+    Obb b;
+    for (int i = 0; i < 3; ++i) {
+        b.center[i] = p.center[i];
+        b.half[i] = p.half[i];
+        for (int k = 0; k < 3; ++k) b.axis[i][k] = float(axis[i][k]);
+    }
+    return b;
+}
+
+// The unit axis of an octahedral pair.
+inline void unpack_octahedral(const int16_t* e, double* out) {
+    double x = double(e[0]) / 32767.0, y = double(e[1]) / 32767.0, z = 1 - std::fabs(x) - std::fabs(y);
+    if (z < 0) {
+        double fx = (1 - std::fabs(y)) * (x < 0 ? -1 : 1), fy = (1 - std::fabs(x)) * (y < 0 ? -1 : 1);
+        x = fx, y = fy;
+    }
+    double len = std::sqrt(x * x + y * y + z * z);
+    out[0] = x / len, out[1] = y / len, out[2] = z / len;
+}
+
+inline Cone unpack_cone(const PackedCone& p, const PackedObb& box) {
+    Cone c{};
+    if (!(p.cos_half_angle <= 1)) return c;  // stored 2: no valid cone
+    double a[3];
+    unpack_octahedral(p.axis, a);
+    for (int k = 0; k < 3; ++k) {
+        c.axis[k] = float(a[k]);
+        c.front_apex[k] = float(double(box.center[k]) + double(p.front) * a[k]);
+        c.back_apex[k] = float(double(box.center[k]) + double(p.back) * a[k]);
+    }
+    c.cos_half_angle = p.cos_half_angle;
+    double cosine = p.cos_half_angle, sine = std::sqrt(cosine < 1 ? 1 - cosine * cosine : 0) * (1 - 1e-6);
+    c.sin_half_angle = float(sine);
+    if (double(c.sin_half_angle) > sine) c.sin_half_angle = std::nextafter(c.sin_half_angle, 0.0f);  // round down
+    c.valid = 1;
+    return c;
+}
+
+// Per level (fine or coarse): each pointer null when the asset has no such section. Boxes and cones are
+// read through obb(i) and cone(i), which decode them.
 struct LevelBounds {
-    const Obb* obbs = nullptr;
+    const PackedObb* obbs = nullptr;
     const Sphere* spheres = nullptr;
     const Capsule* capsules = nullptr;
-    const Cone* cones = nullptr;
+    const PackedCone* cones = nullptr;  // only with obbs
     const Slab* slabs = nullptr;
+
+    Obb obb(uint32_t i) const { return unpack_obb(obbs[i]); }
+    Cone cone(uint32_t i) const { return unpack_cone(cones[i], obbs[i]); }
 };
 
 enum class AssetError {
@@ -153,6 +249,7 @@ enum class AssetError {
     bad_instance,
     non_finite,
     bad_bounds_count,
+    bad_packed_bounds,
 };
 
 inline const char* asset_error_text(AssetError e) {
@@ -172,10 +269,11 @@ inline const char* asset_error_text(AssetError e) {
         case AssetError::bad_element_size: return "section element size or count inconsistent";
         case AssetError::bad_mesh_range: return "mesh record range out of bounds";
         case AssetError::bad_cluster_range: return "cluster range out of bounds or not contiguous";
-        case AssetError::bad_index: return "triangle index out of range";
+        case AssetError::bad_index: return "triangle or vertex reference out of range";
         case AssetError::bad_instance: return "instance names a missing mesh";
         case AssetError::non_finite: return "non-finite position, transform or bound";
         case AssetError::bad_bounds_count: return "a per-cluster, per-triangle or per-mesh section has the wrong count";
+        case AssetError::bad_packed_bounds: return "packed box or cone malformed, or cones without boxes";
     }
     return "unknown error";
 }
@@ -192,9 +290,11 @@ struct AssetView {
     uint32_t mesh_count = 0;
     const float* positions = nullptr;
     uint32_t vertex_count = 0;
-    const uint32_t* triangles = nullptr;
+    const uint8_t* triangles = nullptr;  // 3 local indices per triangle; read through triangle()
     uint32_t triangle_count = 0;
-    const ClusterRange* fine = nullptr;
+    const uint16_t* vertex_refs = nullptr;
+    uint32_t ref_count = 0;
+    const FineCluster* fine = nullptr;
     uint32_t fine_count = 0;
     const ClusterRange* coarse = nullptr;
     uint32_t coarse_count = 0;
@@ -207,6 +307,16 @@ struct AssetView {
     bool double_sided(size_t triangle) const {
         return double_sided_bits && (double_sided_bits[triangle / 32] >> (triangle % 32) & 1);
     }
+    // The mesh-local vertex indices of triangle `t` (mesh-local) of fine cluster `c` (mesh-local).
+    void triangle(const MeshRecord& mesh, uint32_t c, uint32_t t, uint32_t out[3]) const {
+        const FineCluster& f = fine[mesh.first_fine + c];
+        const uint8_t* local = triangles + (size_t(mesh.first_triangle) + t) * 3;
+        for (int k = 0; k < 3; ++k)
+            out[k] = local[k] < f.vertex_count ? f.first_vertex + local[k]
+                                               : f.first_vertex - vertex_refs[size_t(mesh.first_ref) + f.first_ref + local[k] - f.vertex_count];
+    }
+    // The position of mesh-local vertex `v`.
+    const float* position(const MeshRecord& mesh, uint32_t v) const { return positions + (size_t(mesh.first_vertex) + v) * 3; }
 };
 
 namespace asset_detail {
@@ -234,6 +344,27 @@ inline bool ranges_tile(const ClusterRange* r, uint32_t n, uint32_t total) {
     return at == total;
 }
 
+// Fine clusters tile the mesh's triangles (none empty), its vertices and its reused-vertex entries, and
+// every local index names an entry of its cluster's vertex list.
+inline bool fine_clusters_ok(const FineCluster* f, uint32_t n, const MeshRecord& m, const uint8_t* triangles,
+                             const uint16_t* refs) {
+    uint64_t t = 0, v = 0, r = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        if (f[i].first_triangle != t || f[i].first_vertex != v || f[i].first_ref != r || f[i].triangle_count == 0 ||
+            f[i].reserved != 0 || uint32_t(f[i].vertex_count) + f[i].ref_count > max_cluster_vertices)
+            return false;
+        if (t + f[i].triangle_count > m.triangle_count) return false;
+        const uint8_t* local = triangles + (size_t(m.first_triangle) + t) * 3;
+        for (size_t k = 0; k < size_t(f[i].triangle_count) * 3; ++k)
+            if (local[k] >= uint32_t(f[i].vertex_count) + f[i].ref_count) return false;
+        if (r + f[i].ref_count > m.ref_count) return false;
+        for (uint32_t k = 0; k < f[i].ref_count; ++k)  // back to an earlier vertex of the mesh
+            if (refs[r + k] == 0 || refs[r + k] > f[i].first_vertex) return false;
+        t += f[i].triangle_count, v += f[i].vertex_count, r += f[i].ref_count;
+    }
+    return t == m.triangle_count && v == m.vertex_count && r == m.ref_count;
+}
+
 }  // namespace asset_detail
 
 inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
@@ -252,28 +383,29 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
 
     struct Known { SectionType type; uint32_t element_size; bool required; const void** data; uint32_t* count; };
     AssetView v;
-    constexpr int known_count = 18;
+    constexpr int known_count = 19;
     const void* ptr[known_count] = {};
     uint32_t bound_count[10] = {}, extra_count[2] = {};
     Known known[known_count] = {
         {SectionType::meshes, sizeof(MeshRecord), true, &ptr[0], &v.mesh_count},
         {SectionType::positions, 12, true, &ptr[1], &v.vertex_count},
-        {SectionType::triangles, 12, true, &ptr[2], &v.triangle_count},
-        {SectionType::fine_clusters, sizeof(ClusterRange), true, &ptr[3], &v.fine_count},
+        {SectionType::triangles, 3, true, &ptr[2], &v.triangle_count},
+        {SectionType::fine_clusters, sizeof(FineCluster), true, &ptr[3], &v.fine_count},
         {SectionType::coarse_clusters, sizeof(ClusterRange), true, &ptr[4], &v.coarse_count},
         {SectionType::instances, sizeof(InstanceRecord), true, &ptr[5], &v.instance_count},
-        {SectionType::fine_obbs, sizeof(Obb), false, &ptr[6], &bound_count[0]},
-        {SectionType::coarse_obbs, sizeof(Obb), false, &ptr[7], &bound_count[1]},
+        {SectionType::fine_obbs, sizeof(PackedObb), false, &ptr[6], &bound_count[0]},
+        {SectionType::coarse_obbs, sizeof(PackedObb), false, &ptr[7], &bound_count[1]},
         {SectionType::fine_spheres, sizeof(Sphere), false, &ptr[8], &bound_count[2]},
         {SectionType::coarse_spheres, sizeof(Sphere), false, &ptr[9], &bound_count[3]},
         {SectionType::fine_capsules, sizeof(Capsule), false, &ptr[10], &bound_count[4]},
         {SectionType::coarse_capsules, sizeof(Capsule), false, &ptr[11], &bound_count[5]},
-        {SectionType::fine_cones, sizeof(Cone), false, &ptr[12], &bound_count[6]},
-        {SectionType::coarse_cones, sizeof(Cone), false, &ptr[13], &bound_count[7]},
+        {SectionType::fine_cones, sizeof(PackedCone), false, &ptr[12], &bound_count[6]},
+        {SectionType::coarse_cones, sizeof(PackedCone), false, &ptr[13], &bound_count[7]},
         {SectionType::fine_slabs, sizeof(Slab), false, &ptr[14], &bound_count[8]},
         {SectionType::coarse_slabs, sizeof(Slab), false, &ptr[15], &bound_count[9]},
         {SectionType::double_sided, 4, false, &ptr[16], &extra_count[0]},
         {SectionType::mesh_flags, 4, false, &ptr[17], &extra_count[1]},
+        {SectionType::vertex_refs, 2, true, &ptr[18], &v.ref_count},
     };
     bool seen[known_count] = {};
     for (uint32_t s = 0; s < h.section_count; ++s) {
@@ -303,24 +435,35 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
         if (seen[6 + b] && bound_count[b] != (b % 2 == 0 ? v.fine_count : v.coarse_count)) return AssetError::bad_bounds_count;
     v.meshes = static_cast<const MeshRecord*>(ptr[0]);
     v.positions = static_cast<const float*>(ptr[1]);
-    v.triangles = static_cast<const uint32_t*>(ptr[2]);
-    v.fine = static_cast<const ClusterRange*>(ptr[3]);
+    v.triangles = static_cast<const uint8_t*>(ptr[2]);
+    v.fine = static_cast<const FineCluster*>(ptr[3]);
     v.coarse = static_cast<const ClusterRange*>(ptr[4]);
     v.instances = static_cast<const InstanceRecord*>(ptr[5]);
+    v.vertex_refs = static_cast<const uint16_t*>(ptr[18]);
     LevelBounds* level[2] = {&v.fine_bounds, &v.coarse_bounds};
     for (int l = 0; l < 2; ++l) {
-        level[l]->obbs = static_cast<const Obb*>(ptr[6 + l]);
+        level[l]->obbs = static_cast<const PackedObb*>(ptr[6 + l]);
         level[l]->spheres = static_cast<const Sphere*>(ptr[8 + l]);
         level[l]->capsules = static_cast<const Capsule*>(ptr[10 + l]);
-        level[l]->cones = static_cast<const Cone*>(ptr[12 + l]);
+        level[l]->cones = static_cast<const PackedCone*>(ptr[12 + l]);
         level[l]->slabs = static_cast<const Slab*>(ptr[14 + l]);
         uint32_t n = l == 0 ? v.fine_count : v.coarse_count;
-        if (!all_finite(level[l]->obbs, level[l]->obbs ? n : 0) || !all_finite(level[l]->spheres, level[l]->spheres ? n : 0) ||
+        if (!all_finite(level[l]->spheres, level[l]->spheres ? n : 0) ||
             !all_finite(level[l]->capsules, level[l]->capsules ? n : 0) || !all_finite(level[l]->slabs, level[l]->slabs ? n : 0))
             return AssetError::non_finite;
-        for (uint32_t i = 0; level[l]->cones && i < n; ++i)
-            if (level[l]->cones[i].valid > 1 || (level[l]->cones[i].valid && !all_finite(&level[l]->cones[i], 1)))
+        if (level[l]->cones && !level[l]->obbs) return AssetError::bad_packed_bounds;
+        for (uint32_t i = 0; level[l]->obbs && i < n; ++i) {
+            const PackedObb& b = level[l]->obbs[i];
+            for (int k = 0; k < 3; ++k)
+                if (!std::isfinite(b.center[k]) || !std::isfinite(b.half[k])) return AssetError::non_finite;
+            if (b.largest > 3) return AssetError::bad_packed_bounds;
+        }
+        for (uint32_t i = 0; level[l]->cones && i < n; ++i) {
+            const PackedCone& c = level[l]->cones[i];
+            if (!(c.cos_half_angle <= 1 || c.cos_half_angle == 2)) return AssetError::bad_packed_bounds;
+            if (c.cos_half_angle <= 1 && (!std::isfinite(c.front) || !std::isfinite(c.back)))
                 return AssetError::non_finite;
+        }
     }
 
     for (size_t i = 0; i < size_t(v.vertex_count) * 3; ++i)
@@ -329,15 +472,15 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
         const MeshRecord& r = v.meshes[m];
         if (!range_ok(r.first_vertex, r.vertex_count, v.vertex_count) ||
             !range_ok(r.first_triangle, r.triangle_count, v.triangle_count) ||
-            !range_ok(r.first_fine, r.fine_count, v.fine_count) || !range_ok(r.first_coarse, r.coarse_count, v.coarse_count))
+            !range_ok(r.first_fine, r.fine_count, v.fine_count) || !range_ok(r.first_coarse, r.coarse_count, v.coarse_count) ||
+            !range_ok(r.first_ref, r.ref_count, v.ref_count))
             return AssetError::bad_mesh_range;
-        // Fine clusters tile the mesh's triangles; coarse clusters tile its fine clusters.
-        if (!ranges_tile(v.fine + r.first_fine, r.fine_count, r.triangle_count) ||
+        // Fine clusters tile the mesh's triangles, vertices and reused entries; coarse clusters tile its
+        // fine clusters.
+        if (!fine_clusters_ok(v.fine + r.first_fine, r.fine_count, r, v.triangles, v.vertex_refs + r.first_ref) ||
             !ranges_tile(v.coarse + r.first_coarse, r.coarse_count, r.fine_count))
             return AssetError::bad_cluster_range;
-        const uint32_t* t = v.triangles + size_t(r.first_triangle) * 3;
-        for (size_t i = 0; i < size_t(r.triangle_count) * 3; ++i)
-            if (t[i] >= r.vertex_count) return AssetError::bad_index;
+
     }
     for (uint32_t i = 0; i < v.instance_count; ++i) {
         if (v.instances[i].mesh >= v.mesh_count) return AssetError::bad_instance;

@@ -69,7 +69,7 @@ public:
         uint32_t fine_depth = 0;
         for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
             const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
-            if (one_sided_ && skippable(view.coarse_bounds.cones, mesh_->first_coarse + c, coarse_triangles(c))) {
+            if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
                 skipped_ += r.count;
                 wanted[c] = false;
                 continue;
@@ -82,7 +82,7 @@ public:
         uint32_t coarse_depth = 0;
         for (uint32_t c : shuffled(mesh_->coarse_count)) {
             if (!wanted[c]) continue;
-            ShadowVolume v = make_shadow_volume(view.coarse_bounds.obbs[mesh_->first_coarse + c], light_);
+            ShadowVolume v = make_shadow_volume(view.coarse_bounds.obb(mesh_->first_coarse + c), light_);
             Node leaf;
             leaf.kind = Node::coarse;
             leaf.child[1] = fine_roots[c];
@@ -194,14 +194,14 @@ private:
 
     Range coarse_triangles(uint32_t c) const {
         const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
-        const ClusterRange& a = view_->fine[mesh_->first_fine + r.first];
-        const ClusterRange& z = view_->fine[mesh_->first_fine + r.first + r.count - 1];
-        return {a.first, z.first + z.count - a.first};
+        const FineCluster& a = view_->fine[mesh_->first_fine + r.first];
+        const FineCluster& z = view_->fine[mesh_->first_fine + r.first + r.count - 1];
+        return {a.first_triangle, z.first_triangle + z.triangle_count - a.first_triangle};
     }
 
     // One-sided: a cluster the light sees entirely from the front, with no double-sided triangle.
-    bool skippable(const Cone* cones, uint32_t index, Range triangles) const {
-        if (!cones || !light_in_front_cone(cones[index], light_)) return false;
+    bool skippable(const LevelBounds& bounds, uint32_t index, Range triangles) const {
+        if (!bounds.cones || !light_in_front_cone(bounds.cone(index), light_)) return false;
         for (uint32_t t = triangles.first; t < triangles.first + triangles.count; ++t)
             if (view_->double_sided(size_t(mesh_->first_triangle) + t)) return false;
         return true;
@@ -213,12 +213,12 @@ private:
         uint32_t root = none;
         for (uint32_t i : shuffled(count)) {
             uint32_t f = first + i;
-            const ClusterRange& r = view_->fine[mesh_->first_fine + f];
-            if (one_sided_ && skippable(view_->fine_bounds.cones, mesh_->first_fine + f, {r.first, r.count})) {
+            const FineCluster& r = view_->fine[mesh_->first_fine + f];
+            if (one_sided_ && skippable(view_->fine_bounds, mesh_->first_fine + f, {r.first_triangle, r.triangle_count})) {
                 ++skipped_;
                 continue;
             }
-            ShadowVolume v = view_->fine_bounds.obbs ? make_shadow_volume(view_->fine_bounds.obbs[mesh_->first_fine + f], light_)
+            ShadowVolume v = view_->fine_bounds.obbs ? make_shadow_volume(view_->fine_bounds.obb(mesh_->first_fine + f), light_)
                                                      : ShadowVolume{};
             if (!v.valid) {
                 always.push_back(f);

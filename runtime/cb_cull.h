@@ -87,19 +87,19 @@ inline size_t cull_clusters(const AssetView& v, const Frustum& f, bool backface,
         }
         for (uint32_t c = 0; c < mesh.coarse_count; ++c) {
             const ClusterRange& range = v.coarse[mesh.first_coarse + c];
-            if (v.coarse_bounds.obbs && !cull_detail::box_in_frustum(v.coarse_bounds.obbs[mesh.first_coarse + c], planes, f.count)) {
+            if (v.coarse_bounds.obbs && !cull_detail::box_in_frustum(v.coarse_bounds.obb(mesh.first_coarse + c), planes, f.count)) {
                 if (stats) ++stats->coarse_culled;
                 continue;
             }
             for (uint32_t k = range.first; k < range.first + range.count; ++k) {
                 uint32_t fine = mesh.first_fine + k;
                 if (stats) ++stats->fine_tested;
-                if (!cull_detail::box_in_frustum(v.fine_bounds.obbs[fine], planes, f.count)) {
+                if (!cull_detail::box_in_frustum(v.fine_bounds.obb(fine), planes, f.count)) {
                     if (stats) ++stats->frustum_culled;
                     continue;
                 }
-                if (backface && v.fine_bounds.cones && cull_detail::eye_in_back_cone(v.fine_bounds.cones[fine], eye) &&
-                    !cull_detail::any_double_sided(v, mesh, v.fine[fine].first, v.fine[fine].count)) {
+                if (backface && v.fine_bounds.cones && cull_detail::eye_in_back_cone(v.fine_bounds.cone(fine), eye) &&
+                    !cull_detail::any_double_sided(v, mesh, v.fine[fine].first_triangle, v.fine[fine].triangle_count)) {
                     if (stats) ++stats->backface_culled;
                     continue;
                 }

@@ -228,14 +228,14 @@ struct QueryStats {
 // that blocks. Sets *touched when a tested triangle was touched.
 inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double* p, const double* light,
                            bool one_sided, QueryStats* stats, bool* touched = nullptr) {
-    const ClusterRange& range = v.fine[mesh.first_fine + f];
-    const float* pos = v.positions + size_t(mesh.first_vertex) * 3;
-    const uint32_t* tri = v.triangles + size_t(mesh.first_triangle) * 3;
+    const FineCluster& range = v.fine[mesh.first_fine + f];
     if (stats) ++stats->clusters_tested;
-    for (uint32_t t = range.first; t < range.first + range.count; ++t) {
+    for (uint32_t t = range.first_triangle; t < range.first_triangle + range.triangle_count; ++t) {
+        uint32_t id[3];
+        v.triangle(mesh, f, t, id);
         double corner[3][3];
         for (int k = 0; k < 3; ++k)
-            for (int j = 0; j < 3; ++j) corner[k][j] = pos[size_t(tri[size_t(t) * 3 + k]) * 3 + j];
+            for (int j = 0; j < 3; ++j) corner[k][j] = v.position(mesh, id[k])[j];
         if (stats) ++stats->triangles_tested;
         bool two_sided = !one_sided || v.double_sided(size_t(mesh.first_triangle) + t);
         SegmentTest s = segment_triangle(p, light, corner[0], corner[1], corner[2], two_sided);
@@ -256,7 +256,7 @@ inline bool occluded_reference(const AssetView& v, const double* p, const double
         apply_instance(inv, light, ll);
         const MeshRecord& mesh = v.meshes[inst.mesh];
         for (uint32_t f = 0; f < mesh.fine_count && !blocked; ++f) {
-            if (v.fine_bounds.obbs && !segment_may_touch_box(v.fine_bounds.obbs[mesh.first_fine + f], lp, ll)) continue;
+            if (v.fine_bounds.obbs && !segment_may_touch_box(v.fine_bounds.obb(mesh.first_fine + f), lp, ll)) continue;
             blocked = cluster_blocks(v, mesh, f, lp, ll, one_sided, stats, &touched);
         }
     }

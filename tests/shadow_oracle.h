@@ -54,14 +54,18 @@ inline bool oracle_occluded(const cb::AssetView& v, const double* p, const doubl
         cb::apply_instance(inv, p, lp);
         cb::apply_instance(inv, light, ll);
         const cb::MeshRecord& m = v.meshes[v.instances[i].mesh];
-        for (uint32_t t = 0; t < m.triangle_count; ++t) {
-            double c[3][3];
-            for (int k = 0; k < 3; ++k)
-                for (int j = 0; j < 3; ++j)
-                    c[k][j] = v.positions[(size_t(m.first_vertex) + v.triangles[(size_t(m.first_triangle) + t) * 3 + k]) * 3 + j];
-            cb::SegmentTest s = oracle(lp, ll, c[0], c[1], c[2], !one_sided || v.double_sided(size_t(m.first_triangle) + t));
-            touching |= s.touching;
-            if (s.blocks) return true;
+        for (uint32_t f = 0; f < m.fine_count; ++f) {
+            const cb::FineCluster& fc = v.fine[m.first_fine + f];
+            for (uint32_t t = fc.first_triangle; t < fc.first_triangle + fc.triangle_count; ++t) {
+                uint32_t id[3];
+                v.triangle(m, f, t, id);
+                double c[3][3];
+                for (int k = 0; k < 3; ++k)
+                    for (int j = 0; j < 3; ++j) c[k][j] = v.position(m, id[k])[j];
+                cb::SegmentTest s = oracle(lp, ll, c[0], c[1], c[2], !one_sided || v.double_sided(size_t(m.first_triangle) + t));
+                touching |= s.touching;
+                if (s.blocks) return true;
+            }
         }
     }
     return false;

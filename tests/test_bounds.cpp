@@ -225,10 +225,13 @@ TEST(Bounds, RotatedBoxIsFoundExactly) {
         pts.insert(pts.end(), {x1, y2, z2});
     }
     double origin[3] = {0, 0, 0};
+    // The stored rotation is a 16-bit quaternion (steps of about 2e-5 radians), so the stored box is up to a
+    // few 1e-4 larger than the exact one; never smaller.
     cb::Obb refined = cb::fit_obb(pts.data(), 8, origin, cb::ObbMethod::refined);
-    EXPECT_NEAR(cb::obb_volume(refined), 8.0, 1e-4);
+    EXPECT_GE(cb::obb_volume(refined), 8.0);
+    EXPECT_NEAR(cb::obb_volume(refined), 8.0, 8 * 3e-4);
     cb::Obb optimal = cb::fit_obb(pts.data(), 8, origin, cb::ObbMethod::cgal_optimal);
-    EXPECT_NEAR(cb::obb_volume(optimal), 8.0, 1e-3);
+    EXPECT_NEAR(cb::obb_volume(optimal), 8.0, 8 * 3e-4);
 }
 
 TEST(Bounds, MinimalSphereIsMinimal) {
@@ -282,30 +285,39 @@ TEST(Bounds, AssetBoundsContainEveryVertexOfTheirCluster) {
     for (uint32_t m = 0; m < view.mesh_count; ++m) {
         const cb::MeshRecord& r = view.meshes[m];
         const float* positions = view.positions + size_t(r.first_vertex) * 3;
-        const uint32_t* tris = view.triangles + size_t(r.first_triangle) * 3;
+        // The decoded triangles, in cluster order, as plain indices for the checks.
+        std::vector<uint32_t> tris;
+        for (uint32_t f = 0; f < r.fine_count; ++f) {
+            const cb::FineCluster& c = view.fine[r.first_fine + f];
+            for (uint32_t t = c.first_triangle; t < c.first_triangle + c.triangle_count; ++t) {
+                uint32_t id[3];
+                view.triangle(r, f, t, id);
+                tris.insert(tris.end(), id, id + 3);
+            }
+        }
         std::vector<uint32_t> ids(r.triangle_count);
         std::iota(ids.begin(), ids.end(), 0u);
         auto check = [&](const cb::LevelBounds& level, uint32_t cluster, uint32_t first, uint32_t count) {
             cb::ClusterBounds b{};
-            b.obb = level.obbs[cluster];
+            b.obb = level.obb(cluster);
             b.sphere = level.spheres[cluster];
             b.capsule = level.capsules[cluster];
             b.has_capsule = true;  // a sphere-as-capsule must contain the cluster too
-            b.cone = level.cones[cluster];
+            b.cone = level.cone(cluster);
             b.slab = level.slabs[cluster];
-            misses += containment_misses(b, positions, tris, ids.data() + first, count);
-            violations += cone_violations(b, positions, tris, ids.data() + first, count, rng, 2);
+            misses += containment_misses(b, positions, tris.data(), ids.data() + first, count);
+            violations += cone_violations(b, positions, tris.data(), ids.data() + first, count, rng, 2);
             ++checked;
         };
         for (uint32_t f = 0; f < r.fine_count; ++f) {
-            const cb::ClusterRange& c = view.fine[r.first_fine + f];
-            check(view.fine_bounds, r.first_fine + f, c.first, c.count);
+            const cb::FineCluster& c = view.fine[r.first_fine + f];
+            check(view.fine_bounds, r.first_fine + f, c.first_triangle, c.triangle_count);
         }
         for (uint32_t c = 0; c < r.coarse_count; ++c) {
             const cb::ClusterRange& range = view.coarse[r.first_coarse + c];
-            const cb::ClusterRange& a = view.fine[r.first_fine + range.first];
-            const cb::ClusterRange& z = view.fine[r.first_fine + range.first + range.count - 1];
-            check(view.coarse_bounds, r.first_coarse + c, a.first, z.first + z.count - a.first);
+            const cb::FineCluster& a = view.fine[r.first_fine + range.first];
+            const cb::FineCluster& z = view.fine[r.first_fine + range.first + range.count - 1];
+            check(view.coarse_bounds, r.first_coarse + c, a.first_triangle, z.first_triangle + z.triangle_count - a.first_triangle);
         }
     }
     EXPECT_EQ(checked, size_t(view.fine_count) + view.coarse_count);

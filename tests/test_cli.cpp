@@ -157,6 +157,13 @@ TEST(Cli, BakeWritesTheChosenBounds) {
 
     EXPECT_EQ(run("bake " + data("small/cube.obj") + " --bounds obb,box -o " + out.string()).code, 1);
     EXPECT_EQ(run("bake " + data("small/cube.obj") + " --obb best -o " + out.string()).code, 1);
+    // Cones are stored relative to boxes: asking for cones alone stores the boxes too.
+    ASSERT_EQ(run("bake " + data("small/cube.obj") + " --bounds cone -o " + out.string()).code, 0);
+    v = run("validate " + out.string());
+    EXPECT_NE(v.out.find("fine bounds: obb cone"), std::string::npos) << v.out;
+    // Fine clusters must fit 8-bit local indices: 85 triangles at most.
+    EXPECT_EQ(run("bake " + data("small/cube.obj") + " --fine 86 -o " + out.string()).code, 1);
+    EXPECT_EQ(run("bake " + data("small/cube.obj") + " --fine 85 -o " + out.string()).code, 0);
     std::filesystem::remove(out);
 }
 

@@ -11,6 +11,7 @@
 #include "cluster.h"
 #include "load.h"
 #include "nearest_centre.h"
+#include "baked.h"
 #include "shared_scenes.h"
 
 namespace fs = std::filesystem;
@@ -305,8 +306,11 @@ TEST(Cluster, EveryMeshOfEverySharedFile) {
     EXPECT_GE(files, 30u);
 }
 
-TEST(Cluster, AssetRoundTripsThroughTheRuntimeView) {
-    cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+// Encodes a scene, opens it as the runtime does, and checks the decoded triangles are the original ones
+// (same corner coordinates and winding), permuted.
+void check_round_trip(const std::string& path) {
+    SCOPED_TRACE(path);
+    cb::Scene scene = cb::load_scene(path);
     cb::ClusterOptions o;
     cb::BakeStats stats;
     std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, o, stats);
@@ -319,15 +323,25 @@ TEST(Cluster, AssetRoundTripsThroughTheRuntimeView) {
     EXPECT_EQ(view.instance_count, scene.instances.size());
     EXPECT_EQ(view.triangle_count, stats.triangles);
     EXPECT_EQ(view.fine_count, stats.fine_clusters);
-    // The clustered triangles are the original ones, permuted.
+    // The clustered triangles are the original ones (same corner positions, same winding), permuted.
     for (uint32_t m = 0; m < view.mesh_count; ++m) {
         const cb::MeshRecord& r = view.meshes[m];
-        std::vector<std::array<uint32_t, 3>> a, b;
-        for (uint32_t t = 0; t < r.triangle_count; ++t) {
-            const uint32_t* x = view.triangles + size_t(r.first_triangle + t) * 3;
-            a.push_back({x[0], x[1], x[2]});
-            const uint32_t* y = scene.meshes[m].indices.data() + size_t(t) * 3;
-            b.push_back({y[0], y[1], y[2]});
+        std::vector<std::array<float, 9>> a, b;
+        for (uint32_t f = 0; f < r.fine_count; ++f) {
+            const cb::FineCluster& c = view.fine[r.first_fine + f];
+            for (uint32_t t = c.first_triangle; t < c.first_triangle + c.triangle_count; ++t) {
+                uint32_t id[3];
+                view.triangle(r, f, t, id);
+                std::array<float, 9> x;
+                for (int k = 0; k < 9; ++k) x[k] = view.position(r, id[k / 3])[k % 3];
+                a.push_back(x);
+            }
+        }
+        const cb::Mesh& mesh = scene.meshes[m];
+        for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+            std::array<float, 9> y;
+            for (int k = 0; k < 9; ++k) y[k] = mesh.positions[size_t(mesh.indices[t * 3 + k / 3]) * 3 + k % 3];
+            b.push_back(y);
         }
         std::sort(a.begin(), a.end());
         std::sort(b.begin(), b.end());
@@ -341,6 +355,71 @@ TEST(Cluster, AssetRoundTripsThroughTheRuntimeView) {
     }
     for (size_t cut : {size_t(0), size_t(63), size_t(64), bytes.size() - 16})
         EXPECT_NE(cb::open_asset(aligned.data(), cut, &view), cb::AssetError::ok) << cut;
+}
+
+TEST(Cluster, AssetRoundTripsThroughTheRuntimeView) {
+    check_round_trip(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    // Over 65,535 vertices: some reused vertices lie too far back for a 16-bit reference and are stored again.
+    if (fs::exists(CB_SHARED_DATA)) check_round_trip(std::string(CB_SHARED_DATA) + "/scanned/dragon_vrip_res2_binary.ply");
+}
+
+// The bytes of a section of an encoded asset, and a way to re-seal the checksum after editing them.
+struct Sections {
+    std::vector<uint64_t> storage;
+    size_t size;
+    uint8_t* bytes() { return reinterpret_cast<uint8_t*>(storage.data()); }
+    cb::SectionEntry* entry(cb::SectionType type) {
+        cb::AssetHeader h;
+        std::memcpy(&h, bytes(), sizeof h);
+        for (uint32_t i = 0; i < h.section_count; ++i) {
+            auto* e = reinterpret_cast<cb::SectionEntry*>(bytes() + sizeof(cb::AssetHeader) + i * sizeof(cb::SectionEntry));
+            if (e->type == uint32_t(type)) return e;
+        }
+        return nullptr;
+    }
+    template <class T>
+    T* data(cb::SectionType type) { return reinterpret_cast<T*>(bytes() + entry(type)->offset); }
+    cb::AssetError open() {
+        uint64_t sum = cb::fnv1a64(bytes() + sizeof(cb::AssetHeader), size - sizeof(cb::AssetHeader));
+        std::memcpy(bytes() + offsetof(cb::AssetHeader, checksum), &sum, 8);
+        cb::AssetView view;
+        return cb::open_asset(storage.data(), size, &view);
+    }
+};
+
+TEST(Cluster, AssetReaderRefusesMalformedClustersAndPackedBounds) {
+    cb::test::Baked good = cb::test::bake(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    ASSERT_GT(good.view.mesh_count, 0u);
+    size_t size = 0;
+    {
+        cb::AssetHeader h;
+        std::memcpy(&h, good.storage.data(), sizeof h);
+        size = h.file_size;
+    }
+    auto fresh = [&] { return Sections{good.storage, size}; };
+    using T = cb::SectionType;
+    ASSERT_EQ(fresh().open(), cb::AssetError::ok);
+    Sections s = fresh();
+    s.data<uint16_t>(T::vertex_refs)[0] = 0;  // a reference to the cluster's own first vertex
+    EXPECT_EQ(s.open(), cb::AssetError::bad_cluster_range);
+    s = fresh();
+    s.data<uint16_t>(T::vertex_refs)[0] = 65535;  // before the mesh's first vertex
+    EXPECT_EQ(s.open(), cb::AssetError::bad_cluster_range);
+    s = fresh();
+    s.data<uint8_t>(T::triangles)[5] = 200;  // past the first cluster's vertex list
+    EXPECT_EQ(s.open(), cb::AssetError::bad_cluster_range);
+    s = fresh();
+    s.data<cb::FineCluster>(T::fine_clusters)[1].first_vertex += 1;  // vertex ranges no longer tile
+    EXPECT_EQ(s.open(), cb::AssetError::bad_cluster_range);
+    s = fresh();
+    s.data<cb::PackedObb>(T::fine_obbs)[0].largest = 4;
+    EXPECT_EQ(s.open(), cb::AssetError::bad_packed_bounds);
+    s = fresh();
+    s.data<cb::PackedCone>(T::fine_cones)[0].cos_half_angle = 1.5f;
+    EXPECT_EQ(s.open(), cb::AssetError::bad_packed_bounds);
+    s = fresh();
+    s.entry(T::fine_obbs)->type = 999;  // cones without the boxes they are stored relative to
+    EXPECT_EQ(s.open(), cb::AssetError::bad_packed_bounds);
 }
 
 TEST(Cluster, CityModelAtHugeCoordinates) {

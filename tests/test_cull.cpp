@@ -101,12 +101,14 @@ TEST(Cull, ConservativeAndEffectiveOnTheDefaultScene) {
             for (uint32_t c = 0; c < m.fine_count; ++c) {
                 ++total;
                 if (visible[i][m.first_fine + c]) continue;
-                const cb::ClusterRange& r = v.fine[m.first_fine + c];
+                const cb::FineCluster& r = v.fine[m.first_fine + c];
                 bool all_back = true, any_inside = false;
-                for (uint32_t t = r.first; t < r.first + r.count; ++t) {
+                for (uint32_t t = r.first_triangle; t < r.first_triangle + r.triangle_count; ++t) {
                     double local[3][3], world[3][3];
+                    uint32_t id[3];
+                    v.triangle(m, c, t, id);
                     for (int k = 0; k < 3; ++k) {
-                        const float* q = v.positions + (size_t(m.first_vertex) + v.triangles[(size_t(m.first_triangle) + t) * 3 + k]) * 3;
+                        const float* q = v.position(m, id[k]);
                         local[k][0] = q[0], local[k][1] = q[1], local[k][2] = q[2];
                         cb::apply_instance(v.instances[i].transform, local[k], world[k]);
                     }
