@@ -16,6 +16,10 @@
 // Two levels: a tree over the coarse clusters' volumes whose cluster nodes enter a tree over that coarse
 // cluster's fine clusters (when the asset has coarse boxes; otherwise one tree over the fine clusters).
 //
+// Every node also keeps the smallest closing distance of the volumes below it: a point nearer the light
+// than that skips the whole subtree (nothing there can shadow it). Plane nodes and cluster nodes live in
+// two arrays of 32-byte records; a child reference with the top bit set names a cluster node.
+//
 // Building allocates (std::vector); queries do not: the caller passes a stack of stack_size() entries.
 // Header-only C++17, no exceptions. MIT licensed (runtime/LICENSE).
 #pragma once
@@ -43,7 +47,8 @@ public:
         view_ = &view;
         one_sided_ = one_sided;
         skipped_ = 0;
-        nodes_.clear();
+        planes_.clear();
+        leaves_.clear();
         always_fine_.clear();
         always_coarse_.clear();
         root_ = none;
@@ -53,13 +58,19 @@ public:
         if (!usable_) return;  // a singular transform flattens the mesh: it blocks nothing
         apply_instance(inverse_, world_light, light_);
         mesh_ = &view.meshes[view.instances[instance].mesh];
+        bool two = two_levels && view.coarse_bounds.obbs;
+        // At most 4 planes and a cluster node per volume: reserve once, so capacity is what is used.
+        size_t volumes = mesh_->fine_count + (two ? mesh_->coarse_count : 0);
+        planes_.reserve(volumes * 4);
+        leaves_.reserve(volumes);
 
-        if (!two_levels || !view.coarse_bounds.obbs) {
+        if (!two) {
             // One level: every fine cluster in one tree; always-tested ones in one list.
             uint32_t fine_depth = 0;
             root_ = build_fine_tree(0, mesh_->fine_count, fine_depth, always_fine_);
             top_always_ = {0, uint32_t(always_fine_.size())};
             depth_ = fine_depth;
+            shrink();
             return;
         }
         // Two levels: a fine tree per coarse cluster, then the coarse tree over them.
@@ -83,19 +94,19 @@ public:
         for (uint32_t c : shuffled(mesh_->coarse_count)) {
             if (!wanted[c]) continue;
             ShadowVolume v = make_shadow_volume(view.coarse_bounds.obb(mesh_->first_coarse + c), light_);
-            Node leaf;
-            leaf.kind = Node::coarse;
-            leaf.child[1] = fine_roots[c];
+            Leaf leaf;
+            leaf.kind = Leaf::coarse;
+            leaf.fine_root = fine_roots[c];
             leaf.always = fine_always[c];
             if (!v.valid) {  // the light is in or level with this coarse box: enter its fine tree every time
-                always_coarse_.push_back(uint32_t(nodes_.size()));
-                nodes_.push_back(leaf);
+                leaf.near = leaf.near_min = 0;
+                always_coarse_.push_back(add_leaf(leaf));
                 continue;
             }
-            leaf.near = v.near;
             insert(root_, v, leaf, coarse_depth);
         }
         depth_ = coarse_depth + fine_depth + 1;
+        shrink();
     }
 
     // Entries the query stack needs: pending siblings along the deepest path through both levels.
@@ -117,32 +128,42 @@ public:
         return root_ != none && walk(root_, stack, q);
     }
 
-    size_t node_count() const { return nodes_.size(); }
+    size_t node_count() const { return planes_.size() + leaves_.size(); }
+    // Bytes this tree holds (the asset it reads is not counted).
     size_t memory_bytes() const {
-        return nodes_.capacity() * sizeof(Node) + (always_fine_.capacity() + always_coarse_.capacity()) * sizeof(uint32_t);
+        return planes_.capacity() * sizeof(PlaneNode) + leaves_.capacity() * sizeof(Leaf) +
+               (always_fine_.capacity() + always_coarse_.capacity()) * sizeof(uint32_t);
     }
     size_t always_tested() const { return always_fine_.size(); }
     size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the light sees from the front
 
 private:
+    static constexpr uint32_t leaf_bit = 0x80000000u;
+
     struct Range {
         uint32_t first = 0, count = 0;
     };
 
-    struct Node {
-        enum Kind : uint32_t { plane, fine, coarse };
-        double n[3] = {0, 0, 0};  // plane through the light; inside: dot(n, p - light) >= 0
-        double n_length = 0;
-        // Plane nodes: every point of every volume in the straddling subtree makes an angle with the plane
-        // whose sine is at most this; a point farther from the plane skips that subtree.
-        double straddle_sine = 0;
-        double near = 0;          // cluster nodes: closing distance
-        Kind kind = plane;
-        uint32_t cluster = none;  // fine nodes: the fine cluster (mesh-local)
-        // plane: inside, outside, straddling. fine: [0] the volumes inside. coarse: [0] the volumes
-        // inside, [1] the root of its fine tree.
-        uint32_t child[3] = {none, none, none};
-        Range always;             // coarse nodes: its fine clusters tested whenever it is entered
+    // A plane through the light; inside: dot(n, p - light) >= 0.
+    struct PlaneNode {          // 32 bytes
+        float n[3];             // unit to float precision
+        // Every point of every volume in the straddling subtree makes an angle with the plane whose sine is
+        // at most this (rounded up); a point farther from the plane skips that subtree.
+        float straddle_sine;
+        float near_min;         // smallest closing distance below (rounded down)
+        uint32_t child[3];      // inside, outside, straddling
+    };
+
+    // The end of a volume's chain: its cluster, then the volumes inserted later inside it.
+    struct Leaf {               // 32 bytes
+        enum Kind : uint32_t { fine, coarse };
+        float near = 0;         // closing distance (rounded down)
+        float near_min = 0;     // the smaller of near and the closing distances in `inside`
+        uint32_t inside = none;
+        uint32_t fine_root = none;  // coarse: the root of its fine tree
+        uint32_t cluster = none;    // fine: the fine cluster (mesh-local)
+        Range always;               // coarse: its fine clusters tested whenever it is entered
+        Kind kind = fine;
     };
 
     struct Query {
@@ -150,29 +171,50 @@ private:
         QueryStats* stats;
     };
 
+    static float round_down(double x) {
+        float f = float(x);
+        return double(f) > x ? std::nextafter(f, 0.0f) : f;
+    }
+    static float round_up(double x) {
+        float f = float(x);
+        return double(f) < x ? std::nextafter(f, 2.0f) : f;
+    }
+
+    uint32_t add_leaf(const Leaf& leaf) {
+        leaves_.push_back(leaf);
+        return uint32_t(leaves_.size() - 1) | leaf_bit;
+    }
+
+    void shrink() {  // keep memory_bytes honest when some clusters had no volume
+        planes_.shrink_to_fit();
+        leaves_.shrink_to_fit();
+    }
+
     bool walk(uint32_t start, uint32_t* stack, const Query& q) const {
         size_t top = 0;
         stack[top++] = start;
         while (top) {
-            const Node& node = nodes_[stack[--top]];
+            uint32_t ref = stack[--top];
             if (q.stats) ++q.stats->nodes_visited;
-            if (node.kind == Node::fine) {  // its triangles, then the volumes inside it
-                if (q.dist >= node.near && test_cluster(node.cluster, q)) return true;
-                if (node.child[0] != none) stack[top++] = node.child[0];
-                continue;
-            }
-            if (node.kind == Node::coarse) {  // into its fine tree, then the coarse volumes inside it
-                if (node.child[0] != none) stack[top++] = node.child[0];
-                if (q.dist >= node.near) {
-                    for (uint32_t i = node.always.first; i < node.always.first + node.always.count; ++i)
+            if (ref & leaf_bit) {
+                const Leaf& leaf = leaves_[ref & ~leaf_bit];
+                if (q.dist < leaf.near_min) continue;  // nearer the light than everything here
+                if (leaf.inside != none) stack[top++] = leaf.inside;
+                if (q.dist < leaf.near) continue;
+                if (leaf.kind == Leaf::fine) {  // its triangles
+                    if (test_cluster(leaf.cluster, q)) return true;
+                } else {  // into its fine tree
+                    for (uint32_t i = leaf.always.first; i < leaf.always.first + leaf.always.count; ++i)
                         if (test_cluster(always_fine_[i], q)) return true;
-                    if (node.child[1] != none) stack[top++] = node.child[1];
+                    if (leaf.fine_root != none) stack[top++] = leaf.fine_root;
                 }
                 continue;
             }
+            const PlaneNode& node = planes_[ref];
+            if (q.dist < node.near_min) continue;
             double s = node.n[0] * q.e[0] + node.n[1] * q.e[1] + node.n[2] * q.e[2];
-            double tol = 1e-9 * node.n_length * q.dist;  // near the plane: both sides
-            if (node.child[2] != none && std::fabs(s) <= (node.straddle_sine + 1e-9) * node.n_length * q.dist)
+            double tol = 1e-9 * q.dist;  // near the plane: both sides
+            if (node.child[2] != none && std::fabs(s) <= (double(node.straddle_sine) + 1e-9) * q.dist)
                 stack[top++] = node.child[2];
             if (s <= tol && node.child[1] != none) stack[top++] = node.child[1];
             if (s >= -tol && node.child[0] != none) stack[top++] = node.child[0];
@@ -224,10 +266,9 @@ private:
                 always.push_back(f);
                 continue;
             }
-            Node leaf;
-            leaf.kind = Node::fine;
+            Leaf leaf;
+            leaf.kind = Leaf::fine;
             leaf.cluster = f;
-            leaf.near = v.near;
             insert(root, v, leaf, depth);
         }
         return root;
@@ -237,19 +278,21 @@ private:
     static void edge_rays(const ShadowVolume& v, double rays[4][3]) {
         const int pairs[4][2] = {{0, 2}, {2, 1}, {1, 3}, {3, 0}};
         for (int r = 0; r < 4; ++r) {
-            const double* a = v.normal[pairs[r][0]];
-            const double* b = v.normal[pairs[r][1]];
-            double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+            const float* a = v.normal[pairs[r][0]];
+            const float* b = v.normal[pairs[r][1]];
+            double c[3] = {double(a[1]) * b[2] - double(a[2]) * b[1], double(a[2]) * b[0] - double(a[0]) * b[2],
+                           double(a[0]) * b[1] - double(a[1]) * b[0]};
             // Orient each ray into the cone: on the inside of the other two planes.
-            const double* other = v.normal[pairs[(r + 2) % 4][0]];
+            const float* other = v.normal[pairs[(r + 2) % 4][0]];
             double s = c[0] * other[0] + c[1] * other[1] + c[2] * other[2];
             double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
             for (int k = 0; k < 3; ++k) rays[r][k] = (s < 0 ? -c[k] : c[k]) / len;
         }
     }
 
-    // Inserts volume `v` ending in `leaf` into the tree rooted at `root` (a variable outside nodes_).
-    void insert(uint32_t& root, const ShadowVolume& v, const Node& leaf, uint32_t& max_depth) {
+    // Inserts volume `v` ending in `leaf` into the tree rooted at `root` (a variable outside the arrays).
+    void insert(uint32_t& root, const ShadowVolume& v, Leaf leaf, uint32_t& max_depth) {
+        float near = round_down(v.near);
         double rays[4][3];
         edge_rays(v, rays);
         // Every direction in the cone is a positive mix of the rays, whose length is at least `spread` times
@@ -259,45 +302,53 @@ private:
             for (int k = 0; k < 3; ++k) dir[k] += r[k];
         double dl = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]), spread = 1;
         for (const double* r : rays) spread = std::min(spread, (r[0] * dir[0] + r[1] * dir[1] + r[2] * dir[2]) / dl);
-        // Walk down while the volume falls clearly on one side; stop at the first empty slot, named by its
-        // parent and child index (pointers into nodes_ would not survive the appends below).
-        uint32_t parent = none, at = root;
+        // Walk down while the volume falls clearly on one side; stop at the first empty slot, named by the
+        // node that holds it (indices, since the appends below may move the arrays).
+        uint32_t* slot = &root;
+        uint32_t parent = none, depth = 0;
         int which = 0;
-        uint32_t depth = 0;
-        while (at != none) {
-            const Node node = nodes_[at];  // a copy: the straddle bound is written back below
+        for (uint32_t at = root; at != none;) {
             ++depth;
-            if (node.kind != Node::plane) {  // past an earlier volume's chain: into its subtree
-                which = 0;
-            } else {
-                bool in = true, out = true;
-                double widest = 0;
-                for (const double* r : rays) {
-                    double s = (node.n[0] * r[0] + node.n[1] * r[1] + node.n[2] * r[2]) / node.n_length;
-                    in &= s > 1e-9;
-                    out &= s < -1e-9;
-                    widest = std::max(widest, std::fabs(s));
-                }
-                which = in ? 0 : out ? 1 : 2;
-                if (which == 2) {
-                    double sine = spread > 0 ? std::min(1.0, widest / spread) : 1.0;
-                    nodes_[at].straddle_sine = std::max(node.straddle_sine, sine);
-                }
-            }
             parent = at;
-            at = nodes_[at].child[which];
+            if (at & leaf_bit) {  // past an earlier volume's chain: into its subtree
+                Leaf& l = leaves_[at & ~leaf_bit];
+                l.near_min = std::min(l.near_min, near);
+                which = 0;
+                at = l.inside;
+                continue;
+            }
+            PlaneNode& node = planes_[at];
+            node.near_min = std::min(node.near_min, near);
+            bool in = true, out = true;
+            double widest = 0;
+            for (const double* r : rays) {
+                double s = node.n[0] * r[0] + node.n[1] * r[1] + node.n[2] * r[2];
+                in &= s > 1e-9;
+                out &= s < -1e-9;
+                widest = std::max(widest, std::fabs(s));
+            }
+            which = in ? 0 : out ? 1 : 2;
+            if (which == 2) {
+                double sine = spread > 0 ? std::min(1.0, widest / spread + 1e-7) : 1.0;
+                node.straddle_sine = std::max(node.straddle_sine, round_up(sine));
+            }
+            at = node.child[which];
         }
         // The chain: plane 0 -inside-> plane 1 -> plane 2 -> plane 3 -> the leaf.
-        uint32_t first = uint32_t(nodes_.size());
+        uint32_t first = uint32_t(planes_.size());
         for (int k = 0; k < 4; ++k) {
-            Node plane;
+            PlaneNode plane{};
             for (int j = 0; j < 3; ++j) plane.n[j] = v.normal[k][j];
-            plane.n_length = std::sqrt(plane.n[0] * plane.n[0] + plane.n[1] * plane.n[1] + plane.n[2] * plane.n[2]);
+            plane.near_min = near;
             plane.child[0] = first + uint32_t(k) + 1;
-            nodes_.push_back(plane);
+            plane.child[1] = plane.child[2] = none;
+            planes_.push_back(plane);
         }
-        nodes_.push_back(leaf);
-        (parent == none ? root : nodes_[parent].child[which]) = first;
+        leaf.near = leaf.near_min = near;
+        planes_.back().child[0] = add_leaf(leaf);
+        if (parent == none) *slot = first;
+        else if (parent & leaf_bit) leaves_[parent & ~leaf_bit].inside = first;
+        else planes_[parent].child[which] = first;
         max_depth = std::max(max_depth, depth + 5);
     }
 
@@ -310,9 +361,10 @@ private:
     double inverse_[12] = {}, light_[3] = {};
     bool usable_ = false, one_sided_ = false;
     size_t skipped_ = 0;
-    std::vector<Node> nodes_;
+    std::vector<PlaneNode> planes_;
+    std::vector<Leaf> leaves_;
     std::vector<uint32_t> always_fine_;    // fine clusters tested without a volume (ranges per coarse node)
-    std::vector<uint32_t> always_coarse_;  // coarse nodes entered for every query
+    std::vector<uint32_t> always_coarse_;  // coarse cluster nodes entered for every query
     Range top_always_;                     // one level: the always-tested fine clusters
     uint32_t root_ = none;
     uint32_t depth_ = 0;

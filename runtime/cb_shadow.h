@@ -114,14 +114,15 @@ inline bool segment_may_touch_box(const Obb& box, const double* p, const double*
 // the box, closed by the box's distance from the light. Any point a triangle in the box can shadow lies
 // inside: the blocking point X is in the box and p lies on the ray from the light through X, beyond X.
 struct ShadowVolume {
-    double normal[4][3];  // inside: dot(normal[k], p - light) >= 0 for every k (with a margin, see below)
+    float normal[4][3];   // unit to float precision; inside: dot(normal[k], p - light) >= 0 for every k
     double near;          // no point closer than this to the light can be shadowed by the box
     bool valid;           // false: the light is inside or level with the box; test its cluster for every point
 };
 
 // Builds the volume; the light is in the box's frame. The planes come from the central projection of the
 // box's 8 corners onto the plane across the direction to the box, bounded by a rectangle whose sides follow
-// the box axis that looks longest from the light.
+// the box axis that looks longest from the light. The 4-plane approximation is never trusted blindly: each
+// plane, as stored in float, is checked against all 8 corners in double and widened until they clear it.
 inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
     ShadowVolume v{};
     double c[3] = {box.center[0], box.center[1], box.center[2]}, d[3], len = 0;
@@ -137,10 +138,11 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
                            (i & 4 ? 1 : -1) * double(box.half[2]) * box.axis[2][k] - light[k];
     // Every corner must be clearly in front of the light; otherwise no pyramid through the light holds the
     // box (the light is inside it or level with it): never build a wrong plane.
-    double depth[8], reach = 0;
+    double depth[8], reach = 0, corner_length[8];
     for (int i = 0; i < 8; ++i) {
         depth[i] = corner[i][0] * d[0] + corner[i][1] * d[1] + corner[i][2] * d[2];
-        reach = std::max(reach, std::sqrt(corner[i][0] * corner[i][0] + corner[i][1] * corner[i][1] + corner[i][2] * corner[i][2]));
+        corner_length[i] = std::sqrt(corner[i][0] * corner[i][0] + corner[i][1] * corner[i][1] + corner[i][2] * corner[i][2]);
+        reach = std::max(reach, corner_length[i]);
     }
     for (double z : depth)
         if (!(z > 1e-6 * reach)) return v;
@@ -163,20 +165,34 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
         for (double& x : u) x /= std::sqrt(wl);
     }
     double w[3] = {d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]};
-    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    // bound[0] <= x, x <= bound[1], bound[2] <= y, y <= bound[3] in the projection plane.
+    double bound[4] = {INFINITY, -INFINITY, INFINITY, -INFINITY};
     for (int i = 0; i < 8; ++i) {
         double x = (corner[i][0] * u[0] + corner[i][1] * u[1] + corner[i][2] * u[2]) / depth[i];
         double y = (corner[i][0] * w[0] + corner[i][1] * w[1] + corner[i][2] * w[2]) / depth[i];
-        lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y), hi[1] = std::max(hi[1], y);
+        bound[0] = std::min(bound[0], x), bound[1] = std::max(bound[1], x);
+        bound[2] = std::min(bound[2], y), bound[3] = std::max(bound[3], y);
     }
-    // Widen the rectangle a little: the projections above round, and a plane must never cut the box.
-    double slack = 1e-9 * (1 + std::max({std::fabs(lo[0]), std::fabs(hi[0]), std::fabs(lo[1]), std::fabs(hi[1])}));
-    lo[0] -= slack, lo[1] -= slack, hi[0] += slack, hi[1] += slack;
-    for (int k = 0; k < 3; ++k) {
-        v.normal[0][k] = u[k] - lo[0] * d[k];   // x >= lo
-        v.normal[1][k] = -u[k] + hi[0] * d[k];  // x <= hi
-        v.normal[2][k] = w[k] - lo[1] * d[k];
-        v.normal[3][k] = -w[k] + hi[1] * d[k];
+    double scale = 1 + std::max({std::fabs(bound[0]), std::fabs(bound[1]), std::fabs(bound[2]), std::fabs(bound[3])});
+    const double* side[4] = {u, u, w, w};
+    for (int k = 0; k < 4; ++k) {
+        double sign = k % 2 == 0 ? 1 : -1;  // lower bounds keep the side's direction, upper bounds flip it
+        double slack = 1e-9 * scale;
+        for (int attempt = 0;; ++attempt) {
+            if (attempt == 40) return ShadowVolume{};  // cannot be made to hold: no volume, test always
+            double limit = bound[k] - sign * slack, n[3], nl = 0;
+            for (int j = 0; j < 3; ++j) n[j] = sign * (side[k][j] - limit * d[j]), nl += n[j] * n[j];
+            nl = std::sqrt(nl);
+            for (int j = 0; j < 3; ++j) v.normal[k][j] = float(n[j] / nl);
+            // Every corner strictly inside the stored plane, by more than this double evaluation can err.
+            bool holds = true;
+            for (int i = 0; i < 8 && holds; ++i) {
+                double s = v.normal[k][0] * corner[i][0] + v.normal[k][1] * corner[i][1] + v.normal[k][2] * corner[i][2];
+                holds = s > 1e-12 * corner_length[i];
+            }
+            if (holds) break;
+            slack = slack * 4 + 1e-7 * scale;
+        }
     }
     // Closing distance: from the light to the nearest point of the box, shortened for rounding.
     double q[3] = {0, 0, 0}, dist2 = 0;
@@ -197,10 +213,8 @@ inline bool inside_shadow_volume(const ShadowVolume& v, const double* light, con
     double e[3] = {p[0] - light[0], p[1] - light[1], p[2] - light[2]};
     double dist = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
     if (dist < v.near) return false;
-    for (const double* n : v.normal) {
-        double nl = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        if (n[0] * e[0] + n[1] * e[1] + n[2] * e[2] < -1e-9 * nl * dist) return false;
-    }
+    for (const float* n : v.normal)
+        if (n[0] * e[0] + n[1] * e[1] + n[2] * e[2] < -1e-9 * dist) return false;
     return true;
 }
 
@@ -224,23 +238,108 @@ struct QueryStats {
 
 // Reference query: every instance, every fine cluster whose box the segment may touch (all clusters when
 // the asset has no fine boxes), every triangle of those, exactly. Returns true when p is in shadow.
-// The triangles of fine cluster `f` (mesh-local) of `mesh`, in the mesh's frame, exactly; true at the first
-// that blocks. Sets *touched when a tested triangle was touched.
+namespace shadow_detail {
+
+// A vertex of a cluster seen from the segment p -> light: its offsets from the light (a) and from p (pv),
+// the cross product of p - light with a, and the L1 norms that bound the rounding of the determinants
+// built from them.
+struct Corner {
+    double a[3], pv[3], w[3];
+    double a1, pv1;
+};
+
+inline double l1(const double* v) { return std::fabs(v[0]) + std::fabs(v[1]) + std::fabs(v[2]); }
+inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+inline void cross3(const double* a, const double* b, double* out) {
+    out[0] = a[1] * b[2] - a[2] * b[1], out[1] = a[2] * b[0] - a[0] * b[2], out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+// Each determinant below is a sum of products of three differences of doubles, computed with 8 roundings
+// per product: its error is at most 8 eps times the sum of the absolute products, itself at most the
+// product of the three L1 norms. 2e-15 is 18 eps (eps = 2^-53): double that, with room for the norms' own
+// rounding.
+constexpr double det_error = 2e-15;
+
+// The exact answer for one triangle (cb::segment_triangle) when the double filter cannot decide.
+inline SegmentTest exact_triangle(const double* p, const double* light, const float* const* corner, bool two_sided) {
+    double c[3][3];
+    for (int k = 0; k < 3; ++k)
+        for (int j = 0; j < 3; ++j) c[k][j] = corner[k][j];
+    return segment_triangle(p, light, c[0], c[1], c[2], two_sided);
+}
+
+}  // namespace shadow_detail
+
+// The triangles of fine cluster `f` (mesh-local) of `mesh`, in the mesh's frame; true at the first that
+// blocks. Sets *touched when a tested triangle was touched. The same answers as cb::segment_triangle on
+// each triangle: the determinants it needs are first computed in double from per-vertex terms shared by
+// the cluster's triangles (the light side of the triangle, the point's side, and the three edge
+// orientations as triple products with p - light), each with an error bound; a triangle any of whose
+// signs the bound cannot settle goes to the exact test. Uses about 8 KB of stack.
 inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double* p, const double* light,
                            bool one_sided, QueryStats* stats, bool* touched = nullptr) {
-    const FineCluster& range = v.fine[mesh.first_fine + f];
+    using namespace shadow_detail;
+    const FineCluster& c = v.fine[mesh.first_fine + f];
     if (stats) ++stats->clusters_tested;
-    for (uint32_t t = range.first_triangle; t < range.first_triangle + range.triangle_count; ++t) {
-        uint32_t id[3];
-        v.triangle(mesh, f, t, id);
-        double corner[3][3];
-        for (int k = 0; k < 3; ++k)
-            for (int j = 0; j < 3; ++j) corner[k][j] = v.position(mesh, id[k])[j];
+    const uint32_t list = uint32_t(c.vertex_count) + c.ref_count;
+    const float* list_pos[max_cluster_vertices];
+    for (uint32_t i = 0; i < list; ++i)
+        list_pos[i] = v.position(mesh, i < c.vertex_count ? c.first_vertex + i
+                                                         : c.first_vertex - v.vertex_refs[size_t(mesh.first_ref) + c.first_ref + i - c.vertex_count]);
+    constexpr uint32_t shared_limit = 64;  // larger lists (fine clusters over 21 triangles) test exactly
+    Corner corner[shared_limit];
+    double e[3] = {p[0] - light[0], p[1] - light[1], p[2] - light[2]}, e1 = l1(e);
+    if (list <= shared_limit)
+        for (uint32_t i = 0; i < list; ++i) {
+            Corner& k = corner[i];
+            for (int j = 0; j < 3; ++j) k.a[j] = double(list_pos[i][j]) - light[j], k.pv[j] = double(list_pos[i][j]) - p[j];
+            cross3(e, k.a, k.w);
+            k.a1 = l1(k.a), k.pv1 = l1(k.pv);
+        }
+    const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle) * 3;
+    for (uint32_t t = 0; t < c.triangle_count; ++t, local += 3) {
         if (stats) ++stats->triangles_tested;
-        bool two_sided = !one_sided || v.double_sided(size_t(mesh.first_triangle) + t);
-        SegmentTest s = segment_triangle(p, light, corner[0], corner[1], corner[2], two_sided);
-        if (touched) *touched |= s.touching;
-        if (s.blocks) return true;
+        size_t global = size_t(mesh.first_triangle) + c.first_triangle + t;
+        bool two_sided = !one_sided || v.double_sided(global);
+        const float* pos[3] = {list_pos[local[0]], list_pos[local[1]], list_pos[local[2]]};
+        bool decided = false;
+        if (list <= shared_limit) {
+            const Corner &ka = corner[local[0]], &kb = corner[local[1]], &kc = corner[local[2]];
+            decided = true;
+            double bc[3], cap[3];
+            cross3(kb.a, kc.a, bc);
+            double dq = dot3(ka.a, bc), bq = det_error * ka.a1 * kb.a1 * kc.a1;  // orient3d(a, b, c, light)
+            cross3(kb.pv, kc.pv, cap);
+            double dp = dot3(ka.pv, cap), bp = det_error * ka.pv1 * kb.pv1 * kc.pv1;  // orient3d(a, b, c, p)
+            if (!(std::fabs(dq) > bq) || !(std::fabs(dp) > bp)) {
+                decided = false;
+            } else if ((dq > 0) == (dp > 0) || (!two_sided && dq < 0)) {
+                continue;  // both ends strictly on one side, or one-sided and the light not behind
+            } else {
+                // orient3d(p, light, a, b) = (p - light) . (a x b), with a, b taken from the light.
+                double o0 = dot3(ka.w, kb.a), o1 = dot3(kb.w, kc.a), o2 = dot3(kc.w, ka.a);
+                double scale = det_error * e1;
+                if (!(std::fabs(o0) > scale * ka.a1 * kb.a1) || !(std::fabs(o1) > scale * kb.a1 * kc.a1) ||
+                    !(std::fabs(o2) > scale * kc.a1 * ka.a1)) {
+                    decided = false;
+                } else if ((o0 > 0) != (o1 > 0) || (o1 > 0) != (o2 > 0)) {
+                    continue;  // the line passes outside the triangle
+                } else {
+                    // Through the interior, crossing the plane: blocks when the crossing is at t >= f
+                    // (see segment_triangle).
+                    double mix = (1 - self_shadow_fraction) * dp + self_shadow_fraction * dq;
+                    double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * bq + 4e-16 * (std::fabs(dp) + std::fabs(dq));
+                    if (!(std::fabs(mix) > mix_bound)) decided = false;
+                    else if ((mix > 0) == (dp > 0)) return true;
+                    else continue;
+                }
+            }
+        }
+        if (!decided) {
+            SegmentTest s = exact_triangle(p, light, pos, two_sided);
+            if (touched) *touched |= s.touching;
+            if (s.blocks) return true;
+        }
     }
     return false;
 }

@@ -386,3 +386,68 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
     EXPECT_EQ(tree_disagreements, 0u);
     EXPECT_GT(touching, 100u);
 }
+
+TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
+    // cluster_blocks decides most triangles in double with error bounds; segments built to pass within
+    // rounding of a triangle's plane, of its edge lines, or with the light on the plane, at offsets where
+    // double evaluation alone gets signs wrong, must still get segment_triangle's exact answers.
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0, 1);
+    size_t tests = 0, disagreements = 0, blocked = 0;
+    for (double offset : {0.0, 1e6, 3e7}) {
+        // A bumpy 6 x 6 grid of 1-unit cells, float coordinates, around (offset, offset, offset).
+        std::vector<float> pos;
+        std::vector<uint32_t> idx;
+        for (int j = 0; j <= 6; ++j)
+            for (int i = 0; i <= 6; ++i)
+                pos.insert(pos.end(), {float(offset + i), float(offset + j), float(offset + 0.3 * std::sin(i * 1.7 + j))});
+        for (uint32_t j = 0; j < 6; ++j)
+            for (uint32_t i = 0; i < 6; ++i) {
+                uint32_t a = j * 7 + i;
+                idx.insert(idx.end(), {a, a + 1, a + 7, a + 1, a + 8, a + 7});
+            }
+        Baked b = bake_mesh(pos, idx);
+        const cb::AssetView& v = b.view;
+        ASSERT_GT(v.mesh_count, 0u);
+        const cb::MeshRecord& m = v.meshes[0];
+        for (int trial = 0; trial < 20000; ++trial) {
+            uint32_t f = uint32_t(rng() % m.fine_count);
+            const cb::FineCluster& c = v.fine[m.first_fine + f];
+            uint32_t id[3];
+            v.triangle(m, f, c.first_triangle + uint32_t(rng() % c.triangle_count), id);
+            double a[3], bb[3], cc[3], p[3], light[3];
+            for (int k = 0; k < 3; ++k)
+                a[k] = v.position(m, id[0])[k], bb[k] = v.position(m, id[1])[k], cc[k] = v.position(m, id[2])[k];
+            double s = u(rng), t = u(rng) * (1 - s), far[3] = {offset + 20 * u(rng) - 7, offset + 20 * u(rng) - 7, offset + 5 + 5 * u(rng)};
+            switch (trial % 3) {
+                case 0:  // p within rounding of the triangle's plane, the light above or below
+                    for (int k = 0; k < 3; ++k) p[k] = a[k] + s * (bb[k] - a[k]) + t * (cc[k] - a[k]), light[k] = far[k];
+                    if (trial % 2) std::swap(p, light);
+                    break;
+                case 1:  // the light within rounding of the plane of p, a and b: the segment grazes edge a-b
+                    for (int k = 0; k < 3; ++k) p[k] = far[k], light[k] = a[k] + s * (bb[k] - a[k]) + 1.5 * (a[k] + s * (bb[k] - a[k]) - far[k]);
+                    break;
+                default:  // both within rounding of the triangle's plane (edge-on, nearly)
+                    for (int k = 0; k < 3; ++k)
+                        p[k] = a[k] + 3 * s * (bb[k] - a[k]) - t * (cc[k] - a[k]), light[k] = a[k] - 2 * t * (bb[k] - a[k]) + 4 * s * (cc[k] - a[k]);
+            }
+            for (bool one_sided : {false, true}) {
+                bool fast = cb::cluster_blocks(v, m, f, p, light, one_sided, nullptr);
+                bool exact = false;
+                for (uint32_t tt = c.first_triangle; tt < c.first_triangle + c.triangle_count && !exact; ++tt) {
+                    uint32_t q[3];
+                    v.triangle(m, f, tt, q);
+                    double x[3][3];
+                    for (int k = 0; k < 3; ++k)
+                        for (int j = 0; j < 3; ++j) x[k][j] = v.position(m, q[k])[j];
+                    exact = cb::segment_triangle(p, light, x[0], x[1], x[2], !one_sided).blocks;
+                }
+                ++tests;
+                blocked += exact;
+                disagreements += fast != exact;
+            }
+        }
+    }
+    EXPECT_EQ(disagreements, 0u) << "of " << tests;
+    EXPECT_GT(blocked, tests / 20);
+}
