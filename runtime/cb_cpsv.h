@@ -185,9 +185,48 @@ private:
         return uint32_t(leaves_.size() - 1) | leaf_bit;
     }
 
-    void shrink() {  // keep memory_bytes honest when some clusters had no volume
-        planes_.shrink_to_fit();
-        leaves_.shrink_to_fit();
+    // Renumbers the nodes in the order a walk meets them (depth first, the inside branch next), so that a
+    // query reads mostly consecutive memory; and releases unused capacity (clusters without a volume).
+    void shrink() {
+        std::vector<uint32_t> plane_to(planes_.size(), none), leaf_to(leaves_.size(), none), todo;
+        std::vector<PlaneNode> planes;
+        std::vector<Leaf> leaves;
+        planes.reserve(planes_.size());
+        leaves.reserve(leaves_.size());
+        auto visit = [&](uint32_t start) {
+            todo.push_back(start);
+            while (!todo.empty()) {
+                uint32_t ref = todo.back();
+                todo.pop_back();
+                if (ref == none) continue;
+                if (ref & leaf_bit) {
+                    const Leaf& l = leaves_[ref & ~leaf_bit];
+                    leaf_to[ref & ~leaf_bit] = uint32_t(leaves.size());
+                    leaves.push_back(l);
+                    todo.push_back(l.inside);
+                    todo.push_back(l.fine_root);
+                } else {
+                    const PlaneNode& n = planes_[ref];
+                    plane_to[ref] = uint32_t(planes.size());
+                    planes.push_back(n);
+                    todo.push_back(n.child[2]);
+                    todo.push_back(n.child[1]);
+                    todo.push_back(n.child[0]);
+                }
+            }
+        };
+        visit(root_);
+        for (uint32_t r : always_coarse_) visit(r);
+        auto map = [&](uint32_t ref) {
+            return ref == none ? none : ref & leaf_bit ? (leaf_to[ref & ~leaf_bit] | leaf_bit) : plane_to[ref];
+        };
+        for (PlaneNode& n : planes)
+            for (uint32_t& c : n.child) c = map(c);
+        for (Leaf& l : leaves) l.inside = map(l.inside), l.fine_root = map(l.fine_root);
+        root_ = map(root_);
+        for (uint32_t& r : always_coarse_) r = map(r);
+        planes_ = std::move(planes);
+        leaves_ = std::move(leaves);
     }
 
     bool walk(uint32_t start, uint32_t* stack, const Query& q) const {

@@ -240,12 +240,12 @@ struct QueryStats {
 // the asset has no fine boxes), every triangle of those, exactly. Returns true when p is in shadow.
 namespace shadow_detail {
 
-// A vertex of a cluster seen from the segment p -> light: its offsets from the light (a) and from p (pv),
-// the cross product of p - light with a, and the L1 norms that bound the rounding of the determinants
-// built from them.
+// A vertex of a cluster seen from the segment p -> light: its offset from the light (a), the cross product
+// of p - light with it (w), and the L1 norm of a, which bounds the rounding of the determinants built
+// from them.
 struct Corner {
-    double a[3], pv[3], w[3];
-    double a1, pv1;
+    double a[3], w[3];
+    double a1;
 };
 
 inline double l1(const double* v) { return std::fabs(v[0]) + std::fabs(v[1]) + std::fabs(v[2]); }
@@ -268,14 +268,45 @@ inline SegmentTest exact_triangle(const double* p, const double* light, const fl
     return segment_triangle(p, light, c[0], c[1], c[2], two_sided);
 }
 
+// What the double filter concluded for one triangle.
+enum class Filter { misses, blocks, undecided };
+
+// The decision of segment_triangle for triangle (a, b, c) when every sign it needs is settled in double.
+// The line through p and the light is tested first (three dot products from the per-vertex terms): it
+// misses most of a cluster's triangles, and then nothing else matters.
+inline Filter filter_triangle(const Corner& a, const Corner& b, const Corner& c, const float* const* pos, const double* p,
+                              double edge_scale, bool two_sided) {
+    // orient3d(p, light, u, v) = (p - light) . ((u - light) x (v - light)) = w_u . (v - light).
+    double o0 = dot3(a.w, b.a), o1 = dot3(b.w, c.a), o2 = dot3(c.w, a.a);
+    bool settled = std::fabs(o0) > edge_scale * a.a1 * b.a1 && std::fabs(o1) > edge_scale * b.a1 * c.a1 &&
+                   std::fabs(o2) > edge_scale * c.a1 * a.a1;
+    if (settled && ((o0 > 0) != (o1 > 0) || (o1 > 0) != (o2 > 0))) return Filter::misses;  // passes outside
+    if (!settled) return Filter::undecided;
+    // Through the interior: the light's side and the point's side of the plane.
+    double bc[3], cap[3], pv[3][3];
+    cross3(b.a, c.a, bc);
+    double dq = dot3(a.a, bc), bq = det_error * a.a1 * b.a1 * c.a1;  // orient3d(a, b, c, light)
+    for (int k = 0; k < 3; ++k)
+        for (int j = 0; j < 3; ++j) pv[k][j] = double(pos[k][j]) - p[j];
+    cross3(pv[1], pv[2], cap);
+    double dp = dot3(pv[0], cap), bp = det_error * l1(pv[0]) * l1(pv[1]) * l1(pv[2]);  // orient3d(a, b, c, p)
+    if (!(std::fabs(dq) > bq) || !(std::fabs(dp) > bp)) return Filter::undecided;
+    if ((dq > 0) == (dp > 0) || (!two_sided && dq < 0)) return Filter::misses;  // no crossing, or front-facing
+    // The crossing counts when it is at t >= f (see segment_triangle).
+    double mix = (1 - self_shadow_fraction) * dp + self_shadow_fraction * dq;
+    double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * bq + 4e-16 * (std::fabs(dp) + std::fabs(dq));
+    if (!(std::fabs(mix) > mix_bound)) return Filter::undecided;
+    return (mix > 0) == (dp > 0) ? Filter::blocks : Filter::misses;
+}
+
 }  // namespace shadow_detail
 
 // The triangles of fine cluster `f` (mesh-local) of `mesh`, in the mesh's frame; true at the first that
 // blocks. Sets *touched when a tested triangle was touched. The same answers as cb::segment_triangle on
-// each triangle: the determinants it needs are first computed in double from per-vertex terms shared by
-// the cluster's triangles (the light side of the triangle, the point's side, and the three edge
-// orientations as triple products with p - light), each with an error bound; a triangle any of whose
-// signs the bound cannot settle goes to the exact test. Uses about 8 KB of stack.
+// each triangle: the determinants it needs are first computed in double, from per-vertex terms shared by
+// the cluster's triangles where they can be, each with an error bound; a triangle any of whose signs the
+// bound cannot settle (a segment within rounding of its plane or of an edge line) goes to the exact test.
+// Uses about 5 KB of stack.
 inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double* p, const double* light,
                            bool one_sided, QueryStats* stats, bool* touched = nullptr) {
     using namespace shadow_detail;
@@ -288,58 +319,27 @@ inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t 
                                                          : c.first_vertex - v.vertex_refs[size_t(mesh.first_ref) + c.first_ref + i - c.vertex_count]);
     constexpr uint32_t shared_limit = 64;  // larger lists (fine clusters over 21 triangles) test exactly
     Corner corner[shared_limit];
-    double e[3] = {p[0] - light[0], p[1] - light[1], p[2] - light[2]}, e1 = l1(e);
+    double e[3] = {p[0] - light[0], p[1] - light[1], p[2] - light[2]};
+    double edge_scale = det_error * l1(e);
     if (list <= shared_limit)
         for (uint32_t i = 0; i < list; ++i) {
             Corner& k = corner[i];
-            for (int j = 0; j < 3; ++j) k.a[j] = double(list_pos[i][j]) - light[j], k.pv[j] = double(list_pos[i][j]) - p[j];
+            for (int j = 0; j < 3; ++j) k.a[j] = double(list_pos[i][j]) - light[j];
             cross3(e, k.a, k.w);
-            k.a1 = l1(k.a), k.pv1 = l1(k.pv);
+            k.a1 = l1(k.a);
         }
     const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle) * 3;
     for (uint32_t t = 0; t < c.triangle_count; ++t, local += 3) {
         if (stats) ++stats->triangles_tested;
-        size_t global = size_t(mesh.first_triangle) + c.first_triangle + t;
-        bool two_sided = !one_sided || v.double_sided(global);
         const float* pos[3] = {list_pos[local[0]], list_pos[local[1]], list_pos[local[2]]};
-        bool decided = false;
-        if (list <= shared_limit) {
-            const Corner &ka = corner[local[0]], &kb = corner[local[1]], &kc = corner[local[2]];
-            decided = true;
-            double bc[3], cap[3];
-            cross3(kb.a, kc.a, bc);
-            double dq = dot3(ka.a, bc), bq = det_error * ka.a1 * kb.a1 * kc.a1;  // orient3d(a, b, c, light)
-            cross3(kb.pv, kc.pv, cap);
-            double dp = dot3(ka.pv, cap), bp = det_error * ka.pv1 * kb.pv1 * kc.pv1;  // orient3d(a, b, c, p)
-            if (!(std::fabs(dq) > bq) || !(std::fabs(dp) > bp)) {
-                decided = false;
-            } else if ((dq > 0) == (dp > 0) || (!two_sided && dq < 0)) {
-                continue;  // both ends strictly on one side, or one-sided and the light not behind
-            } else {
-                // orient3d(p, light, a, b) = (p - light) . (a x b), with a, b taken from the light.
-                double o0 = dot3(ka.w, kb.a), o1 = dot3(kb.w, kc.a), o2 = dot3(kc.w, ka.a);
-                double scale = det_error * e1;
-                if (!(std::fabs(o0) > scale * ka.a1 * kb.a1) || !(std::fabs(o1) > scale * kb.a1 * kc.a1) ||
-                    !(std::fabs(o2) > scale * kc.a1 * ka.a1)) {
-                    decided = false;
-                } else if ((o0 > 0) != (o1 > 0) || (o1 > 0) != (o2 > 0)) {
-                    continue;  // the line passes outside the triangle
-                } else {
-                    // Through the interior, crossing the plane: blocks when the crossing is at t >= f
-                    // (see segment_triangle).
-                    double mix = (1 - self_shadow_fraction) * dp + self_shadow_fraction * dq;
-                    double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * bq + 4e-16 * (std::fabs(dp) + std::fabs(dq));
-                    if (!(std::fabs(mix) > mix_bound)) decided = false;
-                    else if ((mix > 0) == (dp > 0)) return true;
-                    else continue;
-                }
-            }
-        }
-        if (!decided) {
-            SegmentTest s = exact_triangle(p, light, pos, two_sided);
-            if (touched) *touched |= s.touching;
-            if (s.blocks) return true;
-        }
+        bool two_sided = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + t);
+        Filter r = list <= shared_limit ? filter_triangle(corner[local[0]], corner[local[1]], corner[local[2]], pos, p, edge_scale, two_sided)
+                                        : Filter::undecided;
+        if (r == Filter::blocks) return true;
+        if (r == Filter::misses) continue;
+        SegmentTest s = exact_triangle(p, light, pos, two_sided);
+        if (touched) *touched |= s.touching;
+        if (s.blocks) return true;
     }
     return false;
 }
