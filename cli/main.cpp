@@ -396,8 +396,8 @@ int run_report(ReportArgs a) {
         }
         o.obbs.push_back(m);
     }
-    if (o.runs < 1 || o.view < 1 || o.lights < 1) {
-        std::fprintf(stderr, "clusterbake: --runs, --view and --lights must be at least 1\n");
+    if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.lights < 1) {
+        std::fprintf(stderr, "clusterbake: --runs, --query-runs, --view and --lights must be at least 1\n");
         return 1;
     }
     cb::Report r;
@@ -562,7 +562,9 @@ int main(int argc, char** argv) {
     report->add_option("--fine", ra.fine, "Comma list of fine sizes (default 8,16,24,32)");
     report->add_option("--obb", ra.obbs, "Comma list of box fitters: refined, pca, pca-area, cgal (default refined,pca)");
     report->add_option("--coarse", ra.options.coarse_size, "Triangles per coarse cluster (default 2048)");
-    report->add_option("--runs", ra.options.runs, "Timings are the median of this many runs (default 3)");
+    report->add_option("--runs", ra.options.runs, "Bake timings are the median of this many runs (default 3)");
+    report->add_option("--query-runs", ra.options.query_runs,
+                       "Runtime timings are the median of this many rounds, each measuring every configuration once (default 7)");
     report->add_option("--view", ra.options.view, "Camera resolution; its visible points are the queries (default 128)");
     report->add_option("--lights", ra.options.lights, "Lights around each scene (default 2)");
     report->add_flag("--one-sided", ra.options.one_sided, "Query with one-sided occluders");

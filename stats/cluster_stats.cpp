@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <numeric>
 #include <thread>
+#include <tuple>
 
 #include "bounds.h"
 #include "cluster.h"
@@ -249,24 +250,39 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
     if (all_have(&LevelVolumes::obbs)) {
         double volume = 0, area = 0, triangle_area = 0, fill_sum = 0, sphere = 0, capsule = 0;
         bool spheres = all_have(&LevelVolumes::spheres), capsules = all_have(&LevelVolumes::capsules);
+        std::vector<double> sphere_ratio, capsule_ratio;  // per cluster with a box of some volume
         for (size_t i = 0; i < items.size(); ++i) {
             const LevelVolumes& v = volumes_of(items[i]);
             const Obb& b = v.obbs[items[i].cluster];
             double a = obb_area(b);
             volume += obb_volume(b), area += a, triangle_area += figures[i].area;
             fill_sum += a > 0 ? figures[i].area / a : 0;
-            if (spheres) sphere += 4.0 / 3.0 * M_PI * std::pow(double(v.spheres[items[i].cluster].radius), 3);
+            double box = obb_volume(b);
+            // Flat boxes (a planar cluster) would make any ratio infinite: left out of the medians.
+            bool solid = box > 1e-9 * std::pow(std::max({double(b.half[0]), double(b.half[1]), double(b.half[2])}) * 2, 3);
+            if (spheres) {
+                double v_sphere = 4.0 / 3.0 * M_PI * std::pow(double(v.spheres[items[i].cluster].radius), 3);
+                sphere += v_sphere;
+                if (solid) sphere_ratio.push_back(v_sphere / box);
+            }
             if (capsules) {
                 const Capsule& c = v.capsules[items[i].cluster];
                 double e[3] = {double(c.b[0]) - c.a[0], double(c.b[1]) - c.a[1], double(c.b[2]) - c.a[2]}, r = c.radius;
-                capsule += M_PI * r * r * length(e) + 4.0 / 3.0 * M_PI * r * r * r;
+                double v_capsule = M_PI * r * r * length(e) + 4.0 / 3.0 * M_PI * r * r * r;
+                capsule += v_capsule;
+                if (solid) capsule_ratio.push_back(v_capsule / box);
             }
         }
         s.obb_volume_sum = volume, s.obb_area_sum = area;
         s.obb_volume_mean = volume / double(items.size()), s.obb_area_mean = area / double(items.size());
         s.fill = ratio(triangle_area, area), s.fill_mean = fill_sum / double(items.size());
-        if (spheres) s.sphere_over_obb = ratio(sphere, volume);
-        if (capsules) s.capsule_over_obb = ratio(capsule, volume);
+        auto median = [](std::vector<double> v) {
+            if (v.empty()) return double(NAN);
+            std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+            return v[v.size() / 2];
+        };
+        if (spheres) s.sphere_over_obb = ratio(sphere, volume), s.sphere_over_obb_median = median(sphere_ratio);
+        if (capsules) s.capsule_over_obb = ratio(capsule, volume), s.capsule_over_obb_median = median(capsule_ratio);
         // World space: each instance's linear part scales volumes by |det| and maps box faces to parallelograms.
         double world_volume = 0, world_area = 0;
         std::vector<std::vector<uint32_t>> items_of_mesh(contexts.size());
@@ -424,6 +440,8 @@ nlohmann::json to_json(const LevelStats& l) {
                      {"area_relative_to_scene", number(l.obb_area_relative)}}},
             {"sphere_volume_over_obb", number(l.sphere_over_obb)},
             {"capsule_volume_over_obb", number(l.capsule_over_obb)},
+            {"sphere_volume_over_obb_median", number(l.sphere_over_obb_median)},
+            {"capsule_volume_over_obb_median", number(l.capsule_over_obb_median)},
             {"fill", number(l.fill)},
             {"fill_mean", number(l.fill_mean)},
             {"normal_cone_degrees", l.normal_cone_degrees.count ? to_json(l.normal_cone_degrees) : nlohmann::json(nullptr)},
@@ -493,8 +511,9 @@ std::string to_text(const SceneStats& s) {
                ", relative to the scene box " + fmt("%.4f", l->obb_volume_relative) + "\n";
         out += "    OBB area sum " + fmt("%.6g", l->obb_area_sum) + ", mean " + fmt("%.6g", l->obb_area_mean) +
                ", relative to the scene box " + fmt("%.4f", l->obb_area_relative) + "\n";
-        out += "    sphere / OBB volume " + fmt("%.3f", l->sphere_over_obb) + ", capsule / OBB volume " +
-               fmt("%.3f", l->capsule_over_obb) + "; fill (triangle area / OBB surface) " + fmt("%.3f", l->fill) +
+        out += "    sphere / OBB volume " + fmt("%.3f", l->sphere_over_obb) + " (median per cluster " + fmt("%.3f", l->sphere_over_obb_median) +
+               "), capsule / OBB volume " + fmt("%.3f", l->capsule_over_obb) + " (median " + fmt("%.3f", l->capsule_over_obb_median) +
+               ")\n    fill (triangle area / OBB surface) " + fmt("%.3f", l->fill) +
                " (mean per cluster " + fmt("%.3f", l->fill_mean) + ")\n";
         if (l->normal_cone_degrees.count)
             std::snprintf(buf, sizeof buf, "    normal cones: widest normal %.1f / %.1f / %.1f degrees;%s; no valid cone %s\n",

@@ -50,6 +50,7 @@ struct LevelStats {
     double obb_volume_sum = NAN, obb_volume_mean = NAN, obb_area_sum = NAN, obb_area_mean = NAN;  // mesh frames
     double obb_volume_relative = NAN, obb_area_relative = NAN;  // world, over instances, / scene box
     double sphere_over_obb = NAN, capsule_over_obb = NAN;       // summed volumes over summed OBB volumes
+    double sphere_over_obb_median = NAN, capsule_over_obb_median = NAN;  // per cluster (flat boxes left out)
     double fill = NAN, fill_mean = NAN;                         // triangle area / OBB surface: summed, per cluster
     Distribution normal_cone_degrees;  // valid cones: the widest normal from the axis (90 degrees - the front half-angle)
     double no_cone_share = NAN;        // clusters without a valid cone

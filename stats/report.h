@@ -25,7 +25,8 @@ struct ReportOptions {
     std::vector<uint32_t> fine_sizes = {8, 16, 24, 32};
     std::vector<ObbMethod> obbs = {ObbMethod::refined, ObbMethod::pca};
     uint32_t coarse_size = 2048;
-    int runs = 3;             // timings are the median of this many runs
+    int runs = 3;             // bake timings are the median of this many runs
+    int query_runs = 7;       // runtime timings: the median of this many rounds over every configuration
     uint32_t view = 128;      // the camera's resolution; its first hits are the query points
     uint32_t lights = 2;      // fixed light positions around the scene (report_lights)
     bool one_sided = false;   // query mode
