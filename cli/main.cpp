@@ -396,8 +396,8 @@ int run_report(ReportArgs a) {
         }
         o.obbs.push_back(m);
     }
-    if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.lights < 1) {
-        std::fprintf(stderr, "clusterbake: --runs, --query-runs, --view and --lights must be at least 1\n");
+    if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.frame_view < 1 || o.lights < 1) {
+        std::fprintf(stderr, "clusterbake: --runs, --query-runs, --view, --frame-view and --lights must be at least 1\n");
         return 1;
     }
     cb::Report r;
@@ -566,6 +566,8 @@ int main(int argc, char** argv) {
     report->add_option("--query-runs", ra.options.query_runs,
                        "Runtime timings are the median of this many rounds, each measuring every configuration once (default 7)");
     report->add_option("--view", ra.options.view, "Camera resolution; its visible points are the queries (default 128)");
+    report->add_option("--frame-view", ra.options.frame_view,
+                       "Frame time is for a view of this resolution: build + its visible points' queries (default 1024)");
     report->add_option("--lights", ra.options.lights, "Lights around each scene (default 2)");
     report->add_flag("--one-sided", ra.options.one_sided, "Query with one-sided occluders");
     report->add_option("--samples", ra.options.stats.samples, "Shadow-volume samples per cluster and light (default 8)");

@@ -113,9 +113,9 @@ void recommend(Report& r) {
     }
     char buf[640];
     std::snprintf(buf, sizeof buf,
-                  "lowest runtime cost: its frame time (per-light tree build plus one query per camera-visible point) is %.1f%% "
+                  "lowest runtime cost: its frame time (per-light tree build plus one query per visible point of a %ux%u view) is %.1f%% "
                   "above each scene's best, in geometric mean over %zu scene(s)%s%s; bake time %.3f s in all",
-                  100 * (std::exp(score[pick]) - 1), r.scenes.size(),
+                  r.options.frame_view, r.options.frame_view, 100 * (std::exp(score[pick]) - 1), r.scenes.size(),
                   pick != best ? " (within 3% of the fastest, with a shorter bake)" : "", runner_up.c_str(), bake[pick]);
     r.recommended = r.scenes[0].configs[pick].name();
     r.recommendation_reason = buf;
@@ -212,7 +212,9 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
             double query = median(query_t[i]);
             c.build_seconds = median(build_t[i]);
             c.queries_per_second = query > 0 ? double(s.points) / query : 0;
-            c.frame_seconds = c.build_seconds + query;
+            // The sample stands for a frame_view frame: the same view, (frame_view / view)^2 times the points.
+            double scale = double(o.frame_view) / double(o.view);
+            c.frame_seconds = c.build_seconds + query * scale * scale;
         }
         assets.clear();
         if (o.heatmap) {
@@ -307,9 +309,9 @@ std::string report_table(const Report& r) {
     char buf[512];
     for (const SceneReport& s : r.scenes) {
         Fronts f = fronts(s, r.options);
-        std::snprintf(buf, sizeof buf, "%s: %llu triangles, %llu query points (%ux%u view), %u light(s)\n\n", s.file.c_str(),
-                      (unsigned long long)s.triangles, (unsigned long long)s.points, r.options.view, r.options.view,
-                      r.options.lights);
+        std::snprintf(buf, sizeof buf, "%s: %llu triangles, %llu query points (%ux%u view; frame ms for %ux%u), %u light(s)\n\n",
+                      s.file.c_str(), (unsigned long long)s.triangles, (unsigned long long)s.points, r.options.view, r.options.view,
+                      r.options.frame_view, r.options.frame_view, r.options.lights);
         out += buf;
         out += "| config | fine clusters | bake ms | fine OBB vol / scene | useless volume share | build ms | M queries/s | "
                "clusters / query | useless / query | triangles / query | frame ms | Pareto |\n";
@@ -335,7 +337,7 @@ nlohmann::json report_json(const Report& r) {
     nlohmann::json j;
     j["machine"] = {{"cpu", r.cpu}, {"cores", r.cores}};
     j["options"] = {{"methods", nlohmann::json::array()}, {"fine_sizes", o.fine_sizes}, {"obbs", nlohmann::json::array()},
-                    {"coarse_size", o.coarse_size}, {"runs", o.runs}, {"query_runs", o.query_runs}, {"view", o.view}, {"lights", o.lights},
+                    {"coarse_size", o.coarse_size}, {"runs", o.runs}, {"query_runs", o.query_runs}, {"view", o.view}, {"frame_view", o.frame_view}, {"lights", o.lights},
                     {"one_sided", o.one_sided}, {"stats_lights", o.stats.lights}, {"stats_samples", o.stats.samples},
                     {"threads", o.threads}};
     for (ClusterMethod m : o.methods) j["options"]["methods"].push_back(method_name(m));
@@ -368,6 +370,18 @@ nlohmann::json report_json(const Report& r) {
     return j;
 }
 
+namespace {
+
+// RFC 4180: a field with a comma, quote or line break is quoted, its quotes doubled.
+std::string csv_field(const std::string& s) {
+    if (s.find_first_of(",\"\r\n") == std::string::npos) return s;
+    std::string out = "\"";
+    for (char c : s) out += c == '"' ? "\"\"" : std::string(1, c);
+    return out + "\"";
+}
+
+}  // namespace
+
 std::string report_csv(const Report& r) {
     std::string out = "scene,method,fine_size,obb,fine_clusters,coarse_clusters,cluster_seconds,fit_seconds,fine_obb_volume_relative,"
                       "useless_volume_share,build_seconds,queries_per_second,nodes_per_query,clusters_per_query,useless_per_query,"
@@ -377,8 +391,9 @@ std::string report_csv(const Report& r) {
         Fronts f = fronts(s, r.options);
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
-            std::snprintf(buf, sizeof buf, "%s,%s,%u,%s,%llu,%llu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%d,%d\n",
-                          s.name.c_str(), method_name(c.method), c.fine_size, obb_method_name(c.obb),
+            out += csv_field(s.name) + ",";
+            std::snprintf(buf, sizeof buf, "%s,%u,%s,%llu,%llu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%d,%d\n",
+                          method_name(c.method), c.fine_size, obb_method_name(c.obb),
                           (unsigned long long)c.fine_clusters, (unsigned long long)c.coarse_clusters, c.cluster_seconds,
                           c.fit_seconds, c.obb_volume_relative, c.useless_share, c.build_seconds, c.queries_per_second,
                           c.nodes_per_query, c.clusters_per_query, c.useless_per_query, c.triangles_per_query, c.shadowed_share,
@@ -402,8 +417,9 @@ std::string report_html(const Report& r) {
     h += "<p>Each configuration (clustering method / fine size / box fitter) is baked in memory, timed (median of " +
          std::to_string(o.runs) + " runs), and its shadow trees (runtime, <code>cb::ClusterShadowTree</code>) built and queried for every camera-visible "
          "point. <b>Useless cluster tests</b> per query are tests of a cluster whose triangles did not block the point's "
-         "segment to the light: the cost of loose volumes. <b>Frame</b> time is one light's tree build plus one query per "
-         "point on one thread, the median of " + std::to_string(o.query_runs) + " rounds that each measure every configuration once. "
+         "segment to the light: the cost of loose volumes. <b>Frame</b> time is one light's tree build plus one query per visible point of a " +
+         std::to_string(o.frame_view) + " x " + std::to_string(o.frame_view) + " view (the sample's query time scaled by the pixel count), "
+         "on one thread; runtime timings are the median of " + std::to_string(o.query_runs) + " rounds that each measure every configuration once. "
          "Lower is better on every axis; the dashed line joins the Pareto front.</p>\n";
     if (!r.recommended.empty())
         h += "<p class=\"recommendation\"><b>Recommended default: " + html_escape(r.recommended) + "</b> &mdash; " +
@@ -419,6 +435,7 @@ std::string report_html(const Report& r) {
     row("bake runs (median)", std::to_string(o.runs));
     row("runtime rounds (median)", std::to_string(o.query_runs));
     row("view (query points)", std::to_string(o.view) + " x " + std::to_string(o.view));
+    row("frame (frame time)", std::to_string(o.frame_view) + " x " + std::to_string(o.frame_view));
     row("lights", std::to_string(o.lights));
     row("occluders", o.one_sided ? "one-sided" : "two-sided");
     row("shadow-volume samples", std::to_string(o.stats.lights) + " lights x " + std::to_string(o.stats.samples) + " points per cluster");
@@ -435,7 +452,7 @@ std::string report_html(const Report& r) {
              std::to_string(s.lights.size() / 3) + " light(s).</p>\n<div class=\"plots\">\n";
         Plot bake{s.name + ": bake time against error", "bake time per configuration (ms)", "useless cluster tests per query",
                   plot_points(s, o, false)};
-        Plot frame{s.name + ": runtime cost against error", "frame time: build + queries, one light (ms)",
+        Plot frame{s.name + ": runtime cost against error", "frame time: build + queries of a " + std::to_string(o.frame_view) + "x" + std::to_string(o.frame_view) + " view, one light (ms)",
                    "useless cluster tests per query", plot_points(s, o, true)};
         h += svg_scatter(bake, colours, styles) + svg_scatter(frame, colours, styles) + "</div>\n";
         if (!s.heatmap_png.empty())

@@ -28,6 +28,7 @@ struct ReportOptions {
     int runs = 3;             // bake timings are the median of this many runs
     int query_runs = 7;       // runtime timings: the median of this many rounds over every configuration
     uint32_t view = 128;      // the camera's resolution; its first hits are the query points
+    uint32_t frame_view = 1024;  // frame time is for this resolution: build + its visible points / queries per second
     uint32_t lights = 2;      // fixed light positions around the scene (report_lights)
     bool one_sided = false;   // query mode
     StatsOptions stats{4, 8}; // lights and samples of the shadow-volume conservativeness
@@ -51,7 +52,7 @@ struct ConfigResult {
     double queries_per_second = 0;
     double nodes_per_query = 0, clusters_per_query = 0, useless_per_query = 0, triangles_per_query = 0;
     double shadowed_share = 0;
-    double frame_seconds = 0;                     // one light's build plus a query per point
+    double frame_seconds = 0;                     // one light's build plus a query per visible point of a frame_view frame
     double bake_seconds() const { return cluster_seconds + fit_seconds; }
     std::string name() const;                     // e.g. "kmeans/16/refined"
 };
