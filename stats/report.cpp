@@ -187,6 +187,9 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                     c.obb_volume_relative = st.fine.obb_volume_relative;
                     c.useless_share = st.fine.useless_share;
                     assets.push_back(encode_in_memory(baked));
+                    uint64_t stored = 0;
+                    for (const AssetMesh& m : baked.meshes) stored += m.triangles.size() / 3;
+                    c.bytes_per_triangle = stored ? double(assets.back().bytes) / double(stored) : 0;
                     s.configs.push_back(c);
                 }
         // Runtime cost in rounds, every configuration once per round, so that a burst of load on a shared
@@ -313,15 +316,15 @@ std::string report_table(const Report& r) {
                       s.file.c_str(), (unsigned long long)s.triangles, (unsigned long long)s.points, r.options.view, r.options.view,
                       r.options.frame_view, r.options.frame_view, r.options.lights);
         out += buf;
-        out += "| config | fine clusters | bake ms | fine OBB vol / scene | useless volume share | build ms | M queries/s | "
+        out += "| config | fine clusters | bytes / triangle | bake ms | fine OBB vol / scene | useless volume share | build ms | M queries/s | "
                "clusters / query | useless / query | triangles / query | frame ms | Pareto |\n";
-        out += "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        out += "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
             std::string pareto = std::string(f.bake[i] ? "bake" : "") + (f.bake[i] && f.frame[i] ? "+" : "") + (f.frame[i] ? "frame" : "");
-            std::snprintf(buf, sizeof buf, "| %s%s | %llu | %.1f | %.4f | %.1f%% | %.2f | %.3f | %.2f | %.2f | %.1f | %.2f | %s |\n",
+            std::snprintf(buf, sizeof buf, "| %s%s | %llu | %.1f | %.1f | %.4f | %.1f%% | %.2f | %.3f | %.2f | %.2f | %.1f | %.2f | %s |\n",
                           c.name().c_str(), c.name() == r.recommended ? " (recommended)" : "", (unsigned long long)c.fine_clusters,
-                          c.bake_seconds() * 1e3, c.obb_volume_relative, 100 * c.useless_share, c.build_seconds * 1e3,
+                          c.bytes_per_triangle, c.bake_seconds() * 1e3, c.obb_volume_relative, 100 * c.useless_share, c.build_seconds * 1e3,
                           c.queries_per_second / 1e6, c.clusters_per_query, c.useless_per_query, c.triangles_per_query,
                           frame_of(s, c) * 1e3, pareto.c_str());
             out += buf;
@@ -354,7 +357,8 @@ nlohmann::json report_json(const Report& r) {
             auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
             js["configs"].push_back({{"name", c.name()}, {"method", method_name(c.method)}, {"fine_size", c.fine_size},
                                      {"obb", obb_method_name(c.obb)}, {"fine_clusters", c.fine_clusters},
-                                     {"coarse_clusters", c.coarse_clusters}, {"cluster_seconds", c.cluster_seconds},
+                                     {"coarse_clusters", c.coarse_clusters}, {"bytes_per_triangle", c.bytes_per_triangle},
+                                     {"cluster_seconds", c.cluster_seconds},
                                      {"fit_seconds", c.fit_seconds}, {"bake_seconds", c.bake_seconds()},
                                      {"fine_obb_volume_relative", num(c.obb_volume_relative)},
                                      {"useless_volume_share", num(c.useless_share)}, {"build_seconds", c.build_seconds},
@@ -383,7 +387,7 @@ std::string csv_field(const std::string& s) {
 }  // namespace
 
 std::string report_csv(const Report& r) {
-    std::string out = "scene,method,fine_size,obb,fine_clusters,coarse_clusters,cluster_seconds,fit_seconds,fine_obb_volume_relative,"
+    std::string out = "scene,method,fine_size,obb,fine_clusters,coarse_clusters,bytes_per_triangle,cluster_seconds,fit_seconds,fine_obb_volume_relative,"
                       "useless_volume_share,build_seconds,queries_per_second,nodes_per_query,clusters_per_query,useless_per_query,"
                       "triangles_per_query,shadowed_share,frame_seconds,pareto_bake,pareto_frame\n";
     char buf[640];
@@ -392,9 +396,10 @@ std::string report_csv(const Report& r) {
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
             out += csv_field(s.name) + ",";
-            std::snprintf(buf, sizeof buf, "%s,%u,%s,%llu,%llu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%d,%d\n",
+            std::snprintf(buf, sizeof buf, "%s,%u,%s,%llu,%llu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%d,%d\n",
                           method_name(c.method), c.fine_size, obb_method_name(c.obb),
-                          (unsigned long long)c.fine_clusters, (unsigned long long)c.coarse_clusters, c.cluster_seconds,
+                          (unsigned long long)c.fine_clusters, (unsigned long long)c.coarse_clusters, c.bytes_per_triangle,
+                          c.cluster_seconds,
                           c.fit_seconds, c.obb_volume_relative, c.useless_share, c.build_seconds, c.queries_per_second,
                           c.nodes_per_query, c.clusters_per_query, c.useless_per_query, c.triangles_per_query, c.shadowed_share,
                           frame_of(s, c), int(f.bake[i]), int(f.frame[i]));
@@ -458,7 +463,7 @@ std::string report_html(const Report& r) {
         if (!s.heatmap_png.empty())
             h += "<figure class=\"heatmap\"><img alt=\"heat map of useless cluster tests\" src=\"data:image/png;base64," +
                  base64(s.heatmap_png) + "\"><figcaption>" + html_escape(s.heatmap_caption) + "</figcaption></figure>\n";
-        h += "<table class=\"configs\">\n<tr><th>configuration</th><th>fine clusters</th><th>cluster ms</th><th>fit ms</th>"
+        h += "<table class=\"configs\">\n<tr><th>configuration</th><th>fine clusters</th><th>asset bytes / triangle</th><th>cluster ms</th><th>fit ms</th>"
              "<th>fine OBB volume / scene box</th><th>useless share of shadow-volume samples</th><th>tree build ms</th>"
              "<th>M queries/s</th><th>nodes / query</th><th>clusters / query</th><th>useless / query</th><th>triangles / query</th>"
              "<th>in shadow</th><th>frame ms</th><th>Pareto</th></tr>\n";
@@ -466,7 +471,7 @@ std::string report_html(const Report& r) {
             const ConfigResult& c = s.configs[i];
             std::string pareto = std::string(f.bake[i] ? "bake " : "") + (f.frame[i] ? "frame" : "");
             h += std::string("<tr") + (c.name() == r.recommended ? " class=\"recommended\"" : "") + "><td>" + html_escape(c.name()) +
-                 "</td><td>" + std::to_string(c.fine_clusters) + "</td><td>" + fixed(c.cluster_seconds * 1e3, 1) + "</td><td>" +
+                 "</td><td>" + std::to_string(c.fine_clusters) + "</td><td>" + fixed(c.bytes_per_triangle, 1) + "</td><td>" + fixed(c.cluster_seconds * 1e3, 1) + "</td><td>" +
                  fixed(c.fit_seconds * 1e3, 1) + "</td><td>" + fixed(c.obb_volume_relative, 4) + "</td><td>" +
                  fixed(100 * c.useless_share, 1) + "%</td><td>" + fixed(c.build_seconds * 1e3, 2) + "</td><td>" +
                  fixed(c.queries_per_second / 1e6, 3) + "</td><td>" + fixed(c.nodes_per_query, 1) + "</td><td>" +

@@ -46,6 +46,7 @@ struct ConfigResult {
     ObbMethod obb;
     uint64_t fine_clusters = 0, coarse_clusters = 0;
     double cluster_seconds = 0, fit_seconds = 0;  // medians
+    double bytes_per_triangle = 0;                // the asset as io/asset_writer encodes it, boxes and cones
     double obb_volume_relative = 0;               // fine boxes over the scene box
     double useless_share = 0;                     // sampled, fine level (cluster_stats.h)
     double build_seconds = 0;                     // per light, all instances

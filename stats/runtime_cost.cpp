@@ -14,6 +14,7 @@ namespace cb {
 EncodedAsset encode_in_memory(const BakedScene& baked) {
     std::vector<uint8_t> bytes = encode_asset(baked.meshes, baked.instances);
     EncodedAsset out;
+    out.bytes = bytes.size();
     out.storage.resize((bytes.size() + 7) / 8);
     std::memcpy(out.storage.data(), bytes.data(), bytes.size());
     if (open_asset(out.storage.data(), bytes.size(), &out.view) != AssetError::ok) out.view = AssetView{};

@@ -17,6 +17,7 @@ namespace cb {
 struct EncodedAsset {
     std::vector<uint64_t> storage;  // 8-byte aligned bytes
     AssetView view;                 // mesh_count 0 when the bytes did not open
+    size_t bytes = 0;               // the encoded size
 };
 EncodedAsset encode_in_memory(const BakedScene& baked);
 
