@@ -73,7 +73,7 @@ struct Report {
     unsigned cores = 0;
     std::vector<SceneReport> scenes;
     // The default it recommends: the lowest geometric-mean frame time over the scenes, each scene's frame
-    // times divided by its best; within 3% of that, the shortest bake.
+    // times divided by its best; within 3% of that, the smallest asset, then the shortest bake.
     std::string recommended, recommendation_reason;
 };
 

@@ -101,7 +101,15 @@ Camera default_camera(const double* lo, const double* hi, uint32_t width, uint32
     cross(c.forward, up, c.right);
     normalise(c.right);
     cross(c.right, c.forward, c.up);
-    c.half_extent = 0.45;
+    // Frame the box's corners tightly, so the scene fills the view whatever its proportions.
+    double aspect = double(width) / double(std::max(1u, height)), extent = 1e-6;
+    for (int i = 0; i < 8; ++i) {
+        double e[3];
+        for (int k = 0; k < 3; ++k) e[k] = ((i >> k & 1) ? hi[k] : lo[k]) - c.eye[k];
+        double depth = dot(e, c.forward);
+        if (depth > 0) extent = std::max({extent, std::fabs(dot(e, c.right)) / depth / aspect, std::fabs(dot(e, c.up)) / depth});
+    }
+    c.half_extent = 1.04 * extent;
     return c;
 }
 

@@ -28,7 +28,7 @@ struct Camera {
     uint32_t width = 128, height = 128;
 };
 
-// Looking at the centre of the world box [lo, hi] from a diagonal above it, the whole box in view.
+// Looking at the centre of the world box [lo, hi] from a diagonal above it, the box's corners just in view.
 Camera default_camera(const double* lo, const double* hi, uint32_t width, uint32_t height);
 
 // The world point each pixel's ray first hits (xyz per pixel, NaN where it hits nothing): a double-precision
