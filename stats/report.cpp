@@ -436,7 +436,7 @@ std::string report_html(const Report& r) {
     h += "<h2>Machine and options</h2>\n<table class=\"machine\">\n";
     auto row = [&](const std::string& k, const std::string& v) { h += "<tr><th>" + html_escape(k) + "</th><td>" + html_escape(v) + "</td></tr>\n"; };
     row("CPU", r.cpu);
-    row("hardware threads", std::to_string(r.cores));
+    row("cores (hardware threads)", std::to_string(r.cores));
     row("methods", join_methods(o));
     row("fine sizes", join_fine(o));
     row("box fitters", join_obbs(o));
@@ -444,7 +444,7 @@ std::string report_html(const Report& r) {
     row("bake runs (median)", std::to_string(o.runs));
     row("runtime rounds (median)", std::to_string(o.query_runs));
     row("view (query points)", std::to_string(o.view) + " x " + std::to_string(o.view));
-    row("frame (frame time)", std::to_string(o.frame_view) + " x " + std::to_string(o.frame_view));
+    row("frame time for a view of", std::to_string(o.frame_view) + " x " + std::to_string(o.frame_view));
     row("lights", std::to_string(o.lights));
     row("occluders", o.one_sided ? "one-sided" : "two-sided");
     row("shadow-volume samples", std::to_string(o.stats.lights) + " lights x " + std::to_string(o.stats.samples) + " points per cluster");
