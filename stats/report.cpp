@@ -160,7 +160,24 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
         s.points = points.size() / 3;
 
         size_t total = o.methods.size() * o.fine_sizes.size() * o.obbs.size(), done = 0;
-        std::vector<EncodedAsset> assets;  // per configuration, for the runtime rounds below
+        // Runtime cost in rounds, every configuration once per round, so that a burst of load on a shared
+        // machine hits them all alike; medians over the rounds. The counts are the same every round. That
+        // needs every configuration's asset at once: past a memory budget, each is measured alone instead.
+        std::vector<EncodedAsset> assets;
+        std::vector<std::vector<double>> build_t(total), query_t(total);
+        bool interleave = true;
+        auto measure_round = [&](size_t i, const AssetView& view) {
+            RuntimeCost cost = measure_runtime(view, s.lights, points, 1, o.one_sided);
+            build_t[i].push_back(cost.build_seconds), query_t[i].push_back(cost.query_seconds);
+            if (build_t[i].size() > 1) return;
+            ConfigResult& c = s.configs[i];
+            double q = double(std::max<uint64_t>(1, cost.queries));
+            c.nodes_per_query = double(cost.stats.nodes_visited) / q;
+            c.clusters_per_query = double(cost.stats.clusters_tested) / q;
+            c.triangles_per_query = double(cost.stats.triangles_tested) / q;
+            c.useless_per_query = cost.useless_per_query();
+            c.shadowed_share = double(cost.shadowed) / q;
+        };
         for (ClusterMethod method : o.methods)
             for (uint32_t fine : o.fine_sizes)
                 for (ObbMethod obb : o.obbs) {
@@ -190,29 +207,21 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                     c.fine_clusters = st.fine.clusters, c.coarse_clusters = st.coarse.clusters;
                     c.obb_volume_relative = st.fine.obb_volume_relative;
                     c.useless_share = st.fine.useless_share;
-                    assets.push_back(encode_in_memory(baked));
+                    EncodedAsset asset = encode_in_memory(baked);
                     uint64_t stored = 0;
                     for (const AssetMesh& m : baked.meshes) stored += m.triangles.size() / 3;
-                    c.bytes_per_triangle = stored ? double(assets.back().bytes) / double(stored) : 0;
+                    c.bytes_per_triangle = stored ? double(asset.bytes) / double(stored) : 0;
                     s.configs.push_back(c);
+                    if (s.configs.size() == 1) interleave = double(asset.bytes) * double(total) <= o.memory_budget;
+                    if (interleave) {
+                        assets.push_back(std::move(asset));
+                    } else {
+                        for (int round = 0; round < std::max(1, o.query_runs); ++round) measure_round(s.configs.size() - 1, asset.view);
+                    }
                 }
-        // Runtime cost in rounds, every configuration once per round, so that a burst of load on a shared
-        // machine hits them all alike; medians over the rounds. The counts are the same every round.
-        std::vector<std::vector<double>> build_t(s.configs.size()), query_t(s.configs.size());
-        for (int round = 0; round < std::max(1, o.query_runs); ++round) {
+        for (int round = 0; interleave && round < std::max(1, o.query_runs); ++round) {
             if (progress) progress(s.name + ": runtime round " + std::to_string(round + 1) + "/" + std::to_string(o.query_runs));
-            for (size_t i = 0; i < s.configs.size(); ++i) {
-                RuntimeCost cost = measure_runtime(assets[i].view, s.lights, points, 1, o.one_sided);
-                build_t[i].push_back(cost.build_seconds), query_t[i].push_back(cost.query_seconds);
-                if (round > 0) continue;
-                ConfigResult& c = s.configs[i];
-                double q = double(std::max<uint64_t>(1, cost.queries));
-                c.nodes_per_query = double(cost.stats.nodes_visited) / q;
-                c.clusters_per_query = double(cost.stats.clusters_tested) / q;
-                c.triangles_per_query = double(cost.stats.triangles_tested) / q;
-                c.useless_per_query = cost.useless_per_query();
-                c.shadowed_share = double(cost.shadowed) / q;
-            }
+            for (size_t i = 0; i < s.configs.size(); ++i) measure_round(i, assets[i].view);
         }
         for (size_t i = 0; i < s.configs.size(); ++i) {
             ConfigResult& c = s.configs[i];

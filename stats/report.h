@@ -27,6 +27,7 @@ struct ReportOptions {
     uint32_t coarse_size = 2048;
     int runs = 3;             // bake timings are the median of this many runs
     int query_runs = 7;       // runtime timings: the median of this many rounds over every configuration
+    double memory_budget = 2.0 * (1u << 30);  // bytes of assets held for the rounds; past it, one at a time
     uint32_t view = 128;      // the camera's resolution; its first hits are the query points
     uint32_t frame_view = 1024;  // frame time is for this resolution: build + its visible points / queries per second
     uint32_t lights = 2;      // fixed light positions around the scene (report_lights)

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "png_writer.h"
+#include "report.h"
 #include "stats_helpers.h"
 
 namespace fs = std::filesystem;
@@ -114,6 +115,27 @@ TEST(Report, WritesThreeFilesWithOnePointPerConfiguration) {
     EXPECT_EQ(std::regex_search(html, std::regex("(src|href)=\"(https?:)?//")), false);
     EXPECT_NE(html.find("src=\"data:image/png;base64,"), std::string::npos);
     EXPECT_NE(html.find(j["recommended"].get<std::string>()), std::string::npos);
+}
+
+TEST(Report, OverTheMemoryBudgetConfigurationsAreMeasuredOneAtATime) {
+    cb::ReportOptions o;
+    o.methods = {cb::ClusterMethod::kmeans, cb::ClusterMethod::vco};
+    o.fine_sizes = {16};
+    o.obbs = {cb::ObbMethod::pca};
+    o.runs = 1, o.query_runs = 2, o.view = 48;
+    cb::Report rounds = cb::run_report({data("default_scene.glb")}, o);
+    o.memory_budget = 0;
+    cb::Report alone = cb::run_report({data("default_scene.glb")}, o);
+    ASSERT_EQ(alone.scenes.at(0).configs.size(), 2u);
+    for (size_t i = 0; i < 2; ++i) {
+        const cb::ConfigResult &a = rounds.scenes[0].configs[i], &b = alone.scenes[0].configs[i];
+        EXPECT_GT(b.queries_per_second, 0);
+        EXPECT_GT(b.frame_seconds, 0);
+        // Traversal counts do not depend on timing: the same either way.
+        EXPECT_EQ(a.clusters_per_query, b.clusters_per_query);
+        EXPECT_EQ(a.useless_per_query, b.useless_per_query);
+        EXPECT_EQ(a.triangles_per_query, b.triangles_per_query);
+    }
 }
 
 TEST(Report, BadInputIsOneLineNamingTheFile) {
