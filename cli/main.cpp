@@ -13,8 +13,12 @@
 #include <cb_shadow.h>
 
 #include "bake.h"
+#include "cluster_stats.h"
+#include "heatmap.h"
+#include "report.h"
 #include "load.h"
 #include "scene_info.h"
+#include "stats_input.h"
 
 namespace {
 
@@ -78,6 +82,15 @@ struct ClusterArgs {
     double capsule_ratio = 2.0;
 };
 
+bool parse_obb(const std::string& text, cb::ObbMethod& out) {
+    const std::pair<const char*, cb::ObbMethod> obb_methods[] = {{"refined", cb::ObbMethod::refined}, {"pca", cb::ObbMethod::pca},
+                                                                 {"pca-area", cb::ObbMethod::pca_area}, {"cgal", cb::ObbMethod::cgal_optimal}};
+    for (const auto& [name, m] : obb_methods)
+        if (text == name) return out = m, true;
+    std::fprintf(stderr, "clusterbake: --obb takes refined, pca, pca-area or cgal (got '%s')\n", text.c_str());
+    return false;
+}
+
 // `cluster` (geometry and hierarchy only) and `bake` (with bounds) share this.
 int run_bake(const ClusterArgs& a) {
     cb::ClusterOptions options = a.options;
@@ -92,15 +105,7 @@ int run_bake(const ClusterArgs& a) {
                      a.bounds.c_str());
         return 1;
     }
-    const std::pair<const char*, cb::ObbMethod> obb_methods[] = {{"refined", cb::ObbMethod::refined}, {"pca", cb::ObbMethod::pca},
-                                                                 {"pca-area", cb::ObbMethod::pca_area}, {"cgal", cb::ObbMethod::cgal_optimal}};
-    bool known_obb = false;
-    for (const auto& [name, m] : obb_methods)
-        if (a.obb == name) bounds.obb = m, known_obb = true;
-    if (!known_obb) {
-        std::fprintf(stderr, "clusterbake: --obb takes refined, pca, pca-area or cgal (got '%s')\n", a.obb.c_str());
-        return 1;
-    }
+    if (!parse_obb(a.obb, bounds.obb)) return 1;
     auto t0 = std::chrono::steady_clock::now();
     cb::Scene scene;
     try {
@@ -344,6 +349,154 @@ int run_query(const QueryArgs& a) {
     return 0;
 }
 
+std::vector<std::string> split_commas(const std::string& text) {
+    std::vector<std::string> out;
+    size_t start = 0;
+    while (start <= text.size()) {
+        size_t comma = text.find(',', start);
+        if (comma == std::string::npos) comma = text.size();
+        out.push_back(text.substr(start, comma - start));
+        start = comma + 1;
+    }
+    return out;
+}
+
+struct ReportArgs {
+    std::vector<std::string> files;
+    std::string out, methods = "kmeans,vco,morton", fine = "8,16,24,32", obbs = "refined,pca";
+    cb::ReportOptions options;
+    bool quiet = false;
+};
+
+int run_report(ReportArgs a) {
+    cb::ReportOptions& o = a.options;
+    o.methods.clear(), o.fine_sizes.clear(), o.obbs.clear();
+    for (const std::string& m : split_commas(a.methods)) {
+        cb::ClusterMethod method;
+        if (!cb::parse_method(m, method)) {
+            std::fprintf(stderr, "clusterbake: --methods takes a list of kmeans, vco, morton (got '%s')\n", m.c_str());
+            return 1;
+        }
+        o.methods.push_back(method);
+    }
+    for (const std::string& f : split_commas(a.fine)) {
+        char* end = nullptr;
+        unsigned long v = std::strtoul(f.c_str(), &end, 10);
+        if (f.empty() || *end || v < 1 || v > 4096) {
+            std::fprintf(stderr, "clusterbake: --fine takes a list of sizes from 1 to 4096 (got '%s')\n", f.c_str());
+            return 1;
+        }
+        o.fine_sizes.push_back(uint32_t(v));
+    }
+    for (const std::string& b : split_commas(a.obbs)) {
+        cb::ObbMethod m;
+        if (!cb::parse_obb_method(b, m)) {
+            std::fprintf(stderr, "clusterbake: --obb takes a list of refined, pca, pca-area, cgal (got '%s')\n", b.c_str());
+            return 1;
+        }
+        o.obbs.push_back(m);
+    }
+    if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.frame_view < 1 || o.lights < 1) {
+        std::fprintf(stderr, "clusterbake: --runs, --query-runs, --view, --frame-view and --lights must be at least 1\n");
+        return 1;
+    }
+    cb::Report r;
+    try {
+        r = cb::run_report(a.files, o, [&](const std::string& msg) {
+            if (!a.quiet) std::fprintf(stderr, "\r%-70s", msg.c_str());
+        });
+        if (!a.quiet) std::fprintf(stderr, "\n");
+        cb::write_report(r, a.out);
+    } catch (const std::runtime_error& e) {
+        if (!a.quiet) std::fprintf(stderr, "\n");
+        std::fprintf(stderr, "%s\n", e.what());
+        return exit_bad_input;
+    }
+    std::fputs(cb::report_table(r).c_str(), stdout);
+    std::printf("wrote %s/report.html, report.json, report.csv\n", a.out.c_str());
+    return 0;
+}
+
+struct HeatmapArgs {
+    std::string file, out, light, obb = "refined";
+    cb::HeatmapOptions options;
+};
+
+int run_heatmap(HeatmapArgs a) {
+    if (!a.light.empty()) {
+        char extra;
+        double* l = a.options.light;
+        if (std::sscanf(a.light.c_str(), "%lf,%lf,%lf%c", &l[0], &l[1], &l[2], &extra) != 3 || !std::isfinite(l[0]) ||
+            !std::isfinite(l[1]) || !std::isfinite(l[2])) {
+            std::fprintf(stderr, "clusterbake: --light takes X,Y,Z (got '%s')\n", a.light.c_str());
+            return 1;
+        }
+        a.options.has_light = true;
+    }
+    if (!parse_obb(a.obb, a.options.obb)) return 1;
+    if (a.options.size < 8 || a.options.size > 4096) {
+        std::fprintf(stderr, "clusterbake: --size takes 8 to 4096\n");
+        return 1;
+    }
+    cb::Heatmap h;
+    try {
+        h = cb::render_heatmap(cb::load_scene(a.file), a.options);
+        if (h.png.empty()) throw std::runtime_error(a.file + ": no triangles to draw");
+        cb::write_file_atomic(a.out, h.png);
+    } catch (const std::runtime_error& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return exit_bad_input;
+    }
+    std::printf("%s -> %s (%ux%u)\n  %s\n", a.file.c_str(), a.out.c_str(), h.width, h.height, h.caption().c_str());
+    return 0;
+}
+
+int run_stats(const ClusterArgs& a, cb::StatsOptions so) {
+    cb::ClusterOptions clustering = a.options;
+    if (!cb::parse_method(a.method, clustering.method)) {
+        std::fprintf(stderr, "clusterbake: unknown method '%s' (kmeans, vco, morton)\n", a.method.c_str());
+        return 1;
+    }
+    cb::BoundsOptions bounds;
+    bounds.capsule_ratio = a.capsule_ratio;
+    bounds.mask = cb::bounds_all;
+    if (!parse_obb(a.obb, bounds.obb)) return 1;
+    so.threads = clustering.threads;
+    cb::BakedScene baked;
+    std::string note;
+    try {
+        baked = cb::load_baked(a.file, clustering, bounds, &note);
+    } catch (const std::runtime_error& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return exit_bad_input;
+    }
+    cb::SceneStats s = cb::cluster_statistics(baked.meshes, baked.instances, so);
+    bool asset = cb::is_asset_file(a.file);
+    if (a.json) {
+        nlohmann::json j = cb::to_json(s);
+        j["file"] = a.file;
+        if (asset) {
+            j["input"] = "asset";
+            if (!note.empty()) j["note"] = note;
+        } else {
+            j["input"] = "scene";
+            j["method"] = cb::method_name(clustering.method);
+            j["coarse_size"] = clustering.coarse_size;
+            j["fine_size"] = clustering.fine_size;
+            j["obb"] = a.obb;
+        }
+        std::cout << j.dump(2) << "\n";
+        return 0;
+    }
+    if (asset)
+        std::printf("%s: asset%s%s\n", a.file.c_str(), note.empty() ? "" : "; ", note.c_str());
+    else
+        std::printf("%s: method %s, coarse %u, fine %u, obb %s\n", a.file.c_str(), cb::method_name(clustering.method),
+                    clustering.coarse_size, clustering.fine_size, a.obb.c_str());
+    std::fputs(cb::to_text(s).c_str(), stdout);
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -358,9 +511,7 @@ int main(int argc, char** argv) {
 
     ClusterArgs ca, ba;
     ba.fit = true;
-    auto clustering_options = [](CLI::App* c, ClusterArgs& a) {
-        c->add_option("file", a.file, "Scene file")->required();
-        c->add_option("-o,--output", a.out, "Output asset (.cbk); written atomically")->required();
+    auto clustering_flags = [](CLI::App* c, ClusterArgs& a) {
         c->add_option("--method", a.method, "kmeans (default), vco or morton");
         c->add_option("--coarse", a.options.coarse_size, "Triangles per coarse cluster (default 2048)");
         // 85 triangles have at most 255 distinct corners: every cluster fits the asset's 8-bit local indices.
@@ -373,6 +524,11 @@ int main(int argc, char** argv) {
         c->add_flag("--coarse-from-tree", a.options.kmeans_coarse_from_tree,
                     "kmeans: take the coarse level from the top of the k-means tree instead of Morton chunks");
         c->add_option("--cache", a.options.vco_cache_size, "vco: vertex cache size (default 32)");
+    };
+    auto clustering_options = [&](CLI::App* c, ClusterArgs& a) {
+        c->add_option("file", a.file, "Scene file")->required();
+        c->add_option("-o,--output", a.out, "Output asset (.cbk); written atomically")->required();
+        clustering_flags(c, a);
         c->add_flag("--json", a.json, "Print the summary as JSON");
         c->add_flag("-q,--quiet", a.quiet, "No progress on stderr");
     };
@@ -384,6 +540,57 @@ int main(int argc, char** argv) {
                      "auto (what the shadow runtime reads: obb,cone), all, or a list of obb,sphere,capsule,cone,slab");
     bake->add_option("--obb", ba.obb, "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow)");
     bake->add_option("--capsule-ratio", ba.capsule_ratio, "Fit a capsule when the box's longest side is this many times each other (default 2)");
+
+    ClusterArgs sa;
+    cb::StatsOptions so;
+    CLI::App* stats = app.add_subcommand(
+        "stats", "Cluster-quality statistics per level (coarse, fine) of a scene baked in memory, or of an asset");
+    stats->add_option("file", sa.file, "Scene file, or an asset (.cbk): its clusters and stored volumes as they are")->required();
+    clustering_flags(stats, sa);
+    stats->add_option("--obb", sa.obb, "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow)");
+    stats->add_option("--capsule-ratio", sa.capsule_ratio, "Fit a capsule when the box's longest side is this many times each other (default 2)");
+    stats->add_option("--lights", so.lights, "Random light positions per mesh (default 8)");
+    stats->add_option("--samples", so.samples, "Points sampled in each cluster's shadow volume per light (default 32)");
+    stats->add_option("--light-seed", so.seed, "Seed of the lights and samples (default 1)");
+    stats->add_option("--acmr-cache", so.acmr_cache, "FIFO cache size for the ACMR (default 32)");
+    stats->add_flag("--json", sa.json, "Print the statistics as JSON");
+
+    ReportArgs ra;
+    CLI::App* report = app.add_subcommand(
+        "report", "Sweep clustering method x fine size x box fitter: bake time, tightness and runtime cost; writes DIR/report.html, .json, .csv");
+    report->add_option("files", ra.files, "Scene files")->required();
+    report->add_option("-o,--output", ra.out, "Output folder (created)")->required();
+    report->add_option("--methods", ra.methods, "Comma list of kmeans, vco, morton (default all three)");
+    report->add_option("--fine", ra.fine, "Comma list of fine sizes (default 8,16,24,32)");
+    report->add_option("--obb", ra.obbs, "Comma list of box fitters: refined, pca, pca-area, cgal (default refined,pca)");
+    report->add_option("--coarse", ra.options.coarse_size, "Triangles per coarse cluster (default 2048)");
+    report->add_option("--runs", ra.options.runs, "Bake timings are the median of this many runs (default 3)");
+    report->add_option("--query-runs", ra.options.query_runs,
+                       "Runtime timings are the median of this many rounds, each measuring every configuration once (default 7)");
+    report->add_option("--view", ra.options.view, "Camera resolution; its visible points are the queries (default 128)");
+    report->add_option("--frame-view", ra.options.frame_view,
+                       "Frame time is for a view of this resolution: build + its visible points' queries (default 1024)");
+    report->add_option("--lights", ra.options.lights, "Lights around each scene (default 2)");
+    report->add_flag("--one-sided", ra.options.one_sided, "Query with one-sided occluders");
+    report->add_option("--samples", ra.options.stats.samples, "Shadow-volume samples per cluster and light (default 8)");
+    report->add_option("--sample-lights", ra.options.stats.lights, "Random lights for the shadow-volume samples (default 4)");
+    report->add_option("--threads", ra.options.threads, "Bake threads, 0 = all (queries run on one thread)");
+    report->add_flag("--heatmap", ra.options.heatmap, "Also draw each scene's heat map of useless cluster tests (k-means beside VCO)");
+    report->add_option("--heatmap-size", ra.options.heatmap_size, "Heat map panel size in pixels (default 256)");
+    report->add_flag("-q,--quiet", ra.quiet, "No progress on stderr");
+
+    HeatmapArgs ha;
+    CLI::App* heatmap = app.add_subcommand(
+        "heatmap", "PNG heat map of useless cluster tests per pixel for a camera and a light: k-means (left) beside VCO (right)");
+    heatmap->add_option("file", ha.file, "Scene file")->required();
+    heatmap->add_option("-o,--output", ha.out, "Output PNG (written atomically)")->required();
+    heatmap->add_option("--size", ha.options.size, "Panel size in pixels (default 256)");
+    heatmap->add_option("--light", ha.light, "Light position X,Y,Z (default: above the scene, as the report's first light)");
+    heatmap->add_option("--fine", ha.options.clustering.fine_size, "Maximum triangles per fine cluster (default 16)");
+    heatmap->add_option("--coarse", ha.options.clustering.coarse_size, "Triangles per coarse cluster (default 2048)");
+    heatmap->add_option("--obb", ha.obb, "refined (default), pca, pca-area, or cgal");
+    heatmap->add_flag("--one-sided", ha.options.one_sided, "One-sided occluders");
+    heatmap->add_option("--threads", ha.options.clustering.threads, "Worker threads, 0 = all");
 
     std::string validate_file;
     CLI::App* validate = app.add_subcommand("validate", "Check an asset's structure, ranges and checksum");
@@ -413,6 +620,9 @@ int main(int argc, char** argv) {
         if (*cluster) return run_bake(ca);
         if (*bake) return run_bake(ba);
         if (*validate) return run_validate(validate_file);
+        if (*stats) return run_stats(sa, so);
+        if (*report) return run_report(ra);
+        if (*heatmap) return run_heatmap(ha);
         if (*query) return run_query(qa);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "clusterbake: %s\n", e.what());

@@ -117,6 +117,10 @@ struct ShadowVolume {
     float normal[4][3];   // unit to float precision; inside: dot(normal[k], p - light) >= 0 for every k
     double near;          // no point closer than this to the light can be shadowed by the box
     bool valid;           // false: the light is inside or level with the box; test its cluster for every point
+    // The frame the planes come from (for samplers and drawing): the volume is about the points
+    // light + z (direction + x across[0] + y across[1]), z > 0, rect[0] <= x <= rect[1], rect[2] <= y <= rect[3]
+    // (the stored float planes hold at least that, and are what inside_shadow_volume tests).
+    double direction[3], across[2][3], rect[4];
 };
 
 // Builds the volume; the light is in the box's frame. The planes come from the central projection of the
@@ -181,6 +185,7 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
         for (int attempt = 0;; ++attempt) {
             if (attempt == 40) return ShadowVolume{};  // cannot be made to hold: no volume, test always
             double limit = bound[k] - sign * slack, n[3], nl = 0;
+            v.rect[k] = limit;
             for (int j = 0; j < 3; ++j) n[j] = sign * (side[k][j] - limit * d[j]), nl += n[j] * n[j];
             nl = std::sqrt(nl);
             for (int j = 0; j < 3; ++j) v.normal[k][j] = float(n[j] / nl);
@@ -203,6 +208,7 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
     }
     for (int k = 0; k < 3; ++k) dist2 += (c[k] + q[k] - light[k]) * (c[k] + q[k] - light[k]);
     v.near = std::sqrt(dist2) * (1 - 1e-7);
+    for (int k = 0; k < 3; ++k) v.direction[k] = d[k], v.across[0][k] = u[k], v.across[1][k] = w[k];
     v.valid = true;
     return v;
 }

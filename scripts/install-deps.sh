@@ -6,6 +6,8 @@ packages=(
   libcgal-dev libeigen3-dev libopenmesh-dev libdraco-dev libtinygltf-dev libflann-dev
   nlohmann-json3-dev libcli11-dev libgtest-dev
   libmeshoptimizer-dev libembree-dev
+  zlib1g-dev                 # PNG heat maps (clusterbake heatmap, report --heatmap)
+  libpng-dev chromium chromium-driver   # the report's browser test: headless Chromium renders report.html
   clang libclang-rt-14-dev   # libFuzzer + AddressSanitizer for the fuzz targets
   assimp-testmodels          # real broken and Draco glTF files the tests read in place
 )

@@ -1,0 +1,64 @@
+// What a bake costs at run time, measured through the runtime's own query API (cb_cpsv.h) on an asset
+// encoded in memory: per-light tree build time, queries per second and traversal counts; and the points
+// those queries use, the first hits of a camera's pixel rays.
+#pragma once
+
+#include <cb_asset.h>
+#include <cb_shadow.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "asset_input.h"
+
+namespace cb {
+
+// The bake encoded (io/asset_writer.h) and opened as the runtime opens a file.
+struct EncodedAsset {
+    std::vector<uint64_t> storage;  // 8-byte aligned bytes
+    AssetView view;                 // mesh_count 0 when the bytes did not open
+    size_t bytes = 0;               // the encoded size
+};
+EncodedAsset encode_in_memory(const BakedScene& baked);
+
+// A pinhole camera; pixel (x, y), y down, looks along forward + half_extent * (sx * aspect * right + sy * up).
+struct Camera {
+    double eye[3], forward[3], right[3], up[3];
+    double half_extent = 0.5;
+    uint32_t width = 128, height = 128;
+};
+
+// Looking at the centre of the world box [lo, hi] from a diagonal above it, the box's corners just in view.
+Camera default_camera(const double* lo, const double* hi, uint32_t width, uint32_t height);
+
+// The world point each pixel's ray first hits (xyz per pixel, NaN where it hits nothing): a double-precision
+// ray cast over the triangles of the fine clusters whose box the ray meets, coarse boxes first. Needs fine
+// and coarse OBBs.
+std::vector<double> first_hits(const BakedScene& baked, const Camera& camera, unsigned threads = 0);
+
+// The hit points only (xyz), in pixel order.
+std::vector<double> hit_points(const std::vector<double>& hits);
+
+struct RuntimeCost {
+    double build_seconds = 0;    // all instances' trees for one light: median over runs, mean over lights
+    double query_seconds = 0;    // every point once, one thread: median over runs, mean over lights
+    uint64_t queries = 0;        // points x lights
+    uint64_t shadowed = 0;
+    QueryStats stats;            // summed over points and lights
+    // A shadowed query stops at its one blocking cluster; every other cluster test found nothing.
+    double useless_per_query() const {
+        return queries ? double(stats.clusters_tested - shadowed) / double(queries) : 0;
+    }
+    double queries_per_second() const { return query_seconds > 0 && queries ? double(queries) / double(lights) / query_seconds : 0; }
+    uint32_t lights = 0;
+};
+
+// Builds the two-level trees for each light (xyz triples, world) and queries every point (xyz, world).
+RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& lights, const std::vector<double>& points,
+                            int runs, bool one_sided = false);
+
+// Per point, the cluster tests whose triangles did not block it (the heat map's figure).
+std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, const std::vector<double>& points,
+                                    bool one_sided = false);
+
+}  // namespace cb
