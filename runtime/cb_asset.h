@@ -187,6 +187,15 @@ inline Obb unpack_obb(const PackedObb& p) {
     return b;
 }
 
+// The stored box is {p : |dot(p - center, axis[i])| <= half[i]} for float axes that are unit and orthogonal
+// only to float precision (about 1e-7), so its corners are not exactly center +- half[i] axis[i]. Half
+// extents grown by 1e-6 of their sum give a box in the axes' own span that holds it: use them wherever the
+// box is taken as center + sum of +-half[i] axis[i] (corners, support functions, nearest points).
+inline void padded_halves(const Obb& b, double out[3]) {
+    double pad = 1e-6 * (double(b.half[0]) + double(b.half[1]) + double(b.half[2]));
+    for (int i = 0; i < 3; ++i) out[i] = double(b.half[i]) + pad;
+}
+
 // The unit axis of an octahedral pair.
 inline void unpack_octahedral(const int16_t* e, double* out) {
     double x = double(e[0]) / 32767.0, y = double(e[1]) / 32767.0, z = 1 - std::fabs(x) - std::fabs(y);

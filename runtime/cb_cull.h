@@ -30,11 +30,14 @@ struct CullStats {
 
 namespace cull_detail {
 
-// False only when the box is certainly outside the plane (a margin covers the rounding of these sums).
+// False only when the box is certainly outside the plane (padded halves cover the axes' rounding, see
+// cb_asset.h; a margin covers the rounding of these sums).
 inline bool box_touches_plane_side(const Obb& b, const double* n, double d) {
     double centre = n[0] * b.center[0] + n[1] * b.center[1] + n[2] * b.center[2] + d, reach = 0, scale = std::fabs(d);
+    double half[3];
+    padded_halves(b, half);
     for (int i = 0; i < 3; ++i) {
-        reach += double(b.half[i]) * std::fabs(n[0] * b.axis[i][0] + n[1] * b.axis[i][1] + n[2] * b.axis[i][2]);
+        reach += half[i] * std::fabs(n[0] * b.axis[i][0] + n[1] * b.axis[i][1] + n[2] * b.axis[i][2]);
         scale += std::fabs(n[i] * b.center[i]);
     }
     return centre >= -reach - 1e-9 * (scale + reach);

@@ -134,12 +134,13 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
     len = std::sqrt(len);
     if (!(len > 0)) return v;
     for (double& x : d) x /= len;
-    double corner[8][3];
+    double half[3], corner[8][3];
+    padded_halves(box, half);  // the corners of a box that holds the stored one (cb_asset.h)
     for (int i = 0; i < 8; ++i)
         for (int k = 0; k < 3; ++k)
-            corner[i][k] = c[k] + (i & 1 ? 1 : -1) * double(box.half[0]) * box.axis[0][k] +
-                           (i & 2 ? 1 : -1) * double(box.half[1]) * box.axis[1][k] +
-                           (i & 4 ? 1 : -1) * double(box.half[2]) * box.axis[2][k] - light[k];
+            corner[i][k] = (c[k] - light[k]) + ((i & 1 ? 1 : -1) * half[0] * box.axis[0][k] +
+                                                (i & 2 ? 1 : -1) * half[1] * box.axis[1][k] +
+                                                (i & 4 ? 1 : -1) * half[2] * box.axis[2][k]);
     // Every corner must be clearly in front of the light; otherwise no pyramid through the light holds the
     // box (the light is inside it or level with it): never build a wrong plane.
     double depth[8], reach = 0, corner_length[8];
@@ -157,8 +158,8 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
         double along = a[0] * d[0] + a[1] * d[1] + a[2] * d[2], w[3], wl = 0;
         for (int k = 0; k < 3; ++k) w[k] = a[k] - along * d[k], wl += w[k] * w[k];
         wl = std::sqrt(wl);
-        if (wl * box.half[i] > best && wl > 1e-6) {
-            best = wl * box.half[i];
+        if (wl * half[i] > best && wl > 1e-6) {
+            best = wl * half[i];
             for (int k = 0; k < 3; ++k) u[k] = w[k] / wl;
         }
     }
@@ -199,11 +200,11 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
             slack = slack * 4 + 1e-7 * scale;
         }
     }
-    // Closing distance: from the light to the nearest point of the box, shortened for rounding.
+    // Closing distance: from the light to the nearest point of the padded box, shortened for rounding.
     double q[3] = {0, 0, 0}, dist2 = 0;
     for (int i = 0; i < 3; ++i) {
         double t = -(d[0] * box.axis[i][0] + d[1] * box.axis[i][1] + d[2] * box.axis[i][2]) * len;  // (light - c) . axis
-        t = std::max(-double(box.half[i]), std::min(double(box.half[i]), t));
+        t = std::max(-half[i], std::min(half[i], t));
         for (int k = 0; k < 3; ++k) q[k] += t * box.axis[i][k];
     }
     for (int k = 0; k < 3; ++k) dist2 += (c[k] + q[k] - light[k]) * (c[k] + q[k] - light[k]);
