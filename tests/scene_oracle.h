@@ -124,6 +124,32 @@ inline bool vertex_light(const cb::Scene& scene, uint64_t seed, double* light) {
     return false;
 }
 
+// Points whose segment to the light runs through a triangle's centroid (2 centroid - light, in world
+// space), half of them through double-sided triangles when the scene has any: one-sided mode has to get
+// sidedness right there.
+inline std::vector<std::array<double, 3>> through_points(const cb::Scene& scene, const double* light, size_t n, uint64_t seed) {
+    std::vector<std::pair<uint32_t, uint32_t>> any, two_sided;  // (instance, triangle)
+    for (uint32_t i = 0; i < scene.instances.size(); ++i) {
+        const cb::Mesh& mesh = scene.meshes[scene.instances[i].mesh];
+        for (const cb::Primitive& p : mesh.primitives)
+            for (uint32_t t = p.first_triangle; t < p.first_triangle + p.triangle_count; ++t)
+                (p.double_sided ? two_sided : any).push_back({i, t});
+    }
+    std::vector<std::array<double, 3>> out;
+    for (size_t k = 0; k < n; ++k) {
+        const auto& from = (k % 2 && !two_sided.empty()) || any.empty() ? two_sided : any;
+        if (from.empty()) break;
+        auto [i, t] = from[(seed + k * 104729) % from.size()];
+        const cb::Mesh& mesh = scene.meshes[scene.instances[i].mesh];
+        double c[3] = {0, 0, 0}, w[3];
+        for (int v = 0; v < 3; ++v)
+            for (int j = 0; j < 3; ++j) c[j] += mesh.positions[size_t(mesh.indices[size_t(t) * 3 + v]) * 3 + j] / 3.0;
+        cb::apply_instance(instance_3x4(scene.instances[i].world).data(), c, w);
+        out.push_back({2 * w[0] - light[0], 2 * w[1] - light[1], 2 * w[2] - light[2]});
+    }
+    return out;
+}
+
 class SceneOracle {
 public:
     explicit SceneOracle(const cb::Scene& scene) {

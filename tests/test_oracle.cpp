@@ -87,12 +87,14 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
         ASSERT_TRUE(cb::test::vertex_light(b.scene, 777, lights[2].data()));
         std::vector<Point> seen = seen_points(fast, w, 200, rng), flat = in_plane_points(b.scene, plane);
         ASSERT_FALSE(seen.empty());
-        for (size_t l = 0; l < lights.size(); ++l)
+        for (size_t l = 0; l < lights.size(); ++l) {
+            std::vector<Point> through = cb::test::through_points(b.scene, lights[l].data(), file.per_light / 5 + 1, l);
             for (size_t k = 0; k < file.per_light; ++k) {
                 Point p;
-                if (k % 4 == 0) p = w.surface[(k * 7919) % w.surface.size()];
-                else if (k % 4 == 1) p = seen[k % seen.size()];
-                else if (k % 4 == 2 && l == 3 && !flat.empty()) p = flat[k % flat.size()];
+                if (k % 5 == 0) p = w.surface[(k * 7919) % w.surface.size()];
+                else if (k % 5 == 1) p = seen[k % seen.size()];
+                else if (k % 5 == 2 && l == 3 && !flat.empty()) p = flat[k % flat.size()];
+                else if (k % 5 == 3 && k / 5 < through.size()) p = through[k / 5];
                 else for (int j = 0; j < 3; ++j) p[j] = w.lo[j] + (w.hi[j] - w.lo[j]) * (1.2 * u(rng) - 0.1);
                 for (bool one_sided : {false, true}) {
                     bool t = false;
@@ -104,6 +106,7 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
                     blocked += exact, touching += a.touching, ++queries;
                 }
             }
+        }
     }
     std::printf("%zu queries on %zu scenes (both modes), %zu in shadow, %zu touching; disagreements: blocked %zu, touching %zu\n",
                 queries, files.size(), blocked, touching, bad_blocked, bad_touching);
