@@ -124,9 +124,9 @@ inline bool vertex_light(const cb::Scene& scene, uint64_t seed, double* light) {
     return false;
 }
 
-// Points whose segment to the light runs through a triangle's centroid (2 centroid - light, in world
-// space), half of them through double-sided triangles when the scene has any: one-sided mode has to get
-// sidedness right there.
+// Points whose segment to the light runs through a triangle's centroid c (c + s (c - light) in world space,
+// s = 1/64 or 1: just behind it or far), half of them through double-sided triangles when the scene has
+// any: one-sided mode has to get sidedness right there.
 inline std::vector<std::array<double, 3>> through_points(const cb::Scene& scene, const double* light, size_t n, uint64_t seed) {
     std::vector<std::pair<uint32_t, uint32_t>> any, two_sided;  // (instance, triangle)
     for (uint32_t i = 0; i < scene.instances.size(); ++i) {
@@ -145,7 +145,8 @@ inline std::vector<std::array<double, 3>> through_points(const cb::Scene& scene,
         for (int v = 0; v < 3; ++v)
             for (int j = 0; j < 3; ++j) c[j] += mesh.positions[size_t(mesh.indices[size_t(t) * 3 + v]) * 3 + j] / 3.0;
         cb::apply_instance(instance_3x4(scene.instances[i].world).data(), c, w);
-        out.push_back({2 * w[0] - light[0], 2 * w[1] - light[1], 2 * w[2] - light[2]});
+        double s = k % 4 < 2 ? 1.0 / 64 : 1.0;
+        out.push_back({w[0] + s * (w[0] - light[0]), w[1] + s * (w[1] - light[1]), w[2] + s * (w[2] - light[2])});
     }
     return out;
 }

@@ -65,7 +65,7 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
     };
     std::vector<File> files = {{std::string(CB_SOURCE_DIR) + "/data/default_scene.glb", 40}};
     for (const char* f : {"gltf/SpheresScaledInstances/spheres_scaled_instances.gltf", "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf",
-                          "hard/tube.obj"})
+                          "gltf/nested.glb", "hard/tube.obj"})
         if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back({(fs::path(CB_SHARED_DATA) / f).string(), 250});
     size_t queries = 0, blocked = 0, touching = 0, bad_blocked = 0, bad_touching = 0, plane_lights = 0;
     for (const File& file : files) {
