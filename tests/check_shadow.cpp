@@ -48,10 +48,12 @@ struct Answer {
 
 struct Tally {
     size_t queries = 0, shadowed = 0, touching = 0, only_touching = 0, bad_tree2 = 0, bad_tree1 = 0, bad_reference = 0;
+    size_t missed_shadow = 0;  // some runtime answer says lit where the oracle says shadow
 
     void add(const Tally& t) {
         queries += t.queries, shadowed += t.shadowed, touching += t.touching, only_touching += t.only_touching;
         bad_tree2 += t.bad_tree2, bad_tree1 += t.bad_tree1, bad_reference += t.bad_reference;
+        missed_shadow += t.missed_shadow;
     }
     size_t bad() const { return bad_tree2 + bad_tree1 + bad_reference; }
 };
@@ -209,6 +211,7 @@ Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points
         bool exact = a.exact.blocked;
         t.queries++, t.shadowed += exact, t.touching += a.exact.touching, t.only_touching += a.exact.only_touching;
         t.bad_tree2 += a.tree2 != exact, t.bad_tree1 += a.tree1 != exact, t.bad_reference += a.reference != exact;
+        t.missed_shadow += exact && !(a.tree2 && a.tree1 && a.reference);
         if ((a.tree2 != exact || a.tree1 != exact || a.reference != exact) && reported++ < max_reports)
             report(scene, light, one_sided, points[k], a);
     }
@@ -236,8 +239,14 @@ Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget
         std::vector<Point> through = cb::test::through_points(scene, lights[l].at.data(), per_variant / 5 + 1, l);
         bool on_plane = std::string(lights[l].kind) == "plane";
         std::vector<Point> points = light_points(per_variant, l, seen, w, size, through, on_plane ? flat : std::vector<Point>{});
-        for (bool one_sided : {false, true})
-            t.add(tally(answer_all(b.view, oracle, lights[l], one_sided, points, threads), points, name, lights[l], one_sided, reported));
+        for (bool one_sided : {false, true}) {
+            Tally v = tally(answer_all(b.view, oracle, lights[l], one_sided, points, threads), points, name, lights[l], one_sided, reported);
+            if (v.bad())
+                std::printf("disagreements %s: light %s, %s: tree2 %zu, tree1 %zu, reference %zu of %zu queries; %zu said lit in shadow\n",
+                            name.c_str(), lights[l].kind, one_sided ? "one-sided" : "two-sided", v.bad_tree2, v.bad_tree1,
+                            v.bad_reference, v.queries, v.missed_shadow);
+            t.add(v);
+        }
     }
     if (seen.empty()) note += " no-camera-hits";
     return t;

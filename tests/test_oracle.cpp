@@ -3,6 +3,8 @@
 // modes, with lights outside, inside, on a vertex and exactly on a triangle's plane.
 #include <gtest/gtest.h>
 
+#include <cb_cpsv.h>
+
 #include <array>
 #include <filesystem>
 #include <random>
@@ -115,4 +117,35 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
     EXPECT_GT(blocked, queries / 10);
     EXPECT_GT(touching, 20u);
     EXPECT_EQ(plane_lights, files.size());
+}
+
+// KNOWN BUG, disabled until runtime/ is fixed (found by check_shadow, reduced from hard/comments.off): the
+// shadow trees call a point lit that the exact oracle and the reference walk put in shadow, by a proper
+// crossing of triangle 0 near its corner (0, 1.63299298, -1.15470099). The light lies on the plane of one
+// face of the cluster's box. make_shadow_volume builds the box's corners as center +- half * axis with
+// float axes shorter than 1 (by 1.7e-8 here), so the corners sit inside the vertices the box must hold
+// (by 2.9e-8 of half), more than the volume's 1e-9 slack covers. Run with --gtest_also_run_disabled_tests.
+TEST(KnownBug, DISABLED_ShadowTreeMissesBlockerWithLightLevelWithBoxFace) {
+    cb::Scene scene;
+    cb::Mesh m;
+    const float a = 1.63299298f, h = 1.15470099f;
+    m.positions = {a, 0, -h, 0, a, -h, 0, a, h, -a, 0, h, -a, 0, -h, 0, -a, -h};
+    m.indices = {0, 1, 2, 1, 3, 2, 4, 0, 5};
+    m.primitives.push_back({0, 3, false});
+    scene.meshes.push_back(m);
+    scene.instances.push_back({0, cb::identity_transform(), "cube part"});
+    cb::test::Baked b = cb::test::bake_scene(scene);
+    ASSERT_GT(b.view.mesh_count, 0u);
+    const double light[3] = {-1.6329929828643799, 0, 3.4641029834747314};
+    const double p[3] = {0.54433099428812681, 2.1773239771525064, -2.6943023204803467};
+    cb::test::OracleAnswer exact = SceneOracle(scene).occluded(p, light, false);
+    EXPECT_TRUE(exact.blocked);
+    EXPECT_FALSE(exact.touching);
+    EXPECT_TRUE(cb::occluded_reference(b.view, p, light, nullptr, false));
+    for (bool two_levels : {true, false}) {
+        cb::ClusterShadowTree tree;
+        tree.build(b.view, 0, light, false, two_levels);
+        std::vector<uint32_t> stack(tree.stack_size());
+        EXPECT_EQ(tree.occluded(p, stack.data()), exact.blocked) << (two_levels ? "two levels" : "one level");
+    }
 }
