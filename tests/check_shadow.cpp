@@ -7,8 +7,9 @@
 // the plane light points on that plane. Files that do not load are skipped with the reason.
 // Exit code 1 on any disagreement (the first ones are printed in full), 2 when nothing was checked.
 //
-//   check_shadow [--queries N] [--threads T] [FILE...]   (N in all, spread evenly over the scenes;
-//                                                         default 1000000; T = 0: every core)
+//   check_shadow [--queries N] [--threads T] [--brute-force-every K] [FILE...]
+//     N queries in all, spread evenly over the scenes (default 1000000); T = 0: every core; with K, every K-th
+//     query also asks the oracle without its AABB trees (every triangle), which must give the same answer.
 #include <cb_cpsv.h>
 
 #include <algorithm>
@@ -33,6 +34,7 @@ namespace {
 struct Options {
     size_t queries = 1000000;
     unsigned threads = 1;
+    size_t brute_every = 0;  // also check the oracle's candidates against all triangles on every such query
     std::vector<std::string> files;
 };
 
@@ -44,18 +46,20 @@ struct Light {
 struct Answer {
     cb::test::OracleAnswer exact;
     bool tree2 = false, tree1 = false, reference = false;
+    bool brute_checked = false, brute_agrees = true;
 };
 
 struct Tally {
     size_t queries = 0, shadowed = 0, touching = 0, only_touching = 0, bad_tree2 = 0, bad_tree1 = 0, bad_reference = 0;
     size_t missed_shadow = 0;  // some runtime answer says lit where the oracle says shadow
+    size_t brute_checked = 0, brute_bad = 0;
 
     void add(const Tally& t) {
         queries += t.queries, shadowed += t.shadowed, touching += t.touching, only_touching += t.only_touching;
         bad_tree2 += t.bad_tree2, bad_tree1 += t.bad_tree1, bad_reference += t.bad_reference;
-        missed_shadow += t.missed_shadow;
+        missed_shadow += t.missed_shadow, brute_checked += t.brute_checked, brute_bad += t.brute_bad;
     }
-    size_t bad() const { return bad_tree2 + bad_tree1 + bad_reference; }
+    size_t bad() const { return bad_tree2 + bad_tree1 + bad_reference + brute_bad; }
 };
 
 constexpr size_t max_reports = 20;  // disagreements printed in full per scene
@@ -172,7 +176,7 @@ void parallel(size_t n, unsigned threads, F&& f) {
 // Every point against one light in one mode: the runtime's trees (two levels and one) and reference walk,
 // and the oracle.
 std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle, const Light& light, bool one_sided,
-                               const std::vector<Point>& points, unsigned threads) {
+                               const std::vector<Point>& points, unsigned threads, size_t brute_every) {
     std::vector<cb::ClusterShadowTree> two(v.instance_count), one(v.instance_count);
     size_t stack = 1;
     for (uint32_t i = 0; i < v.instance_count; ++i) {
@@ -191,6 +195,12 @@ std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle
             answers[k].tree2 = t2, answers[k].tree1 = t1;
             answers[k].reference = cb::occluded_reference(v, p, light.at.data(), nullptr, one_sided);
             answers[k].exact = oracle.occluded(p, light.at.data(), one_sided);
+            if (brute_every && k % brute_every == 0) {
+                cb::test::OracleAnswer b = oracle.occluded_brute_force(p, light.at.data(), one_sided);
+                answers[k].brute_checked = true;
+                answers[k].brute_agrees = b.blocked == answers[k].exact.blocked && b.touching == answers[k].exact.touching &&
+                                          b.only_touching == answers[k].exact.only_touching;
+            }
         }
     });
     return answers;
@@ -212,6 +222,9 @@ Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points
         t.queries++, t.shadowed += exact, t.touching += a.exact.touching, t.only_touching += a.exact.only_touching;
         t.bad_tree2 += a.tree2 != exact, t.bad_tree1 += a.tree1 != exact, t.bad_reference += a.reference != exact;
         t.missed_shadow += exact && !(a.tree2 && a.tree1 && a.reference);
+        t.brute_checked += a.brute_checked, t.brute_bad += !a.brute_agrees;
+        if (!a.brute_agrees) std::printf("ORACLE TREES MISSED A TRIANGLE %s: light %s, %s, point (%.17g, %.17g, %.17g)\n", scene.c_str(),
+                                         light.kind, one_sided ? "one-sided" : "two-sided", points[k][0], points[k][1], points[k][2]);
         if ((a.tree2 != exact || a.tree1 != exact || a.reference != exact) && reported++ < max_reports)
             report(scene, light, one_sided, points[k], a);
     }
@@ -219,7 +232,7 @@ Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points
 }
 
 // One scene: bake, the oracle, the lights and points, every light in both modes.
-Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget, unsigned threads, std::string& note) {
+Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget, const Options& o, std::string& note) {
     cb::test::Baked b = cb::test::bake_scene(scene);
     if (b.view.mesh_count == 0 && !scene.meshes.empty()) {
         note += " bake-failed";
@@ -240,7 +253,8 @@ Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget
         bool on_plane = std::string(lights[l].kind) == "plane";
         std::vector<Point> points = light_points(per_variant, l, seen, w, size, through, on_plane ? flat : std::vector<Point>{});
         for (bool one_sided : {false, true}) {
-            Tally v = tally(answer_all(b.view, oracle, lights[l], one_sided, points, threads), points, name, lights[l], one_sided, reported);
+            std::vector<Answer> answers = answer_all(b.view, oracle, lights[l], one_sided, points, o.threads, o.brute_every);
+            Tally v = tally(answers, points, name, lights[l], one_sided, reported);
             if (v.bad())
                 std::printf("disagreements %s: light %s, %s: tree2 %zu, tree1 %zu, reference %zu of %zu queries; %zu said lit in shadow\n",
                             name.c_str(), lights[l].kind, one_sided ? "one-sided" : "two-sided", v.bad_tree2, v.bad_tree1,
@@ -269,6 +283,7 @@ bool parse(int argc, char** argv, Options& o) {
         std::string a = argv[i];
         if (a == "--queries" && i + 1 < argc) o.queries = std::stoul(argv[++i]);
         else if (a == "--threads" && i + 1 < argc) o.threads = unsigned(std::stoul(argv[++i]));
+        else if (a == "--brute-force-every" && i + 1 < argc) o.brute_every = std::stoul(argv[++i]);
         else if (a.rfind("--", 0) == 0) return false;
         else o.files.push_back(a);
     }
@@ -288,7 +303,7 @@ std::string display_name(const std::string& file) {
 int main(int argc, char** argv) {
     Options o;
     if (!parse(argc, argv, o)) {
-        std::fprintf(stderr, "usage: check_shadow [--queries N] [--threads T] [FILE...]\n");
+        std::fprintf(stderr, "usage: check_shadow [--queries N] [--threads T] [--brute-force-every K] [FILE...]\n");
         return 2;
     }
     if (o.files.empty()) o.files = scene_files(CB_SHARED_DATA);
@@ -314,7 +329,7 @@ int main(int argc, char** argv) {
     for (auto& [name, scene] : scenes) {
         auto t0 = std::chrono::steady_clock::now();
         std::string note;
-        Tally t = check_scene(name, scene, budget, o.threads, note);
+        Tally t = check_scene(name, scene, budget, o, note);
         double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         print_row(name, triangles_in_scene(scene), t, s, note);
         total.add(t);
@@ -326,5 +341,8 @@ int main(int argc, char** argv) {
     std::printf("columns: in shadow, touching (the segment touches a triangle: edge, vertex or an end on its plane) and t-only "
                 "(in shadow through touching contacts only) per the exact oracle; tree2, tree1, ref: disagreements of the "
                 "two-level tree, the one-level tree and the reference walk with it\n");
+    if (o.brute_every)
+        std::printf("the oracle's trees against all triangles on every %zu-th query: %zu checked, %zu disagreements\n", o.brute_every,
+                    total.brute_checked, total.brute_bad);
     return total.bad() ? 1 : 0;
 }

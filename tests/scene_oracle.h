@@ -195,6 +195,31 @@ public:
         return a;
     }
 
+    // The same answer from every triangle of every instance, without the trees: to check the trees' candidates.
+    OracleAnswer occluded_brute_force(const double* p, const double* light, bool one_sided) const {
+        OracleAnswer a;
+        bool unblocked_by_a_crossing = false;
+        for (const Frame& f : frames_) {
+            const MeshTree& m = *meshes_[f.mesh];
+            double lp[3], ll[3];
+            if (!f.usable) continue;
+            cb::apply_instance(f.to_mesh.data(), p, lp);
+            cb::apply_instance(f.to_mesh.data(), light, ll);
+            if (lp[0] == ll[0] && lp[1] == ll[1] && lp[2] == ll[2]) continue;
+            for (size_t k = 0; k < m.triangles.size(); ++k) {
+                double c[3][3];
+                for (int v = 0; v < 3; ++v)
+                    for (int j = 0; j < 3; ++j) c[v][j] = m.triangles[k].vertex(v)[j];
+                cb::SegmentTest r = oracle(lp, ll, c[0], c[1], c[2], !one_sided || m.double_sided[k]);
+                a.touching |= r.touching;
+                a.blocked |= r.blocks;
+                unblocked_by_a_crossing |= r.blocks && !r.touching;
+            }
+        }
+        a.only_touching = a.blocked && !unblocked_by_a_crossing;
+        return a;
+    }
+
     // The first surface point along a world ray (double constructions: near the surface, not on it).
     bool first_hit(const double* origin, const double* dir, double* hit) const {
         double best = INFINITY;
