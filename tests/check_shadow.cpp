@@ -1,8 +1,8 @@
 // A long correctness run, outside ctest: shadow queries on every scene of ../shared/data (or on the given
 // files), answered by the runtime's shadow trees (two levels and one) and by its reference walk, each
 // compared with the fast exact oracle (scene_oracle.h), in two-sided and one-sided mode.
-// Lights per scene: outside the bounds, grazing their top, inside them, exactly on a vertex, and exactly on
-// a triangle's plane beside the triangle. Points: surface points seen from cameras outside the bounds,
+// Lights per scene: outside the bounds, grazing their top, beside them exactly level with the topmost
+// vertex, inside them, exactly on a vertex, and exactly on a triangle's plane beside the triangle. Points: surface points seen from cameras outside the bounds,
 // vertices, points just behind (or far behind) triangles, random points in and around the bounds, and for
 // the plane light points on that plane. Files that do not load are skipped with the reason.
 // Exit code 1 on any disagreement (the first ones are printed in full), 2 when nothing was checked.
@@ -132,6 +132,7 @@ std::vector<Light> scene_lights(const cb::Scene& scene, const WorldSample& w, do
     std::vector<Light> lights = {
         {"outside", {lo[0] - size, hi[1] + 2 * size, lo[2] - 0.5 * size}},
         {"grazing", {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])}},
+        {"level", {lo[0] - 0.5 * size, hi[1], 0.5 * (lo[2] + hi[2])}},  // beside the bounds, level with the top vertex
         {"inside", {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])}}};
     Light vertex{"vertex", {}};
     if (cb::test::vertex_light(scene, 2027, vertex.at.data())) lights.push_back(vertex);

@@ -122,9 +122,11 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
 // KNOWN BUG, disabled until runtime/ is fixed (found by check_shadow, reduced from hard/comments.off): the
 // shadow trees call a point lit that the exact oracle and the reference walk put in shadow, by a proper
 // crossing of triangle 0 near its corner (0, 1.63299298, -1.15470099). The light lies on the plane of one
-// face of the cluster's box. make_shadow_volume builds the box's corners as center +- half * axis with
-// float axes shorter than 1 (by 1.7e-8 here), so the corners sit inside the vertices the box must hold
-// (by 2.9e-8 of half), more than the volume's 1e-9 slack covers. Run with --gtest_also_run_disabled_tests.
+// face of the cluster's box. The bake keeps every vertex inside |dot(v - center, axis)| <= half, but
+// make_shadow_volume takes the box's corners as center +- half * axis, and with float axes shorter than 1
+// (by 1.7e-8 here) or not quite orthogonal those span a smaller box: the vertices reach 2.9e-8 of half
+// beyond it here (up to 1e-7 of the box size, in about 45% of the shared scenes' clusters), far more than
+// the volume's 1e-9 slack covers. Run with --gtest_also_run_disabled_tests.
 TEST(KnownBug, DISABLED_ShadowTreeMissesBlockerWithLightLevelWithBoxFace) {
     cb::Scene scene;
     cb::Mesh m;
@@ -139,6 +141,28 @@ TEST(KnownBug, DISABLED_ShadowTreeMissesBlockerWithLightLevelWithBoxFace) {
     const double light[3] = {-1.6329929828643799, 0, 3.4641029834747314};
     const double p[3] = {0.54433099428812681, 2.1773239771525064, -2.6943023204803467};
     cb::test::OracleAnswer exact = SceneOracle(scene).occluded(p, light, false);
+    EXPECT_TRUE(exact.blocked);
+    EXPECT_FALSE(exact.touching);
+    EXPECT_TRUE(cb::occluded_reference(b.view, p, light, nullptr, false));
+    for (bool two_levels : {true, false}) {
+        cb::ClusterShadowTree tree;
+        tree.build(b.view, 0, light, false, two_levels);
+        std::vector<uint32_t> stack(tree.stack_size());
+        EXPECT_EQ(tree.occluded(p, stack.data()), exact.blocked) << (two_levels ? "two levels" : "one level");
+    }
+}
+
+// KNOWN BUG, the same cause on a plain scene with integer coordinates (hard/wallhole.obj): the light is
+// beside the bounds, level with the roof's apex (5, 15, -5); the point is in shadow by a proper crossing
+// near the apex, and the trees call it lit. Run with --gtest_also_run_disabled_tests.
+TEST(KnownBug, DISABLED_ShadowTreeMissesBlockerWithLightLevelWithApex) {
+    fs::path file = fs::path(CB_SHARED_DATA) / "hard/wallhole.obj";
+    if (!fs::exists(file)) GTEST_SKIP() << "no shared data";
+    cb::test::Baked b = cb::test::bake(file.string());
+    ASSERT_GT(b.view.mesh_count, 0u);
+    const double light[3] = {-7.5, 15, -5};
+    const double p[3] = {5.5189426612443331, 13.759012783918509, -3.7590127839185103};
+    cb::test::OracleAnswer exact = SceneOracle(b.scene).occluded(p, light, false);
     EXPECT_TRUE(exact.blocked);
     EXPECT_FALSE(exact.touching);
     EXPECT_TRUE(cb::occluded_reference(b.view, p, light, nullptr, false));
