@@ -52,12 +52,13 @@ struct Answer {
 struct Tally {
     size_t queries = 0, shadowed = 0, touching = 0, only_touching = 0, bad_tree2 = 0, bad_tree1 = 0, bad_reference = 0;
     size_t missed_shadow = 0;  // some runtime answer says lit where the oracle says shadow
+    size_t bad_touching = 0;   // disagreements on queries the oracle calls touching
     size_t brute_checked = 0, brute_bad = 0;
 
     void add(const Tally& t) {
         queries += t.queries, shadowed += t.shadowed, touching += t.touching, only_touching += t.only_touching;
         bad_tree2 += t.bad_tree2, bad_tree1 += t.bad_tree1, bad_reference += t.bad_reference;
-        missed_shadow += t.missed_shadow, brute_checked += t.brute_checked, brute_bad += t.brute_bad;
+        missed_shadow += t.missed_shadow, bad_touching += t.bad_touching, brute_checked += t.brute_checked, brute_bad += t.brute_bad;
     }
     size_t bad() const { return bad_tree2 + bad_tree1 + bad_reference + brute_bad; }
 };
@@ -140,6 +141,8 @@ std::vector<Light> scene_lights(const cb::Scene& scene, const WorldSample& w, do
     plane = cb::test::plane_light(scene, 4099);
     if (plane.found) lights.push_back({"plane", {plane.light[0], plane.light[1], plane.light[2]}});
     else note += " no-plane-light";
+    if (plane.found && scene.instances[plane.instance].world != cb::identity_transform())
+        note += " plane-light-on-transformed-instance-" + std::to_string(plane.instance);
     return lights;
 }
 
@@ -223,6 +226,7 @@ Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points
         t.queries++, t.shadowed += exact, t.touching += a.exact.touching, t.only_touching += a.exact.only_touching;
         t.bad_tree2 += a.tree2 != exact, t.bad_tree1 += a.tree1 != exact, t.bad_reference += a.reference != exact;
         t.missed_shadow += exact && !(a.tree2 && a.tree1 && a.reference);
+        t.bad_touching += a.exact.touching && (a.tree2 != exact || a.tree1 != exact || a.reference != exact);
         t.brute_checked += a.brute_checked, t.brute_bad += !a.brute_agrees;
         if (!a.brute_agrees) std::printf("ORACLE TREES MISSED A TRIANGLE %s: light %s, %s, point (%.17g, %.17g, %.17g)\n", scene.c_str(),
                                          light.kind, one_sided ? "one-sided" : "two-sided", points[k][0], points[k][1], points[k][2]);
@@ -257,9 +261,10 @@ Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget
             std::vector<Answer> answers = answer_all(b.view, oracle, lights[l], one_sided, points, o.threads, o.brute_every);
             Tally v = tally(answers, points, name, lights[l], one_sided, reported);
             if (v.bad())
-                std::printf("disagreements %s: light %s, %s: tree2 %zu, tree1 %zu, reference %zu of %zu queries; %zu said lit in shadow\n",
+                std::printf("disagreements %s: light %s, %s: tree2 %zu, tree1 %zu, reference %zu of %zu queries; %zu said lit in shadow, "
+                            "%zu touching\n",
                             name.c_str(), lights[l].kind, one_sided ? "one-sided" : "two-sided", v.bad_tree2, v.bad_tree1,
-                            v.bad_reference, v.queries, v.missed_shadow);
+                            v.bad_reference, v.queries, v.missed_shadow, v.bad_touching);
             t.add(v);
         }
     }
@@ -342,6 +347,8 @@ int main(int argc, char** argv) {
     std::printf("columns: in shadow, touching (the segment touches a triangle: edge, vertex or an end on its plane) and t-only "
                 "(in shadow through touching contacts only) per the exact oracle; tree2, tree1, ref: disagreements of the "
                 "two-level tree, the one-level tree and the reference walk with it\n");
+    std::printf("queries the oracle calls touching: %zu of %zu; disagreements among them: %zu\n", total.touching, total.queries,
+                total.bad_touching);
     if (o.brute_every)
         std::printf("the oracle's trees against all triangles on every %zu-th query: %zu checked, %zu disagreements\n", o.brute_every,
                     total.brute_checked, total.brute_bad);
