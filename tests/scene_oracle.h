@@ -168,7 +168,7 @@ public:
     // (cb_shadow.h), two-sided or one-sided with each primitive's double_sided flag.
     OracleAnswer occluded(const double* p, const double* light, bool one_sided) const {
         OracleAnswer a;
-        bool unblocked_by_a_crossing = false;
+        bool blocked_by_a_crossing = false;
         for (const Frame& f : frames_) {
             const MeshTree& m = *meshes_[f.mesh];
             if (!f.usable || m.triangles.empty()) continue;  // a singular transform flattens the mesh
@@ -188,17 +188,17 @@ public:
                 cb::SegmentTest r = oracle(lp, ll, c[0], c[1], c[2], !one_sided || m.double_sided[k]);
                 a.touching |= r.touching;
                 a.blocked |= r.blocks;
-                unblocked_by_a_crossing |= r.blocks && !r.touching;
+                blocked_by_a_crossing |= r.blocks && !r.touching;
             }
         }
-        a.only_touching = a.blocked && !unblocked_by_a_crossing;
+        a.only_touching = a.blocked && !blocked_by_a_crossing;
         return a;
     }
 
     // The same answer from every triangle of every instance, without the trees: to check the trees' candidates.
     OracleAnswer occluded_brute_force(const double* p, const double* light, bool one_sided) const {
         OracleAnswer a;
-        bool unblocked_by_a_crossing = false;
+        bool blocked_by_a_crossing = false;
         for (const Frame& f : frames_) {
             const MeshTree& m = *meshes_[f.mesh];
             double lp[3], ll[3];
@@ -213,10 +213,10 @@ public:
                 cb::SegmentTest r = oracle(lp, ll, c[0], c[1], c[2], !one_sided || m.double_sided[k]);
                 a.touching |= r.touching;
                 a.blocked |= r.blocks;
-                unblocked_by_a_crossing |= r.blocks && !r.touching;
+                blocked_by_a_crossing |= r.blocks && !r.touching;
             }
         }
-        a.only_touching = a.blocked && !unblocked_by_a_crossing;
+        a.only_touching = a.blocked && !blocked_by_a_crossing;
         return a;
     }
 
