@@ -15,6 +15,7 @@ namespace cb::test {
 struct Baked {
     std::vector<uint64_t> storage;  // 8-byte aligned, as the view's instance doubles need
     cb::AssetView view;             // empty when the bytes did not open (tests check mesh_count)
+    cb::Scene scene;                // what was baked: oracles built from it do not depend on the encoding
 };
 
 inline Baked bake_scene(const cb::Scene& scene, const cb::ClusterOptions& clustering = {},
@@ -29,6 +30,7 @@ inline Baked bake_scene(const cb::Scene& scene, const cb::ClusterOptions& cluste
     out.storage.resize((bytes.size() + 7) / 8);
     std::memcpy(out.storage.data(), bytes.data(), bytes.size());
     if (cb::open_asset(out.storage.data(), bytes.size(), &out.view) != cb::AssetError::ok) out.view = cb::AssetView{};
+    out.scene = scene;
     return out;
 }
 

@@ -1,73 +1,356 @@
-// A long correctness run, outside ctest: shadow queries on the given scenes, answered by the runtime's
-// two-level trees and by its reference walk, both compared with the brute-force CGAL oracle, in two-sided
-// and one-sided mode, with lights outside the bounds, grazing them, inside them and exactly on a vertex.
-// Exit code 1 on any disagreement.
+// A long correctness run, outside ctest: shadow queries on every scene of ../shared/data (or on the given
+// files), answered by the runtime's shadow trees (two levels and one) and by its reference walk, each
+// compared with the fast exact oracle (scene_oracle.h), in two-sided and one-sided mode.
+// Lights per scene: outside the bounds, grazing their top, beside them exactly level with the topmost
+// vertex, inside them, exactly on a vertex, and exactly on a triangle's plane beside the triangle. Points: surface points seen from cameras outside the bounds,
+// vertices, points just behind (or far behind) triangles, random points in and around the bounds, and for
+// the plane light points on that plane. Files that do not load are skipped with the reason.
+// Exit code 1 on any disagreement (the first ones are printed in full), 2 when nothing was checked.
 //
-//   check_shadow [--queries N] FILE...      (N per file, default 250000)
+//   check_shadow [--queries N] [--threads T] [--brute-force-every K] [FILE...]
+//     N queries in all, spread evenly over the scenes (default 1000000); T = 0: every core; with K, every K-th
+//     query also asks the oracle without its AABB trees (every triangle), which must give the same answer.
 #include <cb_cpsv.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <random>
+#include <string>
+#include <thread>
+#include <vector>
 
-#include "shadow_oracle.h"
+#include "load.h"
+#include "scene_oracle.h"
 
-int main(int argc, char** argv) {
-    size_t per_file = 250000;
+namespace fs = std::filesystem;
+using cb::test::SceneOracle;
+using cb::test::WorldSample;
+using Point = std::array<double, 3>;
+
+namespace {
+
+struct Options {
+    size_t queries = 1000000;
+    unsigned threads = 1;
+    size_t brute_every = 0;  // also check the oracle's candidates against all triangles on every such query
     std::vector<std::string> files;
-    for (int i = 1; i < argc; ++i) {
-        std::string a = argv[i];
-        if (a == "--queries" && i + 1 < argc) per_file = std::stoul(argv[++i]);
-        else files.push_back(a);
+};
+
+struct Light {
+    const char* kind;
+    Point at;
+};
+
+struct Answer {
+    cb::test::OracleAnswer exact;
+    bool tree2 = false, tree1 = false, reference = false;
+    bool brute_checked = false, brute_agrees = true;
+};
+
+struct Tally {
+    size_t queries = 0, shadowed = 0, touching = 0, only_touching = 0, bad_tree2 = 0, bad_tree1 = 0, bad_reference = 0;
+    size_t missed_shadow = 0;  // some runtime answer says lit where the oracle says shadow
+    size_t bad_touching = 0;   // disagreements on queries the oracle calls touching
+    size_t brute_checked = 0, brute_bad = 0;
+
+    void add(const Tally& t) {
+        queries += t.queries, shadowed += t.shadowed, touching += t.touching, only_touching += t.only_touching;
+        bad_tree2 += t.bad_tree2, bad_tree1 += t.bad_tree1, bad_reference += t.bad_reference;
+        missed_shadow += t.missed_shadow, bad_touching += t.bad_touching, brute_checked += t.brute_checked, brute_bad += t.brute_bad;
     }
-    size_t total = 0, bad_tree = 0, bad_reference = 0, touching = 0, shadowed = 0;
-    for (const std::string& file : files) {
-        cb::test::Baked b = cb::test::bake(file);
-        const cb::AssetView& v = b.view;
-        cb::test::WorldSample w = cb::test::sample_world(v, 1);
-        double size = w.size();
-        const auto& on = w.surface[w.surface.size() / 2];
-        double lights[4][3] = {{w.lo[0] - size, w.hi[1] + 2 * size, w.lo[2] - 0.5 * size},
-                               {0.5 * (w.lo[0] + w.hi[0]), w.hi[1] + 1e-3 * size, 0.5 * (w.lo[2] + w.hi[2])},
-                               {w.lo[0] + 0.45 * (w.hi[0] - w.lo[0]), w.lo[1] + 0.55 * (w.hi[1] - w.lo[1]), w.lo[2] + 0.5 * (w.hi[2] - w.lo[2])},
-                               {on[0], on[1], on[2]}};
-        std::mt19937 rng(101);
-        std::uniform_real_distribution<double> u(0, 1);
-        size_t file_bad = 0, per_variant = per_file / 8;
-        for (int variant = 0; variant < 8; ++variant) {
-            const double* light = lights[variant % 4];
-            bool one_sided = variant >= 4;
-            std::vector<cb::ClusterShadowTree> trees(v.instance_count);
-            size_t stack = 0;
-            for (uint32_t i = 0; i < v.instance_count; ++i) {
-                trees[i].build(v, i, light, one_sided);
-                stack = std::max(stack, trees[i].stack_size());
+    size_t bad() const { return bad_tree2 + bad_tree1 + bad_reference + brute_bad; }
+};
+
+constexpr size_t max_reports = 20;  // disagreements printed in full per scene
+
+// Every file under `root` whose extension names a scene format, in a fixed order.
+std::vector<std::string> scene_files(const fs::path& root) {
+    std::vector<std::string> out;
+    if (!fs::exists(root)) return out;
+    for (const auto& e : fs::recursive_directory_iterator(root))
+        if (e.is_regular_file() && cb::format_from_path(e.path().string()) != cb::FileFormat::unknown) out.push_back(e.path().string());
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+Point normalized(Point v) {
+    double l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    return {v[0] / l, v[1] / l, v[2] / l};
+}
+
+Point cross(const Point& a, const Point& b) {
+    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+
+// Surface points seen from three cameras outside the bounds (one from below): rays through a grid x grid
+// raster over the bounding sphere, first hits through the oracle's CGAL trees, in double.
+std::vector<Point> camera_points(const SceneOracle& oracle, const WorldSample& w, int grid) {
+    Point c = {0.5 * (w.lo[0] + w.hi[0]), 0.5 * (w.lo[1] + w.hi[1]), 0.5 * (w.lo[2] + w.hi[2])};
+    double r = 0.5 * std::sqrt((w.hi[0] - w.lo[0]) * (w.hi[0] - w.lo[0]) + (w.hi[1] - w.lo[1]) * (w.hi[1] - w.lo[1]) +
+                               (w.hi[2] - w.lo[2]) * (w.hi[2] - w.lo[2]));
+    if (!(r > 0)) r = 1;
+    std::vector<Point> out;
+    for (Point d : {Point{1, 0.8, 0.6}, Point{-0.7, 0.5, -1}, Point{0.3, -0.9, 0.8}}) {
+        d = normalized(d);
+        Point eye = {c[0] + 2.5 * r * d[0], c[1] + 2.5 * r * d[1], c[2] + 2.5 * r * d[2]};
+        Point right = normalized(cross(d, {0, 1, 0})), up = cross(right, d);
+        for (int i = 0; i < grid; ++i)
+            for (int j = 0; j < grid; ++j) {
+                double u = (2 * (i + 0.5) / grid - 1) * r, v = (2 * (j + 0.5) / grid - 1) * r, dir[3], hit[3];
+                for (int k = 0; k < 3; ++k) dir[k] = c[k] + u * right[k] + v * up[k] - eye[k];
+                if (oracle.first_hit(eye.data(), dir, hit)) out.push_back({hit[0], hit[1], hit[2]});
             }
-            std::vector<uint32_t> scratch(stack);
-            for (size_t k = 0; k < per_variant; ++k) {
-                double p[3];
-                if (k % 2 == 0) {  // on the surfaces
-                    const auto& s = w.surface[(k * 7919 + variant) % w.surface.size()];
-                    p[0] = s[0], p[1] = s[1], p[2] = s[2];
-                } else {
-                    for (int j = 0; j < 3; ++j) p[j] = w.lo[j] + (w.hi[j] - w.lo[j]) * (1.2 * u(rng) - 0.1);
-                }
-                uint8_t tree = 0;
-                cb::occluded_batch(trees.data(), trees.size(), p, 1, &tree, scratch.data());
-                bool reference = cb::occluded_reference(v, p, light, nullptr, one_sided);
-                bool t = false;
-                bool exact = cb::test::oracle_occluded(v, p, light, t, one_sided);
-                bad_tree += bool(tree) != exact;
-                bad_reference += reference != exact;
-                file_bad += (bool(tree) != exact) + (reference != exact);
-                touching += t;
-                shadowed += exact;
-                ++total;
+    }
+    return out;
+}
+
+// Points on the plane light's triangle's plane (a + i (b - a) + j (c - a)), kept when the runtime's
+// mapping into the mesh frame leaves them exactly on it: their segments to the light lie in that plane.
+std::vector<Point> in_plane_points(const cb::Scene& scene, const cb::test::PlaneLight& pl) {
+    std::vector<Point> out;
+    if (!pl.found) return out;
+    std::array<double, 12> m = cb::test::instance_3x4(scene.instances[pl.instance].world);
+    const auto& c = pl.corner;
+    cb::test::Epick::Point_3 a(c[0][0], c[0][1], c[0][2]), b(c[1][0], c[1][1], c[1][2]), d(c[2][0], c[2][1], c[2][2]);
+    for (int i = -3; i <= 4; ++i)
+        for (int j = -3; j <= 4; ++j) {
+            double local[3], world[3], back[3];
+            for (int k = 0; k < 3; ++k) local[k] = c[0][k] + i * (c[1][k] - c[0][k]) + j * (c[2][k] - c[0][k]);
+            cb::apply_instance(m.data(), local, world);
+            if (cb::test::world_to_mesh(scene.instances[pl.instance], world, back) &&
+                CGAL::orientation(a, b, d, cb::test::Epick::Point_3(back[0], back[1], back[2])) == CGAL::COPLANAR)
+                out.push_back({world[0], world[1], world[2]});
+        }
+    return out;
+}
+
+// The scene's lights; `note` says which kinds could not be placed exactly.
+std::vector<Light> scene_lights(const cb::Scene& scene, const WorldSample& w, double size, cb::test::PlaneLight& plane,
+                                std::string& note) {
+    const double *lo = w.lo, *hi = w.hi;
+    std::vector<Light> lights = {
+        {"outside", {lo[0] - size, hi[1] + 2 * size, lo[2] - 0.5 * size}},
+        {"grazing", {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])}},
+        {"level", {lo[0] - 0.5 * size, hi[1], 0.5 * (lo[2] + hi[2])}},  // beside the bounds, level with the top vertex
+        {"inside", {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])}}};
+    Light vertex{"vertex", {}};
+    if (cb::test::vertex_light(scene, 2027, vertex.at.data())) lights.push_back(vertex);
+    else note += " no-vertex-light";
+    plane = cb::test::plane_light(scene, 4099);
+    if (plane.found) lights.push_back({"plane", {plane.light[0], plane.light[1], plane.light[2]}});
+    else note += " no-plane-light";
+    if (plane.found && scene.instances[plane.instance].world != cb::identity_transform())
+        note += " plane-light-on-transformed-instance-" + std::to_string(plane.instance);
+    return lights;
+}
+
+// The query points of one light: 40% seen by the cameras, 20% vertices, 20% through triangles, 20% random
+// in and around the bounds (half of those on the plane for the plane light).
+std::vector<Point> light_points(size_t n, uint32_t salt, const std::vector<Point>& seen, const WorldSample& w, double size,
+                                const std::vector<Point>& through, const std::vector<Point>& flat) {
+    std::mt19937 rng(101 + salt);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<Point> out(n);
+    for (size_t k = 0; k < n; ++k) {
+        size_t kind = k % 5, pick = k * 7919 + salt * 104729;
+        if (kind <= 1 && !seen.empty()) out[k] = seen[pick % seen.size()];
+        else if (kind == 2 && !w.surface.empty()) out[k] = w.surface[pick % w.surface.size()];
+        else if (kind == 3 && !through.empty()) out[k] = through[(k / 5) % through.size()];
+        else if (k % 10 == 4 && !flat.empty()) out[k] = flat[pick % flat.size()];
+        else
+            for (int j = 0; j < 3; ++j) {
+                double margin = 0.1 * (w.hi[j] - w.lo[j]) + (k % 2 ? 0.05 * size : 0.0);  // flat scenes: off their plane too
+                out[k][j] = w.lo[j] - margin + (w.hi[j] - w.lo[j] + 2 * margin) * u(rng);
+            }
+    }
+    return out;
+}
+
+// Runs f(begin, end) over [0, n) on `threads` threads, in contiguous ranges.
+template <class F>
+void parallel(size_t n, unsigned threads, F&& f) {
+    if (threads <= 1 || n < 1000) return f(size_t(0), n);
+    std::vector<std::thread> pool;
+    for (unsigned t = 0; t < threads; ++t) pool.emplace_back(f, n * t / threads, n * (t + 1) / threads);
+    for (std::thread& t : pool) t.join();
+}
+
+// Every point against one light in one mode: the runtime's trees (two levels and one) and reference walk,
+// and the oracle.
+std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle, const Light& light, bool one_sided,
+                               const std::vector<Point>& points, unsigned threads, size_t brute_every) {
+    std::vector<cb::ClusterShadowTree> two(v.instance_count), one(v.instance_count);
+    size_t stack = 1;
+    for (uint32_t i = 0; i < v.instance_count; ++i) {
+        two[i].build(v, i, light.at.data(), one_sided, true);
+        one[i].build(v, i, light.at.data(), one_sided, false);
+        stack = std::max({stack, two[i].stack_size(), one[i].stack_size()});
+    }
+    std::vector<Answer> answers(points.size());
+    parallel(points.size(), threads, [&](size_t begin, size_t end) {
+        std::vector<uint32_t> scratch(stack);
+        for (size_t k = begin; k < end; ++k) {
+            const double* p = points[k].data();
+            uint8_t t2 = 0, t1 = 0;
+            cb::occluded_batch(two.data(), two.size(), p, 1, &t2, scratch.data());
+            cb::occluded_batch(one.data(), one.size(), p, 1, &t1, scratch.data());
+            answers[k].tree2 = t2, answers[k].tree1 = t1;
+            answers[k].reference = cb::occluded_reference(v, p, light.at.data(), nullptr, one_sided);
+            answers[k].exact = oracle.occluded(p, light.at.data(), one_sided);
+            if (brute_every && k % brute_every == 0) {
+                cb::test::OracleAnswer b = oracle.occluded_brute_force(p, light.at.data(), one_sided);
+                answers[k].brute_checked = true;
+                answers[k].brute_agrees = b.blocked == answers[k].exact.blocked && b.touching == answers[k].exact.touching &&
+                                          b.only_touching == answers[k].exact.only_touching;
             }
         }
-        std::printf("%s: %zu queries, %zu disagreements\n", file.c_str(), per_variant * 8, file_bad);
-        std::fflush(stdout);
+    });
+    return answers;
+}
+
+void report(const std::string& scene, const Light& light, bool one_sided, const Point& p, const Answer& a) {
+    std::printf("DISAGREEMENT %s: light %s (%.17g, %.17g, %.17g), %s, point (%.17g, %.17g, %.17g): oracle %d (touching %d), "
+                "tree two levels %d, tree one level %d, reference %d\n",
+                scene.c_str(), light.kind, light.at[0], light.at[1], light.at[2], one_sided ? "one-sided" : "two-sided", p[0], p[1],
+                p[2], a.exact.blocked, a.exact.touching, a.tree2, a.tree1, a.reference);
+}
+
+Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points, const std::string& scene, const Light& light,
+            bool one_sided, size_t& reported) {
+    Tally t;
+    for (size_t k = 0; k < answers.size(); ++k) {
+        const Answer& a = answers[k];
+        bool exact = a.exact.blocked;
+        t.queries++, t.shadowed += exact, t.touching += a.exact.touching, t.only_touching += a.exact.only_touching;
+        t.bad_tree2 += a.tree2 != exact, t.bad_tree1 += a.tree1 != exact, t.bad_reference += a.reference != exact;
+        t.missed_shadow += exact && !(a.tree2 && a.tree1 && a.reference);
+        t.bad_touching += a.exact.touching && (a.tree2 != exact || a.tree1 != exact || a.reference != exact);
+        t.brute_checked += a.brute_checked, t.brute_bad += !a.brute_agrees;
+        if (!a.brute_agrees) std::printf("ORACLE TREES MISSED A TRIANGLE %s: light %s, %s, point (%.17g, %.17g, %.17g)\n", scene.c_str(),
+                                         light.kind, one_sided ? "one-sided" : "two-sided", points[k][0], points[k][1], points[k][2]);
+        if ((a.tree2 != exact || a.tree1 != exact || a.reference != exact) && reported++ < max_reports)
+            report(scene, light, one_sided, points[k], a);
     }
-    std::printf("%zu queries in all (two- and one-sided), %zu in shadow, %zu touching per the oracle; disagreements "
-                "with the CGAL oracle: trees %zu, reference %zu\n", total, shadowed, touching, bad_tree, bad_reference);
-    return bad_tree || bad_reference ? 1 : 0;
+    return t;
+}
+
+// One scene: bake, the oracle, the lights and points, every light in both modes.
+Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget, const Options& o, std::string& note) {
+    cb::test::Baked b = cb::test::bake_scene(scene);
+    if (b.view.mesh_count == 0 && !scene.meshes.empty()) {
+        note += " bake-failed";
+        return {};
+    }
+    SceneOracle oracle(scene);
+    WorldSample w = cb::test::sample_scene(scene, 1);
+    double size = w.size() > 0 ? w.size() : 1.0;
+    cb::test::PlaneLight plane;
+    std::vector<Light> lights = scene_lights(scene, w, size, plane, note);
+    size_t per_variant = (budget + 2 * lights.size() - 1) / (2 * lights.size());
+    int grid = std::clamp(int(std::sqrt(double(budget) / 3)), 16, 300);
+    std::vector<Point> seen = camera_points(oracle, w, grid), flat = in_plane_points(scene, plane);
+    Tally t;
+    size_t reported = 0;
+    for (uint32_t l = 0; l < lights.size(); ++l) {
+        std::vector<Point> through = cb::test::through_points(scene, lights[l].at.data(), per_variant / 5 + 1, l);
+        bool on_plane = std::string(lights[l].kind) == "plane";
+        std::vector<Point> points = light_points(per_variant, l, seen, w, size, through, on_plane ? flat : std::vector<Point>{});
+        for (bool one_sided : {false, true}) {
+            std::vector<Answer> answers = answer_all(b.view, oracle, lights[l], one_sided, points, o.threads, o.brute_every);
+            Tally v = tally(answers, points, name, lights[l], one_sided, reported);
+            if (v.bad())
+                std::printf("disagreements %s: light %s, %s: tree2 %zu, tree1 %zu, reference %zu of %zu queries; %zu said lit in shadow, "
+                            "%zu touching\n",
+                            name.c_str(), lights[l].kind, one_sided ? "one-sided" : "two-sided", v.bad_tree2, v.bad_tree1,
+                            v.bad_reference, v.queries, v.missed_shadow, v.bad_touching);
+            t.add(v);
+        }
+    }
+    if (seen.empty()) note += " no-camera-hits";
+    return t;
+}
+
+size_t triangles_in_scene(const cb::Scene& s) {
+    size_t n = 0;
+    for (const cb::Instance& i : s.instances) n += s.meshes[i.mesh].triangle_count();
+    return n;
+}
+
+void print_row(const std::string& name, size_t triangles, const Tally& t, double seconds, const std::string& note) {
+    std::printf("%-58s %9zu %9zu %9zu %9zu %7zu %6zu %6zu %6zu %8.1f %s\n", name.c_str(), triangles, t.queries, t.shadowed, t.touching,
+                t.only_touching, t.bad_tree2, t.bad_tree1, t.bad_reference, seconds, note.c_str());
+    std::fflush(stdout);
+}
+
+bool parse(int argc, char** argv, Options& o) {
+    for (int i = 1; i < argc; ++i) {
+        std::string a = argv[i];
+        if (a == "--queries" && i + 1 < argc) o.queries = std::stoul(argv[++i]);
+        else if (a == "--threads" && i + 1 < argc) o.threads = unsigned(std::stoul(argv[++i]));
+        else if (a == "--brute-force-every" && i + 1 < argc) o.brute_every = std::stoul(argv[++i]);
+        else if (a.rfind("--", 0) == 0) return false;
+        else o.files.push_back(a);
+    }
+    if (o.threads == 0) o.threads = std::max(1u, std::thread::hardware_concurrency());
+    return true;
+}
+
+// A file's name in the table: relative to the shared data folder when it is there.
+std::string display_name(const std::string& file) {
+    std::error_code e;
+    fs::path rel = fs::relative(file, CB_SHARED_DATA, e);
+    return e || rel.empty() || *rel.begin() == ".." ? fs::path(file).filename().string() : rel.string();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    Options o;
+    if (!parse(argc, argv, o)) {
+        std::fprintf(stderr, "usage: check_shadow [--queries N] [--threads T] [--brute-force-every K] [FILE...]\n");
+        return 2;
+    }
+    if (o.files.empty()) o.files = scene_files(CB_SHARED_DATA);
+    // Load everything first: the budget is spread over the scenes that load.
+    std::vector<std::pair<std::string, cb::Scene>> scenes;
+    for (const std::string& f : o.files) {
+        try {
+            scenes.emplace_back(display_name(f), cb::load_scene(f));
+        } catch (const std::exception& e) {
+            std::string why = e.what();  // starts with the path as given: print the short name instead
+            if (why.rfind(f, 0) == 0) why = display_name(f) + why.substr(f.size());
+            std::printf("skipped: %s\n", why.c_str());
+        }
+    }
+    if (scenes.empty()) return std::printf("no scene loaded\n"), 2;
+    size_t budget = (o.queries + scenes.size() - 1) / scenes.size();
+    std::printf("%zu scenes, %zu queries each (lights x both modes), %u threads\n", scenes.size(), budget, o.threads);
+    std::printf("%-58s %9s %9s %9s %9s %7s %6s %6s %6s %8s\n", "scene", "triangles", "queries", "in shadow", "touching", "t-only",
+                "tree2", "tree1", "ref", "seconds");
+    Tally total;
+    size_t total_triangles = 0;
+    auto start = std::chrono::steady_clock::now();
+    for (auto& [name, scene] : scenes) {
+        auto t0 = std::chrono::steady_clock::now();
+        std::string note;
+        Tally t = check_scene(name, scene, budget, o, note);
+        double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        print_row(name, triangles_in_scene(scene), t, s, note);
+        total.add(t);
+        total_triangles += triangles_in_scene(scene);
+        scene = cb::Scene{};  // free as we go
+    }
+    double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    print_row("total", total_triangles, total, s, "");
+    std::printf("columns: in shadow, touching (the segment touches a triangle: edge, vertex or an end on its plane) and t-only "
+                "(in shadow through touching contacts only) per the exact oracle; tree2, tree1, ref: disagreements of the "
+                "two-level tree, the one-level tree and the reference walk with it\n");
+    std::printf("queries the oracle calls touching: %zu of %zu; disagreements among them: %zu\n", total.touching, total.queries,
+                total.bad_touching);
+    if (o.brute_every)
+        std::printf("the oracle's trees against all triangles on every %zu-th query: %zu checked, %zu disagreements\n", o.brute_every,
+                    total.brute_checked, total.brute_bad);
+    return total.bad() ? 1 : 0;
 }

@@ -2,6 +2,7 @@
 // semantics, and whole queries over baked assets against a brute-force exact oracle.
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <Eigen/Dense>
 #include <gtest/gtest.h>
 
 #include <cb_exact.h>
@@ -450,4 +451,69 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
     }
     EXPECT_EQ(disagreements, 0u) << "of " << tests;
     EXPECT_GT(blocked, tests / 20);
+}
+
+TEST(Shadow, PaddedBoxCornersHoldEveryClusterVertex) {
+    // Shadow volumes and culling take a box as center + sum of +-half[i] axis[i]; the format's box is the
+    // slab intersection |dot(v - center, axis[i])| <= half[i], with axes orthonormal only to float
+    // precision. For the boxes of real scenes, with their half extents made as tight as that contract
+    // allows (a writer may store them so), every cluster vertex must lie within the padded half extents in
+    // the axes' own coordinates (solving with the inverse of the axis matrix).
+    std::vector<std::string> files = {std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"};
+    for (const char* f : {"hard/comments.off", "hard/wallhole.obj", "scanned/bunny_npm.obj", "scanned/fandisk.obj"})
+        if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back((fs::path(CB_SHARED_DATA) / f).string());
+    size_t checked = 0, outside = 0, beyond_tight = 0;
+    for (const std::string& file : files) {
+        Baked b = cb::test::bake(file);
+        const cb::AssetView& v = b.view;
+        ASSERT_GT(v.mesh_count, 0u) << file;
+        for (uint32_t m = 0; m < v.mesh_count; ++m) {
+            const cb::MeshRecord& r = v.meshes[m];
+            auto check = [&](cb::Obb box, uint32_t first_fine, uint32_t fine_count) {
+                std::vector<Eigen::Vector3d> offsets;
+                for (uint32_t f = first_fine; f < first_fine + fine_count; ++f) {
+                    const cb::FineCluster& c = v.fine[r.first_fine + f];
+                    for (uint32_t t = c.first_triangle; t < c.first_triangle + c.triangle_count; ++t) {
+                        uint32_t id[3];
+                        v.triangle(r, f, t, id);
+                        for (uint32_t vertex : id) {
+                            const float* q = v.position(r, vertex);
+                            offsets.emplace_back(double(q[0]) - box.center[0], double(q[1]) - box.center[1], double(q[2]) - box.center[2]);
+                        }
+                    }
+                }
+                Eigen::Matrix3d axes;  // rows are the axes
+                for (int i = 0; i < 3; ++i)
+                    for (int k = 0; k < 3; ++k) axes(i, k) = box.axis[i][k];
+                // Tightest half extents the contract allows, rounded up to float.
+                for (int i = 0; i < 3; ++i) {
+                    double h = 0;
+                    for (const Eigen::Vector3d& d : offsets) h = std::max(h, std::fabs(axes.row(i).dot(d)));
+                    box.half[i] = float(h);
+                    if (double(box.half[i]) < h) box.half[i] = std::nextafter(box.half[i], INFINITY);
+                }
+                double padded[3];
+                cb::padded_halves(box, padded);
+                Eigen::Matrix3d to_coefficients = axes.inverse().transpose();  // d = sum z_i axis_i
+                for (const Eigen::Vector3d& d : offsets) {
+                    Eigen::Vector3d z = to_coefficients * d;
+                    for (int i = 0; i < 3; ++i) {
+                        outside += std::fabs(z[i]) > padded[i];
+                        beyond_tight += std::fabs(z[i]) > double(box.half[i]);
+                    }
+                    ++checked;
+                }
+            };
+            for (uint32_t f = 0; f < r.fine_count; ++f) check(v.fine_bounds.obb(r.first_fine + f), f, 1);
+            for (uint32_t c = 0; c < r.coarse_count; ++c) {
+                const cb::ClusterRange& range = v.coarse[r.first_coarse + c];
+                check(v.coarse_bounds.obb(r.first_coarse + c), range.first, range.count);
+            }
+        }
+    }
+    std::printf("%zu cluster vertices checked against their boxes' padded corners; %zu coefficients beyond the "
+                "unpadded half extents\n", checked, beyond_tight);
+    EXPECT_GT(checked, 100000u);
+    EXPECT_GT(beyond_tight, 0u);  // the padding is needed
+    EXPECT_EQ(outside, 0u);
 }
