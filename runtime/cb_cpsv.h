@@ -391,7 +391,11 @@ private:
         max_depth = std::max(max_depth, depth + 5);
     }
 
+    // A cluster's triangles, unless the segment certainly misses its box (a volume only says the point
+    // is in the box's shadow cone, which a 4-plane outline makes wider than the box).
     bool test_cluster(uint32_t f, const Query& q) const {
+        if (view_->fine_bounds.obbs && !segment_may_touch_box(view_->fine_bounds.obb(mesh_->first_fine + f), q.p, light_))
+            return false;
         return cluster_blocks(*view_, *mesh_, f, q.p, light_, one_sided_, q.stats);
     }
 

@@ -96,15 +96,26 @@ inline void apply_instance(const double* m, const double* p, double* out) {
     for (int k = 0; k < 3; ++k) out[k] = m[k] * p[0] + m[3 + k] * p[1] + m[6 + k] * p[2] + m[9 + k];
 }
 
-// Conservative: false only when the segment certainly misses the box (both ends beyond one face pair,
-// with a margin far above the rounding of these dot products).
+// Conservative: false only when the segment p-q certainly misses the box. Clips the segment's parameter
+// range against each of the box's three slabs (the box is their intersection), each slab widened by a
+// margin far above the rounding of the dot products and divisions, relative to the inputs' size.
 inline bool segment_may_touch_box(const Obb& box, const double* p, const double* q) {
+    double t0 = 0, t1 = 1;
+    double pc[3] = {p[0] - box.center[0], p[1] - box.center[1], p[2] - box.center[2]};
+    double qc[3] = {q[0] - box.center[0], q[1] - box.center[1], q[2] - box.center[2]};
+    double size = std::fabs(pc[0]) + std::fabs(pc[1]) + std::fabs(pc[2]) + std::fabs(qc[0]) + std::fabs(qc[1]) + std::fabs(qc[2]);
     for (int i = 0; i < 3; ++i) {
-        const double ax = box.axis[i][0], ay = box.axis[i][1], az = box.axis[i][2];
-        double dp = (p[0] - box.center[0]) * ax + (p[1] - box.center[1]) * ay + (p[2] - box.center[2]) * az;
-        double dq = (q[0] - box.center[0]) * ax + (q[1] - box.center[1]) * ay + (q[2] - box.center[2]) * az;
-        double reach = box.half[i] + 1e-9 * (std::fabs(dp) + std::fabs(dq) + box.half[i]);
-        if ((dp > reach && dq > reach) || (dp < -reach && dq < -reach)) return false;
+        const float* a = box.axis[i];
+        double dp = pc[0] * a[0] + pc[1] * a[1] + pc[2] * a[2], dq = qc[0] * a[0] + qc[1] * a[1] + qc[2] * a[2];
+        double margin = 1e-9 * (size + box.half[i]), reach = box.half[i] + margin, d = dq - dp;
+        if (std::fabs(d) <= margin) {  // along the slab: in it everywhere or nowhere
+            if (std::fabs(dp) > reach + margin) return false;
+            continue;
+        }
+        double ta = (-reach - dp) / d, tb = (reach - dp) / d;
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+        if (t0 > t1) return false;
     }
     return true;
 }

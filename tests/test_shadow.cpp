@@ -517,3 +517,74 @@ TEST(Shadow, PaddedBoxCornersHoldEveryClusterVertex) {
     EXPECT_GT(beyond_tight, 0u);  // the padding is needed
     EXPECT_EQ(outside, 0u);
 }
+
+TEST(Shadow, SegmentBoxFilterNeverMissesATouch) {
+    // segment_may_touch_box may say "maybe" too often but never "misses" when the closed segment meets the
+    // box {|dot(x - center, axis_i)| <= half_i} (with the stored float values, exactly). Segments are built
+    // to graze faces, edges and corners, at offsets up to 1e6; the exact answer clips the segment's
+    // parameter range against the three slabs in rational arithmetic.
+    using FT = CGAL::Exact_predicates_exact_constructions_kernel::FT;
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(-1, 1);
+    size_t touching = 0, missed = 0, tests = 0;
+    for (int trial = 0; trial < 20000; ++trial) {
+        double offset = trial % 3 == 0 ? 0 : trial % 3 == 1 ? 1e3 : 1e6;
+        cb::PackedObb packed{};
+        for (int k = 0; k < 3; ++k) {
+            packed.center[k] = float(offset + u(rng));
+            packed.half[k] = float(trial % 7 == 0 ? 0.0 : 0.01 + std::fabs(u(rng)));
+            packed.rotation[k] = int16_t(u(rng) * 23000);
+        }
+        packed.largest = uint16_t(rng() % 4);
+        cb::Obb box = cb::unpack_obb(packed);
+        // A point on the box's boundary (a face, edge or corner in box coordinates), then a segment through
+        // or beside it.
+        double on[3], dir[3], p[3], q[3];
+        double coeff[3];
+        for (int i = 0; i < 3; ++i) coeff[i] = (rng() % 3 == 0 ? (rng() % 2 ? 1.0 : -1.0) : u(rng)) * box.half[i];
+        int face = trial % 3;
+        coeff[face] = (rng() % 2 ? 1.0 : -1.0) * box.half[face];
+        for (int k = 0; k < 3; ++k) {
+            on[k] = box.center[k];
+            for (int i = 0; i < 3; ++i) on[k] += coeff[i] * box.axis[i][k];
+            dir[k] = u(rng);
+        }
+        double s = 0.5 + u(rng), len = 3 * std::fabs(u(rng)) + 1e-3;
+        for (int k = 0; k < 3; ++k) p[k] = on[k] - s * len * dir[k], q[k] = on[k] + (1 - s) * len * dir[k];
+        if (trial % 4 == 3) {
+            // Along a face, within rounding of its plane: from the face's centre (dot with the axis equal to
+            // the half extent up to rounding), across the face's other axis.
+            const float* a = box.axis[face];
+            const float* b = box.axis[(face + 1) % 3];
+            double a2 = double(a[0]) * a[0] + double(a[1]) * a[1] + double(a[2]) * a[2];
+            double w[3] = {double(a[1]) * b[2] - double(a[2]) * b[1], double(a[2]) * b[0] - double(a[0]) * b[2],
+                           double(a[0]) * b[1] - double(a[1]) * b[0]};
+            for (int k = 0; k < 3; ++k) p[k] = box.center[k] + a[k] * (coeff[face] / a2), q[k] = p[k] + len * w[k];
+        }
+        // Exact clipping.
+        FT t0 = 0, t1 = 1;
+        bool meets = true;
+        for (int i = 0; i < 3 && meets; ++i) {
+            FT dp = 0, dq = 0;
+            for (int k = 0; k < 3; ++k) {
+                dp += (FT(p[k]) - FT(box.center[k])) * FT(box.axis[i][k]);
+                dq += (FT(q[k]) - FT(box.center[k])) * FT(box.axis[i][k]);
+            }
+            FT h = box.half[i], d = dq - dp;
+            if (d == 0) {
+                meets = CGAL::abs(dp) <= h;
+                continue;
+            }
+            FT ta = (-h - dp) / d, tb = (h - dp) / d;
+            if (ta > tb) std::swap(ta, tb);
+            t0 = CGAL::max(t0, ta), t1 = CGAL::min(t1, tb);
+            meets = t0 <= t1;
+        }
+        ++tests;
+        touching += meets;
+        if (meets && !cb::segment_may_touch_box(box, p, q)) ++missed;
+    }
+    std::printf("%zu segments, %zu meet their box exactly; filter said 'misses' for %zu of those\n", tests, touching, missed);
+    EXPECT_GT(touching, tests / 10);
+    EXPECT_EQ(missed, 0u);
+}
