@@ -166,6 +166,8 @@ private:
         Kind kind = fine;
     };
 
+    static_assert(sizeof(PlaneNode) == 32 && sizeof(Leaf) == 32, "tree nodes are 32-byte records (RUNTIME.md)");
+
     struct Query {
         double p[3], e[3], dist;
         QueryStats* stats;
