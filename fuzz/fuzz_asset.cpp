@@ -1,6 +1,8 @@
 // libFuzzer target for the runtime's asset reader: open_asset must reject any corruption with an error
 // code and, when it accepts, every range it vouched for must be readable (AddressSanitizer watches).
 #include <cb_asset.h>
+#include <cb_cpsv.h>
+#include <cb_cull.h>
 
 #include <cstddef>
 #include <cstdint>
@@ -37,6 +39,26 @@ void walk(const cb::AssetView& v) {
     sink = acc;
 }
 
+// What a consumer does next with an accepted asset: a shadow tree per instance (first few), a few queries
+// in both modes, and culling; none may read outside what open_asset vouched for.
+void query(const cb::AssetView& v) {
+    const double light[3] = {0.3, 2.5, -1.7}, points[4][3] = {{0, 0, 0}, {0.5, -0.25, 0.125}, {-3, 1, 2}, {0.3, 2.5, -1.7}};
+    for (uint32_t i = 0; i < v.instance_count && i < 4; ++i)
+        for (bool one_sided : {false, true}) {
+            cb::ClusterShadowTree tree;
+            tree.build(v, i, light, one_sided);
+            std::vector<uint32_t> stack(tree.stack_size());
+            for (const double* p : points) sink = sink + float(tree.occluded(p, stack.data()));
+        }
+    for (const double* p : points) sink = sink + float(cb::occluded_reference(v, p, light));
+    cb::Frustum f{};
+    f.count = 1;
+    f.plane[0][0] = 1, f.plane[0][3] = 1;
+    f.eye[0] = -2;
+    cb::VisibleCluster out[16];
+    sink = sink + float(cb::cull_clusters(v, f, true, out, 16));
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -45,13 +67,13 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     std::vector<uint64_t> storage((size + 7) / 8);
     if (size) std::memcpy(storage.data(), data, size);
     cb::AssetView view;
-    if (cb::open_asset(storage.data(), size, &view) == cb::AssetError::ok) walk(view);
+    if (cb::open_asset(storage.data(), size, &view) == cb::AssetError::ok) walk(view), query(view);
     // Again with the checksum made right, so mutations reach the structural checks behind it.
     if (size >= sizeof(cb::AssetHeader)) {
         uint8_t* bytes = reinterpret_cast<uint8_t*>(storage.data());
         uint64_t sum = cb::fnv1a64(bytes + sizeof(cb::AssetHeader), size - sizeof(cb::AssetHeader));
         std::memcpy(bytes + offsetof(cb::AssetHeader, checksum), &sum, 8);
-        if (cb::open_asset(storage.data(), size, &view) == cb::AssetError::ok) walk(view);
+        if (cb::open_asset(storage.data(), size, &view) == cb::AssetError::ok) walk(view), query(view);
     }
     return 0;
 }

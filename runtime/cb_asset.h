@@ -282,7 +282,7 @@ inline const char* asset_error_text(AssetError e) {
         case AssetError::bad_instance: return "instance names a missing mesh";
         case AssetError::non_finite: return "non-finite position, transform or bound";
         case AssetError::bad_bounds_count: return "a per-cluster, per-triangle or per-mesh section has the wrong count";
-        case AssetError::bad_packed_bounds: return "packed box or cone malformed, or cones without boxes";
+        case AssetError::bad_packed_bounds: return "packed box or cone malformed (negative extent, bad quaternion index or cone angle), or cones without boxes";
     }
     return "unknown error";
 }
@@ -465,7 +465,7 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
             const PackedObb& b = level[l]->obbs[i];
             for (int k = 0; k < 3; ++k)
                 if (!std::isfinite(b.center[k]) || !std::isfinite(b.half[k])) return AssetError::non_finite;
-            if (b.largest > 3) return AssetError::bad_packed_bounds;
+            if (b.largest > 3 || !(b.half[0] >= 0 && b.half[1] >= 0 && b.half[2] >= 0)) return AssetError::bad_packed_bounds;
         }
         for (uint32_t i = 0; level[l]->cones && i < n; ++i) {
             const PackedCone& c = level[l]->cones[i];

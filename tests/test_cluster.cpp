@@ -415,6 +415,9 @@ TEST(Cluster, AssetReaderRefusesMalformedClustersAndPackedBounds) {
     s.data<cb::PackedObb>(T::fine_obbs)[0].largest = 4;
     EXPECT_EQ(s.open(), cb::AssetError::bad_packed_bounds);
     s = fresh();
+    s.data<cb::PackedObb>(T::fine_obbs)[0].half[1] = -0.5f;
+    EXPECT_EQ(s.open(), cb::AssetError::bad_packed_bounds);
+    s = fresh();
     s.data<cb::PackedCone>(T::fine_cones)[0].cos_half_angle = 1.5f;
     EXPECT_EQ(s.open(), cb::AssetError::bad_packed_bounds);
     s = fresh();
