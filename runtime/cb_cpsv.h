@@ -236,29 +236,32 @@ private:
         stack[top++] = start;
         while (top) {
             uint32_t ref = stack[--top];
-            if (q.stats) ++q.stats->nodes_visited;
-            if (ref & leaf_bit) {
-                const Leaf& leaf = leaves_[ref & ~leaf_bit];
-                if (q.dist < leaf.near_min) continue;  // nearer the light than everything here
-                if (leaf.inside != none) stack[top++] = leaf.inside;
-                if (q.dist < leaf.near) continue;
-                if (leaf.kind == Leaf::fine) {  // its triangles
-                    if (test_cluster(leaf.cluster, q)) return true;
-                } else {  // into its fine tree
-                    for (uint32_t i = leaf.always.first; i < leaf.always.first + leaf.always.count; ++i)
-                        if (test_cluster(always_fine_[i], q)) return true;
-                    if (leaf.fine_root != none) stack[top++] = leaf.fine_root;
+            for (;;) {  // down the inside children directly; the other children wait on the stack
+                if (q.stats) ++q.stats->nodes_visited;
+                if (ref & leaf_bit) {
+                    const Leaf& leaf = leaves_[ref & ~leaf_bit];
+                    if (q.dist < leaf.near_min) break;  // nearer the light than everything here
+                    if (leaf.inside != none) stack[top++] = leaf.inside;
+                    if (q.dist < leaf.near) break;
+                    if (leaf.kind == Leaf::fine) {  // its triangles
+                        if (test_cluster(leaf.cluster, q)) return true;
+                    } else {  // into its fine tree
+                        for (uint32_t i = leaf.always.first; i < leaf.always.first + leaf.always.count; ++i)
+                            if (test_cluster(always_fine_[i], q)) return true;
+                        if (leaf.fine_root != none) stack[top++] = leaf.fine_root;
+                    }
+                    break;
                 }
-                continue;
+                const PlaneNode& node = planes_[ref];
+                if (q.dist < node.near_min) break;
+                double s = node.n[0] * q.e[0] + node.n[1] * q.e[1] + node.n[2] * q.e[2];
+                double tol = 1e-9 * q.dist;  // near the plane: both sides
+                if (node.child[2] != none && std::fabs(s) <= (double(node.straddle_sine) + 1e-9) * q.dist)
+                    stack[top++] = node.child[2];
+                if (s <= tol && node.child[1] != none) stack[top++] = node.child[1];
+                if (s < -tol || node.child[0] == none) break;
+                ref = node.child[0];
             }
-            const PlaneNode& node = planes_[ref];
-            if (q.dist < node.near_min) continue;
-            double s = node.n[0] * q.e[0] + node.n[1] * q.e[1] + node.n[2] * q.e[2];
-            double tol = 1e-9 * q.dist;  // near the plane: both sides
-            if (node.child[2] != none && std::fabs(s) <= (double(node.straddle_sine) + 1e-9) * q.dist)
-                stack[top++] = node.child[2];
-            if (s <= tol && node.child[1] != none) stack[top++] = node.child[1];
-            if (s >= -tol && node.child[0] != none) stack[top++] = node.child[0];
         }
         return false;
     }
