@@ -105,7 +105,7 @@ struct Slab {              // 20 bytes. Inside: low <= dot(p, axis) <= high
 struct AssetHeader {          // 64 bytes at offset 0
     char magic[8];
     uint32_t version;
-    uint32_t flags;           // none defined in version 1: must be 0
+    uint32_t flags;           // none defined in version 2: must be 0
     uint32_t header_size;     // sizeof(AssetHeader)
     uint32_t section_count;
     uint64_t file_size;

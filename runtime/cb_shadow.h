@@ -324,7 +324,7 @@ inline Filter filter_triangle(const Corner& a, const Corner& b, const Corner& c,
 // each triangle: the determinants it needs are first computed in double, from per-vertex terms shared by
 // the cluster's triangles where they can be, each with an error bound; a triangle any of whose signs the
 // bound cannot settle (a segment within rounding of its plane or of an edge line) goes to the exact test.
-// Uses about 5 KB of stack.
+// Uses about 6 KB of stack.
 inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double* p, const double* light,
                            bool one_sided, QueryStats* stats, bool* touched = nullptr) {
     using namespace shadow_detail;
