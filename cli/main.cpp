@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <thread>
 
 #include <cb_cpsv.h>
 #include <cb_shadow.h>
@@ -249,6 +250,7 @@ int run_validate(const std::string& file) {
 struct QueryArgs {
     std::string asset, light, points, out;
     bool binary = false, stats = false, reference = false, one_sided = false;
+    unsigned threads = 1;
 };
 
 // Points from text lines "x y z" (blank lines and # comments skipped) or raw little-endian float32 triples.
@@ -316,17 +318,33 @@ int run_query(const QueryArgs& a) {
         nodes += trees[i].node_count();
         always += trees[i].always_tested();
     }
-    std::vector<uint32_t> stack(stack_size);
     double build_seconds = seconds_since(build_start);
 
+    // The trees are const: threads take contiguous slices of the points, each with its own stack and counts.
     auto start = std::chrono::steady_clock::now();
-    cb::QueryStats stats;
     size_t n = pts.size() / 3;
     std::vector<uint8_t> shadow(n);
-    if (a.reference) {
-        for (size_t i = 0; i < n; ++i) shadow[i] = cb::occluded_reference(asset.view, &pts[i * 3], light, &stats, a.one_sided);
-    } else {
-        cb::occluded_batch(trees.data(), trees.size(), pts.data(), n, shadow.data(), stack.data(), &stats);
+    unsigned thread_count = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
+    std::vector<cb::QueryStats> counts(thread_count);
+    auto slice = [&](unsigned t) {
+        size_t first = n * t / thread_count, last = n * (t + 1) / thread_count;
+        if (a.reference) {
+            for (size_t i = first; i < last; ++i)
+                shadow[i] = cb::occluded_reference(asset.view, &pts[i * 3], light, &counts[t], a.one_sided);
+        } else {
+            std::vector<uint32_t> own(stack_size);
+            cb::occluded_batch(trees.data(), trees.size(), pts.data() + first * 3, last - first, shadow.data() + first, own.data(),
+                               &counts[t]);
+        }
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < thread_count; ++t) pool.emplace_back(slice, t);
+    slice(0);
+    for (std::thread& t : pool) t.join();
+    cb::QueryStats stats;
+    for (const cb::QueryStats& c : counts) {
+        stats.nodes_visited += c.nodes_visited, stats.clusters_tested += c.clusters_tested;
+        stats.triangles_tested += c.triangles_tested, stats.touching += c.touching;
     }
     double seconds = seconds_since(start);
     std::string answers;
@@ -608,6 +626,7 @@ int main(int argc, char** argv) {
     query->add_flag("--stats", qa.stats, "Print build and query time and traversal counts on stderr");
     query->add_flag("--reference", qa.reference, "Use the reference traversal (every cluster box the segment may touch) "
                                                   "instead of the per-light clustered shadow trees; same answers");
+    query->add_option("--threads", qa.threads, "Query threads, 0 = all (default 1); the answers do not depend on it");
 
     try {
         app.parse(argc, argv);

@@ -181,6 +181,20 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     CliRun ref = run("query " + asset + " --light -4,30,2 --points " + pts + " --reference");
     EXPECT_EQ(ref.out, r.out);
     EXPECT_EQ(run("query " + asset + " --light 1,2 --points " + pts).code, 1);
+    // Many points over the scene: the same answers on 1 and 3 threads, trees or reference.
+    {
+        std::ofstream grid(pts);
+        for (int i = 0; i < 40; ++i)
+            for (int j = 0; j < 40; ++j) grid << -18 + 0.9 * i << " " << 0.02 + 0.05 * ((i * 7 + j) % 5) << " " << -18 + 0.9 * j << "\n";
+    }
+    CliRun one = run("query " + asset + " --light -4,30,2 --points " + pts);
+    CliRun three = run("query " + asset + " --light -4,30,2 --points " + pts + " --threads 3");
+    CliRun three_ref = run("query " + asset + " --light -4,30,2 --points " + pts + " --threads 3 --reference");
+    EXPECT_EQ(one.out.size(), 1600u * 2);
+    EXPECT_EQ(three.out, one.out);
+    EXPECT_EQ(three_ref.out, one.out);
+    EXPECT_NE(one.out.find('1'), std::string::npos);
+    EXPECT_NE(one.out.find('0'), std::string::npos);
     std::ofstream(pts) << "1 2\n";
     CliRun bad = run("query " + asset + " --light 1,2,3 --points " + pts);
     EXPECT_EQ(bad.code, 2);
