@@ -400,8 +400,8 @@ int run_report(ReportArgs a) {
     for (const std::string& f : split_commas(a.fine)) {
         char* end = nullptr;
         unsigned long v = std::strtoul(f.c_str(), &end, 10);
-        if (f.empty() || *end || v < 1 || v > 4096) {
-            std::fprintf(stderr, "clusterbake: --fine takes a list of sizes from 1 to 4096 (got '%s')\n", f.c_str());
+        if (f.empty() || *end || v < 1 || v > 85) {  // the asset's 8-bit local indices, as for bake
+            std::fprintf(stderr, "clusterbake: --fine takes a list of sizes from 1 to 85 (got '%s')\n", f.c_str());
             return 1;
         }
         o.fine_sizes.push_back(uint32_t(v));
@@ -604,7 +604,8 @@ int main(int argc, char** argv) {
     heatmap->add_option("-o,--output", ha.out, "Output PNG (written atomically)")->required();
     heatmap->add_option("--size", ha.options.size, "Panel size in pixels (default 256)");
     heatmap->add_option("--light", ha.light, "Light position X,Y,Z (default: above the scene, as the report's first light)");
-    heatmap->add_option("--fine", ha.options.clustering.fine_size, "Maximum triangles per fine cluster (default 16)");
+    heatmap->add_option("--fine", ha.options.clustering.fine_size, "Maximum triangles per fine cluster, 1 to 85 (default 16)")
+        ->check(CLI::Range(1, 85));
     heatmap->add_option("--coarse", ha.options.clustering.coarse_size, "Triangles per coarse cluster (default 2048)");
     heatmap->add_option("--obb", ha.obb, "refined (default), pca, pca-area, or cgal");
     heatmap->add_flag("--one-sided", ha.options.one_sided, "One-sided occluders");

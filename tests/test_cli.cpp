@@ -164,6 +164,8 @@ TEST(Cli, BakeWritesTheChosenBounds) {
     // Fine clusters must fit 8-bit local indices: 85 triangles at most.
     EXPECT_EQ(run("bake " + data("small/cube.obj") + " --fine 86 -o " + out.string()).code, 1);
     EXPECT_EQ(run("bake " + data("small/cube.obj") + " --fine 85 -o " + out.string()).code, 0);
+    EXPECT_EQ(run("report " + data("small/cube.obj") + " --fine 16,86 -o " + out.string() + "_report").code, 1);
+    EXPECT_EQ(run("heatmap " + data("small/cube.obj") + " --fine 86 -o " + out.string() + ".png").code, 1);
     std::filesystem::remove(out);
 }
 
