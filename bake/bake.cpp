@@ -1,10 +1,10 @@
 #include "bake.h"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <numeric>
-#include <thread>
+
+#include "parallel.h"
 
 namespace cb {
 
@@ -109,19 +109,11 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
         }
     }
     std::vector<ClusterBounds> fitted(items.size());
-    std::atomic<size_t> next{0};
-    auto work = [&] {
-        for (size_t i; (i = next.fetch_add(1)) < items.size();) {
-            const Item& it = items[i];
-            const AssetMesh& am = meshes[it.mesh];
-            fitted[i] = fit_bounds(am.positions.data(), am.triangles.data(), ids[it.mesh].data() + it.first, it.count, options);
-        }
-    };
-    unsigned n = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < n; ++t) pool.emplace_back(work);
-    work();
-    for (auto& t : pool) t.join();
+    parallel_for(items.size(), threads, [&](size_t i) {
+        const Item& it = items[i];
+        const AssetMesh& am = meshes[it.mesh];
+        fitted[i] = fit_bounds(am.positions.data(), am.triangles.data(), ids[it.mesh].data() + it.first, it.count, options);
+    });
 
     for (size_t i = 0; i < items.size(); ++i) {  // in item order: deterministic
         const Item& it = items[i];

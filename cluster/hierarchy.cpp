@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "cluster.h"
+#include "parallel.h"
 
 namespace cb {
 
@@ -136,20 +137,13 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
 
     // Fine level: chunks are independent; each writes only its own range and its own size list.
     std::vector<std::vector<uint32_t>> fine(chunk_sizes.size());
-    std::atomic<size_t> next{0}, done{0};
-    auto work = [&](bool report) {
-        for (size_t c; (c = next.fetch_add(1)) < chunk_sizes.size();) {
-            split_chunk(boxes.data(), indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
-            size_t finished = done.fetch_add(1) + 1;
-            if (report && progress) progress(finished, chunk_sizes.size());
-        }
-    };
-    unsigned threads = o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
-    threads = unsigned(std::min<size_t>(threads, std::max<size_t>(1, chunk_sizes.size())));
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, false);
-    work(true);
-    for (auto& t : pool) t.join();
+    std::atomic<size_t> done{0};
+    const std::thread::id caller = std::this_thread::get_id();  // progress is reported from the caller only
+    parallel_for(chunk_sizes.size(), o.threads, [&](size_t c) {
+        split_chunk(boxes.data(), indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
+        size_t finished = done.fetch_add(1) + 1;
+        if (progress && std::this_thread::get_id() == caller) progress(finished, chunk_sizes.size());
+    });
 
     h.fine_offsets.push_back(0);
     h.coarse_offsets.push_back(0);

@@ -7,22 +7,10 @@
 
 #include "cluster.h"
 #include "nearest_centre.h"
+#include "random.h"
 
 namespace cb {
 namespace {
-
-uint64_t mix(uint64_t x) {  // splitmix64 finaliser: seeds for children, deterministic and well spread
-    x += 0x9e3779b97f4a7c15ULL;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-    return x ^ (x >> 31);
-}
-
-struct Rng {
-    uint64_t state;
-    uint64_t next() { return state = mix(state); }
-    double uniform() { return double(next() >> 11) * (1.0 / 9007199254740992.0); }
-};
 
 inline float distance2(const float* a, const float* b) {
     float s = 0;
@@ -65,7 +53,7 @@ public:
             std::copy(g.begin(), g.end(), tris + at);
             at += g.size();
         }
-        for (size_t g = 0; g < groups.size(); ++g) split(tris + starts[g], groups[g].size(), mix(seed ^ (g + 1)), leaves);
+        for (size_t g = 0; g < groups.size(); ++g) split(tris + starts[g], groups[g].size(), splitmix(seed ^ (g + 1)), leaves);
     }
 
 private:
@@ -78,7 +66,7 @@ private:
     // distance to the nearest centre so far. Returns how many distinct centres exist (fewer than k when the
     // points have fewer distinct values).
     size_t seed_centres(size_t n, size_t k, uint64_t seed) {
-        Rng rng{seed};
+        SplitMix rng{seed};
         centres_.assign(k * 6, 0.0f);
         nearest_.resize(n);
         size_t first = size_t(rng.next() % n);
@@ -192,8 +180,8 @@ private:
             float ca = centre(a, axis), cb = centre(b, axis);
             return ca < cb || (ca == cb && a < b);  // a total order: the same cut on every run
         });
-        split(tris, half, mix(seed ^ 1), leaves);
-        split(tris + half, n - half, mix(seed ^ 2), leaves);
+        split(tris, half, splitmix(seed ^ 1), leaves);
+        split(tris + half, n - half, splitmix(seed ^ 2), leaves);
     }
 
     float centre(uint32_t t, int axis) const { return boxes_[size_t(t) * 6 + axis] + boxes_[size_t(t) * 6 + 3 + axis]; }

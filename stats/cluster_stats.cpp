@@ -3,34 +3,18 @@
 #include <cb_shadow.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <numeric>
-#include <thread>
 #include <tuple>
 
 #include "bounds.h"
 #include "cluster.h"
+#include "parallel.h"
+#include "random.h"
 
 namespace cb {
 namespace {
-
-// splitmix64: a seed per (mesh, level, cluster) so results do not depend on which thread did the work.
-uint64_t mix(uint64_t x) {
-    x += 0x9e3779b97f4a7c15ULL;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-    return x ^ (x >> 31);
-}
-
-struct Random {
-    uint64_t state;
-    double uniform() {  // [0, 1), the same on every platform (std distributions are not)
-        state = mix(state);
-        return double(state >> 11) * 0x1.0p-53;
-    }
-};
 
 void cross(const double* a, const double* b, double* out) {
     out[0] = a[1] * b[2] - a[2] * b[1], out[1] = a[2] * b[0] - a[0] * b[2], out[2] = a[0] * b[1] - a[1] * b[0];
@@ -96,7 +80,7 @@ bool has_double_sided(const AssetMesh& m, TriangleRange r) {
 // Uniform points in the shadow volume of `box` from `light`, clipped to the mesh bounds; counts those the
 // cluster's triangles do not shadow (exactly, two-sided).
 void sample_shadow_volume(const MeshContext& ctx, const Obb& box, const double* light, TriangleRange r, uint32_t wanted,
-                          Random& rng, ClusterFigures& out) {
+                          SplitMix& rng, ClusterFigures& out) {
     ShadowVolume v = make_shadow_volume(box, light);
     if (!v.valid) {
         ++out.no_volume;
@@ -171,7 +155,7 @@ ClusterFigures cluster_figures(const MeshContext& ctx, const LevelVolumes& volum
         f.area += 0.5 * length(n);
     }
     bool sided = has_double_sided(m, r);
-    Random rng{seed};
+    SplitMix rng{seed};
     for (size_t l = 0; l < ctx.lights.size() / 3; ++l) {
         const double* light = &ctx.lights[l * 3];
         if (!volumes.cones.empty() && !sided && light_in_front_cone(unpack_cone(volumes.cones[index], volumes.obbs[index]), light))
@@ -179,20 +163,6 @@ ClusterFigures cluster_figures(const MeshContext& ctx, const LevelVolumes& volum
         if (!volumes.obbs.empty()) sample_shadow_volume(ctx, unpack_obb(volumes.obbs[index]), light, r, options.samples, rng, f);
     }
     return f;
-}
-
-// Runs body(i) for i in [0, n) on `threads` threads (0: all).
-template <class F>
-void parallel_for(size_t n, unsigned threads, F&& body) {
-    unsigned count = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
-    std::atomic<size_t> next{0};
-    auto work = [&] {
-        for (size_t i; (i = next.fetch_add(1)) < n;) body(i);
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < count && t < n; ++t) pool.emplace_back(work);
-    work();
-    for (auto& t : pool) t.join();
 }
 
 double ratio(double a, double b) { return b > 0 ? a / b : NAN; }
@@ -211,7 +181,7 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
     parallel_for(items.size(), options.threads, [&](size_t i) {
         const Item& it = items[i];
         const AssetMesh& mesh = *contexts[it.mesh].mesh;
-        uint64_t seed = mix(options.seed ^ mix(uint64_t(it.mesh) << 33 ^ uint64_t(fine) << 32 ^ it.cluster));
+        uint64_t seed = splitmix(options.seed ^ splitmix(uint64_t(it.mesh) << 33 ^ uint64_t(fine) << 32 ^ it.cluster));
         figures[i] = cluster_figures(contexts[it.mesh], fine ? mesh.fine_volumes : mesh.coarse_volumes, it.cluster, it.range,
                                      options, seed);
     });
@@ -395,7 +365,7 @@ SceneStats cluster_statistics(const std::vector<AssetMesh>& meshes, const std::v
         // Lights in the box three times the mesh bounds (padded by the largest side on every axis, so flat
         // meshes get lights off their plane), outside the bounds.
         double pad = std::max({c.hi[0] - c.lo[0], c.hi[1] - c.lo[1], c.hi[2] - c.lo[2], 1e-30});
-        Random rng{mix(options.seed ^ 0x6c69676874ULL ^ mix(m))};
+        SplitMix rng{splitmix(options.seed ^ 0x6c69676874ULL ^ splitmix(m))};
         while (c.lights.size() < size_t(options.lights) * 3) {
             double p[3];
             bool inside = true;

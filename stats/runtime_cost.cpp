@@ -3,11 +3,11 @@
 #include <cb_cpsv.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
-#include <thread>
+
+#include "parallel.h"
 
 namespace cb {
 
@@ -74,19 +74,6 @@ struct InstanceFrame {
     bool usable;
 };
 
-template <class F>
-void parallel_rows(uint32_t rows, unsigned threads, F&& body) {
-    unsigned n = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
-    std::atomic<uint32_t> next{0};
-    auto work = [&] {
-        for (uint32_t y; (y = next.fetch_add(1)) < rows;) body(y);
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < n; ++t) pool.emplace_back(work);
-    work();
-    for (auto& t : pool) t.join();
-}
-
 }  // namespace
 
 Camera default_camera(const double* lo, const double* hi, uint32_t width, uint32_t height) {
@@ -122,7 +109,7 @@ std::vector<double> first_hits(const BakedScene& baked, const Camera& cam, unsig
         frames[i].usable = invert_instance(m, frames[i].inverse);
     }
     double aspect = double(cam.width) / double(std::max(1u, cam.height));
-    parallel_rows(cam.height, threads, [&](uint32_t y) {
+    parallel_for(cam.height, threads, [&](size_t y) {
         for (uint32_t x = 0; x < cam.width; ++x) {
             double sx = ((x + 0.5) / cam.width * 2 - 1) * aspect, sy = 1 - (y + 0.5) / cam.height * 2, dir[3];
             for (int k = 0; k < 3; ++k) dir[k] = cam.forward[k] + cam.half_extent * (sx * cam.right[k] + sy * cam.up[k]);
