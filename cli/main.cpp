@@ -92,21 +92,27 @@ bool parse_obb(const std::string& text, cb::ObbMethod& out) {
     return false;
 }
 
+// The clustering method and box fitter named on the command line (bake, cluster, stats); one-line errors.
+bool parse_clustering(const ClusterArgs& a, cb::ClusterOptions& clustering, cb::BoundsOptions& bounds) {
+    clustering = a.options;
+    if (!cb::parse_method(a.method, clustering.method)) {
+        std::fprintf(stderr, "clusterbake: unknown method '%s' (kmeans, vco, morton)\n", a.method.c_str());
+        return false;
+    }
+    bounds.capsule_ratio = a.capsule_ratio;
+    return parse_obb(a.obb, bounds.obb);
+}
+
 // `cluster` (geometry and hierarchy only) and `bake` (with bounds) share this.
 int run_bake(const ClusterArgs& a) {
-    cb::ClusterOptions options = a.options;
-    if (!cb::parse_method(a.method, options.method)) {
-        std::fprintf(stderr, "clusterbake: unknown method '%s' (kmeans, vco, morton)\n", a.method.c_str());
-        return 1;
-    }
+    cb::ClusterOptions options;
     cb::BoundsOptions bounds;
-    bounds.capsule_ratio = a.capsule_ratio;
+    if (!parse_clustering(a, options, bounds)) return 1;
     if (a.fit && !cb::parse_bounds_mask(a.bounds, bounds.mask)) {
         std::fprintf(stderr, "clusterbake: --bounds takes auto, all or a list of obb,sphere,capsule,cone,slab (got '%s')\n",
                      a.bounds.c_str());
         return 1;
     }
-    if (!parse_obb(a.obb, bounds.obb)) return 1;
     auto t0 = std::chrono::steady_clock::now();
     cb::Scene scene;
     try {
@@ -247,6 +253,16 @@ int run_validate(const std::string& file) {
     return 0;
 }
 
+// "X,Y,Z", three finite numbers; otherwise a one-line error and false.
+bool parse_light(const std::string& text, double* light) {
+    char extra;
+    if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &light[0], &light[1], &light[2], &extra) == 3 && std::isfinite(light[0]) &&
+        std::isfinite(light[1]) && std::isfinite(light[2]))
+        return true;
+    std::fprintf(stderr, "clusterbake: --light takes X,Y,Z (got '%s')\n", text.c_str());
+    return false;
+}
+
 struct QueryArgs {
     std::string asset, light, points, out;
     bool binary = false, stats = false, reference = false, one_sided = false;
@@ -296,12 +312,7 @@ bool read_points(const QueryArgs& a, std::vector<double>& pts) {
 
 int run_query(const QueryArgs& a) {
     double light[3];
-    char extra;
-    if (std::sscanf(a.light.c_str(), "%lf,%lf,%lf%c", &light[0], &light[1], &light[2], &extra) != 3 ||
-        !std::isfinite(light[0]) || !std::isfinite(light[1]) || !std::isfinite(light[2])) {
-        std::fprintf(stderr, "clusterbake: --light takes X,Y,Z (got '%s')\n", a.light.c_str());
-        return 1;
-    }
+    if (!parse_light(a.light, light)) return 1;
     LoadedAsset asset;
     if (!load_asset(a.asset, asset)) return exit_bad_input;
     std::vector<double> pts;
@@ -442,13 +453,7 @@ struct HeatmapArgs {
 
 int run_heatmap(HeatmapArgs a) {
     if (!a.light.empty()) {
-        char extra;
-        double* l = a.options.light;
-        if (std::sscanf(a.light.c_str(), "%lf,%lf,%lf%c", &l[0], &l[1], &l[2], &extra) != 3 || !std::isfinite(l[0]) ||
-            !std::isfinite(l[1]) || !std::isfinite(l[2])) {
-            std::fprintf(stderr, "clusterbake: --light takes X,Y,Z (got '%s')\n", a.light.c_str());
-            return 1;
-        }
+        if (!parse_light(a.light, a.options.light)) return 1;
         a.options.has_light = true;
     }
     if (!parse_obb(a.obb, a.options.obb)) return 1;
@@ -470,15 +475,10 @@ int run_heatmap(HeatmapArgs a) {
 }
 
 int run_stats(const ClusterArgs& a, cb::StatsOptions so) {
-    cb::ClusterOptions clustering = a.options;
-    if (!cb::parse_method(a.method, clustering.method)) {
-        std::fprintf(stderr, "clusterbake: unknown method '%s' (kmeans, vco, morton)\n", a.method.c_str());
-        return 1;
-    }
+    cb::ClusterOptions clustering;
     cb::BoundsOptions bounds;
-    bounds.capsule_ratio = a.capsule_ratio;
+    if (!parse_clustering(a, clustering, bounds)) return 1;
     bounds.mask = cb::bounds_all;
-    if (!parse_obb(a.obb, bounds.obb)) return 1;
     so.threads = clustering.threads;
     cb::BakedScene baked;
     std::string note;
