@@ -167,57 +167,12 @@ public:
     // Is the segment from world point p to the light blocked? The same semantics as the runtime
     // (cb_shadow.h), two-sided or one-sided with each primitive's double_sided flag.
     OracleAnswer occluded(const double* p, const double* light, bool one_sided) const {
-        OracleAnswer a;
-        bool blocked_by_a_crossing = false;
-        for (const Frame& f : frames_) {
-            const MeshTree& m = *meshes_[f.mesh];
-            if (!f.usable || m.triangles.empty()) continue;  // a singular transform flattens the mesh
-            double lp[3], ll[3];
-            cb::apply_instance(f.to_mesh.data(), p, lp);  // exactly as the runtime maps them
-            cb::apply_instance(f.to_mesh.data(), light, ll);
-            // p at the light: no plane separates the ends, nothing blocks (and CGAL wants a real segment).
-            if (lp[0] == ll[0] && lp[1] == ll[1] && lp[2] == ll[2]) continue;
-            Epick::Segment_3 s(Epick::Point_3(lp[0], lp[1], lp[2]), Epick::Point_3(ll[0], ll[1], ll[2]));
-            std::vector<Triangles::const_iterator> met;
-            m.tree.all_intersected_primitives(s, std::back_inserter(met));
-            for (Triangles::const_iterator t : met) {
-                size_t k = size_t(t - m.triangles.begin());
-                double c[3][3];
-                for (int v = 0; v < 3; ++v)
-                    for (int j = 0; j < 3; ++j) c[v][j] = CGAL::to_double(t->vertex(v)[j]);  // doubles from floats: exact
-                cb::SegmentTest r = oracle(lp, ll, c[0], c[1], c[2], !one_sided || m.double_sided[k]);
-                a.touching |= r.touching;
-                a.blocked |= r.blocks;
-                blocked_by_a_crossing |= r.blocks && !r.touching;
-            }
-        }
-        a.only_touching = a.blocked && !blocked_by_a_crossing;
-        return a;
+        return answer(p, light, one_sided, true);
     }
 
     // The same answer from every triangle of every instance, without the trees: to check the trees' candidates.
     OracleAnswer occluded_brute_force(const double* p, const double* light, bool one_sided) const {
-        OracleAnswer a;
-        bool blocked_by_a_crossing = false;
-        for (const Frame& f : frames_) {
-            const MeshTree& m = *meshes_[f.mesh];
-            double lp[3], ll[3];
-            if (!f.usable) continue;
-            cb::apply_instance(f.to_mesh.data(), p, lp);
-            cb::apply_instance(f.to_mesh.data(), light, ll);
-            if (lp[0] == ll[0] && lp[1] == ll[1] && lp[2] == ll[2]) continue;
-            for (size_t k = 0; k < m.triangles.size(); ++k) {
-                double c[3][3];
-                for (int v = 0; v < 3; ++v)
-                    for (int j = 0; j < 3; ++j) c[v][j] = m.triangles[k].vertex(v)[j];
-                cb::SegmentTest r = oracle(lp, ll, c[0], c[1], c[2], !one_sided || m.double_sided[k]);
-                a.touching |= r.touching;
-                a.blocked |= r.blocks;
-                blocked_by_a_crossing |= r.blocks && !r.touching;
-            }
-        }
-        a.only_touching = a.blocked && !blocked_by_a_crossing;
-        return a;
+        return answer(p, light, one_sided, false);
     }
 
     // The first surface point along a world ray (double constructions: near the surface, not on it).
@@ -290,6 +245,44 @@ private:
             m->tree.build();  // now, not lazily at the first query: queries may come from several threads
         }
         return m;
+    }
+
+    // Every instance: p and the light taken into the mesh frame exactly as the runtime maps them, then each
+    // candidate triangle decided exactly. Candidates: those the AABB tree says the closed segment meets, or
+    // (brute force) all of them.
+    OracleAnswer answer(const double* p, const double* light, bool one_sided, bool use_trees) const {
+        OracleAnswer a;
+        bool blocked_by_a_crossing = false;
+        std::vector<size_t> candidates;
+        for (const Frame& f : frames_) {
+            const MeshTree& m = *meshes_[f.mesh];
+            if (!f.usable || m.triangles.empty()) continue;  // a singular transform flattens the mesh
+            double lp[3], ll[3];
+            cb::apply_instance(f.to_mesh.data(), p, lp);
+            cb::apply_instance(f.to_mesh.data(), light, ll);
+            // p at the light: no plane separates the ends, nothing blocks (and CGAL wants a real segment).
+            if (lp[0] == ll[0] && lp[1] == ll[1] && lp[2] == ll[2]) continue;
+            candidates.clear();
+            if (use_trees) {
+                Epick::Segment_3 s(Epick::Point_3(lp[0], lp[1], lp[2]), Epick::Point_3(ll[0], ll[1], ll[2]));
+                std::vector<Triangles::const_iterator> met;
+                m.tree.all_intersected_primitives(s, std::back_inserter(met));
+                for (Triangles::const_iterator t : met) candidates.push_back(size_t(t - m.triangles.begin()));
+            } else {
+                for (size_t k = 0; k < m.triangles.size(); ++k) candidates.push_back(k);
+            }
+            for (size_t k : candidates) {
+                double c[3][3];
+                for (int v = 0; v < 3; ++v)
+                    for (int j = 0; j < 3; ++j) c[v][j] = CGAL::to_double(m.triangles[k].vertex(v)[j]);  // doubles from floats: exact
+                cb::SegmentTest r = oracle(lp, ll, c[0], c[1], c[2], !one_sided || m.double_sided[k]);
+                a.touching |= r.touching;
+                a.blocked |= r.blocks;
+                blocked_by_a_crossing |= r.blocks && !r.touching;
+            }
+        }
+        a.only_touching = a.blocked && !blocked_by_a_crossing;
+        return a;
     }
 
     std::vector<std::unique_ptr<MeshTree>> meshes_;

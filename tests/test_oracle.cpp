@@ -119,6 +119,21 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
     EXPECT_EQ(plane_lights, files.size());
 }
 
+// The oracle finds p blocked by a proper crossing (no touching contact), two-sided; the reference walk and
+// both tree depths of instance 0 agree.
+static void expect_blocked_by_a_crossing(const cb::test::Baked& b, const double* p, const double* light) {
+    cb::test::OracleAnswer exact = SceneOracle(b.scene).occluded(p, light, false);
+    EXPECT_TRUE(exact.blocked);
+    EXPECT_FALSE(exact.touching);
+    EXPECT_TRUE(cb::occluded_reference(b.view, p, light, nullptr, false));
+    for (bool two_levels : {true, false}) {
+        cb::ClusterShadowTree tree;
+        tree.build(b.view, 0, light, false, two_levels);
+        std::vector<uint32_t> stack(tree.stack_size());
+        EXPECT_EQ(tree.occluded(p, stack.data()), exact.blocked) << (two_levels ? "two levels" : "one level");
+    }
+}
+
 // Found by check_shadow, reduced from hard/comments.off: the light lies on the plane of one face of the
 // cluster's box, and the point is in shadow by a proper crossing of triangle 0 near its corner
 // (0, 1.63299298, -1.15470099). The stored box is |dot(v - center, axis)| <= half with float axes that are
@@ -138,16 +153,7 @@ TEST(Oracle, ShadowTreeFindsBlockerWithLightLevelWithBoxFace) {
     ASSERT_GT(b.view.mesh_count, 0u);
     const double light[3] = {-1.6329929828643799, 0, 3.4641029834747314};
     const double p[3] = {0.54433099428812681, 2.1773239771525064, -2.6943023204803467};
-    cb::test::OracleAnswer exact = SceneOracle(scene).occluded(p, light, false);
-    EXPECT_TRUE(exact.blocked);
-    EXPECT_FALSE(exact.touching);
-    EXPECT_TRUE(cb::occluded_reference(b.view, p, light, nullptr, false));
-    for (bool two_levels : {true, false}) {
-        cb::ClusterShadowTree tree;
-        tree.build(b.view, 0, light, false, two_levels);
-        std::vector<uint32_t> stack(tree.stack_size());
-        EXPECT_EQ(tree.occluded(p, stack.data()), exact.blocked) << (two_levels ? "two levels" : "one level");
-    }
+    expect_blocked_by_a_crossing(b, p, light);
 }
 
 // The same cause on a plain scene with integer coordinates (hard/wallhole.obj): the light is beside the
@@ -159,14 +165,5 @@ TEST(Oracle, ShadowTreeFindsBlockerWithLightLevelWithApex) {
     ASSERT_GT(b.view.mesh_count, 0u);
     const double light[3] = {-7.5, 15, -5};
     const double p[3] = {5.5189426612443331, 13.759012783918509, -3.7590127839185103};
-    cb::test::OracleAnswer exact = SceneOracle(b.scene).occluded(p, light, false);
-    EXPECT_TRUE(exact.blocked);
-    EXPECT_FALSE(exact.touching);
-    EXPECT_TRUE(cb::occluded_reference(b.view, p, light, nullptr, false));
-    for (bool two_levels : {true, false}) {
-        cb::ClusterShadowTree tree;
-        tree.build(b.view, 0, light, false, two_levels);
-        std::vector<uint32_t> stack(tree.stack_size());
-        EXPECT_EQ(tree.occluded(p, stack.data()), exact.blocked) << (two_levels ? "two levels" : "one level");
-    }
+    expect_blocked_by_a_crossing(b, p, light);
 }
