@@ -2,7 +2,7 @@
 // its trees. Per mesh, a CGAL AABB tree over its triangles with exact predicates (Epick: its segment-box
 // and segment-triangle tests are exact) lists exactly the triangles the closed query segment meets; the
 // exact per-triangle semantics (oracle() in shadow_oracle.h, CGAL's exact constructions) decide on those
-// only. The answers are those of the brute-force oracle_occluded, without looking at every triangle.
+// only. occluded_brute_force gives the same answers from every triangle, to check the trees' candidates.
 #pragma once
 
 #include <CGAL/AABB_traits.h>

@@ -14,6 +14,7 @@
 
 #include "bake.h"
 #include "load.h"
+#include "scene_oracle.h"
 #include "shadow_oracle.h"
 
 namespace fs = std::filesystem;
@@ -21,8 +22,8 @@ using Epick = CGAL::Exact_predicates_inexact_constructions_kernel;
 using cb::test::Baked;
 using cb::test::bake;
 using cb::test::oracle;
-using cb::test::oracle_occluded;
-using cb::test::sample_world;
+using cb::test::sample_scene;
+using cb::test::SceneOracle;
 using cb::test::WorldSample;
 
 namespace {
@@ -108,7 +109,8 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
         Baked b = bake(file);
         ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
         const cb::AssetView& v = b.view;
-        WorldSample world = sample_world(v, 3);
+        WorldSample world = sample_scene(b.scene, 3);
+        SceneOracle exact_oracle(b.scene);
         const double *lo = world.lo, *hi = world.hi;
         const auto& surface = world.surface;
         double size = world.size();
@@ -137,10 +139,10 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
                 for (bool one_sided : {false, true}) {
                     cb::QueryStats stats;
                     bool ours = cb::occluded_reference(v, p, light, &stats, one_sided);
-                    bool t = false;
-                    bool exact = oracle_occluded(v, p, light, t, one_sided);
+                    cb::test::OracleAnswer exact_answer = exact_oracle.occluded(p, light, one_sided);
+                    bool exact = exact_answer.blocked;
                     disagreements += ours != exact;
-                    touching += t;
+                    touching += exact_answer.touching;
                     shadowed += exact;
                     one_sided_differs += one_sided && ours != cb::occluded_reference(v, p, light, nullptr, false);
                     ++queries;
@@ -236,7 +238,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
         Baked b = bake(file);
         ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
         const cb::AssetView& v = b.view;
-        WorldSample world = sample_world(v, 1);
+        WorldSample world = sample_scene(b.scene, 1);
         const double *lo = world.lo, *hi = world.hi;
         const auto& surface = world.surface;
         double size = world.size();
@@ -351,7 +353,8 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
         Baked b = bake_mesh(c.positions, c.indices);
         ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
         const cb::AssetView& v = b.view;
-        WorldSample world = sample_world(v, 1);
+        WorldSample world = sample_scene(b.scene, 1);
+        SceneOracle exact_oracle(b.scene);
         for (const auto& light : c.lights)
             for (int variant = 0; variant < 4; ++variant) {
                 bool one_sided = variant % 2 == 1, two_levels = variant >= 2;
@@ -370,13 +373,13 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                     } else {  // around, below and above
                         for (int j = 0; j < 3; ++j) p[j] = 0.5 * (world.lo[j] + world.hi[j]) + (world.hi[j] - world.lo[j] + 2) * u(rng);
                     }
-                    bool t = false;
-                    bool exact = oracle_occluded(v, p, light.data(), t, one_sided);
+                    cb::test::OracleAnswer exact_answer = exact_oracle.occluded(p, light.data(), one_sided);
+                    bool exact = exact_answer.blocked;
                     bool ref = cb::occluded_reference(v, p, light.data(), nullptr, one_sided);
                     bool fast = tree.occluded(p, stack.data());
                     disagreements += ref != exact;
                     tree_disagreements += fast != exact;
-                    touching += t;
+                    touching += exact_answer.touching;
                     ++queries;
                 }
             }
