@@ -2,9 +2,10 @@
 // The points are what a camera sees: the first hits of a W x W view (found with Embree), then each point's
 // segment to the light. Prints build time, queries per second on 1 and 2 threads, traversal counts, memory,
 // and how often the two disagree (Embree is not exact: grazing contacts, and its near bound differs from
-// our self-shadowing policy). Asserts nothing.
+// our self-shadowing policy). Times are medians of --runs rounds; each round builds our trees, then runs our
+// passes and Embree's one after the other, so noise hits both alike. Asserts nothing.
 //
-//   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--only NAME] (NAME "big": only the big scene)
+//   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--runs 3] [--only NAME] (NAME "big": only the big scene)
 #include <embree3/rtcore.h>
 
 #include <cb_cpsv.h>
@@ -60,7 +61,7 @@ void flatten(const cb::Scene& s, std::vector<float>& v, std::vector<unsigned>& t
     }
 }
 
-void run(const Input& in, int view) {
+void run(const Input& in, int view, int runs) {
     // Bake with the default options and open the asset as the runtime would.
     cb::BakeStats bs;
     std::vector<cb::AssetMesh> meshes = cb::cluster_scene(in.scene, {}, bs);
@@ -137,15 +138,17 @@ void run(const Input& in, int view) {
     for (int li = 0; li < 4; ++li) {
         const double* light = lights[li];
         // Ours: build the trees (one per instance), then query, on 1 and 2 threads.
-        auto b0 = std::chrono::steady_clock::now();
         std::vector<cb::ClusterShadowTree> trees(asset.instance_count);
-        size_t stack = 0, always = 0;
-        for (uint32_t i = 0; i < asset.instance_count; ++i) {
-            trees[i].build(asset, i, light);
-            stack = std::max(stack, trees[i].stack_size());
-            always += trees[i].always_tested();
-        }
-        double build = seconds_of(b0);
+        size_t always = 0;
+        auto build_trees = [&] {
+            auto b0 = std::chrono::steady_clock::now();
+            always = 0;
+            for (uint32_t i = 0; i < asset.instance_count; ++i) {
+                trees[i].build(asset, i, light);
+                always += trees[i].always_tested();
+            }
+            return seconds_of(b0);
+        };
         std::vector<uint8_t> ours(n), embree1(n), embree16(n);
         cb::QueryStats stats;
         auto ours_pass = [&](unsigned threads) {
@@ -155,8 +158,8 @@ void run(const Input& in, int view) {
             for (unsigned th = 0; th < threads; ++th)
                 pool.emplace_back([&, th] {
                     // Contiguous halves: interleaved points would have the threads write neighbouring bytes.
-                    std::vector<uint32_t> scratch(stack);
                     size_t chunk = (n + threads - 1) / threads, begin = th * chunk, end = std::min(n, begin + chunk);
+                    std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), end - begin));
                     cb::QueryStats local;  // per thread, copied out once: counters in one shared array would false-share
                     if (begin < end)
                         cb::occluded_batch(trees.data(), trees.size(), &pts[begin * 3], end - begin, &ours[begin], scratch.data(), &local);
@@ -205,8 +208,19 @@ void run(const Input& in, int view) {
             for (auto& p : pool) p.join();
             return seconds_of(s);
         };
-        double ours1 = ours_pass(1), ours2 = ours_pass(2);
-        double e1 = embree_pass(1, false), e2 = embree_pass(2, false), p1 = embree_pass(1, true), p2 = embree_pass(2, true);
+        std::vector<double> t[7];  // build, ours 1 and 2 threads, Embree occluded1 1 and 2, occluded16 1 and 2
+        for (int r = 0; r < std::max(1, runs); ++r) {
+            t[0].push_back(build_trees());
+            t[1].push_back(ours_pass(1)), t[2].push_back(ours_pass(2));
+            t[3].push_back(embree_pass(1, false)), t[4].push_back(embree_pass(2, false));
+            t[5].push_back(embree_pass(1, true)), t[6].push_back(embree_pass(2, true));
+        }
+        auto median = [](std::vector<double> v) {
+            std::sort(v.begin(), v.end());
+            return v[v.size() / 2];
+        };
+        double build = median(t[0]), ours1 = median(t[1]), ours2 = median(t[2]), e1 = median(t[3]), e2 = median(t[4]),
+               p1 = median(t[5]), p2 = median(t[6]);
         size_t shadowed = 0, differ = 0;
         for (size_t i = 0; i < n; ++i) shadowed += ours[i], differ += ours[i] != embree1[i];
         double mq = double(n) / 1e6;
@@ -226,10 +240,12 @@ void run(const Input& in, int view) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    cb::bench::Options o = cb::bench::parse_options(argc, argv, {});
-    std::printf("%dx%d view; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = (our build + "
-                "our queries) / Embree's queries alone, 1 / 2 threads (below 1: we are faster); memory: our asset + "
-                "trees / Embree's peak\n\n", o.view, o.view);
+    cb::bench::Options defaults;
+    defaults.runs = 3;
+    cb::bench::Options o = cb::bench::parse_options(argc, argv, defaults);
+    std::printf("%dx%d view; medians of %d rounds; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = "
+                "(our build + our queries) / Embree's queries alone, 1 / 2 threads (below 1: we are faster); memory: our asset + "
+                "trees / Embree's peak\n\n", o.view, o.view, std::max(1, o.runs));
     std::printf("| scene | light | points | in shadow | our build | ours M q/s | Embree occluded1 M q/s | Embree occluded16 M q/s | "
                 "Embree build | ours vs Embree | nodes/query | clusters/query | triangles/query | useless clusters/query | always tested | MB ours / Embree | disagree |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -243,6 +259,6 @@ int main(int argc, char** argv) {
         big.instances.push_back({0, cb::identity_transform(), "big"});
         inputs.push_back({std::to_string(o.copies) + "x dragon", std::move(big)});
     }
-    for (const Input& in : inputs) run(in, o.view);
+    for (const Input& in : inputs) run(in, o.view, o.runs);
     return 0;
 }

@@ -321,17 +321,16 @@ int run_query(const QueryArgs& a) {
     // One clustered shadow tree per instance for this light (unless --reference).
     auto build_start = std::chrono::steady_clock::now();
     std::vector<cb::ClusterShadowTree> trees(a.reference ? 0 : asset.view.instance_count);
-    size_t stack_size = 0, nodes = 0, always = 0, skipped = 0;
+    size_t nodes = 0, always = 0, skipped = 0;
     for (uint32_t i = 0; i < trees.size(); ++i) {
         trees[i].build(asset.view, i, light, a.one_sided);
         skipped += trees[i].skipped_clusters();
-        stack_size = std::max(stack_size, trees[i].stack_size());
         nodes += trees[i].node_count();
         always += trees[i].always_tested();
     }
     double build_seconds = seconds_since(build_start);
 
-    // The trees are const: threads take contiguous slices of the points, each with its own stack and counts.
+    // The trees are const: threads take contiguous slices of the points, each with its own scratch and counts.
     auto start = std::chrono::steady_clock::now();
     size_t n = pts.size() / 3;
     std::vector<uint8_t> shadow(n);
@@ -343,7 +342,7 @@ int run_query(const QueryArgs& a) {
             for (size_t i = first; i < last; ++i)
                 shadow[i] = cb::occluded_reference(asset.view, &pts[i * 3], light, &counts[t], a.one_sided);
         } else {
-            std::vector<uint32_t> own(stack_size);
+            std::vector<uint32_t> own(cb::batch_scratch_size(trees.data(), trees.size(), last - first));
             cb::occluded_batch(trees.data(), trees.size(), pts.data() + first * 3, last - first, shadow.data() + first, own.data(),
                                &counts[t]);
         }

@@ -54,9 +54,11 @@ public:
         root_ = none;
         depth_ = 0;
         top_always_ = {};
+        for (int k = 0; k < 3; ++k) world_light_[k] = world_light[k];
         usable_ = invert_instance(view.instances[instance].transform, inverse_);
         if (!usable_) return;  // a singular transform flattens the mesh: it blocks nothing
         apply_instance(inverse_, world_light, light_);
+        for (int k = 0; k < 3; ++k) world_light_[k] = world_light[k];
         mesh_ = &view.meshes[view.instances[instance].mesh];
         bool two = two_levels && view.coarse_bounds.obbs;
         // At most 4 planes and a cluster node per volume: reserve once, so capacity is what is used.
@@ -95,7 +97,6 @@ public:
             if (!wanted[c]) continue;
             ShadowVolume v = make_shadow_volume(view.coarse_bounds.obb(mesh_->first_coarse + c), light_);
             Leaf leaf;
-            leaf.kind = Leaf::coarse;
             leaf.fine_root = fine_roots[c];
             leaf.always = fine_always[c];
             if (!v.valid) {  // the light is in or level with this coarse box: enter its fine tree every time
@@ -128,6 +129,61 @@ public:
         return root_ != none && walk(root_, stack, q);
     }
 
+    // Points a batch query walks together (cb::occluded_batch): with close directions from the light, one
+    // walk with the pyramid that holds them all stands for a walk per point.
+    static constexpr uint32_t tile_capacity = 64;
+
+    // The tile walk: of the `count` world points points + 3 * index[i] (xyz doubles), those set in `alive`
+    // that this instance shadows, as a mask; the same answers as occluded() point by point. The tree is
+    // walked once with a pyramid from the light that holds every point's direction: a node is skipped only
+    // when no point of the tile could reach it. At a cluster node, each point is tested against the node's
+    // own volume (its 4 planes and closing distance) before its cluster's triangles, so a point meets the
+    // clusters whose volumes hold it, as its own walk would. Points too far from the tile's mean direction
+    // (over 60 degrees), at the light or not finite walk alone. `stack` holds stack_size() entries; uses
+    // about 6 KB of the thread's stack besides (and cluster_blocks_points' 4 KB).
+    uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t* stack,
+                           QueryStats* stats = nullptr) const {
+        if (!usable_ || alive == 0) return 0;
+        Tile t;
+        t.count = count;
+        t.stats = stats;
+        t.alive = t.shadowed = t.in_pyramid = 0;
+        uint64_t alone = 0;
+        double m[3] = {0, 0, 0};
+        for (uint32_t i = 0; i < count; ++i) {
+            if (!(alive >> i & 1)) continue;
+            const double* w = points + size_t(index[i]) * 3;
+            apply_instance(inverse_, w, t.p[i]);
+            for (int k = 0; k < 3; ++k) t.e[i][k] = t.p[i][k] - light_[k];
+            t.dist[i] = std::sqrt(t.e[i][0] * t.e[i][0] + t.e[i][1] * t.e[i][1] + t.e[i][2] * t.e[i][2]);
+            if (!(t.dist[i] > 0) || !std::isfinite(t.dist[i])) {
+                alone |= uint64_t(1) << i;
+                continue;
+            }
+            for (int k = 0; k < 3; ++k) m[k] += t.e[i][k] / t.dist[i];
+            t.alive |= uint64_t(1) << i;
+        }
+        if (t.alive && make_pyramid(t, m)) alone |= t.alive & ~t.in_pyramid;
+        else alone |= t.alive, t.alive = 0;
+        t.alive &= t.in_pyramid;
+        if (t.alive) {
+            for (uint32_t i = 0; i < count; ++i) {
+                t.ex[i] = float(t.e[i][0]), t.ey[i] = float(t.e[i][1]), t.ez[i] = float(t.e[i][2]);
+                t.fd[i] = (t.alive >> i & 1) ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
+            }
+            for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count && t.alive; ++i)
+                test_points(always_fine_[i], t.alive, t);
+            for (uint32_t node : always_coarse_)
+                if (t.alive) tile_walk(node, t.alive, t, stack);
+            if (root_ != none && t.alive) tile_walk(root_, t.alive, t, stack);
+        }
+        for (uint32_t i = 0; i < count; ++i)
+            if ((alone >> i & 1) && occluded(points + size_t(index[i]) * 3, stack, stats)) t.shadowed |= uint64_t(1) << i;
+        return t.shadowed;
+    }
+
+    const double* world_light() const { return world_light_; }
+
     size_t node_count() const { return planes_.size() + leaves_.size(); }
     // Bytes this tree holds (the asset it reads is not counted).
     size_t memory_bytes() const {
@@ -156,22 +212,160 @@ private:
 
     // The end of a volume's chain: its cluster, then the volumes inserted later inside it.
     struct Leaf {               // 32 bytes
-        enum Kind : uint32_t { fine, coarse };
         float near = 0;         // closing distance (rounded down)
         float near_min = 0;     // the smaller of near and the closing distances in `inside`
         uint32_t inside = none;
         uint32_t fine_root = none;  // coarse: the root of its fine tree
-        uint32_t cluster = none;    // fine: the fine cluster (mesh-local)
+        uint32_t cluster = none;    // fine: the fine cluster (mesh-local); none for a coarse cluster
         Range always;               // coarse: its fine clusters tested whenever it is entered
-        Kind kind = fine;
+        uint32_t first_plane = none;  // the 4 planes of its volume, consecutive (none: no volume)
     };
 
     static_assert(sizeof(PlaneNode) == 32 && sizeof(Leaf) == 32, "tree nodes are 32-byte records (RUNTIME.md)");
+    static_assert(tile_capacity == 64, "a tile's points are the bits of a uint64_t");
+
 
     struct Query {
         double p[3], e[3], dist;
         QueryStats* stats;
     };
+
+    // A tile's points in the mesh's frame, and the pyramid from the light that holds their directions.
+    struct Tile {
+        uint32_t count;
+        uint64_t alive;           // in the pyramid and not yet found in shadow
+        uint64_t in_pyramid;
+        uint64_t shadowed;
+        double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
+        float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
+        double ray[4][3];         // unit edge rays: every direction is a positive mix of them
+        double dmin, dmax;        // the points' distances to the light
+        QueryStats* stats;
+    };
+
+    // The tile's pyramid about the mean direction m (unnormalised): the points' central projections onto
+    // the plane across it, bounded by a rectangle. Sets in_pyramid; false when no point fits.
+    static bool make_pyramid(Tile& t, const double* m) {
+        double ml = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+        t.in_pyramid = 0;
+        if (!(ml > 0)) return false;
+        double z[3] = {m[0] / ml, m[1] / ml, m[2] / ml}, a[3], b[3];
+        int k0 = std::fabs(z[0]) < std::fabs(z[1]) ? (std::fabs(z[0]) < std::fabs(z[2]) ? 0 : 2) : (std::fabs(z[1]) < std::fabs(z[2]) ? 1 : 2);
+        double axis[3] = {0, 0, 0};
+        axis[k0] = 1;
+        shadow_detail::cross3(z, axis, a);
+        double al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        for (double& x : a) x /= al;
+        shadow_detail::cross3(z, a, b);
+        double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+        t.dmin = INFINITY, t.dmax = 0;
+        for (uint32_t i = 0; i < t.count; ++i) {
+            if (!(t.alive >> i & 1)) continue;
+            const double* e = t.e[i];
+            double depth = shadow_detail::dot3(e, z);
+            if (!(depth > 0.5 * t.dist[i])) continue;  // over 60 degrees off: walks alone
+            double x = shadow_detail::dot3(e, a) / depth, y = shadow_detail::dot3(e, b) / depth;
+            lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y), hi[1] = std::max(hi[1], y);
+            t.dmin = std::min(t.dmin, t.dist[i]), t.dmax = std::max(t.dmax, t.dist[i]);
+            t.in_pyramid |= uint64_t(1) << i;
+        }
+        if (!t.in_pyramid) return false;
+        // Widened far beyond the rounding of x and y (a few 1e-16 for |x|, |y| below 2).
+        for (int k = 0; k < 2; ++k) lo[k] -= 1e-10, hi[k] += 1e-10;
+        const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
+        for (int r = 0; r < 4; ++r) {
+            double l = 0;
+            for (int k = 0; k < 3; ++k) t.ray[r][k] = z[k] + corner[r][0] * a[k] + corner[r][1] * b[k], l += t.ray[r][k] * t.ray[r][k];
+            l = std::sqrt(l);
+            for (double& x : t.ray[r]) x /= l;
+        }
+        return true;
+    }
+
+    // The points of `subset` that may lie in the volume of `leaf`: beyond its closing distance and inside
+    // its planes with the walk's tolerance plus the float evaluation's error (below 6e-7 of the distance).
+    // Bit k of `straddled` is set when plane k may cut the tile's pyramid; the others hold every point.
+    uint64_t volume_points(const Leaf& leaf, uint64_t subset, uint32_t straddled, const Tile& t) const {
+        uint64_t in = subset;
+        if (t.dmin < leaf.near)
+            for (uint64_t w = subset; w; w &= w - 1) {
+                uint32_t i = shadow_detail::lowest_bit(w);
+                if (!(t.fd[i] >= leaf.near)) in &= ~(uint64_t(1) << i);
+            }
+        if (leaf.first_plane == none) return in;  // no volume (the light is in its box): every point
+        for (int k = 0; k < 4 && in; ++k) {
+            if (!(straddled >> k & 1)) continue;
+            const float* n = planes_[leaf.first_plane + k].n;
+            for (uint64_t w = in; w; w &= w - 1) {
+                uint32_t i = shadow_detail::lowest_bit(w);
+                if (!(n[0] * t.ex[i] + n[1] * t.ey[i] + n[2] * t.ez[i] >= -2e-6f * t.fd[i])) in &= ~(uint64_t(1) << i);
+            }
+        }
+        return in;
+    }
+
+    // Tests fine cluster f's triangles for the points of `subset` still alive whose segment may touch its box.
+    void test_points(uint32_t f, uint64_t subset, Tile& t) const {
+        uint64_t todo = subset & t.alive;
+        if (view_->fine_bounds.obbs) {
+            Obb box = view_->fine_bounds.obb(mesh_->first_fine + f);
+            for (uint64_t w = todo; w; w &= w - 1) {
+                uint32_t i = shadow_detail::lowest_bit(w);
+                if (!segment_may_touch_box(box, t.p[i], light_)) todo &= ~(uint64_t(1) << i);
+            }
+        }
+        if (!todo) return;
+        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats);
+        t.alive &= ~hit, t.shadowed |= hit;
+    }
+
+    // The walk of `walk` for a tile's points `subset` at once (see occluded_tile).
+    void tile_walk(uint32_t start, uint64_t subset, Tile& t, uint32_t* stack) const {
+        size_t top = 0;
+        stack[top++] = start;
+        const double tol = 1e-9 + 1e-12;  // the walk's tolerance, and room for the rays' rounding
+        while (top && (subset & t.alive)) {
+            uint32_t ref = stack[--top];
+            // Bit k: the k-th last plane passed on the way down may cut the pyramid (a chain's 4 planes are
+            // the last 4 before its cluster node; unknown planes count as cutting).
+            uint32_t straddled = 15;
+            for (;;) {
+                if (t.stats) ++t.stats->nodes_visited;
+                if (ref & leaf_bit) {
+                    const Leaf& leaf = leaves_[ref & ~leaf_bit];
+                    if (t.dmax < leaf.near_min) break;
+                    if (leaf.inside != none) stack[top++] = leaf.inside;
+                    if (t.dmax < leaf.near) break;
+                    // Planes 0..3 of the chain are bits 3..0 of the history.
+                    uint32_t chain = (straddled >> 3 & 1) | (straddled >> 1 & 2) | (straddled << 1 & 4) | (straddled << 3 & 8);
+                    uint64_t in = volume_points(leaf, subset & t.alive, chain, t);
+                    if (!in) break;
+                    if (leaf.cluster != none) {
+                        test_points(leaf.cluster, in, t);
+                    } else {
+                        for (uint32_t i = leaf.always.first; i < leaf.always.first + leaf.always.count; ++i) test_points(always_fine_[i], in, t);
+                        if (leaf.fine_root != none && (in & t.alive)) tile_walk(leaf.fine_root, in, t, stack + top);
+                    }
+                    break;
+                }
+                const PlaneNode& node = planes_[ref];
+                if (t.dmax < node.near_min) break;
+                double smin = INFINITY, smax = -INFINITY;
+                for (const double* r : t.ray) {
+                    double s = node.n[0] * r[0] + node.n[1] * r[1] + node.n[2] * r[2];
+                    smin = std::min(smin, s), smax = std::max(smax, s);
+                }
+                // Every point's sine against the plane is at least smin when smin >= 0, at most smax when
+                // smax <= 0 (a positive mix of unit rays is no longer than its weights).
+                double reach = double(node.straddle_sine) + tol;
+                if (node.child[2] != none && !(smin > reach || smax < -reach)) stack[top++] = node.child[2];
+                if (smin <= tol && node.child[1] != none) stack[top++] = node.child[1];
+                if (smax < -tol || node.child[0] == none) break;
+                straddled = (straddled << 1 | (smin > tol ? 0u : 1u)) & 15;
+                ref = node.child[0];
+            }
+        }
+    }
 
     static float round_down(double x) {
         float f = float(x);
@@ -224,7 +418,9 @@ private:
         };
         for (PlaneNode& n : planes)
             for (uint32_t& c : n.child) c = map(c);
-        for (Leaf& l : leaves) l.inside = map(l.inside), l.fine_root = map(l.fine_root);
+        // A chain's planes stay consecutive: the walk order takes the inside child right after its plane.
+        for (Leaf& l : leaves)
+            l.inside = map(l.inside), l.fine_root = map(l.fine_root), l.first_plane = l.first_plane == none ? none : plane_to[l.first_plane];
         root_ = map(root_);
         for (uint32_t& r : always_coarse_) r = map(r);
         planes_ = std::move(planes);
@@ -243,7 +439,7 @@ private:
                     if (q.dist < leaf.near_min) break;  // nearer the light than everything here
                     if (leaf.inside != none) stack[top++] = leaf.inside;
                     if (q.dist < leaf.near) break;
-                    if (leaf.kind == Leaf::fine) {  // its triangles
+                    if (leaf.cluster != none) {  // its triangles
                         if (test_cluster(leaf.cluster, q)) return true;
                     } else {  // into its fine tree
                         for (uint32_t i = leaf.always.first; i < leaf.always.first + leaf.always.count; ++i)
@@ -311,7 +507,6 @@ private:
                 continue;
             }
             Leaf leaf;
-            leaf.kind = Leaf::fine;
             leaf.cluster = f;
             insert(root, v, leaf, depth);
         }
@@ -389,6 +584,7 @@ private:
             planes_.push_back(plane);
         }
         leaf.near = leaf.near_min = near;
+        leaf.first_plane = first;
         planes_.back().child[0] = add_leaf(leaf);
         if (parent == none) *slot = first;
         else if (parent & leaf_bit) leaves_[parent & ~leaf_bit].inside = first;
@@ -406,7 +602,7 @@ private:
 
     const AssetView* view_ = nullptr;
     const MeshRecord* mesh_ = nullptr;
-    double inverse_[12] = {}, light_[3] = {};
+    double inverse_[12] = {}, light_[3] = {}, world_light_[3] = {};
     bool usable_ = false, one_sided_ = false;
     size_t skipped_ = 0;
     std::vector<PlaneNode> planes_;
@@ -418,14 +614,69 @@ private:
     uint32_t depth_ = 0;
 };
 
-// The batch form: `trees` holds one tree per instance, all built for the same light; out[i] is 1 when point
-// i (xyz doubles) is in shadow. `stack` holds the largest stack_size() of the trees. The trees are const:
-// callers may split the points across threads, each with its own stack.
+// The batch form. `trees` holds one tree per instance, all built for the same light; out[i] is 1 when point i
+// (xyz doubles) is in shadow. The points are sorted by their direction from the light (cube face, then a
+// Z-order curve on it) and walked in tiles of ClusterShadowTree::tile_capacity. `scratch` holds
+// batch_scratch_size() words. The trees are const: callers may split the points across threads, each with
+// its own scratch.
+inline size_t batch_scratch_size(const ClusterShadowTree* trees, size_t tree_count, size_t n) {
+    size_t stack = 0;
+    for (size_t t = 0; t < tree_count; ++t) stack = std::max(stack, trees[t].stack_size());
+    return 4 * n + stack;
+}
+
+namespace cpsv_detail {
+
+// 23 bits: the cube face of direction e (3 bits), then its two face coordinates' bits interleaved (10 each).
+// Directions that are zero or not finite get the largest key.
+inline uint32_t direction_key(const double* e) {
+    double ax[3] = {std::fabs(e[0]), std::fabs(e[1]), std::fabs(e[2])};
+    int m = ax[0] >= ax[1] ? (ax[0] >= ax[2] ? 0 : 2) : (ax[1] >= ax[2] ? 1 : 2);
+    if (!(ax[m] > 0) || !(ax[m] < INFINITY)) return 0x7fffffu;
+    uint32_t cell[2];
+    for (int j = 0; j < 2; ++j) {
+        double u = e[(m + 1 + j) % 3] / ax[m];  // in [-1, 1]
+        double c = (u + 1) * 511.5;
+        cell[j] = c >= 0 && c <= 1023 ? uint32_t(c) : c > 1023 ? 1023u : 0u;
+    }
+    uint32_t z = 0;
+    for (int bit = 0; bit < 10; ++bit) z |= ((cell[0] >> bit & 1) << (2 * bit)) | ((cell[1] >> bit & 1) << (2 * bit + 1));
+    return uint32_t(m * 2 + (e[m] < 0)) << 20 | z;
+}
+
+}  // namespace cpsv_detail
+
 inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, const double* points, size_t n, uint8_t* out,
-                           uint32_t* stack, QueryStats* stats = nullptr) {
+                           uint32_t* scratch, QueryStats* stats = nullptr) {
+    if (tree_count == 0) {
+        std::fill(out, out + n, uint8_t(0));
+        return;
+    }
+    const double* light = trees[0].world_light();
+    uint32_t *key = scratch, *index = scratch + n, *key2 = scratch + 2 * n, *index2 = scratch + 3 * n, *stack = scratch + 4 * n;
     for (size_t i = 0; i < n; ++i) {
-        out[i] = 0;
-        for (size_t t = 0; t < tree_count && !out[i]; ++t) out[i] = trees[t].occluded(points + i * 3, stack, stats) ? 1 : 0;
+        double e[3] = {points[i * 3] - light[0], points[i * 3 + 1] - light[1], points[i * 3 + 2] - light[2]};
+        key[i] = cpsv_detail::direction_key(e);
+        index[i] = uint32_t(i);
+    }
+    for (int shift = 0; shift < 24; shift += 8) {  // radix sort, 8 bits a pass, stable
+        uint32_t start[257] = {};
+        for (size_t i = 0; i < n; ++i) ++start[(key[i] >> shift & 255) + 1];
+        for (int b = 0; b < 256; ++b) start[b + 1] += start[b];
+        for (size_t i = 0; i < n; ++i) {
+            uint32_t at = start[key[i] >> shift & 255]++;
+            key2[at] = key[i], index2[at] = index[i];
+        }
+        std::swap(key, key2), std::swap(index, index2);
+    }
+    for (size_t first = 0; first < n; first += ClusterShadowTree::tile_capacity) {
+        uint32_t count = uint32_t(std::min<size_t>(ClusterShadowTree::tile_capacity, n - first));
+        uint64_t alive = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1, shadowed = 0;
+        for (size_t t = 0; t < tree_count && alive; ++t) {
+            uint64_t s = trees[t].occluded_tile(points, index + first, count, alive, stack, stats);
+            shadowed |= s, alive &= ~s;
+        }
+        for (uint32_t i = 0; i < count; ++i) out[index[first + i]] = uint8_t(shadowed >> i & 1);
     }
 }
 

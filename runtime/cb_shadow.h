@@ -258,15 +258,16 @@ struct QueryStats {
 // the asset has no fine boxes), every triangle of those, exactly. Returns true when p is in shadow.
 namespace shadow_detail {
 
-// A vertex of a cluster seen from the segment p -> light: its offset from the light (a), the cross product
-// of p - light with it (w), and the L1 norm of a, which bounds the rounding of the determinants built
-// from them.
-struct Corner {
-    double a[3], w[3];
-    double a1;
-};
-
 inline double l1(const double* v) { return std::fabs(v[0]) + std::fabs(v[1]) + std::fabs(v[2]); }
+inline uint32_t lowest_bit(uint64_t x) {  // x != 0
+#if defined(__GNUC__)
+    return uint32_t(__builtin_ctzll(x));
+#else
+    uint32_t i = 0;
+    while (!(x >> i & 1)) ++i;
+    return i;
+#endif
+}
 inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 inline void cross3(const double* a, const double* b, double* out) {
     out[0] = a[1] * b[2] - a[2] * b[1], out[1] = a[2] * b[0] - a[0] * b[2], out[2] = a[0] * b[1] - a[1] * b[0];
@@ -286,80 +287,124 @@ inline SegmentTest exact_triangle(const double* p, const double* light, const fl
     return segment_triangle(p, light, c[0], c[1], c[2], two_sided);
 }
 
-// What the double filter concluded for one triangle.
-enum class Filter { misses, blocks, undecided };
+// Up to 32 triangles of a cluster seen from the light: the terms every segment test from that light shares.
+// Triangle t's edge k runs from corner k to corner k + 1 (mod 3); with u and v its corners relative to the
+// light, the plane through the light and the edge has normal u x v, and for a point p (e = p - light)
+// orient3d(p, light, corner k, corner k + 1) = e . (u x v): one dot product per edge and point.
+constexpr uint32_t lit_capacity = 32;
+struct LitTriangles {
+    uint32_t count = 0;
+    const float* corner[lit_capacity][3];
+    bool two_sided[lit_capacity];
+    double nx[3 * lit_capacity], ny[3 * lit_capacity], nz[3 * lit_capacity];  // edge plane normals
+    double scale[3 * lit_capacity];   // |u|_1 |v|_1: times det_error |e|_1, it bounds the dot product's error
+    double dq[lit_capacity], bq[lit_capacity];  // orient3d(a, b, c, light) and its error bound
+};
 
-// The decision of segment_triangle for triangle (a, b, c) when every sign it needs is settled in double.
-// The line through p and the light is tested first (three dot products from the per-vertex terms): it
-// misses most of a cluster's triangles, and then nothing else matters.
-inline Filter filter_triangle(const Corner& a, const Corner& b, const Corner& c, const float* const* pos, const double* p,
-                              double edge_scale, bool two_sided) {
-    // orient3d(p, light, u, v) = (p - light) . ((u - light) x (v - light)) = w_u . (v - light).
-    double o0 = dot3(a.w, b.a), o1 = dot3(b.w, c.a), o2 = dot3(c.w, a.a);
-    bool settled = std::fabs(o0) > edge_scale * a.a1 * b.a1 && std::fabs(o1) > edge_scale * b.a1 * c.a1 &&
-                   std::fabs(o2) > edge_scale * c.a1 * a.a1;
-    if (settled && ((o0 > 0) != (o1 > 0) || (o1 > 0) != (o2 > 0))) return Filter::misses;  // passes outside
-    if (!settled) return Filter::undecided;
-    // Through the interior: the light's side and the point's side of the plane.
-    double bc[3], cap[3], pv[3][3];
-    cross3(b.a, c.a, bc);
-    double dq = dot3(a.a, bc), bq = det_error * a.a1 * b.a1 * c.a1;  // orient3d(a, b, c, light)
-    for (int k = 0; k < 3; ++k)
-        for (int j = 0; j < 3; ++j) pv[k][j] = double(pos[k][j]) - p[j];
-    cross3(pv[1], pv[2], cap);
-    double dp = dot3(pv[0], cap), bp = det_error * l1(pv[0]) * l1(pv[1]) * l1(pv[2]);  // orient3d(a, b, c, p)
-    if (!(std::fabs(dq) > bq) || !(std::fabs(dp) > bp)) return Filter::undecided;
-    if ((dq > 0) == (dp > 0) || (!two_sided && dq < 0)) return Filter::misses;  // no crossing, or front-facing
-    // The crossing counts when it is at t >= f (see segment_triangle).
-    double mix = (1 - self_shadow_fraction) * dp + self_shadow_fraction * dq;
-    double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * bq + 4e-16 * (std::fabs(dp) + std::fabs(dq));
-    if (!(std::fabs(mix) > mix_bound)) return Filter::undecided;
-    return (mix > 0) == (dp > 0) ? Filter::blocks : Filter::misses;
+// Triangles [first, first + count) of fine cluster c (count <= lit_capacity), from the light.
+inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first, uint32_t count,
+                            const double* light, bool one_sided, LitTriangles& out) {
+    out.count = count;
+    const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle + first) * 3;
+    auto position = [&](uint8_t i) {
+        return v.position(mesh, i < c.vertex_count ? c.first_vertex + i
+                                                   : c.first_vertex - v.vertex_refs[size_t(mesh.first_ref) + c.first_ref + i - c.vertex_count]);
+    };
+    for (uint32_t t = 0; t < count; ++t) {
+        double a[3][3], a1[3];
+        for (int k = 0; k < 3; ++k) {
+            out.corner[t][k] = position(local[t * 3 + k]);
+            for (int j = 0; j < 3; ++j) a[k][j] = double(out.corner[t][k][j]) - light[j];
+            a1[k] = l1(a[k]);
+        }
+        for (int k = 0; k < 3; ++k) {
+            double n[3];
+            cross3(a[k], a[(k + 1) % 3], n);
+            out.nx[t * 3 + k] = n[0], out.ny[t * 3 + k] = n[1], out.nz[t * 3 + k] = n[2];
+            out.scale[t * 3 + k] = a1[k] * a1[(k + 1) % 3];
+        }
+        double bc[3];
+        cross3(a[1], a[2], bc);
+        out.dq[t] = dot3(a[0], bc), out.bq[t] = det_error * a1[0] * a1[1] * a1[2];
+        out.two_sided[t] = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t);
+    }
+}
+
+// True when segment p -> light meets a triangle of `lit` that blocks; the same answers as
+// cb::segment_triangle on each. Every sign it needs is first settled in double against its error bound:
+// the line through p and the light first (it misses most triangles, and then nothing else matters), then
+// the two ends' sides of the plane; a triangle the bounds cannot settle (a segment within rounding of its
+// plane or of an edge line) goes to the exact test. Sets *touched when an exactly tested triangle was
+// touched.
+inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const double* light, QueryStats* stats, bool* touched) {
+    double e[3] = {p[0] - light[0], p[1] - light[1], p[2] - light[2]};
+    double edge_scale = det_error * l1(e), o[3 * lit_capacity];
+    const uint32_t edges = lit.count * 3;
+    for (uint32_t j = 0; j < edges; ++j) o[j] = e[0] * lit.nx[j] + e[1] * lit.ny[j] + e[2] * lit.nz[j];
+    if (stats) stats->triangles_tested += lit.count;
+    for (uint32_t t = 0; t < lit.count; ++t) {
+        const double* ot = o + t * 3;
+        const double* sc = lit.scale + t * 3;
+        bool settled = std::fabs(ot[0]) > edge_scale * sc[0] && std::fabs(ot[1]) > edge_scale * sc[1] &&
+                       std::fabs(ot[2]) > edge_scale * sc[2];
+        if (settled && ((ot[0] > 0) != (ot[1] > 0) || (ot[1] > 0) != (ot[2] > 0))) continue;  // the line passes outside
+        bool decided = false, blocks = false;
+        if (settled && std::fabs(lit.dq[t]) > lit.bq[t]) {
+            // Through the interior: the point's side of the plane (the light's is dq).
+            double pv[3][3], cap[3];
+            for (int k = 0; k < 3; ++k)
+                for (int j = 0; j < 3; ++j) pv[k][j] = double(lit.corner[t][k][j]) - p[j];
+            cross3(pv[1], pv[2], cap);
+            double dp = dot3(pv[0], cap), bp = det_error * l1(pv[0]) * l1(pv[1]) * l1(pv[2]), dq = lit.dq[t];
+            if (std::fabs(dp) > bp) {
+                decided = true;
+                if ((dq > 0) == (dp > 0) || (!lit.two_sided[t] && dq < 0)) continue;  // no crossing, or front-facing
+                // The crossing counts when it is at t >= f (see segment_triangle).
+                double mix = (1 - self_shadow_fraction) * dp + self_shadow_fraction * dq;
+                double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * lit.bq[t] + 4e-16 * (std::fabs(dp) + std::fabs(dq));
+                if (std::fabs(mix) > mix_bound) blocks = (mix > 0) == (dp > 0);
+                else decided = false;
+            }
+        }
+        if (!decided) {
+            SegmentTest s = exact_triangle(p, light, lit.corner[t], lit.two_sided[t]);
+            if (touched) *touched |= s.touching;
+            blocks = s.blocks;
+        }
+        if (blocks) return true;
+    }
+    return false;
 }
 
 }  // namespace shadow_detail
 
-// The triangles of fine cluster `f` (mesh-local) of `mesh`, in the mesh's frame; true at the first that
-// blocks. Sets *touched when a tested triangle was touched. The same answers as cb::segment_triangle on
-// each triangle: the determinants it needs are first computed in double, from per-vertex terms shared by
-// the cluster's triangles where they can be, each with an error bound; a triangle any of whose signs the
-// bound cannot settle (a segment within rounding of its plane or of an edge line) goes to the exact test.
-// Uses about 6 KB of stack.
-inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double* p, const double* light,
-                           bool one_sided, QueryStats* stats, bool* touched = nullptr) {
+// Which of the points p[i], i in `which` (bits of a mask), the triangles of fine cluster `f` (mesh-local)
+// of `mesh` shadow from the light, in the mesh's frame: the same answers as cb::segment_triangle on each
+// triangle. The light's terms are computed once for all the points, 32 triangles at a time. Sets *touched
+// when an exactly tested triangle was touched. Uses about 4 KB of stack.
+inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double (*p)[3], uint64_t which,
+                                      const double* light, bool one_sided, QueryStats* stats, bool* touched = nullptr) {
     using namespace shadow_detail;
     const FineCluster& c = v.fine[mesh.first_fine + f];
-    if (stats) ++stats->clusters_tested;
-    const uint32_t list = uint32_t(c.vertex_count) + c.ref_count;
-    const float* list_pos[max_cluster_vertices];
-    for (uint32_t i = 0; i < list; ++i)
-        list_pos[i] = v.position(mesh, i < c.vertex_count ? c.first_vertex + i
-                                                         : c.first_vertex - v.vertex_refs[size_t(mesh.first_ref) + c.first_ref + i - c.vertex_count]);
-    constexpr uint32_t shared_limit = 64;  // larger lists (fine clusters over 21 triangles) test exactly
-    Corner corner[shared_limit];
-    double e[3] = {p[0] - light[0], p[1] - light[1], p[2] - light[2]};
-    double edge_scale = det_error * l1(e);
-    if (list <= shared_limit)
-        for (uint32_t i = 0; i < list; ++i) {
-            Corner& k = corner[i];
-            for (int j = 0; j < 3; ++j) k.a[j] = double(list_pos[i][j]) - light[j];
-            cross3(e, k.a, k.w);
-            k.a1 = l1(k.a);
+    uint64_t blocked = 0;
+    if (stats)
+        for (uint64_t w = which; w; w &= w - 1) ++stats->clusters_tested;
+    LitTriangles lit;
+    for (uint32_t first = 0; first < c.triangle_count && which; first += lit_capacity) {
+        light_triangles(v, mesh, c, first, std::min<uint32_t>(lit_capacity, c.triangle_count - first), light, one_sided, lit);
+        for (uint64_t w = which; w; w &= w - 1) {
+            uint32_t i = lowest_bit(w);
+            if (lit_triangles_block(lit, p[i], light, stats, touched)) blocked |= uint64_t(1) << i, which &= ~(uint64_t(1) << i);
         }
-    const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle) * 3;
-    for (uint32_t t = 0; t < c.triangle_count; ++t, local += 3) {
-        if (stats) ++stats->triangles_tested;
-        const float* pos[3] = {list_pos[local[0]], list_pos[local[1]], list_pos[local[2]]};
-        bool two_sided = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + t);
-        Filter r = list <= shared_limit ? filter_triangle(corner[local[0]], corner[local[1]], corner[local[2]], pos, p, edge_scale, two_sided)
-                                        : Filter::undecided;
-        if (r == Filter::blocks) return true;
-        if (r == Filter::misses) continue;
-        SegmentTest s = exact_triangle(p, light, pos, two_sided);
-        if (touched) *touched |= s.touching;
-        if (s.blocks) return true;
     }
-    return false;
+    return blocked;
+}
+
+// One point: true when a triangle of fine cluster `f` blocks the segment p -> light.
+inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double* p, const double* light,
+                           bool one_sided, QueryStats* stats, bool* touched = nullptr) {
+    const double(*one)[3] = reinterpret_cast<const double(*)[3]>(p);
+    return cluster_blocks_points(v, mesh, f, one, 1, light, one_sided, stats, touched) != 0;
 }
 
 inline bool occluded_reference(const AssetView& v, const double* p, const double* light, QueryStats* stats = nullptr,

@@ -174,22 +174,17 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
         const double* light = &lights[size_t(l) * 3];
         std::vector<ClusterShadowTree> trees(view.instance_count);
         std::vector<double> build_times, query_times;
-        size_t stack_size = 0;
         for (int r = 0; r < std::max(1, runs); ++r) {
             auto t0 = std::chrono::steady_clock::now();
-            stack_size = 0;
-            for (uint32_t i = 0; i < view.instance_count; ++i) {
-                trees[i].build(view, i, light, one_sided);
-                stack_size = std::max(stack_size, trees[i].stack_size());
-            }
+            for (uint32_t i = 0; i < view.instance_count; ++i) trees[i].build(view, i, light, one_sided);
             build_times.push_back(seconds_since(t0));
         }
-        std::vector<uint32_t> stack(stack_size);
+        std::vector<uint32_t> scratch(batch_scratch_size(trees.data(), trees.size(), n));
         std::vector<uint8_t> shadow(n);
         for (int r = 0; r < std::max(1, runs); ++r) {
             QueryStats stats;
             auto t0 = std::chrono::steady_clock::now();
-            occluded_batch(trees.data(), trees.size(), points.data(), n, shadow.data(), stack.data(), r == 0 ? &stats : nullptr);
+            occluded_batch(trees.data(), trees.size(), points.data(), n, shadow.data(), scratch.data(), r == 0 ? &stats : nullptr);
             query_times.push_back(seconds_since(t0));
             if (r == 0) {  // counts once; the other runs time the queries without the counters
                 cost.stats.nodes_visited += stats.nodes_visited, cost.stats.clusters_tested += stats.clusters_tested;
@@ -212,10 +207,11 @@ std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, 
         stack_size = std::max(stack_size, trees[i].stack_size());
     }
     std::vector<uint32_t> stack(stack_size), out(points.size() / 3);
-    for (size_t p = 0; p < out.size(); ++p) {
+    for (size_t p = 0; p < out.size(); ++p) {  // point by point: the counts are per point
         QueryStats s;
         uint8_t shadowed = 0;
-        occluded_batch(trees.data(), trees.size(), &points[p * 3], 1, &shadowed, stack.data(), &s);
+        for (const ClusterShadowTree& tree : trees)
+            if (!shadowed) shadowed = tree.occluded(&points[p * 3], stack.data(), &s);
         out[p] = uint32_t(s.clusters_tested - shadowed);
     }
     return out;

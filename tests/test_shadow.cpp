@@ -231,7 +231,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
     for (const char* f : {"scanned/bunny_npm.obj", "scanned/dragon_vrip_res4.ply", "hard/tube.obj", "hard/3dfier_testarea/testarea.obj",
                           "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf"})
         if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back((fs::path(CB_SHARED_DATA) / f).string());
-    size_t queries = 0, disagreements = 0, shadowed = 0, skipped = 0;
+    size_t queries = 0, disagreements = 0, batch_disagreements = 0, shadowed = 0, skipped = 0;
     uint64_t tested_tree = 0, tested_reference = 0;
     for (const std::string& file : files) {
         SCOPED_TRACE(file);
@@ -260,6 +260,8 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
                 skipped += trees[i].skipped_clusters();
             }
             std::vector<uint32_t> scratch(stack);
+            std::vector<double> points;
+            std::vector<bool> references;
             for (int k = 0; k < 800; ++k) {
                 double p[3];
                 if (k % 2 == 0) {
@@ -280,13 +282,21 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
                 shadowed += reference;
                 tested_tree += a.triangles_tested, tested_reference += r.triangles_tested;
                 ++queries;
+                points.insert(points.end(), p, p + 3);
+                references.push_back(reference);
             }
+            // The same points as one batch over every instance's tree.
+            std::vector<uint32_t> batch_scratch(cb::batch_scratch_size(trees.data(), trees.size(), references.size()));
+            std::vector<uint8_t> batch(references.size());
+            cb::occluded_batch(trees.data(), trees.size(), points.data(), batch.size(), batch.data(), batch_scratch.data());
+            for (size_t k = 0; k < batch.size(); ++k) batch_disagreements += bool(batch[k]) != references[k];
         }
     }
     std::printf("%zu queries (one and two levels, two- and one-sided), %zu in shadow, %zu disagreements; triangles tested per query: tree %.1f, "
                 "reference %.1f; one-sided builds skipped %zu clusters (light in their front cone)\n",
                 queries, shadowed, disagreements, double(tested_tree) / double(queries), double(tested_reference) / double(queries), skipped);
     EXPECT_EQ(disagreements, 0u);
+    EXPECT_EQ(batch_disagreements, 0u);
     EXPECT_GT(queries, 50000u);
     EXPECT_GT(skipped, 0u);
 }
@@ -347,7 +357,7 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
     }
     cases.push_back(needles);
 
-    size_t queries = 0, disagreements = 0, tree_disagreements = 0, touching = 0;
+    size_t queries = 0, disagreements = 0, tree_disagreements = 0, batch_disagreements = 0, touching = 0;
     for (const Case& c : cases) {
         SCOPED_TRACE(c.name);
         Baked b = bake_mesh(c.positions, c.indices);
@@ -361,6 +371,8 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                 cb::ClusterShadowTree tree;
                 tree.build(v, 0, light.data(), one_sided, two_levels);
                 std::vector<uint32_t> stack(tree.stack_size());
+                std::vector<double> points;
+                std::vector<bool> exact_answers;
                 for (int k = 0; k < 300; ++k) {
                     double p[3];
                     if (k % 3 == 0) {  // on the surface: a vertex
@@ -381,13 +393,21 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                     tree_disagreements += fast != exact;
                     touching += exact_answer.touching;
                     ++queries;
+                    points.insert(points.end(), p, p + 3);
+                    exact_answers.push_back(exact);
                 }
+                // The same points as one batch: tiles of close directions walk the tree together.
+                std::vector<uint32_t> scratch(cb::batch_scratch_size(&tree, 1, exact_answers.size()));
+                std::vector<uint8_t> batch(exact_answers.size());
+                cb::occluded_batch(&tree, 1, points.data(), batch.size(), batch.data(), scratch.data());
+                for (size_t k = 0; k < batch.size(); ++k) batch_disagreements += bool(batch[k]) != exact_answers[k];
             }
     }
-    std::printf("%zu hard-case queries, %zu touching; disagreements with the oracle: reference %zu, tree %zu\n", queries,
-                touching, disagreements, tree_disagreements);
+    std::printf("%zu hard-case queries, %zu touching; disagreements with the oracle: reference %zu, tree %zu, tree batch %zu\n",
+                queries, touching, disagreements, tree_disagreements, batch_disagreements);
     EXPECT_EQ(disagreements, 0u);
     EXPECT_EQ(tree_disagreements, 0u);
+    EXPECT_EQ(batch_disagreements, 0u);
     EXPECT_GT(touching, 100u);
 }
 
