@@ -167,9 +167,10 @@ public:
         else alone |= t.alive, t.alive = 0;
         t.alive &= t.in_pyramid;
         if (t.alive) {
-            for (uint32_t i = 0; i < count; ++i) {
-                t.ex[i] = float(t.e[i][0]), t.ey[i] = float(t.e[i][1]), t.ez[i] = float(t.e[i][2]);
-                t.fd[i] = (t.alive >> i & 1) ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
+            for (uint32_t i = 0; i < tile_capacity; ++i) {
+                bool in = t.alive >> i & 1;
+                t.ex[i] = in ? float(t.e[i][0]) : 0.0f, t.ey[i] = in ? float(t.e[i][1]) : 0.0f, t.ez[i] = in ? float(t.e[i][2]) : 0.0f;
+                t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
             }
             for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count && t.alive; ++i)
                 test_points(always_fine_[i], t.alive, t);
@@ -238,7 +239,7 @@ private:
         uint64_t shadowed;
         double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
         float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
-        double ray[4][3];         // unit edge rays: every direction is a positive mix of them
+        float rx[4], ry[4], rz[4];  // unit edge rays (in float): every direction is a positive mix of them
         double dmin, dmax;        // the points' distances to the light
         QueryStats* stats;
     };
@@ -270,14 +271,15 @@ private:
             t.in_pyramid |= uint64_t(1) << i;
         }
         if (!t.in_pyramid) return false;
-        // Widened far beyond the rounding of x and y (a few 1e-16 for |x|, |y| below 2).
-        for (int k = 0; k < 2; ++k) lo[k] -= 1e-10, hi[k] += 1e-10;
+        // Widened far beyond the rounding of x and y (a few 1e-16 for |x|, |y| below 2) and of the rays to
+        // float (below 1e-7): the float rays still hold every point's direction.
+        for (int k = 0; k < 2; ++k) lo[k] -= 1e-6, hi[k] += 1e-6;
         const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
         for (int r = 0; r < 4; ++r) {
-            double l = 0;
-            for (int k = 0; k < 3; ++k) t.ray[r][k] = z[k] + corner[r][0] * a[k] + corner[r][1] * b[k], l += t.ray[r][k] * t.ray[r][k];
+            double ray[3], l = 0;
+            for (int k = 0; k < 3; ++k) ray[k] = z[k] + corner[r][0] * a[k] + corner[r][1] * b[k], l += ray[k] * ray[k];
             l = std::sqrt(l);
-            for (double& x : t.ray[r]) x /= l;
+            t.rx[r] = float(ray[0] / l), t.ry[r] = float(ray[1] / l), t.rz[r] = float(ray[2] / l);
         }
         return true;
     }
@@ -285,23 +287,25 @@ private:
     // The points of `subset` that may lie in the volume of `leaf`: beyond its closing distance and inside
     // its planes with the walk's tolerance plus the float evaluation's error (below 6e-7 of the distance).
     // Bit k of `straddled` is set when plane k may cut the tile's pyramid; the others hold every point.
+    // Branch-free over all 64 slots, so that it runs 4 or 8 points to an instruction.
     uint64_t volume_points(const Leaf& leaf, uint64_t subset, uint32_t straddled, const Tile& t) const {
-        uint64_t in = subset;
-        if (t.dmin < leaf.near)
-            for (uint64_t w = subset; w; w &= w - 1) {
-                uint32_t i = shadow_detail::lowest_bit(w);
-                if (!(t.fd[i] >= leaf.near)) in &= ~(uint64_t(1) << i);
+        if (!subset) return 0;
+        // Only the groups of 4 slots the subset spans.
+        const uint32_t begin = shadow_detail::lowest_bit(subset) & ~3u, end = 64 - (shadow_detail::leading_zeros(subset) & ~3u);
+        alignas(16) float margin[tile_capacity];  // >= 0: inside everything checked (a float difference has the exact sign)
+        const float near = leaf.near;
+        for (uint32_t i = begin; i < end; ++i) margin[i] = t.fd[i] - near;
+        if (leaf.first_plane != none)
+            for (int k = 0; k < 4; ++k) {
+                if (!(straddled >> k & 1)) continue;
+                const float* n = planes_[leaf.first_plane + k].n;
+                const float n0 = n[0], n1 = n[1], n2 = n[2];
+                for (uint32_t i = begin; i < end; ++i) {
+                    float s = n0 * t.ex[i] + n1 * t.ey[i] + n2 * t.ez[i] + 2e-6f * t.fd[i];
+                    margin[i] = s < margin[i] ? s : margin[i];
+                }
             }
-        if (leaf.first_plane == none) return in;  // no volume (the light is in its box): every point
-        for (int k = 0; k < 4 && in; ++k) {
-            if (!(straddled >> k & 1)) continue;
-            const float* n = planes_[leaf.first_plane + k].n;
-            for (uint64_t w = in; w; w &= w - 1) {
-                uint32_t i = shadow_detail::lowest_bit(w);
-                if (!(n[0] * t.ex[i] + n[1] * t.ey[i] + n[2] * t.ez[i] >= -2e-6f * t.fd[i])) in &= ~(uint64_t(1) << i);
-            }
-        }
-        return in;
+        return shadow_detail::nonnegative_bits(margin, begin, end) & subset;
     }
 
     // Tests fine cluster f's triangles for the points of `subset` still alive whose segment may touch its box.
@@ -323,7 +327,8 @@ private:
     void tile_walk(uint32_t start, uint64_t subset, Tile& t, uint32_t* stack) const {
         size_t top = 0;
         stack[top++] = start;
-        const double tol = 1e-9 + 1e-12;  // the walk's tolerance, and room for the rays' rounding
+        // The walk's tolerance (1e-9), and room for the float evaluation (the sines below err by under 4e-7).
+        const float tol = 1e-6f;
         while (top && (subset & t.alive)) {
             uint32_t ref = stack[--top];
             // Bit k: the k-th last plane passed on the way down may cut the pyramid (a chain's 4 planes are
@@ -350,14 +355,13 @@ private:
                 }
                 const PlaneNode& node = planes_[ref];
                 if (t.dmax < node.near_min) break;
-                double smin = INFINITY, smax = -INFINITY;
-                for (const double* r : t.ray) {
-                    double s = node.n[0] * r[0] + node.n[1] * r[1] + node.n[2] * r[2];
-                    smin = std::min(smin, s), smax = std::max(smax, s);
-                }
+                float s[4];
+                for (int r = 0; r < 4; ++r) s[r] = node.n[0] * t.rx[r] + node.n[1] * t.ry[r] + node.n[2] * t.rz[r];
+                float smin = std::min(std::min(s[0], s[1]), std::min(s[2], s[3]));
+                float smax = std::max(std::max(s[0], s[1]), std::max(s[2], s[3]));
                 // Every point's sine against the plane is at least smin when smin >= 0, at most smax when
                 // smax <= 0 (a positive mix of unit rays is no longer than its weights).
-                double reach = double(node.straddle_sine) + tol;
+                float reach = node.straddle_sine + tol;
                 if (node.child[2] != none && !(smin > reach || smax < -reach)) stack[top++] = node.child[2];
                 if (smin <= tol && node.child[1] != none) stack[top++] = node.child[1];
                 if (smax < -tol || node.child[0] == none) break;

@@ -29,6 +29,10 @@
 #include "cb_asset.h"
 #include "cb_exact.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace cb {
 
 // Hits closer to the query point than this fraction of the way to the light are ignored. A power of two,
@@ -268,6 +272,27 @@ inline uint32_t lowest_bit(uint64_t x) {  // x != 0
     return i;
 #endif
 }
+inline uint32_t leading_zeros(uint64_t x) {  // x != 0
+#if defined(__GNUC__)
+    return uint32_t(__builtin_clzll(x));
+#else
+    uint32_t n = 0;
+    while (!(x >> (63 - n) & 1)) ++n;
+    return n;
+#endif
+}
+// Bit i set when v[i] >= 0 (not NaN), for i in [begin, end), both multiples of 4 up to 64: SSE2's sign
+// masks 4 at a time where there is SSE2.
+inline uint64_t nonnegative_bits(const float* v, uint32_t begin, uint32_t end) {
+    uint64_t bits = 0;
+#if defined(__SSE2__)
+    const __m128 zero = _mm_setzero_ps();
+    for (uint32_t i = begin; i < end; i += 4) bits |= uint64_t(_mm_movemask_ps(_mm_cmpge_ps(_mm_loadu_ps(v + i), zero))) << i;
+#else
+    for (uint32_t i = begin; i < end; ++i) bits |= uint64_t(v[i] >= 0) << i;
+#endif
+    return bits;
+}
 inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 inline void cross3(const double* a, const double* b, double* out) {
     out[0] = a[1] * b[2] - a[2] * b[1], out[1] = a[2] * b[0] - a[0] * b[2], out[2] = a[0] * b[1] - a[1] * b[0];
@@ -290,21 +315,24 @@ inline SegmentTest exact_triangle(const double* p, const double* light, const fl
 // Up to 32 triangles of a cluster seen from the light: the terms every segment test from that light shares.
 // Triangle t's edge k runs from corner k to corner k + 1 (mod 3); with u and v its corners relative to the
 // light, the plane through the light and the edge has normal u x v, and for a point p (e = p - light)
-// orient3d(p, light, corner k, corner k + 1) = e . (u x v): one dot product per edge and point.
+// orient3d(p, light, corner k, corner k + 1) = e . (u x v): one dot product per edge and point. Edge-major
+// arrays, so that the line test runs over several triangles per instruction.
 constexpr uint32_t lit_capacity = 32;
 struct LitTriangles {
     uint32_t count = 0;
     const float* corner[lit_capacity][3];
     bool two_sided[lit_capacity];
-    double nx[3 * lit_capacity], ny[3 * lit_capacity], nz[3 * lit_capacity];  // edge plane normals
-    double scale[3 * lit_capacity];   // |u|_1 |v|_1: times det_error |e|_1, it bounds the dot product's error
+    double nx[3][lit_capacity], ny[3][lit_capacity], nz[3][lit_capacity];  // edge plane normals
+    double scale[3][lit_capacity];  // |u|_1 |v|_1: times det_error |e|_1, it bounds the dot product's error
     double dq[lit_capacity], bq[lit_capacity];  // orient3d(a, b, c, light) and its error bound
+    double max_scale = 0;  // the largest scale: |e|_1 times it bounds every dot product
 };
 
 // Triangles [first, first + count) of fine cluster c (count <= lit_capacity), from the light.
 inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first, uint32_t count,
                             const double* light, bool one_sided, LitTriangles& out) {
     out.count = count;
+    out.max_scale = 0;
     const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle + first) * 3;
     auto position = [&](uint8_t i) {
         return v.position(mesh, i < c.vertex_count ? c.first_vertex + i
@@ -320,8 +348,9 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
         for (int k = 0; k < 3; ++k) {
             double n[3];
             cross3(a[k], a[(k + 1) % 3], n);
-            out.nx[t * 3 + k] = n[0], out.ny[t * 3 + k] = n[1], out.nz[t * 3 + k] = n[2];
-            out.scale[t * 3 + k] = a1[k] * a1[(k + 1) % 3];
+            out.nx[k][t] = n[0], out.ny[k][t] = n[1], out.nz[k][t] = n[2];
+            out.scale[k][t] = a1[k] * a1[(k + 1) % 3];
+            out.max_scale = std::max(out.max_scale, out.scale[k][t]);
         }
         double bc[3];
         cross3(a[1], a[2], bc);
@@ -332,22 +361,42 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
 
 // True when segment p -> light meets a triangle of `lit` that blocks; the same answers as
 // cb::segment_triangle on each. Every sign it needs is first settled in double against its error bound:
-// the line through p and the light first (it misses most triangles, and then nothing else matters), then
-// the two ends' sides of the plane; a triangle the bounds cannot settle (a segment within rounding of its
-// plane or of an edge line) goes to the exact test. Sets *touched when an exactly tested triangle was
-// touched.
+// the line through p and the light first, for all triangles at once (it misses most of them, and then
+// nothing else matters), then the two ends' sides of the plane; a triangle the bounds cannot settle (a
+// segment within rounding of its plane or of an edge line) goes to the exact test. Sets *touched when an
+// exactly tested triangle was touched.
 inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const double* light, QueryStats* stats, bool* touched) {
-    double e[3] = {p[0] - light[0], p[1] - light[1], p[2] - light[2]};
-    double edge_scale = det_error * l1(e), o[3 * lit_capacity];
-    const uint32_t edges = lit.count * 3;
-    for (uint32_t j = 0; j < edges; ++j) o[j] = e[0] * lit.nx[j] + e[1] * lit.ny[j] + e[2] * lit.nz[j];
+    const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
+    const double edge_scale = det_error * (std::fabs(e0) + std::fabs(e1) + std::fabs(e2));
+    // Above 0 where the line certainly misses the triangle: every edge sign settled (|o| beyond its bound)
+    // and not all alike. Branch-free, so that it runs over 2 or 4 triangles per instruction; valid when no
+    // dot product can overflow (otherwise every triangle goes through the careful loop below).
+    double miss[lit_capacity];
+    if ((std::fabs(e0) + std::fabs(e1) + std::fabs(e2)) * lit.max_scale < 1e300) {
+        for (uint32_t t = 0; t < lit.count; ++t) {
+            double o0 = e0 * lit.nx[0][t] + e1 * lit.ny[0][t] + e2 * lit.nz[0][t];
+            double o1 = e0 * lit.nx[1][t] + e1 * lit.ny[1][t] + e2 * lit.nz[1][t];
+            double o2 = e0 * lit.nx[2][t] + e1 * lit.ny[2][t] + e2 * lit.nz[2][t];
+            double s0 = std::fabs(o0) - edge_scale * lit.scale[0][t];  // the sign of a difference is exact
+            double s1 = std::fabs(o1) - edge_scale * lit.scale[1][t];
+            double s2 = std::fabs(o2) - edge_scale * lit.scale[2][t];
+            double lo = o0 < o1 ? o0 : o1, hi = o0 > o1 ? o0 : o1, settled = s0 < s1 ? s0 : s1;
+            lo = lo < o2 ? lo : o2, hi = hi > o2 ? hi : o2, settled = settled < s2 ? settled : s2;
+            double m = settled < -lo ? settled : -lo;  // > 0: settled, and some edge negative
+            miss[t] = m < hi ? m : hi;                 // and some edge positive
+        }
+    } else {
+        for (uint32_t t = 0; t < lit.count; ++t) miss[t] = 0;
+    }
     if (stats) stats->triangles_tested += lit.count;
     for (uint32_t t = 0; t < lit.count; ++t) {
-        const double* ot = o + t * 3;
-        const double* sc = lit.scale + t * 3;
-        bool settled = std::fabs(ot[0]) > edge_scale * sc[0] && std::fabs(ot[1]) > edge_scale * sc[1] &&
-                       std::fabs(ot[2]) > edge_scale * sc[2];
-        if (settled && ((ot[0] > 0) != (ot[1] > 0) || (ot[1] > 0) != (ot[2] > 0))) continue;  // the line passes outside
+        if (miss[t] > 0) continue;  // the line passes outside
+        double o[3];
+        bool settled = true;
+        for (int k = 0; k < 3; ++k) {
+            o[k] = e0 * lit.nx[k][t] + e1 * lit.ny[k][t] + e2 * lit.nz[k][t];
+            settled = settled && std::fabs(o[k]) > edge_scale * lit.scale[k][t];
+        }
         bool decided = false, blocks = false;
         if (settled && std::fabs(lit.dq[t]) > lit.bq[t]) {
             // Through the interior: the point's side of the plane (the light's is dq).
