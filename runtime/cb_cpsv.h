@@ -147,9 +147,8 @@ public:
         Tile t;
         t.count = count;
         t.stats = stats;
-        t.alive = t.shadowed = t.in_pyramid = 0;
+        t.alive = t.shadowed = 0;
         uint64_t alone = 0;
-        double m[3] = {0, 0, 0};
         for (uint32_t i = 0; i < count; ++i) {
             if (!(alive >> i & 1)) continue;
             const double* w = points + size_t(index[i]) * 3;
@@ -160,12 +159,11 @@ public:
                 alone |= uint64_t(1) << i;
                 continue;
             }
-            for (int k = 0; k < 3; ++k) m[k] += t.e[i][k] / t.dist[i];
             t.alive |= uint64_t(1) << i;
         }
-        if (t.alive && make_pyramid(t, m)) alone |= t.alive & ~t.in_pyramid;
-        else alone |= t.alive, t.alive = 0;
-        t.alive &= t.in_pyramid;
+        uint64_t held = t.alive ? make_pyramid(t, t.alive, t.pyramid) : 0;
+        alone |= t.alive & ~held;
+        t.alive &= held;
         if (t.alive) {
             for (uint32_t i = 0; i < tile_capacity; ++i) {
                 bool in = t.alive >> i & 1;
@@ -231,25 +229,35 @@ private:
         QueryStats* stats;
     };
 
+    // A pyramid from the light that holds the directions of some points, and their distances to the light.
+    struct Pyramid {
+        float rx[4], ry[4], rz[4];  // unit edge rays (in float): every direction is a positive mix of them
+        double dmin, dmax;
+    };
+
     // A tile's points in the mesh's frame, and the pyramid from the light that holds their directions.
     struct Tile {
         uint32_t count;
         uint64_t alive;           // in the pyramid and not yet found in shadow
-        uint64_t in_pyramid;
         uint64_t shadowed;
         double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
-        float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
-        float rx[4], ry[4], rz[4];  // unit edge rays (in float): every direction is a positive mix of them
-        double dmin, dmax;        // the points' distances to the light
+        alignas(16) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
+        Pyramid pyramid;          // holds the points walking now
         QueryStats* stats;
     };
 
-    // The tile's pyramid about the mean direction m (unnormalised): the points' central projections onto
-    // the plane across it, bounded by a rectangle. Sets in_pyramid; false when no point fits.
-    static bool make_pyramid(Tile& t, const double* m) {
+    // The pyramid from the light about the mean direction of the points `which`: their central projections
+    // onto the plane across it, bounded by a rectangle. Returns the points it holds: all but those over 60
+    // degrees off the mean.
+    static uint64_t make_pyramid(const Tile& t, uint64_t which, Pyramid& out) {
+        double m[3] = {0, 0, 0};
+        for (uint64_t w = which; w; w &= w - 1) {
+            uint32_t i = shadow_detail::lowest_bit(w);
+            for (int k = 0; k < 3; ++k) m[k] += t.e[i][k] / t.dist[i];
+        }
         double ml = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
-        t.in_pyramid = 0;
-        if (!(ml > 0)) return false;
+        uint64_t held = 0;
+        if (!(ml > 0)) return 0;
         double z[3] = {m[0] / ml, m[1] / ml, m[2] / ml}, a[3], b[3];
         int k0 = std::fabs(z[0]) < std::fabs(z[1]) ? (std::fabs(z[0]) < std::fabs(z[2]) ? 0 : 2) : (std::fabs(z[1]) < std::fabs(z[2]) ? 1 : 2);
         double axis[3] = {0, 0, 0};
@@ -259,18 +267,18 @@ private:
         for (double& x : a) x /= al;
         shadow_detail::cross3(z, a, b);
         double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-        t.dmin = INFINITY, t.dmax = 0;
-        for (uint32_t i = 0; i < t.count; ++i) {
-            if (!(t.alive >> i & 1)) continue;
+        out.dmin = INFINITY, out.dmax = 0;
+        for (uint64_t w = which; w; w &= w - 1) {
+            uint32_t i = shadow_detail::lowest_bit(w);
             const double* e = t.e[i];
             double depth = shadow_detail::dot3(e, z);
             if (!(depth > 0.5 * t.dist[i])) continue;  // over 60 degrees off: walks alone
             double x = shadow_detail::dot3(e, a) / depth, y = shadow_detail::dot3(e, b) / depth;
             lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y), hi[1] = std::max(hi[1], y);
-            t.dmin = std::min(t.dmin, t.dist[i]), t.dmax = std::max(t.dmax, t.dist[i]);
-            t.in_pyramid |= uint64_t(1) << i;
+            out.dmin = std::min(out.dmin, t.dist[i]), out.dmax = std::max(out.dmax, t.dist[i]);
+            held |= uint64_t(1) << i;
         }
-        if (!t.in_pyramid) return false;
+        if (!held) return 0;
         // Widened far beyond the rounding of x and y (a few 1e-16 for |x|, |y| below 2) and of the rays to
         // float (below 1e-7): the float rays still hold every point's direction.
         for (int k = 0; k < 2; ++k) lo[k] -= 1e-6, hi[k] += 1e-6;
@@ -279,9 +287,23 @@ private:
             double ray[3], l = 0;
             for (int k = 0; k < 3; ++k) ray[k] = z[k] + corner[r][0] * a[k] + corner[r][1] * b[k], l += ray[k] * ray[k];
             l = std::sqrt(l);
-            t.rx[r] = float(ray[0] / l), t.ry[r] = float(ray[1] / l), t.rz[r] = float(ray[2] / l);
+            out.rx[r] = float(ray[0] / l), out.ry[r] = float(ray[1] / l), out.rz[r] = float(ray[2] / l);
         }
-        return true;
+        return held;
+    }
+
+    // A coarse cluster's fine tree, walked by the groups of `fine_group` consecutive slots of `in` (slots are
+    // in Z-order, so a group's directions are close), each with its own, narrower pyramid.
+    static constexpr uint32_t fine_group = 64;
+    void walk_fine_tree(uint32_t root, uint64_t in, uint64_t walking, Tile& t, uint32_t* stack) const {
+        const Pyramid whole = t.pyramid;
+        for (uint32_t g = 0; g < tile_capacity; g += fine_group) {
+            uint64_t part = in & t.alive & (fine_group == 64 ? ~uint64_t(0) : ((uint64_t(1) << (fine_group % 64)) - 1) << g);
+            if (!part) continue;
+            if (part != walking && make_pyramid(t, part, t.pyramid) != part) t.pyramid = whole;  // some point off: the tile's
+            tile_walk(root, part, t, stack);
+        }
+        t.pyramid = whole;
     }
 
     // The points of `subset` that may lie in the volume of `leaf`: beyond its closing distance and inside
@@ -329,6 +351,7 @@ private:
         stack[top++] = start;
         // The walk's tolerance (1e-9), and room for the float evaluation (the sines below err by under 4e-7).
         const float tol = 1e-6f;
+        const Pyramid& P = t.pyramid;
         while (top && (subset & t.alive)) {
             uint32_t ref = stack[--top];
             // Bit k: the k-th last plane passed on the way down may cut the pyramid (a chain's 4 planes are
@@ -338,9 +361,9 @@ private:
                 if (t.stats) ++t.stats->nodes_visited;
                 if (ref & leaf_bit) {
                     const Leaf& leaf = leaves_[ref & ~leaf_bit];
-                    if (t.dmax < leaf.near_min) break;
+                    if (P.dmax < leaf.near_min) break;
                     if (leaf.inside != none) stack[top++] = leaf.inside;
-                    if (t.dmax < leaf.near) break;
+                    if (P.dmax < leaf.near) break;
                     // Planes 0..3 of the chain are bits 3..0 of the history.
                     uint32_t chain = (straddled >> 3 & 1) | (straddled >> 1 & 2) | (straddled << 1 & 4) | (straddled << 3 & 8);
                     uint64_t in = volume_points(leaf, subset & t.alive, chain, t);
@@ -349,14 +372,14 @@ private:
                         test_points(leaf.cluster, in, t);
                     } else {
                         for (uint32_t i = leaf.always.first; i < leaf.always.first + leaf.always.count; ++i) test_points(always_fine_[i], in, t);
-                        if (leaf.fine_root != none && (in & t.alive)) tile_walk(leaf.fine_root, in, t, stack + top);
+                        if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in, subset & t.alive, t, stack + top);
                     }
                     break;
                 }
                 const PlaneNode& node = planes_[ref];
-                if (t.dmax < node.near_min) break;
+                if (P.dmax < node.near_min) break;
                 float s[4];
-                for (int r = 0; r < 4; ++r) s[r] = node.n[0] * t.rx[r] + node.n[1] * t.ry[r] + node.n[2] * t.rz[r];
+                for (int r = 0; r < 4; ++r) s[r] = node.n[0] * P.rx[r] + node.n[1] * P.ry[r] + node.n[2] * P.rz[r];
                 float smin = std::min(std::min(s[0], s[1]), std::min(s[2], s[3]));
                 float smax = std::max(std::max(s[0], s[1]), std::max(s[2], s[3]));
                 // Every point's sine against the plane is at least smin when smin >= 0, at most smax when
