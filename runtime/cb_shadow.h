@@ -328,22 +328,49 @@ struct LitTriangles {
     double max_scale = 0;  // the largest scale: |e|_1 times it bounds every dot product
 };
 
+// A cluster's vertex list seen from the light: each vertex's offset from the light and its L1 norm, computed
+// once for all the triangles that share it (lists longer than `capacity` are taken corner by corner).
+struct LitVertices {
+    static constexpr uint32_t capacity = 96;
+    uint32_t count = 0;  // 0: the list is longer than capacity
+    const float* position[capacity];
+    double a[capacity][3], a1[capacity];
+};
+
+inline const float* list_position(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t i) {
+    return v.position(mesh, i < c.vertex_count ? c.first_vertex + i
+                                               : c.first_vertex - v.vertex_refs[size_t(mesh.first_ref) + c.first_ref + i - c.vertex_count]);
+}
+
+inline void light_vertices(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, const double* light, LitVertices& out) {
+    uint32_t list = uint32_t(c.vertex_count) + c.ref_count;
+    out.count = list <= LitVertices::capacity ? list : 0;
+    for (uint32_t i = 0; i < out.count; ++i) {
+        out.position[i] = list_position(v, mesh, c, i);
+        for (int j = 0; j < 3; ++j) out.a[i][j] = double(out.position[i][j]) - light[j];
+        out.a1[i] = l1(out.a[i]);
+    }
+}
+
 // Triangles [first, first + count) of fine cluster c (count <= lit_capacity), from the light.
-inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first, uint32_t count,
-                            const double* light, bool one_sided, LitTriangles& out) {
+inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, const LitVertices& lv, uint32_t first,
+                            uint32_t count, const double* light, bool one_sided, LitTriangles& out) {
     out.count = count;
     out.max_scale = 0;
     const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle + first) * 3;
-    auto position = [&](uint8_t i) {
-        return v.position(mesh, i < c.vertex_count ? c.first_vertex + i
-                                                   : c.first_vertex - v.vertex_refs[size_t(mesh.first_ref) + c.first_ref + i - c.vertex_count]);
-    };
     for (uint32_t t = 0; t < count; ++t) {
-        double a[3][3], a1[3];
+        double corner_a[3][3];
+        const double* a[3];
+        double a1[3];
         for (int k = 0; k < 3; ++k) {
-            out.corner[t][k] = position(local[t * 3 + k]);
-            for (int j = 0; j < 3; ++j) a[k][j] = double(out.corner[t][k][j]) - light[j];
-            a1[k] = l1(a[k]);
+            uint8_t i = local[t * 3 + k];
+            if (lv.count) {
+                out.corner[t][k] = lv.position[i], a[k] = lv.a[i], a1[k] = lv.a1[i];
+            } else {
+                out.corner[t][k] = list_position(v, mesh, c, i);
+                for (int j = 0; j < 3; ++j) corner_a[k][j] = double(out.corner[t][k][j]) - light[j];
+                a[k] = corner_a[k], a1[k] = l1(corner_a[k]);
+            }
         }
         for (int k = 0; k < 3; ++k) {
             double n[3];
@@ -369,8 +396,9 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
     const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
     const double edge_scale = det_error * (std::fabs(e0) + std::fabs(e1) + std::fabs(e2));
     // Above 0 where the line certainly misses the triangle: every edge sign settled (|o| beyond its bound)
-    // and not all alike. Branch-free, so that it runs over 2 or 4 triangles per instruction; valid when no
-    // dot product can overflow (otherwise every triangle goes through the careful loop below).
+    // and not all alike. Branch-free, so that it runs over 2 or 4 triangles per instruction; only when no
+    // dot product can overflow (otherwise every triangle goes to the careful loop below). A float pass
+    // was tried: its wider bound leaves the triangles around the point to the careful loop, and it is slower.
     double miss[lit_capacity];
     if ((std::fabs(e0) + std::fabs(e1) + std::fabs(e2)) * lit.max_scale < 1e300) {
         for (uint32_t t = 0; t < lit.count; ++t) {
@@ -397,6 +425,7 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
             o[k] = e0 * lit.nx[k][t] + e1 * lit.ny[k][t] + e2 * lit.nz[k][t];
             settled = settled && std::fabs(o[k]) > edge_scale * lit.scale[k][t];
         }
+        if (settled && ((o[0] > 0) != (o[1] > 0) || (o[1] > 0) != (o[2] > 0))) continue;  // the line passes outside
         bool decided = false, blocks = false;
         if (settled && std::fabs(lit.dq[t]) > lit.bq[t]) {
             // Through the interior: the point's side of the plane (the light's is dq).
@@ -430,7 +459,7 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
 // Which of the points p[i], i in `which` (bits of a mask), the triangles of fine cluster `f` (mesh-local)
 // of `mesh` shadow from the light, in the mesh's frame: the same answers as cb::segment_triangle on each
 // triangle. The light's terms are computed once for all the points, 32 triangles at a time. Sets *touched
-// when an exactly tested triangle was touched. Uses about 4 KB of stack.
+// when an exactly tested triangle was touched. Uses about 8 KB of stack.
 inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double (*p)[3], uint64_t which,
                                       const double* light, bool one_sided, QueryStats* stats, bool* touched = nullptr) {
     using namespace shadow_detail;
@@ -438,9 +467,11 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
     uint64_t blocked = 0;
     if (stats)
         for (uint64_t w = which; w; w &= w - 1) ++stats->clusters_tested;
+    LitVertices lv;
+    light_vertices(v, mesh, c, light, lv);
     LitTriangles lit;
     for (uint32_t first = 0; first < c.triangle_count && which; first += lit_capacity) {
-        light_triangles(v, mesh, c, first, std::min<uint32_t>(lit_capacity, c.triangle_count - first), light, one_sided, lit);
+        light_triangles(v, mesh, c, lv, first, std::min<uint32_t>(lit_capacity, c.triangle_count - first), light, one_sided, lit);
         for (uint64_t w = which; w; w &= w - 1) {
             uint32_t i = lowest_bit(w);
             if (lit_triangles_block(lit, p[i], light, stats, touched)) blocked |= uint64_t(1) << i, which &= ~(uint64_t(1) << i);
