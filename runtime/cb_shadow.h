@@ -157,23 +157,26 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
                                                 (i & 2 ? 1 : -1) * half[1] * box.axis[1][k] +
                                                 (i & 4 ? 1 : -1) * half[2] * box.axis[2][k]);
     // Every corner must be clearly in front of the light; otherwise no pyramid through the light holds the
-    // box (the light is inside it or level with it): never build a wrong plane.
-    double depth[8], reach = 0, corner_length[8];
+    // box (the light is inside it or level with it): never build a wrong plane. Corner sizes are taken in
+    // the max norm (no square roots): twice it bounds the Euclidean length.
+    double depth[8], inv_depth[8], reach = 0, corner_size[8];
     for (int i = 0; i < 8; ++i) {
         depth[i] = corner[i][0] * d[0] + corner[i][1] * d[1] + corner[i][2] * d[2];
-        corner_length[i] = std::sqrt(corner[i][0] * corner[i][0] + corner[i][1] * corner[i][1] + corner[i][2] * corner[i][2]);
-        reach = std::max(reach, corner_length[i]);
+        corner_size[i] = 2 * std::max({std::fabs(corner[i][0]), std::fabs(corner[i][1]), std::fabs(corner[i][2])});
+        reach = std::max(reach, corner_size[i]);
     }
-    for (double z : depth)
-        if (!(z > 1e-6 * reach)) return v;
+    for (int i = 0; i < 8; ++i) {
+        if (!(depth[i] > 1e-6 * reach)) return v;
+        inv_depth[i] = 1 / depth[i];
+    }
     // u: the box axis with the longest extent across the view direction, made perpendicular to it.
     double u[3] = {0, 0, 0}, best = -1;
     for (int i = 0; i < 3; ++i) {
         double a[3] = {box.axis[i][0], box.axis[i][1], box.axis[i][2]};
         double along = a[0] * d[0] + a[1] * d[1] + a[2] * d[2], w[3], wl = 0;
         for (int k = 0; k < 3; ++k) w[k] = a[k] - along * d[k], wl += w[k] * w[k];
-        wl = std::sqrt(wl);
-        if (wl * half[i] > best && wl > 1e-6) {
+        if (wl * half[i] * half[i] > best * std::fabs(best) && wl > 1e-12) {  // compares squared lengths
+            wl = std::sqrt(wl);
             best = wl * half[i];
             for (int k = 0; k < 3; ++k) u[k] = w[k] / wl;
         }
@@ -185,11 +188,12 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
         for (double& x : u) x /= std::sqrt(wl);
     }
     double w[3] = {d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]};
-    // bound[0] <= x, x <= bound[1], bound[2] <= y, y <= bound[3] in the projection plane.
+    // bound[0] <= x, x <= bound[1], bound[2] <= y, y <= bound[3] in the projection plane. Rounding here
+    // only moves the planes a little: the check below widens any plane a corner does not clear.
     double bound[4] = {INFINITY, -INFINITY, INFINITY, -INFINITY};
     for (int i = 0; i < 8; ++i) {
-        double x = (corner[i][0] * u[0] + corner[i][1] * u[1] + corner[i][2] * u[2]) / depth[i];
-        double y = (corner[i][0] * w[0] + corner[i][1] * w[1] + corner[i][2] * w[2]) / depth[i];
+        double x = (corner[i][0] * u[0] + corner[i][1] * u[1] + corner[i][2] * u[2]) * inv_depth[i];
+        double y = (corner[i][0] * w[0] + corner[i][1] * w[1] + corner[i][2] * w[2]) * inv_depth[i];
         bound[0] = std::min(bound[0], x), bound[1] = std::max(bound[1], x);
         bound[2] = std::min(bound[2], y), bound[3] = std::max(bound[3], y);
     }
@@ -203,13 +207,13 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
             double limit = bound[k] - sign * slack, n[3], nl = 0;
             v.rect[k] = limit;
             for (int j = 0; j < 3; ++j) n[j] = sign * (side[k][j] - limit * d[j]), nl += n[j] * n[j];
-            nl = std::sqrt(nl);
-            for (int j = 0; j < 3; ++j) v.normal[k][j] = float(n[j] / nl);
+            nl = 1 / std::sqrt(nl);
+            for (int j = 0; j < 3; ++j) v.normal[k][j] = float(n[j] * nl);
             // Every corner strictly inside the stored plane, by more than this double evaluation can err.
             bool holds = true;
-            for (int i = 0; i < 8 && holds; ++i) {
+            for (int i = 0; i < 8; ++i) {
                 double s = v.normal[k][0] * corner[i][0] + v.normal[k][1] * corner[i][1] + v.normal[k][2] * corner[i][2];
-                holds = s > 1e-12 * corner_length[i];
+                holds &= s > 1e-12 * corner_size[i];
             }
             if (holds) break;
             slack = slack * 4 + 1e-7 * scale;
