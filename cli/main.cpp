@@ -322,8 +322,9 @@ int run_query(const QueryArgs& a) {
     auto build_start = std::chrono::steady_clock::now();
     std::vector<cb::ClusterShadowTree> trees(a.reference ? 0 : asset.view.instance_count);
     size_t nodes = 0, always = 0, skipped = 0;
+    unsigned thread_count = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
     for (uint32_t i = 0; i < trees.size(); ++i) {
-        trees[i].build(asset.view, i, light, a.one_sided);
+        trees[i].build(asset.view, i, light, a.one_sided, true, thread_count);
         skipped += trees[i].skipped_clusters();
         nodes += trees[i].node_count();
         always += trees[i].always_tested();
@@ -334,7 +335,6 @@ int run_query(const QueryArgs& a) {
     auto start = std::chrono::steady_clock::now();
     size_t n = pts.size() / 3;
     std::vector<uint8_t> shadow(n);
-    unsigned thread_count = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
     std::vector<cb::QueryStats> counts(thread_count);
     auto slice = [&](unsigned t) {
         size_t first = n * t / thread_count, last = n * (t + 1) / thread_count;
@@ -626,7 +626,7 @@ int main(int argc, char** argv) {
     query->add_flag("--stats", qa.stats, "Print build and query time and traversal counts on stderr");
     query->add_flag("--reference", qa.reference, "Use the reference traversal (every cluster box the segment may touch) "
                                                   "instead of the per-light clustered shadow trees; same answers");
-    query->add_option("--threads", qa.threads, "Query threads, 0 = all (default 1); the answers do not depend on it");
+    query->add_option("--threads", qa.threads, "Build and query threads, 0 = all (default 1); the answers do not depend on it");
 
     try {
         app.parse(argc, argv);

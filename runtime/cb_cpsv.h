@@ -27,6 +27,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <thread>
 #include <vector>
 
 #include "cb_asset.h"
@@ -41,9 +42,10 @@ public:
     // One instance of the asset's meshes, for one light given in world space. In one-sided mode
     // (cb_shadow.h), clusters whose front cone holds the light, and that have no double-sided triangle,
     // cannot block anything and are left out. `two_levels` false builds one tree over the fine clusters
-    // even when the asset has coarse boxes.
+    // even when the asset has coarse boxes. With two levels, up to `threads` threads (std::thread) build
+    // the coarse clusters' fine trees; the tree is the same for any thread count.
     void build(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided = false,
-               bool two_levels = true) {
+               bool two_levels = true, unsigned threads = 1) {
         view_ = &view;
         one_sided_ = one_sided;
         skipped_ = 0;
@@ -58,42 +60,79 @@ public:
         usable_ = invert_instance(view.instances[instance].transform, inverse_);
         if (!usable_) return;  // a singular transform flattens the mesh: it blocks nothing
         apply_instance(inverse_, world_light, light_);
-        for (int k = 0; k < 3; ++k) world_light_[k] = world_light[k];
         mesh_ = &view.meshes[view.instances[instance].mesh];
         bool two = two_levels && view.coarse_bounds.obbs;
-        // At most 4 planes and a cluster node per volume: reserve once, so capacity is what is used.
+        Nodes all;
+        // At most 4 planes and a cluster node per volume.
         size_t volumes = mesh_->fine_count + (two ? mesh_->coarse_count : 0);
-        planes_.reserve(volumes * 4);
-        leaves_.reserve(volumes);
+        all.planes.reserve(volumes * 4);
+        all.leaves.reserve(volumes);
 
         if (!two) {
             // One level: every fine cluster in one tree; always-tested ones in one list.
             uint32_t fine_depth = 0;
-            root_ = build_fine_tree(0, mesh_->fine_count, fine_depth, always_fine_);
+            root_ = build_fine_tree(all, 0, mesh_->fine_count, fine_depth, always_fine_, skipped_);
             top_always_ = {0, uint32_t(always_fine_.size())};
             depth_ = fine_depth;
-            shrink();
+            shrink(all);
             return;
         }
-        // Two levels: a fine tree per coarse cluster, then the coarse tree over them.
-        std::vector<uint32_t> fine_roots(mesh_->coarse_count, none);
-        std::vector<Range> fine_always(mesh_->coarse_count);
-        std::vector<bool> wanted(mesh_->coarse_count, true);
-        uint32_t fine_depth = 0;
-        for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
-            const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
-            if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
-                skipped_ += r.count;
-                wanted[c] = false;
-                continue;
+        // Two levels: a fine tree per coarse cluster (parts of the coarse clusters on their own threads,
+        // each into its own arrays, then appended in order), then the coarse tree over them.
+        const uint32_t coarse_count = mesh_->coarse_count;
+        std::vector<uint32_t> fine_roots(coarse_count, none);
+        std::vector<Range> fine_always(coarse_count);
+        std::vector<uint8_t> wanted(coarse_count, 1);
+        uint32_t part_count = std::max(1u, std::min<uint32_t>(threads, coarse_count / 8));
+        std::vector<Part> parts(part_count);
+        auto build_part = [&](uint32_t k) {
+            Part& part = parts[k];
+            for (uint32_t c = coarse_count * k / part_count; c < coarse_count * (k + 1) / part_count; ++c) {
+                const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
+                if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
+                    part.skipped += r.count;
+                    wanted[c] = 0;
+                    continue;
+                }
+                uint32_t first_always = uint32_t(part.always.size()), depth = 0;
+                fine_roots[c] = build_fine_tree(part.nodes, r.first, r.count, depth, part.always, part.skipped);
+                fine_always[c] = {first_always, uint32_t(part.always.size()) - first_always};
+                part.depth = std::max(part.depth, depth);
             }
-            uint32_t first_always = uint32_t(always_fine_.size()), depth = 0;
-            fine_roots[c] = build_fine_tree(r.first, r.count, depth, always_fine_);
-            fine_always[c] = {first_always, uint32_t(always_fine_.size()) - first_always};
-            fine_depth = std::max(fine_depth, depth);
+        };
+        if (part_count == 1) {
+            build_part(0);
+        } else {
+            std::vector<std::thread> pool;
+            for (uint32_t k = 1; k < part_count; ++k) pool.emplace_back(build_part, k);
+            build_part(0);
+            for (std::thread& t : pool) t.join();
+        }
+        uint32_t fine_depth = 0;
+        for (uint32_t k = 0; k < part_count; ++k) {
+            Part& part = parts[k];
+            const uint32_t plane_base = uint32_t(all.planes.size()), leaf_base = uint32_t(all.leaves.size());
+            const uint32_t always_base = uint32_t(always_fine_.size());
+            auto move = [&](uint32_t ref) {
+                return ref == none ? none : ref & leaf_bit ? ((ref & ~leaf_bit) + leaf_base) | leaf_bit : ref + plane_base;
+            };
+            for (PlaneNode n : part.nodes.planes) {
+                for (uint32_t& c : n.child) c = move(c);
+                all.planes.push_back(n);
+            }
+            for (Leaf l : part.nodes.leaves) {
+                l.inside = move(l.inside), l.first_plane = l.first_plane == none ? none : l.first_plane + plane_base;
+                all.leaves.push_back(l);
+            }
+            always_fine_.insert(always_fine_.end(), part.always.begin(), part.always.end());
+            for (uint32_t c = coarse_count * k / part_count; c < coarse_count * (k + 1) / part_count; ++c)
+                fine_roots[c] = move(fine_roots[c]), fine_always[c].first += always_base;
+            skipped_ += part.skipped;
+            fine_depth = std::max(fine_depth, part.depth);
+            part = Part{};
         }
         uint32_t coarse_depth = 0;
-        for (uint32_t c : shuffled(mesh_->coarse_count)) {
+        for (uint32_t c : shuffled(coarse_count)) {
             if (!wanted[c]) continue;
             ShadowVolume v = make_shadow_volume(view.coarse_bounds.obb(mesh_->first_coarse + c), light_);
             Leaf leaf;
@@ -101,13 +140,13 @@ public:
             leaf.always = fine_always[c];
             if (!v.valid) {  // the light is in or level with this coarse box: enter its fine tree every time
                 leaf.near = leaf.near_min = 0;
-                always_coarse_.push_back(add_leaf(leaf));
+                always_coarse_.push_back(add_leaf(all, leaf));
                 continue;
             }
-            insert(root_, v, leaf, coarse_depth);
+            insert(all, root_, v, leaf, coarse_depth);
         }
         depth_ = coarse_depth + fine_depth + 1;
-        shrink();
+        shrink(all);
     }
 
     // Entries the query stack needs: pending siblings along the deepest path through both levels.
@@ -222,6 +261,20 @@ private:
 
     static_assert(sizeof(PlaneNode) == 32 && sizeof(Leaf) == 32, "tree nodes are 32-byte records (RUNTIME.md)");
     static_assert(tile_capacity == 64, "a tile's points are the bits of a uint64_t");
+
+    // Nodes while a tree is built (shrink() lays them out for queries).
+    struct Nodes {
+        std::vector<PlaneNode> planes;
+        std::vector<Leaf> leaves;
+    };
+
+    // The fine trees of some coarse clusters, built on one thread.
+    struct Part {
+        Nodes nodes;
+        std::vector<uint32_t> always;  // fine clusters without a volume, in ranges per coarse cluster
+        size_t skipped = 0;
+        uint32_t depth = 0;
+    };
 
 
     struct Query {
@@ -403,19 +456,19 @@ private:
         return double(f) < x ? std::nextafter(f, 2.0f) : f;
     }
 
-    uint32_t add_leaf(const Leaf& leaf) {
-        leaves_.push_back(leaf);
-        return uint32_t(leaves_.size() - 1) | leaf_bit;
+    static uint32_t add_leaf(Nodes& nodes, const Leaf& leaf) {
+        nodes.leaves.push_back(leaf);
+        return uint32_t(nodes.leaves.size() - 1) | leaf_bit;
     }
 
     // Renumbers the nodes in the order a walk meets them (depth first, the inside branch next), so that a
-    // query reads mostly consecutive memory; and releases unused capacity (clusters without a volume).
-    void shrink() {
-        std::vector<uint32_t> plane_to(planes_.size(), none), leaf_to(leaves_.size(), none), todo;
+    // query reads mostly consecutive memory, into planes_ and leaves_, sized to what is used.
+    void shrink(const Nodes& built) {
+        std::vector<uint32_t> plane_to(built.planes.size(), none), leaf_to(built.leaves.size(), none), todo;
         std::vector<PlaneNode> planes;
         std::vector<Leaf> leaves;
-        planes.reserve(planes_.size());
-        leaves.reserve(leaves_.size());
+        planes.reserve(built.planes.size());
+        leaves.reserve(built.leaves.size());
         auto visit = [&](uint32_t start) {
             todo.push_back(start);
             while (!todo.empty()) {
@@ -423,13 +476,13 @@ private:
                 todo.pop_back();
                 if (ref == none) continue;
                 if (ref & leaf_bit) {
-                    const Leaf& l = leaves_[ref & ~leaf_bit];
+                    const Leaf& l = built.leaves[ref & ~leaf_bit];
                     leaf_to[ref & ~leaf_bit] = uint32_t(leaves.size());
                     leaves.push_back(l);
                     todo.push_back(l.inside);
                     todo.push_back(l.fine_root);
                 } else {
-                    const PlaneNode& n = planes_[ref];
+                    const PlaneNode& n = built.planes[ref];
                     plane_to[ref] = uint32_t(planes.size());
                     planes.push_back(n);
                     todo.push_back(n.child[2]);
@@ -518,13 +571,14 @@ private:
 
     // A tree over the fine clusters [first, first + count) of the mesh; returns its root. Clusters without
     // a volume go to `always`.
-    uint32_t build_fine_tree(uint32_t first, uint32_t count, uint32_t& depth, std::vector<uint32_t>& always) {
+    uint32_t build_fine_tree(Nodes& nodes, uint32_t first, uint32_t count, uint32_t& depth, std::vector<uint32_t>& always,
+                             size_t& skipped) const {
         uint32_t root = none;
         for (uint32_t i : shuffled(count)) {
             uint32_t f = first + i;
             const FineCluster& r = view_->fine[mesh_->first_fine + f];
             if (one_sided_ && skippable(view_->fine_bounds, mesh_->first_fine + f, {r.first_triangle, r.triangle_count})) {
-                ++skipped_;
+                ++skipped;
                 continue;
             }
             ShadowVolume v = view_->fine_bounds.obbs ? make_shadow_volume(view_->fine_bounds.obb(mesh_->first_fine + f), light_)
@@ -535,7 +589,7 @@ private:
             }
             Leaf leaf;
             leaf.cluster = f;
-            insert(root, v, leaf, depth);
+            insert(nodes, root, v, leaf, depth);
         }
         return root;
     }
@@ -557,7 +611,7 @@ private:
     }
 
     // Inserts volume `v` ending in `leaf` into the tree rooted at `root` (a variable outside the arrays).
-    void insert(uint32_t& root, const ShadowVolume& v, Leaf leaf, uint32_t& max_depth) {
+    static void insert(Nodes& nodes, uint32_t& root, const ShadowVolume& v, Leaf leaf, uint32_t& max_depth) {
         float near = round_down(v.near);
         double rays[4][3];
         edge_rays(v, rays);
@@ -577,13 +631,13 @@ private:
             ++depth;
             parent = at;
             if (at & leaf_bit) {  // past an earlier volume's chain: into its subtree
-                Leaf& l = leaves_[at & ~leaf_bit];
+                Leaf& l = nodes.leaves[at & ~leaf_bit];
                 l.near_min = std::min(l.near_min, near);
                 which = 0;
                 at = l.inside;
                 continue;
             }
-            PlaneNode& node = planes_[at];
+            PlaneNode& node = nodes.planes[at];
             node.near_min = std::min(node.near_min, near);
             bool in = true, out = true;
             double widest = 0;
@@ -601,21 +655,21 @@ private:
             at = node.child[which];
         }
         // The chain: plane 0 -inside-> plane 1 -> plane 2 -> plane 3 -> the leaf.
-        uint32_t first = uint32_t(planes_.size());
+        uint32_t first = uint32_t(nodes.planes.size());
         for (int k = 0; k < 4; ++k) {
             PlaneNode plane{};
             for (int j = 0; j < 3; ++j) plane.n[j] = v.normal[k][j];
             plane.near_min = near;
             plane.child[0] = first + uint32_t(k) + 1;
             plane.child[1] = plane.child[2] = none;
-            planes_.push_back(plane);
+            nodes.planes.push_back(plane);
         }
         leaf.near = leaf.near_min = near;
         leaf.first_plane = first;
-        planes_.back().child[0] = add_leaf(leaf);
+        nodes.planes.back().child[0] = add_leaf(nodes, leaf);
         if (parent == none) *slot = first;
-        else if (parent & leaf_bit) leaves_[parent & ~leaf_bit].inside = first;
-        else planes_[parent].child[which] = first;
+        else if (parent & leaf_bit) nodes.leaves[parent & ~leaf_bit].inside = first;
+        else nodes.planes[parent].child[which] = first;
         max_depth = std::max(max_depth, depth + 5);
     }
 
