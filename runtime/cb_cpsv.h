@@ -20,6 +20,10 @@
 // than that skips the whole subtree (nothing there can shadow it). Plane nodes and cluster nodes live in
 // two arrays of 32-byte records; a child reference with the top bit set names a cluster node.
 //
+// Batches (occluded_batch) sort their points by direction from the light and walk each tree once per tile of
+// 64 points, with a pyramid from the light that holds their directions (occluded_tile); the answers are
+// those of a walk per point.
+//
 // Building allocates (std::vector); queries do not: the caller passes a stack of stack_size() entries.
 // Header-only C++17, no exceptions. MIT licensed (runtime/LICENSE).
 #pragma once
