@@ -5,6 +5,7 @@
 #include <cb_cull.h>
 
 #include <cstddef>
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -40,16 +41,27 @@ void walk(const cb::AssetView& v) {
 }
 
 // What a consumer does next with an accepted asset: a shadow tree per instance (first few), a few queries
-// in both modes, and culling; none may read outside what open_asset vouched for.
+// in both modes, one by one and as a batch (tiles, including points at the light, not finite, or in
+// opposite directions), and culling; none may read outside what open_asset vouched for.
 void query(const cb::AssetView& v) {
     const double light[3] = {0.3, 2.5, -1.7}, points[4][3] = {{0, 0, 0}, {0.5, -0.25, 0.125}, {-3, 1, 2}, {0.3, 2.5, -1.7}};
-    for (uint32_t i = 0; i < v.instance_count && i < 4; ++i)
-        for (bool one_sided : {false, true}) {
-            cb::ClusterShadowTree tree;
-            tree.build(v, i, light, one_sided);
-            std::vector<uint32_t> stack(tree.stack_size());
-            for (const double* p : points) sink = sink + float(tree.occluded(p, stack.data()));
+    std::vector<double> batch;
+    for (int k = 0; k < 70; ++k)
+        batch.insert(batch.end(), {std::sin(k * 0.7) * (k % 5), std::cos(k * 0.3) * 2.0, 0.1 * k - 3.0});
+    batch.insert(batch.end(), {light[0], light[1], light[2], NAN, 0.0, 1.0, INFINITY, 1.0, 0.0});
+    const size_t n = batch.size() / 3;
+    std::vector<uint8_t> shadow(n);
+    for (bool one_sided : {false, true}) {
+        std::vector<cb::ClusterShadowTree> trees(std::min<uint32_t>(v.instance_count, 4));
+        for (uint32_t i = 0; i < trees.size(); ++i) {
+            trees[i].build(v, i, light, one_sided, true, one_sided ? 2 : 1);
+            std::vector<uint32_t> stack(trees[i].stack_size());
+            for (const double* p : points) sink = sink + float(trees[i].occluded(p, stack.data()));
         }
+        std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
+        cb::occluded_batch(trees.data(), trees.size(), batch.data(), n, shadow.data(), scratch.data());
+        for (uint8_t o : shadow) sink = sink + float(o);
+    }
     for (const double* p : points) sink = sink + float(cb::occluded_reference(v, p, light));
     cb::Frustum f{};
     f.count = 1;

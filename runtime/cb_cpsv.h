@@ -61,8 +61,9 @@ public:
         depth_ = 0;
         top_always_ = {};
         for (int k = 0; k < 3; ++k) world_light_[k] = world_light[k];
-        usable_ = invert_instance(view.instances[instance].transform, inverse_);
-        if (!usable_) return;  // a singular transform flattens the mesh: it blocks nothing
+        // A singular transform flattens the mesh: it blocks nothing. A light that is not finite lights nothing.
+        usable_ = invert_instance(view.instances[instance].transform, inverse_) && finite3(world_light);
+        if (!usable_) return;
         apply_instance(inverse_, world_light, light_);
         mesh_ = &view.meshes[view.instances[instance].mesh];
         bool two = two_levels && view.coarse_bounds.obbs;
@@ -159,7 +160,7 @@ public:
     // True when the segment from world point p to the light is blocked by this instance. `stack` holds
     // stack_size() entries.
     bool occluded(const double* world_p, uint32_t* stack, QueryStats* stats = nullptr) const {
-        if (!usable_) return false;
+        if (!usable_ || !finite3(world_p)) return false;  // a point that is not finite is never in shadow
         Query q;
         apply_instance(inverse_, world_p, q.p);
         for (int k = 0; k < 3; ++k) q.e[k] = q.p[k] - light_[k];

@@ -31,15 +31,18 @@ inline void two_product(double a, double b, double& product, double& err) {
     err = std::fma(a, b, -product);  // exact: the rounding error of a product is a double
 }
 
-// e += b, exactly (Shewchuk's Grow-Expansion with zero elimination).
+// e += b, exactly (Shewchuk's Grow-Expansion with zero elimination). Inside the domain an expansion never
+// nears its capacity; outside it (a NaN or an infinity makes every error term nonzero) terms past the
+// capacity are dropped, so the sign is unspecified but nothing is written out of bounds.
 inline void grow(Expansion& e, double b) {
+    constexpr int capacity = int(sizeof(e.t) / sizeof(e.t[0]));
     double q = b;
     int out = 0;
     for (int i = 0; i < e.n; ++i) {
         double sum, err;
         two_sum(q, e.t[i], sum, err);
         q = sum;
-        if (err != 0) e.t[out++] = err;
+        if (err != 0 && out < capacity - 1) e.t[out++] = err;
     }
     if (q != 0 || out == 0) e.t[out++] = q;
     e.n = out;

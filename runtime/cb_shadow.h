@@ -17,6 +17,9 @@
 //   edge of two triangles); queries that involved one are counted separately in the statistics.
 // - Instances: the light and the point are taken into each instanced mesh's frame with the inverse of its
 //   affine transform, in double; the exact tests run there.
+// - A point or light with a coordinate that is not finite is never in shadow. Exactness holds in the
+//   domain of cb_exact.h (magnitudes up to about 1e90); beyond it answers are unspecified but every
+//   access stays in bounds.
 //
 // This file holds the exact segment test and the reference query, which tests every cluster whose box
 // the segment may touch. The clustered shadow volume structure (per light) builds on both.
@@ -95,6 +98,8 @@ inline bool invert_instance(const double* m, double* inv) {
     for (int row = 0; row < 3; ++row) inv[9 + row] = -(r[row * 3] * m[9] + r[row * 3 + 1] * m[10] + r[row * 3 + 2] * m[11]);
     return true;
 }
+
+inline bool finite3(const double* p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
 
 inline void apply_instance(const double* m, const double* p, double* out) {
     for (int k = 0; k < 3; ++k) out[k] = m[k] * p[0] + m[3 + k] * p[1] + m[6 + k] * p[2] + m[9 + k];
@@ -494,6 +499,7 @@ inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t 
 inline bool occluded_reference(const AssetView& v, const double* p, const double* light, QueryStats* stats = nullptr,
                                bool one_sided = false) {
     bool touched = false, blocked = false;
+    if (!finite3(p) || !finite3(light)) return false;  // nothing is in shadow of, or from, a point at infinity
     for (uint32_t i = 0; i < v.instance_count && !blocked; ++i) {
         const InstanceRecord& inst = v.instances[i];
         double inv[12], lp[3], ll[3];

@@ -301,6 +301,42 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
     EXPECT_GT(skipped, 0u);
 }
 
+TEST(Shadow, PointsAndLightsThatAreNotFiniteAreNeverInShadow) {
+    // Found by fuzz_asset: a NaN point reached the exact expansions, whose terms then grew past their
+    // capacity. Such points are now lit by definition, in every path; a light that is not finite lights
+    // nothing.
+    Baked b = bake(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    ASSERT_GT(b.view.mesh_count, 0u);
+    const cb::AssetView& v = b.view;
+    WorldSample world = sample_scene(b.scene, 1);
+    const double light[3] = {world.lo[0] - world.size(), world.hi[1] + 2 * world.size(), world.lo[2]};
+    std::vector<double> points;
+    for (size_t k = 0; k < 200; ++k) points.insert(points.end(), world.surface[k * 7 % world.surface.size()].begin(),
+                                                   world.surface[k * 7 % world.surface.size()].end());
+    const double bad[4][3] = {{NAN, 0, 0}, {0, INFINITY, 0}, {-INFINITY, 1, 2}, {1e308, -1e308, NAN}};
+    for (const auto& p : bad) points.insert(points.end(), p, p + 3);
+    const size_t n = points.size() / 3;
+    std::vector<cb::ClusterShadowTree> trees(v.instance_count);
+    for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light);
+    std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
+    std::vector<uint8_t> out(n);
+    cb::occluded_batch(trees.data(), trees.size(), points.data(), n, out.data(), scratch.data());
+    size_t shadowed = 0;
+    for (size_t k = 0; k < n; ++k) shadowed += out[k];
+    EXPECT_GT(shadowed, 0u);  // the finite points are really answered
+    for (size_t k = n - 4; k < n; ++k) {
+        EXPECT_EQ(out[k], 0) << k;
+        EXPECT_FALSE(cb::occluded_reference(v, &points[k * 3], light));
+        for (const cb::ClusterShadowTree& t : trees) EXPECT_FALSE(t.occluded(&points[k * 3], scratch.data()));
+    }
+    const double nan_light[3] = {0, NAN, 0};
+    cb::ClusterShadowTree dark;
+    dark.build(v, 0, nan_light);
+    EXPECT_EQ(dark.node_count(), 0u);
+    EXPECT_FALSE(dark.occluded(&points[0], scratch.data()));
+    EXPECT_FALSE(cb::occluded_reference(v, &points[0], nan_light));
+}
+
 TEST(Shadow, ParallelBuildGivesTheSameTree) {
     // Fine trees built on several threads are appended in coarse order and laid out by one walk-order pass:
     // the same nodes, counts and answers as a build on one thread.
