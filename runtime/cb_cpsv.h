@@ -42,14 +42,21 @@ namespace cb {
 class ClusterShadowTree {
 public:
     static constexpr uint32_t none = 0xffffffffu;
+    struct BuildScratch;  // working arrays of build(), reusable between builds (defined below)
 
     // One instance of the asset's meshes, for one light given in world space. In one-sided mode
     // (cb_shadow.h), clusters whose front cone holds the light, and that have no double-sided triangle,
     // cannot block anything and are left out. `two_levels` false builds one tree over the fine clusters
     // even when the asset has coarse boxes. With two levels, up to `threads` threads (std::thread) build
     // the coarse clusters' fine trees; the tree is the same for any thread count.
+    //
+    // `scratch`, when given, keeps the build's working arrays between builds (one per thread that builds):
+    // a tree rebuilt every frame then reuses memory instead of asking the system for fresh pages. The
+    // tree's own arrays are reused the same way when the tree object is.
     void build(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided = false,
-               bool two_levels = true, unsigned threads = 1) {
+               bool two_levels = true, unsigned threads = 1, BuildScratch* scratch = nullptr) {
+        BuildScratch own;
+        BuildScratch& work = scratch ? *scratch : own;
         view_ = &view;
         one_sided_ = one_sided;
         skipped_ = 0;
@@ -67,7 +74,9 @@ public:
         apply_instance(inverse_, world_light, light_);
         mesh_ = &view.meshes[view.instances[instance].mesh];
         bool two = two_levels && view.coarse_bounds.obbs;
-        Nodes all;
+        Nodes& all = work.built;
+        all.planes.clear();
+        all.leaves.clear();
         // At most 4 planes and a cluster node per volume.
         size_t volumes = mesh_->fine_count + (two ? mesh_->coarse_count : 0);
         all.planes.reserve(volumes * 4);
@@ -79,7 +88,7 @@ public:
             root_ = build_fine_tree(all, 0, mesh_->fine_count, fine_depth, always_fine_, skipped_);
             top_always_ = {0, uint32_t(always_fine_.size())};
             depth_ = fine_depth;
-            shrink(all);
+            shrink(all, work);
             return;
         }
         // Two levels: a fine tree per coarse cluster (parts of the coarse clusters on their own threads,
@@ -89,9 +98,17 @@ public:
         std::vector<Range> fine_always(coarse_count);
         std::vector<uint8_t> wanted(coarse_count, 1);
         uint32_t part_count = std::max(1u, std::min<uint32_t>(threads, coarse_count / 8));
-        std::vector<Part> parts(part_count);
+        std::vector<Part>& parts = work.parts;
+        if (parts.size() < part_count) parts.resize(part_count);
+        for (uint32_t k = 0; k < part_count; ++k) {
+            Part& part = parts[k];
+            part.nodes.planes.clear(), part.nodes.leaves.clear(), part.always.clear(), part.skipped = 0, part.depth = 0;
+        }
+        // Part 0 builds straight into the final arrays; the others are appended after it.
         auto build_part = [&](uint32_t k) {
             Part& part = parts[k];
+            Nodes& nodes = k == 0 ? all : part.nodes;
+            std::vector<uint32_t>& always = k == 0 ? always_fine_ : part.always;
             for (uint32_t c = coarse_count * k / part_count; c < coarse_count * (k + 1) / part_count; ++c) {
                 const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
                 if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
@@ -99,9 +116,9 @@ public:
                     wanted[c] = 0;
                     continue;
                 }
-                uint32_t first_always = uint32_t(part.always.size()), depth = 0;
-                fine_roots[c] = build_fine_tree(part.nodes, r.first, r.count, depth, part.always, part.skipped);
-                fine_always[c] = {first_always, uint32_t(part.always.size()) - first_always};
+                uint32_t first_always = uint32_t(always.size()), depth = 0;
+                fine_roots[c] = build_fine_tree(nodes, r.first, r.count, depth, always, part.skipped);
+                fine_always[c] = {first_always, uint32_t(always.size()) - first_always};
                 part.depth = std::max(part.depth, depth);
             }
         };
@@ -113,8 +130,9 @@ public:
             build_part(0);
             for (std::thread& t : pool) t.join();
         }
-        uint32_t fine_depth = 0;
-        for (uint32_t k = 0; k < part_count; ++k) {
+        uint32_t fine_depth = parts[0].depth;
+        skipped_ += parts[0].skipped;
+        for (uint32_t k = 1; k < part_count; ++k) {
             Part& part = parts[k];
             const uint32_t plane_base = uint32_t(all.planes.size()), leaf_base = uint32_t(all.leaves.size());
             const uint32_t always_base = uint32_t(always_fine_.size());
@@ -134,7 +152,6 @@ public:
                 fine_roots[c] = move(fine_roots[c]), fine_always[c].first += always_base;
             skipped_ += part.skipped;
             fine_depth = std::max(fine_depth, part.depth);
-            part = Part{};
         }
         uint32_t coarse_depth = 0;
         for (uint32_t c : shuffled(coarse_count)) {
@@ -151,7 +168,7 @@ public:
             insert(all, root_, v, leaf, coarse_depth);
         }
         depth_ = coarse_depth + fine_depth + 1;
-        shrink(all);
+        shrink(all, work);
     }
 
     // Entries the query stack needs: pending siblings along the deepest path through both levels.
@@ -280,6 +297,23 @@ private:
         size_t skipped = 0;
         uint32_t depth = 0;
     };
+
+public:
+    struct BuildScratch {
+        Nodes built;               // every node before the walk-order layout
+        std::vector<Part> parts;   // per build thread
+        std::vector<uint32_t> plane_to, leaf_to, todo;  // the layout's renumbering
+        size_t memory_bytes() const {
+            size_t b = built.planes.capacity() * sizeof(PlaneNode) + built.leaves.capacity() * sizeof(Leaf) +
+                       (plane_to.capacity() + leaf_to.capacity() + todo.capacity()) * sizeof(uint32_t);
+            for (const Part& p : parts)
+                b += p.nodes.planes.capacity() * sizeof(PlaneNode) + p.nodes.leaves.capacity() * sizeof(Leaf) +
+                     p.always.capacity() * sizeof(uint32_t);
+            return b;
+        }
+    };
+
+private:
 
 
     struct Query {
@@ -468,10 +502,12 @@ private:
 
     // Renumbers the nodes in the order a walk meets them (depth first, the inside branch next), so that a
     // query reads mostly consecutive memory, into planes_ and leaves_, sized to what is used.
-    void shrink(const Nodes& built) {
-        std::vector<uint32_t> plane_to(built.planes.size(), none), leaf_to(built.leaves.size(), none), todo;
-        std::vector<PlaneNode> planes;
-        std::vector<Leaf> leaves;
+    void shrink(const Nodes& built, BuildScratch& work) {
+        std::vector<uint32_t>&plane_to = work.plane_to, &leaf_to = work.leaf_to, &todo = work.todo;
+        plane_to.assign(built.planes.size(), none), leaf_to.assign(built.leaves.size(), none), todo.clear();
+        std::vector<PlaneNode>& planes = planes_;
+        std::vector<Leaf>& leaves = leaves_;
+        planes.clear(), leaves.clear();
         planes.reserve(built.planes.size());
         leaves.reserve(built.leaves.size());
         auto visit = [&](uint32_t start) {
@@ -508,8 +544,6 @@ private:
             l.inside = map(l.inside), l.fine_root = map(l.fine_root), l.first_plane = l.first_plane == none ? none : plane_to[l.first_plane];
         root_ = map(root_);
         for (uint32_t& r : always_coarse_) r = map(r);
-        planes_ = std::move(planes);
-        leaves_ = std::move(leaves);
     }
 
     bool walk(uint32_t start, uint32_t* stack, const Query& q) const {
