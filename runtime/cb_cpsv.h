@@ -209,6 +209,7 @@ public:
         t.count = count;
         t.stats = stats;
         t.alive = t.shadowed = 0;
+        t.pending_count = 0;
         uint64_t alone = 0;
         for (uint32_t i = 0; i < count; ++i) {
             if (!(alive >> i & 1)) continue;
@@ -236,6 +237,7 @@ public:
             for (uint32_t node : always_coarse_)
                 if (t.alive) tile_walk(node, t.alive, t, stack);
             if (root_ != none && t.alive) tile_walk(root_, t.alive, t, stack);
+            test_pending(t);
         }
         for (uint32_t i = 0; i < count; ++i)
             if ((alone >> i & 1) && occluded(points + size_t(index[i]) * 3, stack, stats)) t.shadowed |= uint64_t(1) << i;
@@ -335,6 +337,19 @@ private:
         double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
         alignas(16) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
         Pyramid pyramid;          // holds the points walking now
+        // Fine clusters met by the walk and the points inside their volumes, tested nearest to the light
+        // first once the whole walk is done (or the list is full): a point in shadow then usually meets
+        // its blocker before the cluster it lies on, and is not tested against that one. (Testing at the
+        // end of each coarse cluster instead, so the walk could drop shadowed points sooner, measured
+        // slower: blockers often lie in another coarse cluster.)
+        struct Pending {
+            float near;
+            uint32_t cluster;
+            uint64_t points;
+        };
+        static constexpr uint32_t pending_capacity = 128;
+        Pending pending[pending_capacity];
+        uint32_t pending_count;
         QueryStats* stats;
     };
 
@@ -437,6 +452,15 @@ private:
         t.alive &= ~hit, t.shadowed |= hit;
     }
 
+    // Tests the pending clusters, nearest closing distance first (insertion sort: a few dozen entries).
+    void test_pending(Tile& t) const {
+        Tile::Pending* p = t.pending;
+        for (uint32_t i = 1; i < t.pending_count; ++i)
+            for (uint32_t j = i; j > 0 && p[j].near < p[j - 1].near; --j) std::swap(p[j], p[j - 1]);
+        for (uint32_t i = 0; i < t.pending_count && t.alive; ++i) test_points(p[i].cluster, p[i].points, t);
+        t.pending_count = 0;
+    }
+
     // The walk of `walk` for a tile's points `subset` at once (see occluded_tile).
     void tile_walk(uint32_t start, uint64_t subset, Tile& t, uint32_t* stack) const {
         size_t top = 0;
@@ -461,7 +485,8 @@ private:
                     uint64_t in = volume_points(leaf, subset & t.alive, chain, t);
                     if (!in) break;
                     if (leaf.cluster != none) {
-                        test_points(leaf.cluster, in, t);
+                        if (t.pending_count == Tile::pending_capacity) test_pending(t);
+                        t.pending[t.pending_count++] = {leaf.near, leaf.cluster, in};
                     } else {
                         for (uint32_t i = leaf.always.first; i < leaf.always.first + leaf.always.count; ++i) test_points(always_fine_[i], in, t);
                         if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in, subset & t.alive, t, stack + top);
