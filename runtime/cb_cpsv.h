@@ -209,7 +209,7 @@ public:
         t.count = count;
         t.stats = stats;
         t.alive = t.shadowed = 0;
-        t.pending_count = 0;
+        t.pending_count = t.entered_count = 0;
         uint64_t alone = 0;
         for (uint32_t i = 0; i < count; ++i) {
             if (!(alive >> i & 1)) continue;
@@ -237,6 +237,7 @@ public:
             for (uint32_t node : always_coarse_)
                 if (t.alive) tile_walk(node, t.alive, t, stack);
             if (root_ != none && t.alive) tile_walk(root_, t.alive, t, stack);
+            walk_entered(t, stack);
             test_pending(t);
         }
         for (uint32_t i = 0; i < count; ++i)
@@ -350,6 +351,16 @@ private:
         static constexpr uint32_t pending_capacity = 128;
         Pending pending[pending_capacity];
         uint32_t pending_count;
+        // Coarse clusters entered, likewise: their fine trees are walked nearest first, each one's clusters
+        // tested before the next, so that farther ones leave out the points already found in shadow.
+        struct Entered {
+            float near;
+            uint32_t leaf;
+            uint64_t points;
+        };
+        static constexpr uint32_t entered_capacity = 64;
+        Entered entered[entered_capacity];
+        uint32_t entered_count;
         QueryStats* stats;
     };
 
@@ -452,6 +463,24 @@ private:
         t.alive &= ~hit, t.shadowed |= hit;
     }
 
+    // The entered coarse clusters, nearest closing distance first: their always-tested fine clusters, then
+    // their fine trees, whose clusters are tested before the next coarse cluster's walk.
+    void walk_entered(Tile& t, uint32_t* stack) const {
+        Tile::Entered* e = t.entered;
+        const uint32_t count = t.entered_count;
+        t.entered_count = 0;
+        for (uint32_t i = 1; i < count; ++i)
+            for (uint32_t j = i; j > 0 && e[j].near < e[j - 1].near; --j) std::swap(e[j], e[j - 1]);
+        for (uint32_t i = 0; i < count && t.alive; ++i) {
+            const Leaf& leaf = leaves_[e[i].leaf];
+            uint64_t in = e[i].points & t.alive;
+            if (!in) continue;
+            for (uint32_t k = leaf.always.first; k < leaf.always.first + leaf.always.count; ++k) test_points(always_fine_[k], in, t);
+            if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in & t.alive, t.alive, t, stack);
+            test_pending(t);
+        }
+    }
+
     // Tests the pending clusters, nearest closing distance first (insertion sort: a few dozen entries).
     void test_pending(Tile& t) const {
         Tile::Pending* p = t.pending;
@@ -488,8 +517,8 @@ private:
                         if (t.pending_count == Tile::pending_capacity) test_pending(t);
                         t.pending[t.pending_count++] = {leaf.near, leaf.cluster, in};
                     } else {
-                        for (uint32_t i = leaf.always.first; i < leaf.always.first + leaf.always.count; ++i) test_points(always_fine_[i], in, t);
-                        if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in, subset & t.alive, t, stack + top);
+                        if (t.entered_count == Tile::entered_capacity) walk_entered(t, stack + top);
+                        t.entered[t.entered_count++] = {leaf.near, uint32_t(&leaf - leaves_.data()), in};
                     }
                     break;
                 }
