@@ -231,6 +231,7 @@ public:
                 bool in = t.alive >> i & 1;
                 t.ex[i] = in ? float(t.e[i][0]) : 0.0f, t.ey[i] = in ? float(t.e[i][1]) : 0.0f, t.ez[i] = in ? float(t.e[i][2]) : 0.0f;
                 t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
+                t.slack[i] = 2e-6f * t.fd[i];
             }
             for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count && t.alive; ++i)
                 test_points(always_fine_[i], t.alive, t);
@@ -326,9 +327,26 @@ private:
 
     // A pyramid from the light that holds the directions of some points, and their distances to the light.
     struct Pyramid {
-        float rx[4], ry[4], rz[4];  // unit edge rays (in float): every direction is a positive mix of them
+        alignas(16) float rx[4], ry[4], rz[4];  // unit edge rays (in float): every direction is a positive mix of them
         double dmin, dmax;
     };
+
+    // The smallest and largest sine of the pyramid's rays against the plane with normal n (4 at once with SSE).
+    static void ray_sines(const float* n, const Pyramid& P, float& smin, float& smax) {
+#if defined(__SSE2__)
+        __m128 s = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(n[0]), _mm_load_ps(P.rx)), _mm_mul_ps(_mm_set1_ps(n[1]), _mm_load_ps(P.ry))),
+                              _mm_mul_ps(_mm_set1_ps(n[2]), _mm_load_ps(P.rz)));
+        __m128 swapped = _mm_shuffle_ps(s, s, _MM_SHUFFLE(1, 0, 3, 2));
+        __m128 lo = _mm_min_ps(s, swapped), hi = _mm_max_ps(s, swapped);
+        smin = _mm_cvtss_f32(_mm_min_ss(lo, _mm_shuffle_ps(lo, lo, _MM_SHUFFLE(2, 3, 0, 1))));
+        smax = _mm_cvtss_f32(_mm_max_ss(hi, _mm_shuffle_ps(hi, hi, _MM_SHUFFLE(2, 3, 0, 1))));
+#else
+        float s[4];
+        for (int r = 0; r < 4; ++r) s[r] = n[0] * P.rx[r] + n[1] * P.ry[r] + n[2] * P.rz[r];
+        smin = std::min(std::min(s[0], s[1]), std::min(s[2], s[3]));
+        smax = std::max(std::max(s[0], s[1]), std::max(s[2], s[3]));
+#endif
+    }
 
     // A tile's points in the mesh's frame, and the pyramid from the light that holds their directions.
     struct Tile {
@@ -337,6 +355,7 @@ private:
         uint64_t shadowed;
         double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
         alignas(16) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
+        alignas(16) float slack[tile_capacity];  // the plane checks' tolerance, 2e-6 of the distance
         Pyramid pyramid;          // holds the points walking now
         // Fine clusters met by the walk and the points inside their volumes, tested nearest to the light
         // first once the whole walk is done (or the list is full): a point in shadow then usually meets
@@ -441,7 +460,7 @@ private:
                 const float* n = planes_[leaf.first_plane + k].n;
                 const float n0 = n[0], n1 = n[1], n2 = n[2];
                 for (uint32_t i = begin; i < end; ++i) {
-                    float s = n0 * t.ex[i] + n1 * t.ey[i] + n2 * t.ez[i] + 2e-6f * t.fd[i];
+                    float s = n0 * t.ex[i] + n1 * t.ey[i] + n2 * t.ez[i] + t.slack[i];
                     margin[i] = s < margin[i] ? s : margin[i];
                 }
             }
@@ -524,10 +543,8 @@ private:
                 }
                 const PlaneNode& node = planes_[ref];
                 if (P.dmax < node.near_min) break;
-                float s[4];
-                for (int r = 0; r < 4; ++r) s[r] = node.n[0] * P.rx[r] + node.n[1] * P.ry[r] + node.n[2] * P.rz[r];
-                float smin = std::min(std::min(s[0], s[1]), std::min(s[2], s[3]));
-                float smax = std::max(std::max(s[0], s[1]), std::max(s[2], s[3]));
+                float smin, smax;
+                ray_sines(node.n, P, smin, smax);
                 // Every point's sine against the plane is at least smin when smin >= 0, at most smax when
                 // smax <= 0 (a positive mix of unit rays is no longer than its weights).
                 float reach = node.straddle_sine + tol;
@@ -813,9 +830,12 @@ inline uint32_t direction_key(const double* e) {
         double c = (u + 1) * 511.5;
         cell[j] = c >= 0 && c <= 1023 ? uint32_t(c) : c > 1023 ? 1023u : 0u;
     }
-    uint32_t z = 0;
-    for (int bit = 0; bit < 10; ++bit) z |= ((cell[0] >> bit & 1) << (2 * bit)) | ((cell[1] >> bit & 1) << (2 * bit + 1));
-    return uint32_t(m * 2 + (e[m] < 0)) << 20 | z;
+    auto spread = [](uint32_t x) {  // bit i of x to bit 2i
+        x = (x | x << 8) & 0x00ff00ffu, x = (x | x << 4) & 0x0f0f0f0fu;
+        x = (x | x << 2) & 0x33333333u, x = (x | x << 1) & 0x55555555u;
+        return x;
+    };
+    return uint32_t(m * 2 + (e[m] < 0)) << 20 | spread(cell[0]) | spread(cell[1]) << 1;
 }
 
 }  // namespace cpsv_detail

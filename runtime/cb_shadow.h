@@ -381,16 +381,15 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
                 a[k] = corner_a[k], a1[k] = l1(corner_a[k]);
             }
         }
+        double n[3][3];
         for (int k = 0; k < 3; ++k) {
-            double n[3];
-            cross3(a[k], a[(k + 1) % 3], n);
-            out.nx[k][t] = n[0], out.ny[k][t] = n[1], out.nz[k][t] = n[2];
+            cross3(a[k], a[(k + 1) % 3], n[k]);
+            out.nx[k][t] = n[k][0], out.ny[k][t] = n[k][1], out.nz[k][t] = n[k][2];
             out.scale[k][t] = a1[k] * a1[(k + 1) % 3];
             out.max_scale = std::max(out.max_scale, out.scale[k][t]);
         }
-        double bc[3];
-        cross3(a[1], a[2], bc);
-        out.dq[t] = dot3(a[0], bc), out.bq[t] = det_error * a1[0] * a1[1] * a1[2];
+        // orient3d(a, b, c, light) = a . (b x c), with b x c edge 1's normal.
+        out.dq[t] = dot3(a[0], n[1]), out.bq[t] = det_error * a1[0] * a1[1] * a1[2];
         out.two_sided[t] = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t);
     }
 }
