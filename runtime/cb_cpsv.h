@@ -24,7 +24,8 @@
 // 64 points, with a pyramid from the light that holds their directions (occluded_tile); the answers are
 // those of a walk per point.
 //
-// Building allocates (std::vector); queries do not: the caller passes a stack of stack_size() entries.
+// Building allocates (std::vector; a BuildScratch lets rebuilds reuse memory); queries do not: occluded()
+// takes a stack of stack_size() entries, occluded_batch a scratch of batch_scratch_size() words.
 // Header-only C++17, no exceptions. MIT licensed (runtime/LICENSE).
 #pragma once
 
@@ -50,7 +51,7 @@ public:
     // even when the asset has coarse boxes. With two levels, up to `threads` threads (std::thread) build
     // the coarse clusters' fine trees; the tree is the same for any thread count.
     //
-    // `scratch`, when given, keeps the build's working arrays between builds (one per thread that builds):
+    // `scratch`, when given, keeps the build's working arrays between builds (one per concurrent build):
     // a tree rebuilt every frame then reuses memory instead of asking the system for fresh pages. The
     // tree's own arrays are reused the same way when the tree object is.
     void build(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided = false,
@@ -201,7 +202,7 @@ public:
     // own volume (its 4 planes and closing distance) before its cluster's triangles, so a point meets the
     // clusters whose volumes hold it, as its own walk would. Points too far from the tile's mean direction
     // (over 60 degrees), at the light or not finite walk alone. `stack` holds stack_size() entries; uses
-    // about 6 KB of the thread's stack besides (and cluster_blocks_points' 8 KB).
+    // about 8 KB of the thread's stack besides (and cluster_blocks_points' 9 KB).
     uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t* stack,
                            QueryStats* stats = nullptr) const {
         if (!usable_ || alive == 0) return 0;

@@ -467,7 +467,7 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
 // Which of the points p[i], i in `which` (bits of a mask), the triangles of fine cluster `f` (mesh-local)
 // of `mesh` shadow from the light, in the mesh's frame: the same answers as cb::segment_triangle on each
 // triangle. The light's terms are computed once for all the points, 32 triangles at a time. Sets *touched
-// when an exactly tested triangle was touched. Uses about 8 KB of stack.
+// when an exactly tested triangle was touched. Uses about 9 KB of stack.
 inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double (*p)[3], uint64_t which,
                                       const double* light, bool one_sided, QueryStats* stats, bool* touched = nullptr) {
     using namespace shadow_detail;
