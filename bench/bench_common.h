@@ -22,9 +22,10 @@ struct Options {
     int copies = 25;   // copies of the dragon in the big scene (0: none)
     int view = 1024;   // bench_shadow: the camera's resolution
     std::string only;  // run only inputs whose name contains this
+    int one_sided = 0; // bench_shadow: 1 builds one-sided trees (the thesis's mode for closed models)
 };
 
-// --data DIR --fine N --runs N --copies N --view N --only NAME, over the given defaults.
+// --data DIR --fine N --runs N --copies N --view N --only NAME --one-sided 0|1, over the given defaults.
 inline Options parse_options(int argc, char** argv, Options o) {
     for (int i = 1; i + 1 < argc; i += 2) {
         std::string a = argv[i];
@@ -34,6 +35,7 @@ inline Options parse_options(int argc, char** argv, Options o) {
         else if (a == "--copies") o.copies = std::stoi(argv[i + 1]);
         else if (a == "--view") o.view = std::stoi(argv[i + 1]);
         else if (a == "--only") o.only = argv[i + 1];
+        else if (a == "--one-sided") o.one_sided = std::stoi(argv[i + 1]);
         else std::fprintf(stderr, "ignoring unknown option %s\n", a.c_str());
     }
     return o;
