@@ -733,6 +733,10 @@ private:
             for (int k = 0; k < 3; ++k) dir[k] += r[k];
         double dl = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]), spread = 1;
         for (const double* r : rays) spread = std::min(spread, (r[0] * dir[0] + r[1] * dir[1] + r[2] * dir[2]) / dl);
+        // The rays in float, to classify 4 at once. Their rounding and the float sines err by under 3e-7,
+        // so the thresholds below are 1e-6: a volume goes to one side only when it is clearly there.
+        Pyramid cone;
+        for (int r = 0; r < 4; ++r) cone.rx[r] = float(rays[r][0]), cone.ry[r] = float(rays[r][1]), cone.rz[r] = float(rays[r][2]);
         // Walk down while the volume falls clearly on one side; stop at the first empty slot, named by the
         // node that holds it (indices, since the appends below may move the arrays).
         uint32_t* slot = &root;
@@ -750,16 +754,11 @@ private:
             }
             PlaneNode& node = nodes.planes[at];
             node.near_min = std::min(node.near_min, near);
-            bool in = true, out = true;
-            double widest = 0;
-            for (const double* r : rays) {
-                double s = node.n[0] * r[0] + node.n[1] * r[1] + node.n[2] * r[2];
-                in &= s > 1e-9;
-                out &= s < -1e-9;
-                widest = std::max(widest, std::fabs(s));
-            }
-            which = in ? 0 : out ? 1 : 2;
+            float smin, smax;
+            ray_sines(node.n, cone, smin, smax);
+            which = smin > 1e-6f ? 0 : smax < -1e-6f ? 1 : 2;
             if (which == 2) {
+                double widest = std::max(double(smax), -double(smin)) + 1e-6;
                 double sine = spread > 0 ? std::min(1.0, widest / spread + 1e-7) : 1.0;
                 node.straddle_sine = std::max(node.straddle_sine, round_up(sine));
             }
