@@ -30,6 +30,7 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <thread>
@@ -98,19 +99,24 @@ public:
         std::vector<uint32_t> fine_roots(coarse_count, none);
         std::vector<Range> fine_always(coarse_count);
         std::vector<uint8_t> wanted(coarse_count, 1);
-        uint32_t part_count = std::max(1u, std::min<uint32_t>(threads, coarse_count / 8));
+        uint32_t part_count = std::max(1u, std::min<uint32_t>(std::min(threads, 255u), coarse_count / 8));
         std::vector<Part>& parts = work.parts;
         if (parts.size() < part_count) parts.resize(part_count);
         for (uint32_t k = 0; k < part_count; ++k) {
             Part& part = parts[k];
             part.nodes.planes.clear(), part.nodes.leaves.clear(), part.always.clear(), part.skipped = 0, part.depth = 0;
         }
-        // Part 0 builds straight into the final arrays; the others are appended after it.
+        // Threads take coarse clusters one at a time (their costs vary with the light); part 0 builds
+        // straight into the final arrays, the others are appended after it.
+        std::vector<uint8_t>& part_of = work.part_of;
+        part_of.assign(coarse_count, 0);
+        std::atomic<uint32_t> next{0};
         auto build_part = [&](uint32_t k) {
             Part& part = parts[k];
             Nodes& nodes = k == 0 ? all : part.nodes;
             std::vector<uint32_t>& always = k == 0 ? always_fine_ : part.always;
-            for (uint32_t c = coarse_count * k / part_count; c < coarse_count * (k + 1) / part_count; ++c) {
+            for (uint32_t c = next++; c < coarse_count; c = next++) {
+                part_of[c] = uint8_t(k);
                 const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
                 if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
                     part.skipped += r.count;
@@ -131,28 +137,41 @@ public:
             build_part(0);
             for (std::thread& t : pool) t.join();
         }
-        uint32_t fine_depth = parts[0].depth;
-        skipped_ += parts[0].skipped;
-        for (uint32_t k = 1; k < part_count; ++k) {
+        uint32_t fine_depth = 0;
+        std::vector<uint32_t> plane_base(part_count, 0), leaf_base(part_count, 0);
+        for (uint32_t k = 0; k < part_count; ++k) {
             Part& part = parts[k];
-            const uint32_t plane_base = uint32_t(all.planes.size()), leaf_base = uint32_t(all.leaves.size());
-            const uint32_t always_base = uint32_t(always_fine_.size());
+            skipped_ += part.skipped;
+            fine_depth = std::max(fine_depth, part.depth);
+            if (k == 0) continue;
+            plane_base[k] = uint32_t(all.planes.size()), leaf_base[k] = uint32_t(all.leaves.size());
             auto move = [&](uint32_t ref) {
-                return ref == none ? none : ref & leaf_bit ? ((ref & ~leaf_bit) + leaf_base) | leaf_bit : ref + plane_base;
+                return ref == none ? none : ref & leaf_bit ? ((ref & ~leaf_bit) + leaf_base[k]) | leaf_bit : ref + plane_base[k];
             };
             for (PlaneNode n : part.nodes.planes) {
                 for (uint32_t& c : n.child) c = move(c);
                 all.planes.push_back(n);
             }
             for (Leaf l : part.nodes.leaves) {
-                l.inside = move(l.inside), l.first_plane = l.first_plane == none ? none : l.first_plane + plane_base;
+                l.inside = move(l.inside), l.first_plane = l.first_plane == none ? none : l.first_plane + plane_base[k];
                 all.leaves.push_back(l);
             }
-            always_fine_.insert(always_fine_.end(), part.always.begin(), part.always.end());
-            for (uint32_t c = coarse_count * k / part_count; c < coarse_count * (k + 1) / part_count; ++c)
-                fine_roots[c] = move(fine_roots[c]), fine_always[c].first += always_base;
-            skipped_ += part.skipped;
-            fine_depth = std::max(fine_depth, part.depth);
+        }
+        if (part_count > 1) {
+            // Fine roots into the merged arrays, and the always-tested lists in coarse order, so that the
+            // result does not depend on which thread took which cluster.
+            std::vector<uint32_t>& always = work.always;
+            always.clear();
+            for (uint32_t c = 0; c < coarse_count; ++c) {
+                uint32_t k = part_of[c];
+                if (k && fine_roots[c] != none)
+                    fine_roots[c] = fine_roots[c] & leaf_bit ? ((fine_roots[c] & ~leaf_bit) + leaf_base[k]) | leaf_bit : fine_roots[c] + plane_base[k];
+                const std::vector<uint32_t>& from = k == 0 ? always_fine_ : parts[k].always;
+                uint32_t first = uint32_t(always.size());
+                always.insert(always.end(), from.begin() + fine_always[c].first, from.begin() + fine_always[c].first + fine_always[c].count);
+                fine_always[c].first = first;
+            }
+            always_fine_.swap(always);
         }
         uint32_t coarse_depth = 0;
         for (uint32_t c : shuffled(coarse_count)) {
@@ -308,9 +327,12 @@ public:
         Nodes built;               // every node before the walk-order layout
         std::vector<Part> parts;   // per build thread
         std::vector<uint32_t> plane_to, leaf_to, todo;  // the layout's renumbering
+        std::vector<uint8_t> part_of;    // which thread built each coarse cluster's fine tree
+        std::vector<uint32_t> always;    // always-tested fine clusters, put back in coarse order
         size_t memory_bytes() const {
             size_t b = built.planes.capacity() * sizeof(PlaneNode) + built.leaves.capacity() * sizeof(Leaf) +
-                       (plane_to.capacity() + leaf_to.capacity() + todo.capacity()) * sizeof(uint32_t);
+                       (plane_to.capacity() + leaf_to.capacity() + todo.capacity() + always.capacity()) * sizeof(uint32_t) +
+                       part_of.capacity();
             for (const Part& p : parts)
                 b += p.nodes.planes.capacity() * sizeof(PlaneNode) + p.nodes.leaves.capacity() * sizeof(Leaf) +
                      p.always.capacity() * sizeof(uint32_t);
