@@ -139,21 +139,21 @@ public:
         }
         uint32_t fine_depth = 0;
         std::vector<uint32_t> plane_base(part_count, 0), leaf_base(part_count, 0);
+        auto move = [&](uint32_t k, uint32_t ref) {  // a node reference of part k, into the merged arrays
+            return ref == none ? none : ref & leaf_bit ? ((ref & ~leaf_bit) + leaf_base[k]) | leaf_bit : ref + plane_base[k];
+        };
         for (uint32_t k = 0; k < part_count; ++k) {
             Part& part = parts[k];
             skipped_ += part.skipped;
             fine_depth = std::max(fine_depth, part.depth);
             if (k == 0) continue;
             plane_base[k] = uint32_t(all.planes.size()), leaf_base[k] = uint32_t(all.leaves.size());
-            auto move = [&](uint32_t ref) {
-                return ref == none ? none : ref & leaf_bit ? ((ref & ~leaf_bit) + leaf_base[k]) | leaf_bit : ref + plane_base[k];
-            };
             for (PlaneNode n : part.nodes.planes) {
-                for (uint32_t& c : n.child) c = move(c);
+                for (uint32_t& c : n.child) c = move(k, c);
                 all.planes.push_back(n);
             }
             for (Leaf l : part.nodes.leaves) {
-                l.inside = move(l.inside), l.first_plane = l.first_plane == none ? none : l.first_plane + plane_base[k];
+                l.inside = move(k, l.inside), l.first_plane = move(k, l.first_plane);
                 all.leaves.push_back(l);
             }
         }
@@ -164,8 +164,7 @@ public:
             always.clear();
             for (uint32_t c = 0; c < coarse_count; ++c) {
                 uint32_t k = part_of[c];
-                if (k && fine_roots[c] != none)
-                    fine_roots[c] = fine_roots[c] & leaf_bit ? ((fine_roots[c] & ~leaf_bit) + leaf_base[k]) | leaf_bit : fine_roots[c] + plane_base[k];
+                fine_roots[c] = move(k, fine_roots[c]);
                 const std::vector<uint32_t>& from = k == 0 ? always_fine_ : parts[k].always;
                 uint32_t first = uint32_t(always.size());
                 always.insert(always.end(), from.begin() + fine_always[c].first, from.begin() + fine_always[c].first + fine_always[c].count);
@@ -452,17 +451,12 @@ private:
         return held;
     }
 
-    // A coarse cluster's fine tree, walked by the groups of `fine_group` consecutive slots of `in` (slots are
-    // in Z-order, so a group's directions are close), each with its own, narrower pyramid.
-    static constexpr uint32_t fine_group = 64;
-    void walk_fine_tree(uint32_t root, uint64_t in, uint64_t walking, Tile& t, uint32_t* stack) const {
+    // A coarse cluster's fine tree, walked by the points `in` with a pyramid refitted to them when they are
+    // not all the tile's live points (narrower, so fewer fine volumes are straddled).
+    void walk_fine_tree(uint32_t root, uint64_t in, Tile& t, uint32_t* stack) const {
         const Pyramid whole = t.pyramid;
-        for (uint32_t g = 0; g < tile_capacity; g += fine_group) {
-            uint64_t part = in & t.alive & (fine_group == 64 ? ~uint64_t(0) : ((uint64_t(1) << (fine_group % 64)) - 1) << g);
-            if (!part) continue;
-            if (part != walking && make_pyramid(t, part, t.pyramid) != part) t.pyramid = whole;  // some point off: the tile's
-            tile_walk(root, part, t, stack);
-        }
+        if (in != t.alive && make_pyramid(t, in, t.pyramid) != in) t.pyramid = whole;  // some point off: the tile's
+        tile_walk(root, in, t, stack);
         t.pyramid = whole;
     }
 
@@ -511,23 +505,28 @@ private:
         Tile::Entered* e = t.entered;
         const uint32_t count = t.entered_count;
         t.entered_count = 0;
-        for (uint32_t i = 1; i < count; ++i)
-            for (uint32_t j = i; j > 0 && e[j].near < e[j - 1].near; --j) std::swap(e[j], e[j - 1]);
+        sort_by_near(e, count);
         for (uint32_t i = 0; i < count && t.alive; ++i) {
             const Leaf& leaf = leaves_[e[i].leaf];
             uint64_t in = e[i].points & t.alive;
             if (!in) continue;
             for (uint32_t k = leaf.always.first; k < leaf.always.first + leaf.always.count; ++k) test_points(always_fine_[k], in, t);
-            if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in & t.alive, t.alive, t, stack);
+            if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in & t.alive, t, stack);
             test_pending(t);
         }
     }
 
-    // Tests the pending clusters, nearest closing distance first (insertion sort: a few dozen entries).
+    // Insertion sort by closing distance: lists of a few dozen entries, mostly in order already.
+    template <class T>
+    static void sort_by_near(T* a, uint32_t count) {
+        for (uint32_t i = 1; i < count; ++i)
+            for (uint32_t j = i; j > 0 && a[j].near < a[j - 1].near; --j) std::swap(a[j], a[j - 1]);
+    }
+
+    // Tests the pending clusters, nearest closing distance first.
     void test_pending(Tile& t) const {
         Tile::Pending* p = t.pending;
-        for (uint32_t i = 1; i < t.pending_count; ++i)
-            for (uint32_t j = i; j > 0 && p[j].near < p[j - 1].near; --j) std::swap(p[j], p[j - 1]);
+        sort_by_near(p, t.pending_count);
         for (uint32_t i = 0; i < t.pending_count && t.alive; ++i) test_points(p[i].cluster, p[i].points, t);
         t.pending_count = 0;
     }
