@@ -396,34 +396,34 @@ struct ReportArgs {
     bool quiet = false;
 };
 
+// Each comma-separated item of `text` through parse(item, value) into `out`; at the first bad item, a
+// one-line error that starts with `what` and names it, and false.
+template <class T, class Parse>
+bool parse_list(const std::string& text, const char* what, Parse parse, std::vector<T>& out) {
+    for (const std::string& item : split_commas(text)) {
+        T value{};
+        if (!parse(item, value)) {
+            std::fprintf(stderr, "clusterbake: %s (got '%s')\n", what, item.c_str());
+            return false;
+        }
+        out.push_back(value);
+    }
+    return true;
+}
+
 int run_report(ReportArgs a) {
     cb::ReportOptions& o = a.options;
     o.methods.clear(), o.fine_sizes.clear(), o.obbs.clear();
-    for (const std::string& m : split_commas(a.methods)) {
-        cb::ClusterMethod method;
-        if (!cb::parse_method(m, method)) {
-            std::fprintf(stderr, "clusterbake: --methods takes a list of kmeans, vco, morton (got '%s')\n", m.c_str());
-            return 1;
-        }
-        o.methods.push_back(method);
-    }
-    for (const std::string& f : split_commas(a.fine)) {
+    auto fine_size = [](const std::string& f, uint32_t& v) {  // the asset's 8-bit local indices, as for bake
         char* end = nullptr;
-        unsigned long v = std::strtoul(f.c_str(), &end, 10);
-        if (f.empty() || *end || v < 1 || v > 85) {  // the asset's 8-bit local indices, as for bake
-            std::fprintf(stderr, "clusterbake: --fine takes a list of sizes from 1 to 85 (got '%s')\n", f.c_str());
-            return 1;
-        }
-        o.fine_sizes.push_back(uint32_t(v));
-    }
-    for (const std::string& b : split_commas(a.obbs)) {
-        cb::ObbMethod m;
-        if (!cb::parse_obb_method(b, m)) {
-            std::fprintf(stderr, "clusterbake: --obb takes a list of refined, pca, pca-area, cgal (got '%s')\n", b.c_str());
-            return 1;
-        }
-        o.obbs.push_back(m);
-    }
+        unsigned long n = std::strtoul(f.c_str(), &end, 10);
+        v = uint32_t(n);
+        return !f.empty() && !*end && n >= 1 && n <= 85;
+    };
+    if (!parse_list(a.methods, "--methods takes a list of kmeans, vco, morton", cb::parse_method, o.methods) ||
+        !parse_list(a.fine, "--fine takes a list of sizes from 1 to 85", fine_size, o.fine_sizes) ||
+        !parse_list(a.obbs, "--obb takes a list of refined, pca, pca-area, cgal", cb::parse_obb_method, o.obbs))
+        return 1;
     if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.frame_view < 1 || o.lights < 1) {
         std::fprintf(stderr, "clusterbake: --runs, --query-runs, --view, --frame-view and --lights must be at least 1\n");
         return 1;
