@@ -23,9 +23,11 @@ struct Options {
     int view = 1024;   // bench_shadow: the camera's resolution
     std::string only;  // run only inputs whose name contains this
     int one_sided = 0; // bench_shadow: 1 builds one-sided trees (the thesis's mode for closed models)
+    std::string level = "scan";  // bench_shadow: how the trees reach fine clusters (scan, trees, one-tree)
 };
 
-// --data DIR --fine N --runs N --copies N --view N --only NAME --one-sided 0|1, over the given defaults.
+// --data DIR --fine N --runs N --copies N --view N --only NAME --one-sided 0|1 --level scan|trees|one-tree, over
+// the given defaults.
 inline Options parse_options(int argc, char** argv, Options o) {
     for (int i = 1; i + 1 < argc; i += 2) {
         std::string a = argv[i];
@@ -36,6 +38,7 @@ inline Options parse_options(int argc, char** argv, Options o) {
         else if (a == "--view") o.view = std::stoi(argv[i + 1]);
         else if (a == "--only") o.only = argv[i + 1];
         else if (a == "--one-sided") o.one_sided = std::stoi(argv[i + 1]);
+        else if (a == "--level") o.level = argv[i + 1];
         else std::fprintf(stderr, "ignoring unknown option %s\n", a.c_str());
     }
     return o;

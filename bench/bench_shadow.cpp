@@ -5,9 +5,10 @@
 // our self-shadowing policy). Times are medians of --runs rounds; each round builds our trees, then runs our
 // passes and Embree's one after the other, so noise hits both alike. Asserts nothing.
 //
-//   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--runs 3] [--only NAME] [--one-sided 1]
+//   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--runs 3] [--only NAME] [--one-sided 1] [--level L]
 //   (NAME "big": only the big scene; --one-sided 1: our trees in one-sided mode, whose answers equal
-//   two-sided ones outside closed meshes; Embree stays two-sided)
+//   two-sided ones outside closed meshes; Embree stays two-sided; L: scan (default), trees or one-tree, how
+//   our trees reach the fine clusters, ClusterShadowTree::FineLevel)
 #include <embree3/rtcore.h>
 
 #include <cb_cpsv.h>
@@ -63,7 +64,7 @@ void flatten(const cb::Scene& s, std::vector<float>& v, std::vector<unsigned>& t
     }
 }
 
-void run(const Input& in, int view, int runs, bool one_sided) {
+void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowTree::FineLevel level) {
     // Bake with the default options and open the asset as the runtime would.
     cb::BakeStats bs;
     std::vector<cb::AssetMesh> meshes = cb::cluster_scene(in.scene, {}, bs);
@@ -147,7 +148,7 @@ void run(const Input& in, int view, int runs, bool one_sided) {
             auto b0 = std::chrono::steady_clock::now();
             always = 0;
             for (uint32_t i = 0; i < asset.instance_count; ++i) {
-                trees[i].build(asset, i, light, one_sided, true, threads, &build_scratch[i]);
+                trees[i].build(asset, i, light, one_sided, level, threads, &build_scratch[i]);
                 always += trees[i].always_tested();
             }
             return seconds_of(b0);
@@ -255,10 +256,12 @@ int main(int argc, char** argv) {
     cb::bench::Options defaults;
     defaults.runs = 3;
     cb::bench::Options o = cb::bench::parse_options(argc, argv, defaults);
-    std::printf("%s; %dx%d view; medians of %d rounds; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = "
+    using Level = cb::ClusterShadowTree::FineLevel;
+    Level level = o.level == "trees" ? Level::trees : o.level == "one-tree" ? Level::one_tree : Level::scan;
+    std::printf("%s, fine level '%s'; %dx%d view; medians of %d rounds; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = "
                 "(our build + our queries) / Embree's queries alone, 1 / 2 threads (below 1: we are faster); memory: our asset and "
                 "trees + the build scratch kept between builds / Embree's peak\n\n", o.one_sided ? "one-sided trees" : "two-sided trees",
-                o.view, o.view, std::max(1, o.runs));
+                level == Level::trees ? "trees" : level == Level::one_tree ? "one-tree" : "scan", o.view, o.view, std::max(1, o.runs));
     std::printf("| scene | light | points | in shadow | our build 1 / 2 threads | ours M q/s | Embree occluded1 M q/s | Embree occluded16 M q/s | "
                 "Embree build | ours vs Embree | nodes/query | clusters/query | triangles/query | useless clusters/query | always tested | MB ours + build scratch / Embree | disagree |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -272,6 +275,6 @@ int main(int argc, char** argv) {
         big.instances.push_back({0, cb::identity_transform(), "big"});
         inputs.push_back({std::to_string(o.copies) + "x dragon", std::move(big)});
     }
-    for (const Input& in : inputs) run(in, o.view, o.runs, o.one_sided != 0);
+    for (const Input& in : inputs) run(in, o.view, o.runs, o.one_sided != 0, level);
     return 0;
 }

@@ -264,7 +264,7 @@ bool parse_light(const std::string& text, double* light) {
 }
 
 struct QueryArgs {
-    std::string asset, light, points, out;
+    std::string asset, light, points, out, fine = "scan";
     bool binary = false, stats = false, reference = false, one_sided = false;
     unsigned threads = 1;
 };
@@ -323,8 +323,10 @@ int run_query(const QueryArgs& a) {
     std::vector<cb::ClusterShadowTree> trees(a.reference ? 0 : asset.view.instance_count);
     size_t nodes = 0, always = 0, skipped = 0;
     unsigned thread_count = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
+    using Level = cb::ClusterShadowTree::FineLevel;
+    Level level = a.fine == "trees" ? Level::trees : a.fine == "one-tree" ? Level::one_tree : Level::scan;
     for (uint32_t i = 0; i < trees.size(); ++i) {
-        trees[i].build(asset.view, i, light, a.one_sided, true, thread_count);
+        trees[i].build(asset.view, i, light, a.one_sided, level, thread_count);
         skipped += trees[i].skipped_clusters();
         nodes += trees[i].node_count();
         always += trees[i].always_tested();
@@ -627,6 +629,10 @@ int main(int argc, char** argv) {
     query->add_flag("--reference", qa.reference, "Use the reference traversal (every cluster box the segment may touch) "
                                                   "instead of the per-light clustered shadow trees; same answers");
     query->add_option("--threads", qa.threads, "Build and query threads, 0 = all (default 1); the answers do not depend on it");
+    query->add_option("--fine", qa.fine, "How queries reach the fine clusters: 'scan' (default: a tree over the coarse clusters, "
+                                         "then a scan of the entered ones' fine clusters), 'trees' (a fine tree per coarse "
+                                         "cluster, built per light) or 'one-tree' (one tree over the fine clusters); same answers")
+        ->check(CLI::IsMember({"scan", "trees", "one-tree"}));
 
     try {
         app.parse(argc, argv);

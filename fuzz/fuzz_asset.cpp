@@ -41,7 +41,7 @@ void walk(const cb::AssetView& v) {
 }
 
 // What a consumer does next with an accepted asset: a shadow tree per instance (first few), a few queries
-// in both modes, one by one and as a batch (tiles, including points at the light, not finite, or in
+// in each tree structure and both sidedness modes, one by one and as a batch (tiles, including points at the light, not finite, or in
 // opposite directions), and culling; none may read outside what open_asset vouched for.
 void query(const cb::AssetView& v) {
     const double light[3] = {0.3, 2.5, -1.7}, points[4][3] = {{0, 0, 0}, {0.5, -0.25, 0.125}, {-3, 1, 2}, {0.3, 2.5, -1.7}};
@@ -51,10 +51,12 @@ void query(const cb::AssetView& v) {
     batch.insert(batch.end(), {light[0], light[1], light[2], NAN, 0.0, 1.0, INFINITY, 1.0, 0.0});
     const size_t n = batch.size() / 3;
     std::vector<uint8_t> shadow(n);
-    for (bool one_sided : {false, true}) {
+    using Level = cb::ClusterShadowTree::FineLevel;
+    for (int variant = 0; variant < 3; ++variant) {  // scan two-sided, fine trees one-sided on 2 threads, one tree
+        bool one_sided = variant == 1;
         std::vector<cb::ClusterShadowTree> trees(std::min<uint32_t>(v.instance_count, 4));
         for (uint32_t i = 0; i < trees.size(); ++i) {
-            trees[i].build(v, i, light, one_sided, true, one_sided ? 2 : 1);
+            trees[i].build(v, i, light, one_sided, Level(variant), variant == 1 ? 2 : 1);
             std::vector<uint32_t> stack(trees[i].stack_size());
             for (const double* p : points) sink = sink + float(trees[i].occluded(p, stack.data()));
         }

@@ -46,21 +46,32 @@ public:
     static constexpr uint32_t none = 0xffffffffu;
     struct BuildScratch;  // working arrays of build(), reusable between builds (defined below)
 
+    // How a query reaches the fine clusters.
+    enum class FineLevel : uint8_t {
+        scan,      // a tree over the coarse clusters; an entered coarse cluster's fine clusters are scanned: their
+                   // bounding spheres against the pyramid of the points inside (the default: no per-light work
+                   // for the fine level but a pass over the spheres)
+        trees,     // a tree over the coarse clusters whose cluster nodes enter a tree over that coarse cluster's
+                   // fine clusters (the thesis's two levels)
+        one_tree,  // one tree over all the fine clusters
+    };
+
     // One instance of the asset's meshes, for one light given in world space. In one-sided mode
     // (cb_shadow.h), clusters whose front cone holds the light, and that have no double-sided triangle,
-    // cannot block anything and are left out. `two_levels` false builds one tree over the fine clusters
-    // even when the asset has coarse boxes. With two levels, up to `threads` threads (std::thread) build
-    // the coarse clusters' fine trees; the tree is the same for any thread count.
+    // cannot block anything and are left out. Without coarse boxes in the asset, every FineLevel builds one
+    // tree. With FineLevel::trees, up to `threads` threads (std::thread) build the coarse clusters' fine trees;
+    // the tree is the same for any thread count.
     //
     // `scratch`, when given, keeps the build's working arrays between builds (one per concurrent build):
     // a tree rebuilt every frame then reuses memory instead of asking the system for fresh pages. The
     // tree's own arrays are reused the same way when the tree object is.
     void build(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided = false,
-               bool two_levels = true, unsigned threads = 1, BuildScratch* scratch = nullptr) {
+               FineLevel fine = FineLevel::scan, unsigned threads = 1, BuildScratch* scratch = nullptr) {
         BuildScratch own;
         BuildScratch& work = scratch ? *scratch : own;
         view_ = &view;
         one_sided_ = one_sided;
+        scan_ = false;
         skipped_ = 0;
         planes_.clear();
         leaves_.clear();
@@ -75,12 +86,13 @@ public:
         if (!usable_) return;
         apply_instance(inverse_, world_light, light_);
         mesh_ = &view.meshes[view.instances[instance].mesh];
-        bool two = two_levels && view.coarse_bounds.obbs;
+        const bool two = fine != FineLevel::one_tree && view.coarse_bounds.obbs;
+        scan_ = two && fine == FineLevel::scan;
         Nodes& all = work.built;
         all.planes.clear();
         all.leaves.clear();
         // At most 4 planes and a cluster node per volume.
-        size_t volumes = mesh_->fine_count + (two ? mesh_->coarse_count : 0);
+        size_t volumes = (scan_ ? 0 : mesh_->fine_count) + (two ? mesh_->coarse_count : 0);
         all.planes.reserve(volumes * 4);
         all.leaves.reserve(volumes);
 
@@ -96,6 +108,29 @@ public:
         // Two levels: a fine tree per coarse cluster (parts of the coarse clusters on their own threads,
         // each into its own arrays, then appended in order), then the coarse tree over them.
         const uint32_t coarse_count = mesh_->coarse_count;
+        if (scan_) {  // the coarse tree; its cluster nodes name their fine clusters
+            make_spheres();
+            uint32_t coarse_depth = 0;
+            for (uint32_t c : shuffled(coarse_count)) {
+                const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
+                if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
+                    skipped_ += r.count;
+                    continue;
+                }
+                ShadowVolume v = make_shadow_volume(view.coarse_bounds.obb(mesh_->first_coarse + c), light_);
+                Leaf leaf;
+                leaf.always = {r.first, r.count};
+                if (!v.valid) {
+                    leaf.near = leaf.near_min = 0;
+                    always_coarse_.push_back(add_leaf(all, leaf));
+                    continue;
+                }
+                insert(all, root_, v, leaf, coarse_depth);
+            }
+            depth_ = coarse_depth + 1;
+            shrink(all, work);
+            return;
+        }
         std::vector<uint32_t> fine_roots(coarse_count, none);
         std::vector<Range> fine_always(coarse_count);
         std::vector<uint8_t> wanted(coarse_count, 1);
@@ -271,7 +306,8 @@ public:
     // Bytes this tree holds (the asset it reads is not counted).
     size_t memory_bytes() const {
         return planes_.capacity() * sizeof(PlaneNode) + leaves_.capacity() * sizeof(Leaf) +
-               (always_fine_.capacity() + always_coarse_.capacity()) * sizeof(uint32_t);
+               (always_fine_.capacity() + always_coarse_.capacity()) * sizeof(uint32_t) +
+               (sx_.capacity() + sy_.capacity() + sz_.capacity() + sr_.capacity() + snear_.capacity()) * sizeof(float);
     }
     size_t always_tested() const { return always_fine_.size(); }
     size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the light sees from the front
@@ -300,7 +336,8 @@ private:
         uint32_t inside = none;
         uint32_t fine_root = none;  // coarse: the root of its fine tree
         uint32_t cluster = none;    // fine: the fine cluster (mesh-local); none for a coarse cluster
-        Range always;               // coarse: its fine clusters tested whenever it is entered
+        Range always;               // coarse: its fine clusters tested whenever it is entered (scan: all of
+                                    // them, mesh-local; trees: a range of always_fine_)
         uint32_t first_plane = none;  // the 4 planes of its volume, consecutive (none: no volume)
     };
 
@@ -510,6 +547,11 @@ private:
             const Leaf& leaf = leaves_[e[i].leaf];
             uint64_t in = e[i].points & t.alive;
             if (!in) continue;
+            if (scan_) {
+                scan_fine(leaf.always, in, t);
+                test_pending(t);
+                continue;
+            }
             for (uint32_t k = leaf.always.first; k < leaf.always.first + leaf.always.count; ++k) test_points(always_fine_[k], in, t);
             if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in & t.alive, t, stack);
             test_pending(t);
@@ -579,13 +621,114 @@ private:
         }
     }
 
+    // Scan mode: every fine cluster's bounding sphere, from the light (mesh frame), for this build.
+    void make_spheres() {
+        const uint32_t n = mesh_->fine_count;
+        sx_.resize(n), sy_.resize(n), sz_.resize(n), sr_.resize(n), snear_.resize(n);
+        for (uint32_t f = 0; f < n; ++f) {
+            double c[3], dist = 0, r = INFINITY;
+            if (view_->fine_bounds.obbs) {
+                const PackedObb& b = view_->fine_bounds.obbs[mesh_->first_fine + f];
+                double h = double(b.half[0]) + double(b.half[1]) + double(b.half[2]), pad = 1e-6 * h, r2 = 0;
+                for (int k = 0; k < 3; ++k) c[k] = double(b.center[k]) - light_[k], r2 += (double(b.half[k]) + pad) * (double(b.half[k]) + pad), dist += c[k] * c[k];
+                dist = std::sqrt(dist);
+                // Axes unit to float precision; room for c rounded to float and for the float tests' errors.
+                r = std::sqrt(r2) * (1 + 1e-5) + 1e-5 * dist;
+            } else {
+                c[0] = c[1] = c[2] = 0;
+            }
+            sx_[f] = float(c[0]), sy_[f] = float(c[1]), sz_[f] = float(c[2]);
+            sr_[f] = round_up(r);
+            snear_[f] = round_down(dist - r);
+        }
+    }
+
+    bool skippable_fine(uint32_t f) const {
+        if (!one_sided_) return false;
+        const FineCluster& r = view_->fine[mesh_->first_fine + f];
+        return skippable(view_->fine_bounds, mesh_->first_fine + f, {r.first_triangle, r.triangle_count});
+    }
+
+    bool segment_may_touch_sphere(uint32_t f, const Query& q) const {
+        double c[3] = {double(sx_[f]), double(sy_[f]), double(sz_[f])}, r = sr_[f];
+        double t = (c[0] * q.e[0] + c[1] * q.e[1] + c[2] * q.e[2]) / q.dist;
+        t = std::min(std::max(t, 0.0), q.dist);
+        double d2 = 0;
+        for (int k = 0; k < 3; ++k) {
+            double x = c[k] - t * q.e[k] / q.dist;
+            d2 += x * x;
+        }
+        double reach = r * (1 + 1e-9) + 1e-9 * q.dist;
+        return d2 <= reach * reach;
+    }
+
+    // The points of `subset` whose segment to the light may meet fine cluster f's sphere: the ray from the
+    // light passes within the radius (|c x e| <= r |e|) and the sphere is not wholly behind the light or
+    // beyond the point. Float, branch-free; the radius holds the float errors (make_spheres).
+    uint64_t sphere_points(uint32_t f, uint64_t subset, const Tile& t) const {
+        const uint32_t begin = shadow_detail::lowest_bit(subset) & ~3u, end = 64 - (shadow_detail::leading_zeros(subset) & ~3u);
+        const float cx = sx_[f], cy = sy_[f], cz = sz_[f], r = sr_[f], r2 = r * r;
+        alignas(16) float margin[tile_capacity];
+        for (uint32_t i = begin; i < end; ++i) {
+            float ex = t.ex[i], ey = t.ey[i], ez = t.ez[i], d = t.fd[i];
+            float a = cy * ez - cz * ey, b = cz * ex - cx * ez, c = cx * ey - cy * ex;
+            float along = cx * ex + cy * ey + cz * ez;
+            float m = r2 * d * d - (a * a + b * b + c * c);
+            float lo = along + r * d, hi = (d + r) * d - along;
+            m = lo < m ? lo : m;
+            margin[i] = hi < m ? hi : m;
+        }
+        return shadow_detail::nonnegative_bits(margin, begin, end) & subset;
+    }
+
+    // Scan mode: the fine clusters `range` of an entered coarse cluster whose sphere may meet the pyramid of
+    // the points `in`, onto the pending list.
+    void scan_fine(Range range, uint64_t in, Tile& t) const {
+        const Pyramid whole = t.pyramid;
+        if (in != t.alive && make_pyramid(t, in, t.pyramid) != in) t.pyramid = whole;
+        const Pyramid& P = t.pyramid;
+        float nx[4], ny[4], nz[4];
+        double sum[3] = {0, 0, 0};
+        for (int r = 0; r < 4; ++r) sum[0] += P.rx[r], sum[1] += P.ry[r], sum[2] += P.rz[r];
+        for (int r = 0; r < 4; ++r) {
+            int s = (r + 1) & 3;
+            double a[3] = {P.rx[r], P.ry[r], P.rz[r]}, b[3] = {P.rx[s], P.ry[s], P.rz[s]}, n[3];
+            shadow_detail::cross3(a, b, n);
+            double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+            if (shadow_detail::dot3(n, sum) < 0) l = -l;
+            if (!(l != 0)) { nx[r] = ny[r] = nz[r] = 0; continue; }
+            nx[r] = float(n[0] / l), ny[r] = float(n[1] / l), nz[r] = float(n[2] / l);
+        }
+        const float dmax = round_up(P.dmax), slack = round_up(1e-6 * P.dmax);
+        alignas(16) uint8_t keep[256];
+        for (uint32_t first = range.first; first < range.first + range.count; first += 256) {
+            const uint32_t count = std::min<uint32_t>(256, range.first + range.count - first);
+            const float *x = &sx_[first], *y = &sy_[first], *z = &sz_[first], *rr = &sr_[first], *nr = &snear_[first];
+            for (uint32_t j = 0; j < count; ++j) {
+                float reach = -(rr[j] + slack);
+                bool k = nr[j] <= dmax;
+                for (int r = 0; r < 4; ++r) k &= nx[r] * x[j] + ny[r] * y[j] + nz[r] * z[j] >= reach;
+                keep[j] = k;
+            }
+            for (uint32_t j = 0; j < count; ++j) {
+                if (!keep[j]) continue;
+                uint32_t f = first + j;
+                uint64_t near = sphere_points(f, in, t);
+                if (!near || skippable_fine(f)) continue;
+                if (t.pending_count == Tile::pending_capacity) test_pending(t);
+                t.pending[t.pending_count++] = {snear_[f], f, near};
+            }
+        }
+        t.pyramid = whole;
+    }
+
     static float round_down(double x) {
         float f = float(x);
-        return double(f) > x ? std::nextafter(f, 0.0f) : f;
+        return double(f) > x ? std::nextafter(f, -INFINITY) : f;
     }
     static float round_up(double x) {
         float f = float(x);
-        return double(f) < x ? std::nextafter(f, 2.0f) : f;
+        return double(f) < x ? std::nextafter(f, INFINITY) : f;
     }
 
     static uint32_t add_leaf(Nodes& nodes, const Leaf& leaf) {
@@ -653,6 +796,9 @@ private:
                     if (q.dist < leaf.near) break;
                     if (leaf.cluster != none) {  // its triangles
                         if (test_cluster(leaf.cluster, q)) return true;
+                    } else if (scan_) {
+                        for (uint32_t f = leaf.always.first; f < leaf.always.first + leaf.always.count; ++f)
+                            if (segment_may_touch_sphere(f, q) && !skippable_fine(f) && test_cluster(f, q)) return true;
                     } else {  // into its fine tree
                         for (uint32_t i = leaf.always.first; i < leaf.always.first + leaf.always.count; ++i)
                             if (test_cluster(always_fine_[i], q)) return true;
@@ -820,6 +966,10 @@ private:
     std::vector<PlaneNode> planes_;
     std::vector<Leaf> leaves_;
     std::vector<uint32_t> always_fine_;    // fine clusters tested without a volume (ranges per coarse node)
+    // Scan mode: per fine cluster of the mesh, its bounding sphere's centre from the light (mesh frame),
+    // radius and closing distance, for this light (make_spheres).
+    std::vector<float> sx_, sy_, sz_, sr_, snear_;
+    bool scan_ = false;
     std::vector<uint32_t> always_coarse_;  // coarse cluster nodes entered for every query
     Range top_always_;                     // one level: the always-tested fine clusters
     uint32_t root_ = none;

@@ -1,5 +1,5 @@
 // A long correctness run, outside ctest: shadow queries on every scene of ../shared/data (or on the given
-// files), answered by the runtime's shadow trees (two levels and one) and by its reference walk, each
+// files), answered by the runtime's shadow trees (each FineLevel) and by its reference walk, each
 // compared with the fast exact oracle (scene_oracle.h), in two-sided and one-sided mode.
 // Lights per scene: outside the bounds, grazing their top, beside them exactly level with the topmost
 // vertex, inside them, exactly on a vertex, and exactly on a triangle's plane beside the triangle. Points: surface points seen from cameras outside the bounds,
@@ -45,22 +45,25 @@ struct Light {
 
 struct Answer {
     cb::test::OracleAnswer exact;
-    bool tree2 = false, tree1 = false, walk = false, reference = false;  // tiled batches; two-level walk per point
+    // Tiled batches (fine scan, fine trees, one tree); walks per point (fine scan, fine trees); the reference walk.
+    bool scan = false, tree2 = false, tree1 = false, walk = false, walk2 = false, reference = false;
     bool brute_checked = false, brute_agrees = true;
 };
 
 struct Tally {
-    size_t queries = 0, shadowed = 0, touching = 0, only_touching = 0, bad_tree2 = 0, bad_tree1 = 0, bad_walk = 0, bad_reference = 0;
+    size_t queries = 0, shadowed = 0, touching = 0, only_touching = 0, bad_scan = 0, bad_tree2 = 0, bad_tree1 = 0, bad_walk = 0,
+           bad_walk2 = 0, bad_reference = 0;
     size_t missed_shadow = 0;  // some runtime answer says lit where the oracle says shadow
     size_t bad_touching = 0;   // disagreements on queries the oracle calls touching
     size_t brute_checked = 0, brute_bad = 0;
 
     void add(const Tally& t) {
         queries += t.queries, shadowed += t.shadowed, touching += t.touching, only_touching += t.only_touching;
-        bad_tree2 += t.bad_tree2, bad_tree1 += t.bad_tree1, bad_walk += t.bad_walk, bad_reference += t.bad_reference;
+        bad_scan += t.bad_scan, bad_tree2 += t.bad_tree2, bad_tree1 += t.bad_tree1, bad_walk += t.bad_walk, bad_walk2 += t.bad_walk2;
+        bad_reference += t.bad_reference;
         missed_shadow += t.missed_shadow, bad_touching += t.bad_touching, brute_checked += t.brute_checked, brute_bad += t.brute_bad;
     }
-    size_t bad() const { return bad_tree2 + bad_tree1 + bad_walk + bad_reference + brute_bad; }
+    size_t bad() const { return bad_scan + bad_tree2 + bad_tree1 + bad_walk + bad_walk2 + bad_reference + brute_bad; }
 };
 
 constexpr size_t max_reports = 20;  // disagreements printed in full per scene
@@ -177,27 +180,33 @@ void parallel(size_t n, unsigned threads, F&& f) {
     for (std::thread& t : pool) t.join();
 }
 
-// Every point against one light in one mode: the runtime's trees (two levels and one) and reference walk,
-// and the oracle.
+// Every point against one light in one mode: the runtime's trees (each FineLevel) and reference walk, and
+// the oracle.
 std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle, const Light& light, bool one_sided,
                                const std::vector<Point>& points, unsigned threads, size_t brute_every) {
-    std::vector<cb::ClusterShadowTree> two(v.instance_count), one(v.instance_count);
+    using Level = cb::ClusterShadowTree::FineLevel;
+    std::vector<cb::ClusterShadowTree> scan(v.instance_count), two(v.instance_count), one(v.instance_count);
     for (uint32_t i = 0; i < v.instance_count; ++i) {
-        two[i].build(v, i, light.at.data(), one_sided, true);
-        one[i].build(v, i, light.at.data(), one_sided, false);
+        scan[i].build(v, i, light.at.data(), one_sided, Level::scan);
+        two[i].build(v, i, light.at.data(), one_sided, Level::trees);
+        one[i].build(v, i, light.at.data(), one_sided, Level::one_tree);
     }
     std::vector<Answer> answers(points.size());
     parallel(points.size(), threads, [&](size_t begin, size_t end) {
         // Batches: the tiled walks over this thread's slice of the points, as callers use them.
         size_t n = end - begin;
-        std::vector<uint32_t> scratch(std::max(cb::batch_scratch_size(two.data(), two.size(), n), cb::batch_scratch_size(one.data(), one.size(), n)));
-        std::vector<uint8_t> t2(n), t1(n);
+        std::vector<uint32_t> scratch(std::max({cb::batch_scratch_size(scan.data(), scan.size(), n),
+                                                cb::batch_scratch_size(two.data(), two.size(), n),
+                                                cb::batch_scratch_size(one.data(), one.size(), n)}));
+        std::vector<uint8_t> ts(n), t2(n), t1(n);
+        cb::occluded_batch(scan.data(), scan.size(), points[begin].data(), n, ts.data(), scratch.data());
         cb::occluded_batch(two.data(), two.size(), points[begin].data(), n, t2.data(), scratch.data());
         cb::occluded_batch(one.data(), one.size(), points[begin].data(), n, t1.data(), scratch.data());
         for (size_t k = begin; k < end; ++k) {
             const double* p = points[k].data();
-            answers[k].tree2 = t2[k - begin], answers[k].tree1 = t1[k - begin];
-            for (const cb::ClusterShadowTree& tree : two) answers[k].walk = answers[k].walk || tree.occluded(p, scratch.data());
+            answers[k].scan = ts[k - begin], answers[k].tree2 = t2[k - begin], answers[k].tree1 = t1[k - begin];
+            for (const cb::ClusterShadowTree& tree : scan) answers[k].walk = answers[k].walk || tree.occluded(p, scratch.data());
+            for (const cb::ClusterShadowTree& tree : two) answers[k].walk2 = answers[k].walk2 || tree.occluded(p, scratch.data());
             answers[k].reference = cb::occluded_reference(v, p, light.at.data(), nullptr, one_sided);
             answers[k].exact = oracle.occluded(p, light.at.data(), one_sided);
             if (brute_every && k % brute_every == 0) {
@@ -213,9 +222,9 @@ std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle
 
 void report(const std::string& scene, const Light& light, bool one_sided, const Point& p, const Answer& a) {
     std::printf("DISAGREEMENT %s: light %s (%.17g, %.17g, %.17g), %s, point (%.17g, %.17g, %.17g): oracle %d (touching %d), "
-                "tree two levels %d, tree one level %d, walk %d, reference %d\n",
+                "scan %d, fine trees %d, one tree %d, scan walk %d, fine trees walk %d, reference %d\n",
                 scene.c_str(), light.kind, light.at[0], light.at[1], light.at[2], one_sided ? "one-sided" : "two-sided", p[0], p[1],
-                p[2], a.exact.blocked, a.exact.touching, a.tree2, a.tree1, a.walk, a.reference);
+                p[2], a.exact.blocked, a.exact.touching, a.scan, a.tree2, a.tree1, a.walk, a.walk2, a.reference);
 }
 
 Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points, const std::string& scene, const Light& light,
@@ -225,9 +234,10 @@ Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points
         const Answer& a = answers[k];
         bool exact = a.exact.blocked;
         t.queries++, t.shadowed += exact, t.touching += a.exact.touching, t.only_touching += a.exact.only_touching;
-        t.bad_tree2 += a.tree2 != exact, t.bad_tree1 += a.tree1 != exact, t.bad_walk += a.walk != exact, t.bad_reference += a.reference != exact;
-        bool wrong = a.tree2 != exact || a.tree1 != exact || a.walk != exact || a.reference != exact;
-        t.missed_shadow += exact && !(a.tree2 && a.tree1 && a.walk && a.reference);
+        t.bad_scan += a.scan != exact, t.bad_tree2 += a.tree2 != exact, t.bad_tree1 += a.tree1 != exact, t.bad_walk += a.walk != exact;
+        t.bad_walk2 += a.walk2 != exact, t.bad_reference += a.reference != exact;
+        bool wrong = a.scan != exact || a.tree2 != exact || a.tree1 != exact || a.walk != exact || a.walk2 != exact || a.reference != exact;
+        t.missed_shadow += exact && !(a.scan && a.tree2 && a.tree1 && a.walk && a.walk2 && a.reference);
         t.bad_touching += a.exact.touching && wrong;
         t.brute_checked += a.brute_checked, t.brute_bad += !a.brute_agrees;
         if (!a.brute_agrees) std::printf("ORACLE TREES MISSED A TRIANGLE %s: light %s, %s, point (%.17g, %.17g, %.17g)\n", scene.c_str(),
@@ -263,10 +273,10 @@ Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget
             std::vector<Answer> answers = answer_all(b.view, oracle, lights[l], one_sided, points, o.threads, o.brute_every);
             Tally v = tally(answers, points, name, lights[l], one_sided, reported);
             if (v.bad())
-                std::printf("disagreements %s: light %s, %s: tree2 %zu, tree1 %zu, walk %zu, reference %zu of %zu queries; %zu said lit "
-                            "in shadow, %zu touching\n",
-                            name.c_str(), lights[l].kind, one_sided ? "one-sided" : "two-sided", v.bad_tree2, v.bad_tree1, v.bad_walk,
-                            v.bad_reference, v.queries, v.missed_shadow, v.bad_touching);
+                std::printf("disagreements %s: light %s, %s: scan %zu, tree2 %zu, tree1 %zu, walk %zu, walk2 %zu, reference %zu of %zu "
+                            "queries; %zu said lit in shadow, %zu touching\n",
+                            name.c_str(), lights[l].kind, one_sided ? "one-sided" : "two-sided", v.bad_scan, v.bad_tree2, v.bad_tree1,
+                            v.bad_walk, v.bad_walk2, v.bad_reference, v.queries, v.missed_shadow, v.bad_touching);
             t.add(v);
         }
     }
@@ -281,8 +291,9 @@ size_t triangles_in_scene(const cb::Scene& s) {
 }
 
 void print_row(const std::string& name, size_t triangles, const Tally& t, double seconds, const std::string& note) {
-    std::printf("%-58s %9zu %9zu %9zu %9zu %7zu %6zu %6zu %6zu %6zu %8.1f %s\n", name.c_str(), triangles, t.queries, t.shadowed,
-                t.touching, t.only_touching, t.bad_tree2, t.bad_tree1, t.bad_walk, t.bad_reference, seconds, note.c_str());
+    std::printf("%-58s %9zu %9zu %9zu %9zu %7zu %6zu %6zu %6zu %6zu %6zu %6zu %8.1f %s\n", name.c_str(), triangles, t.queries, t.shadowed,
+                t.touching, t.only_touching, t.bad_scan, t.bad_tree2, t.bad_tree1, t.bad_walk, t.bad_walk2, t.bad_reference, seconds,
+                note.c_str());
     std::fflush(stdout);
 }
 
@@ -329,8 +340,8 @@ int main(int argc, char** argv) {
     if (scenes.empty()) return std::printf("no scene loaded\n"), 2;
     size_t budget = (o.queries + scenes.size() - 1) / scenes.size();
     std::printf("%zu scenes, %zu queries each (lights x both modes), %u threads\n", scenes.size(), budget, o.threads);
-    std::printf("%-58s %9s %9s %9s %9s %7s %6s %6s %6s %6s %8s\n", "scene", "triangles", "queries", "in shadow", "touching", "t-only",
-                "tree2", "tree1", "walk", "ref", "seconds");
+    std::printf("%-58s %9s %9s %9s %9s %7s %6s %6s %6s %6s %6s %6s %8s\n", "scene", "triangles", "queries", "in shadow", "touching",
+                "t-only", "scan", "tree2", "tree1", "walk", "walk2", "ref", "seconds");
     Tally total;
     size_t total_triangles = 0;
     auto start = std::chrono::steady_clock::now();
@@ -347,8 +358,9 @@ int main(int argc, char** argv) {
     double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     print_row("total", total_triangles, total, s, "");
     std::printf("columns: in shadow, touching (the segment touches a triangle: edge, vertex or an end on its plane) and t-only "
-                "(in shadow through touching contacts only) per the exact oracle; tree2, tree1, walk, ref: disagreements with it of "
-                "the two-level and one-level trees' tiled batches, the two-level tree walked point by point, and the reference walk\n");
+                "(in shadow through touching contacts only) per the exact oracle; scan, tree2, tree1, walk, walk2, ref: disagreements "
+                "with it of the tiled batches with fine scans (the default), fine trees and one tree, of walks point by point with fine "
+                "scans and with fine trees, and of the reference walk\n");
     std::printf("queries the oracle calls touching: %zu of %zu; disagreements among them: %zu\n", total.touching, total.queries,
                 total.bad_touching);
     if (o.brute_every)

@@ -119,17 +119,18 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
 }
 
 // The oracle finds p blocked by a proper crossing (no touching contact), two-sided; the reference walk and
-// both tree depths of instance 0 agree.
+// every tree structure of instance 0 agree.
 static void expect_blocked_by_a_crossing(const cb::test::Baked& b, const double* p, const double* light) {
     cb::test::OracleAnswer exact = SceneOracle(b.scene).occluded(p, light, false);
     EXPECT_TRUE(exact.blocked);
     EXPECT_FALSE(exact.touching);
     EXPECT_TRUE(cb::occluded_reference(b.view, p, light, nullptr, false));
-    for (bool two_levels : {true, false}) {
+    using Level = cb::ClusterShadowTree::FineLevel;
+    for (Level level : {Level::scan, Level::trees, Level::one_tree}) {
         cb::ClusterShadowTree tree;
-        tree.build(b.view, 0, light, false, two_levels);
+        tree.build(b.view, 0, light, false, level);
         std::vector<uint32_t> stack(tree.stack_size());
-        EXPECT_EQ(tree.occluded(p, stack.data()), exact.blocked) << (two_levels ? "two levels" : "one level");
+        EXPECT_EQ(tree.occluded(p, stack.data()), exact.blocked) << "fine level " << int(level);
     }
 }
 

@@ -249,13 +249,14 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
                                {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])},
                                {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
                                {sv[0], sv[1], sv[2]}};
-        for (int variant = 0; variant < 16; ++variant) {
+        for (int variant = 0; variant < 24; ++variant) {
             const double* light = lights[variant % 4];
-            bool one_sided = variant / 4 % 2 == 1, two_levels = variant >= 8;
+            bool one_sided = variant / 4 % 2 == 1;
+            auto level = cb::ClusterShadowTree::FineLevel(variant / 8);
             std::vector<cb::ClusterShadowTree> trees(v.instance_count);
             size_t stack = 0;
             for (uint32_t i = 0; i < v.instance_count; ++i) {
-                trees[i].build(v, i, light, one_sided, two_levels);
+                trees[i].build(v, i, light, one_sided, level);
                 stack = std::max(stack, trees[i].stack_size());
                 skipped += trees[i].skipped_clusters();
             }
@@ -292,7 +293,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
             for (size_t k = 0; k < batch.size(); ++k) batch_disagreements += bool(batch[k]) != references[k];
         }
     }
-    std::printf("%zu queries (one and two levels, two- and one-sided), %zu in shadow, %zu disagreements; triangles tested per query: tree %.1f, "
+    std::printf("%zu queries (fine scan, fine trees and one tree; two- and one-sided), %zu in shadow, %zu disagreements; triangles tested per query: tree %.1f, "
                 "reference %.1f; one-sided builds skipped %zu clusters (light in their front cone)\n",
                 queries, shadowed, disagreements, double(tested_tree) / double(queries), double(tested_reference) / double(queries), skipped);
     EXPECT_EQ(disagreements, 0u);
@@ -360,8 +361,8 @@ TEST(Shadow, ParallelBuildGivesTheSameTree) {
         for (bool one_sided : {false, true}) {
             std::vector<cb::ClusterShadowTree> one(v.instance_count), three(v.instance_count);
             for (uint32_t i = 0; i < v.instance_count; ++i) {
-                one[i].build(v, i, light, one_sided, true, 1);
-                three[i].build(v, i, light, one_sided, true, 3);
+                one[i].build(v, i, light, one_sided, cb::ClusterShadowTree::FineLevel::trees, 1);
+                three[i].build(v, i, light, one_sided, cb::ClusterShadowTree::FineLevel::trees, 3);
                 EXPECT_EQ(one[i].node_count(), three[i].node_count());
                 EXPECT_EQ(one[i].memory_bytes(), three[i].memory_bytes());
                 EXPECT_EQ(one[i].stack_size(), three[i].stack_size());
@@ -449,10 +450,10 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
         WorldSample world = sample_scene(b.scene, 1);
         SceneOracle exact_oracle(b.scene);
         for (const auto& light : c.lights)
-            for (int variant = 0; variant < 4; ++variant) {
-                bool one_sided = variant % 2 == 1, two_levels = variant >= 2;
+            for (int variant = 0; variant < 6; ++variant) {
+                bool one_sided = variant % 2 == 1;
                 cb::ClusterShadowTree tree;
-                tree.build(v, 0, light.data(), one_sided, two_levels);
+                tree.build(v, 0, light.data(), one_sided, cb::ClusterShadowTree::FineLevel(variant / 2));
                 std::vector<uint32_t> stack(tree.stack_size());
                 std::vector<double> points;
                 std::vector<bool> exact_answers;
