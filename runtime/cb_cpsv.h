@@ -109,7 +109,7 @@ public:
         // each into its own arrays, then appended in order), then the coarse tree over them.
         const uint32_t coarse_count = mesh_->coarse_count;
         if (scan_) {  // the coarse tree; its cluster nodes name their fine clusters
-            make_spheres();
+            make_spheres(threads);
             uint32_t coarse_depth = 0;
             for (uint32_t c : shuffled(coarse_count)) {
                 const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
@@ -271,7 +271,7 @@ public:
             apply_instance(inverse_, w, t.p[i]);
             for (int k = 0; k < 3; ++k) t.e[i][k] = t.p[i][k] - light_[k];
             t.dist[i] = std::sqrt(t.e[i][0] * t.e[i][0] + t.e[i][1] * t.e[i][1] + t.e[i][2] * t.e[i][2]);
-            if (!(t.dist[i] > 0) || !std::isfinite(t.dist[i])) {
+            if (!(t.dist[i] > 0) || !(t.dist[i] < 1e30)) {  // at the light, not finite, or beyond float's range
                 alone |= uint64_t(1) << i;
                 continue;
             }
@@ -280,6 +280,7 @@ public:
         uint64_t held = t.alive ? make_pyramid(t, t.alive, t.pyramid) : 0;
         alone |= t.alive & ~held;
         t.alive &= held;
+        t.small = t.pyramid.dmax < float_safe;
         if (t.alive) {
             for (uint32_t i = 0; i < tile_capacity; ++i) {
                 bool in = t.alive >> i & 1;
@@ -314,6 +315,9 @@ public:
 
 private:
     static constexpr uint32_t leaf_bit = 0x80000000u;
+    // Sizes (distances, coordinates from the light) below which the float filters cannot overflow: their
+    // largest terms are products of four such sizes.
+    static constexpr double float_safe = 1e9;
 
     struct Range {
         uint32_t first = 0, count = 0;
@@ -412,6 +416,7 @@ private:
         uint32_t count;
         uint64_t alive;           // in the pyramid and not yet found in shadow
         uint64_t shadowed;
+        bool small;               // every live point within float_safe of the light: the float filters apply
         double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
         alignas(16) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
         alignas(16) float slack[tile_capacity];  // the plane checks' tolerance, 2e-6 of the distance
@@ -521,14 +526,69 @@ private:
         return shadow_detail::nonnegative_bits(margin, begin, end) & subset;
     }
 
+    // Drops from `subset` the points whose segment to the light certainly misses `box`: separating axis tests
+    // in float over the subset's lanes, on the box's 3 axes and on the segment's direction crossed with each.
+    // The box is taken as the parallelepiped centre + sum of +-padded half[k] axis[k] (cb_asset.h), whose
+    // projection on any direction those terms give exactly; the tolerances, 1e-6 of the sizes involved, exceed
+    // the float evaluation's errors (below 5e-7 of them) and the axes' departure from orthonormal (2e-7).
+    // Returns false, changing nothing, where float could overflow (sizes from float_safe up): the caller
+    // then tests point by point in double.
+    bool box_points(const Obb& box, uint64_t& subset, const Tile& t) const {
+        double h[3], c[3], a[3][3];
+        padded_halves(box, h);
+        for (int k = 0; k < 3; ++k) {
+            c[k] = double(box.center[k]) - light_[k];
+            for (int j = 0; j < 3; ++j) a[k][j] = box.axis[k][j];
+        }
+        const double hs = h[0] + h[1] + h[2], c1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]);
+        if (!t.small || !(c1 + hs < float_safe)) return false;
+        float lo[3], hi[3], w[3][3], ax[3][3], hf[3];
+        for (int k = 0; k < 3; ++k) {
+            double qk = shadow_detail::dot3(c, a[k]), reach = h[k] + 1e-6 * (hs + c1);
+            lo[k] = float(qk - reach), hi[k] = float(qk + reach), hf[k] = float(h[k]);
+            double wk[3];
+            shadow_detail::cross3(a[k], c, wk);
+            for (int j = 0; j < 3; ++j) w[k][j] = float(wk[j]), ax[k][j] = box.axis[k][j];
+        }
+        const float tol = float(2e-6 * (hs + c1));
+        const uint32_t begin = shadow_detail::lowest_bit(subset) & ~3u, end = 64 - (shadow_detail::leading_zeros(subset) & ~3u);
+        alignas(16) float margin[tile_capacity];
+        for (uint32_t i = begin; i < end; ++i) {
+            const float ex = t.ex[i], ey = t.ey[i], ez = t.ez[i], slack = 1e-6f * t.fd[i];
+            const float g0 = ex * ax[0][0] + ey * ax[0][1] + ez * ax[0][2];
+            const float g1 = ex * ax[1][0] + ey * ax[1][1] + ez * ax[1][2];
+            const float g2 = ex * ax[2][0] + ey * ax[2][1] + ez * ax[2][2];
+            // The box's axes: the segment's shadow on axis k, [min(0, g), max(0, g)], meets [lo, hi].
+            float m = hi[0] + slack - (g0 < 0 ? g0 : 0.0f);
+            m = std::min(m, (g0 > 0 ? g0 : 0.0f) + slack - lo[0]);
+            m = std::min(m, hi[1] + slack - (g1 < 0 ? g1 : 0.0f));
+            m = std::min(m, (g1 > 0 ? g1 : 0.0f) + slack - lo[1]);
+            m = std::min(m, hi[2] + slack - (g2 < 0 ? g2 : 0.0f));
+            m = std::min(m, (g2 > 0 ? g2 : 0.0f) + slack - lo[2]);
+            // e x axis k: the segment projects to 0, the box to e . (axis k x c) +- its support.
+            const float a0 = std::fabs(g0), a1 = std::fabs(g1), a2 = std::fabs(g2), d = t.fd[i];
+            const float s0 = std::fabs(ex * w[0][0] + ey * w[0][1] + ez * w[0][2]);
+            const float s1 = std::fabs(ex * w[1][0] + ey * w[1][1] + ez * w[1][2]);
+            const float s2 = std::fabs(ex * w[2][0] + ey * w[2][1] + ez * w[2][2]);
+            m = std::min(m, hf[1] * a2 + hf[2] * a1 + tol * d - s0);
+            m = std::min(m, hf[0] * a2 + hf[2] * a0 + tol * d - s1);
+            m = std::min(m, hf[0] * a1 + hf[1] * a0 + tol * d - s2);
+            margin[i] = m;
+        }
+        subset &= shadow_detail::nonnegative_bits(margin, begin, end);
+        return true;
+    }
+
     // Tests fine cluster f's triangles for the points of `subset` still alive whose segment may touch its box.
     void test_points(uint32_t f, uint64_t subset, Tile& t) const {
         uint64_t todo = subset & t.alive;
-        if (view_->fine_bounds.obbs) {
+        if (view_->fine_bounds.obbs && todo) {
             Obb box = view_->fine_bounds.obb(mesh_->first_fine + f);
-            for (uint64_t w = todo; w; w &= w - 1) {
-                uint32_t i = shadow_detail::lowest_bit(w);
-                if (!segment_may_touch_box(box, t.p[i], light_)) todo &= ~(uint64_t(1) << i);
+            if (!box_points(box, todo, t)) {
+                for (uint64_t w = todo; w; w &= w - 1) {
+                    uint32_t i = shadow_detail::lowest_bit(w);
+                    if (!segment_may_touch_box(box, t.p[i], light_)) todo &= ~(uint64_t(1) << i);
+                }
             }
         }
         if (!todo) return;
@@ -621,26 +681,46 @@ private:
         }
     }
 
-    // Scan mode: every fine cluster's bounding sphere, from the light (mesh frame), for this build.
-    void make_spheres() {
+    // Scan mode: every fine cluster's bounding sphere, from the light (mesh frame): the sphere about its box
+    // (the stored centre; the padded half extents' length, the axes being unit to float precision). Rounded
+    // to nearest float, but the radius is grown by 2e-5 of itself and of the distance, and the closing
+    // distance shrunk by 1e-6 of both: far more than the rounding of the centre and the radius to float
+    // (below 1e-7 of the distance) and the errors of the float tests that read them (below 1e-6).
+    // Long meshes split across `threads` threads; each sphere depends on its box only.
+    void make_spheres(unsigned threads) {
         const uint32_t n = mesh_->fine_count;
         sx_.resize(n), sy_.resize(n), sz_.resize(n), sr_.resize(n), snear_.resize(n);
-        for (uint32_t f = 0; f < n; ++f) {
-            double c[3], dist = 0, r = INFINITY;
-            if (view_->fine_bounds.obbs) {
-                const PackedObb& b = view_->fine_bounds.obbs[mesh_->first_fine + f];
-                double h = double(b.half[0]) + double(b.half[1]) + double(b.half[2]), pad = 1e-6 * h, r2 = 0;
-                for (int k = 0; k < 3; ++k) c[k] = double(b.center[k]) - light_[k], r2 += (double(b.half[k]) + pad) * (double(b.half[k]) + pad), dist += c[k] * c[k];
-                dist = std::sqrt(dist);
-                // Axes unit to float precision; room for c rounded to float and for the float tests' errors.
-                r = std::sqrt(r2) * (1 + 1e-5) + 1e-5 * dist;
-            } else {
-                c[0] = c[1] = c[2] = 0;
-            }
-            sx_[f] = float(c[0]), sy_[f] = float(c[1]), sz_[f] = float(c[2]);
-            sr_[f] = round_up(r);
-            snear_[f] = round_down(dist - r);
+        spheres_small_ = false;
+        if (!view_->fine_bounds.obbs) {  // no boxes: spheres that hold everything (and no filtering)
+            std::fill(sx_.begin(), sx_.end(), 0.0f), std::fill(sy_.begin(), sy_.end(), 0.0f), std::fill(sz_.begin(), sz_.end(), 0.0f);
+            std::fill(sr_.begin(), sr_.end(), INFINITY), std::fill(snear_.begin(), snear_.end(), -INFINITY);
+            return;
         }
+        const PackedObb* boxes = view_->fine_bounds.obbs + mesh_->first_fine;
+        const double lx = light_[0], ly = light_[1], lz = light_[2];
+        double largest[16] = {};  // per part: the largest coordinate or radius
+        auto part = [&](uint32_t k, uint32_t begin, uint32_t end) {
+            double big = 0;
+            for (uint32_t f = begin; f < end; ++f) {
+                const PackedObb& b = boxes[f];
+                double h0 = b.half[0], h1 = b.half[1], h2 = b.half[2], pad = 1e-6 * (h0 + h1 + h2);
+                h0 += pad, h1 += pad, h2 += pad;
+                double x = b.center[0] - lx, y = b.center[1] - ly, z = b.center[2] - lz;
+                double dist = std::sqrt(x * x + y * y + z * z), r = std::sqrt(h0 * h0 + h1 * h1 + h2 * h2);
+                r += 2e-5 * (r + dist);
+                sx_[f] = float(x), sy_[f] = float(y), sz_[f] = float(z);
+                sr_[f] = float(r);
+                snear_[f] = float(dist - r - 1e-6 * (dist + r));
+                big = std::max(big, std::max(std::max(std::fabs(x), std::fabs(y)), std::max(std::fabs(z), r)));
+            }
+            largest[k] = big;
+        };
+        const uint32_t parts = n >= 65536 ? std::max(1u, std::min(threads, 16u)) : 1;
+        std::vector<std::thread> pool;
+        for (uint32_t k = 1; k < parts; ++k) pool.emplace_back(part, k, uint32_t(uint64_t(n) * k / parts), uint32_t(uint64_t(n) * (k + 1) / parts));
+        part(0, 0, uint32_t(n / parts));
+        for (std::thread& t : pool) t.join();
+        spheres_small_ = *std::max_element(largest, largest + parts) < float_safe;
     }
 
     bool skippable_fine(uint32_t f) const {
@@ -684,6 +764,14 @@ private:
     // Scan mode: the fine clusters `range` of an entered coarse cluster whose sphere may meet the pyramid of
     // the points `in`, onto the pending list.
     void scan_fine(Range range, uint64_t in, Tile& t) const {
+        if (!t.small || !spheres_small_) {  // the float tests could overflow: every fine cluster, every point
+            for (uint32_t f = range.first; f < range.first + range.count; ++f) {
+                if (skippable_fine(f)) continue;
+                if (t.pending_count == Tile::pending_capacity) test_pending(t);
+                t.pending[t.pending_count++] = {snear_[f], f, in};
+            }
+            return;
+        }
         const Pyramid whole = t.pyramid;
         if (in != t.alive && make_pyramid(t, in, t.pyramid) != in) t.pyramid = whole;
         const Pyramid& P = t.pyramid;
@@ -970,6 +1058,7 @@ private:
     // radius and closing distance, for this light (make_spheres).
     std::vector<float> sx_, sy_, sz_, sr_, snear_;
     bool scan_ = false;
+    bool spheres_small_ = false;  // every sphere's coordinates and radius below float_safe
     std::vector<uint32_t> always_coarse_;  // coarse cluster nodes entered for every query
     Range top_always_;                     // one level: the always-tested fine clusters
     uint32_t root_ = none;

@@ -424,9 +424,10 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                 uint32_t a = j * 9 + i;
                 flat.indices.insert(flat.indices.end(), {a, a + 1, a + 9, a + 1, a + 10, a + 9});
             }
-        // Lights: above, exactly in the plane (on the grid and beside it), and inside a flat box.
+        // Lights: above, exactly in the plane (on the grid and beside it), inside a flat box, and 2e9 above
+        // (beyond float_safe, where the runtime's float filters give way to double tests).
         flat.lights = {{offset + 4.3, offset + 3.7, 6}, {offset + 4, offset + 4, 0}, {offset - 3, offset + 4.5, 0},
-                       {offset + 2.5, offset + 2.5, 0}};
+                       {offset + 2.5, offset + 2.5, 0}, {offset + 4.2, offset + 3.9, 2e9}};
         cases.push_back(flat);
     }
     // Needles: long, thin triangles fanned around the origin, and a light among them (inside their boxes).
@@ -462,6 +463,13 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                     if (k % 3 == 0) {  // on the surface: a vertex
                         const auto& s = world.surface[size_t(k) % world.surface.size()];
                         p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                    } else if (k % 5 == 4) {  // beyond a point of the bounds, seen from the light: twice as far, or
+                        // 1e31 times (such points walk alone: beyond float's range)
+                        double scale = k % 50 == 49 ? 1e31 : 2;
+                        for (int j = 0; j < 3; ++j) {
+                            double target = world.lo[j] + (world.hi[j] - world.lo[j]) * (u(rng) + 1) / 2;
+                            p[j] = light[j] + scale * (target - light[j]);
+                        }
                     } else if (k % 3 == 1) {  // in the plane z = 0 (coplanar with the flat grid)
                         p[0] = world.lo[0] + (world.hi[0] - world.lo[0]) * (1.4 * (u(rng) + 1) / 2 - 0.2);
                         p[1] = world.lo[1] + (world.hi[1] - world.lo[1]) * (1.4 * (u(rng) + 1) / 2 - 0.2);
