@@ -552,30 +552,53 @@ private:
         }
         const float tol = float(2e-6 * (hs + c1));
         const uint32_t begin = shadow_detail::lowest_bit(subset) & ~3u, end = 64 - (shadow_detail::leading_zeros(subset) & ~3u);
-        alignas(16) float margin[tile_capacity];
-        for (uint32_t i = begin; i < end; ++i) {
-            const float ex = t.ex[i], ey = t.ey[i], ez = t.ez[i], slack = 1e-6f * t.fd[i];
-            const float g0 = ex * ax[0][0] + ey * ax[0][1] + ez * ax[0][2];
-            const float g1 = ex * ax[1][0] + ey * ax[1][1] + ez * ax[1][2];
-            const float g2 = ex * ax[2][0] + ey * ax[2][1] + ez * ax[2][2];
-            // The box's axes: the segment's shadow on axis k, [min(0, g), max(0, g)], meets [lo, hi].
-            float m = hi[0] + slack - (g0 < 0 ? g0 : 0.0f);
-            m = std::min(m, (g0 > 0 ? g0 : 0.0f) + slack - lo[0]);
-            m = std::min(m, hi[1] + slack - (g1 < 0 ? g1 : 0.0f));
-            m = std::min(m, (g1 > 0 ? g1 : 0.0f) + slack - lo[1]);
-            m = std::min(m, hi[2] + slack - (g2 < 0 ? g2 : 0.0f));
-            m = std::min(m, (g2 > 0 ? g2 : 0.0f) + slack - lo[2]);
-            // e x axis k: the segment projects to 0, the box to e . (axis k x c) +- its support.
-            const float a0 = std::fabs(g0), a1 = std::fabs(g1), a2 = std::fabs(g2), d = t.fd[i];
-            const float s0 = std::fabs(ex * w[0][0] + ey * w[0][1] + ez * w[0][2]);
-            const float s1 = std::fabs(ex * w[1][0] + ey * w[1][1] + ez * w[1][2]);
-            const float s2 = std::fabs(ex * w[2][0] + ey * w[2][1] + ez * w[2][2]);
-            m = std::min(m, hf[1] * a2 + hf[2] * a1 + tol * d - s0);
-            m = std::min(m, hf[0] * a2 + hf[2] * a0 + tol * d - s1);
-            m = std::min(m, hf[0] * a1 + hf[1] * a0 + tol * d - s2);
-            margin[i] = m;
+        uint64_t keep = 0;
+        // Per lane, the smallest margin of the 9 checks (>= 0: no separating axis): on box axis k, the segment's
+        // shadow [min(0, g), max(0, g)] must meet [lo, hi]; on e x axis k, where the segment projects to 0, the
+        // box's centre projects to e . (axis k x c) = e . w[k], and its support is hf[j] |g[m]| + hf[m] |g[j]|.
+#if defined(__SSE2__)
+        const __m128 zero = _mm_setzero_ps(), sign = _mm_set1_ps(-0.0f), micro = _mm_set1_ps(1e-6f), vtol = _mm_set1_ps(tol);
+        for (uint32_t i = begin; i < end; i += 4) {
+            if (!(subset >> i & 15)) continue;  // no point in these 4 lanes (the subset is often sparse)
+            const __m128 ex = _mm_load_ps(t.ex + i), ey = _mm_load_ps(t.ey + i), ez = _mm_load_ps(t.ez + i), d = _mm_load_ps(t.fd + i);
+            const __m128 slack = _mm_mul_ps(micro, d);
+            auto dot = [&](const float* v) {
+                return _mm_add_ps(_mm_add_ps(_mm_mul_ps(ex, _mm_set1_ps(v[0])), _mm_mul_ps(ey, _mm_set1_ps(v[1]))),
+                                  _mm_mul_ps(ez, _mm_set1_ps(v[2])));
+            };
+            const __m128 g[3] = {dot(ax[0]), dot(ax[1]), dot(ax[2])};
+            __m128 m = _mm_set1_ps(INFINITY);
+            for (int k = 0; k < 3; ++k) {
+                m = _mm_min_ps(m, _mm_sub_ps(_mm_add_ps(_mm_set1_ps(hi[k]), slack), _mm_min_ps(g[k], zero)));
+                m = _mm_min_ps(m, _mm_sub_ps(_mm_add_ps(_mm_max_ps(g[k], zero), slack), _mm_set1_ps(lo[k])));
+            }
+            const __m128 a[3] = {_mm_andnot_ps(sign, g[0]), _mm_andnot_ps(sign, g[1]), _mm_andnot_ps(sign, g[2])};
+            const __m128 td = _mm_mul_ps(vtol, d);
+            for (int k = 0; k < 3; ++k) {
+                const int j = (k + 1) % 3, n = (k + 2) % 3;
+                __m128 support = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(hf[j]), a[n]), _mm_mul_ps(_mm_set1_ps(hf[n]), a[j])), td);
+                m = _mm_min_ps(m, _mm_sub_ps(support, _mm_andnot_ps(sign, dot(w[k]))));
+            }
+            keep |= uint64_t(_mm_movemask_ps(_mm_cmpge_ps(m, zero))) << i;
         }
-        subset &= shadow_detail::nonnegative_bits(margin, begin, end);
+#else
+        for (uint32_t i = begin; i < end; ++i) {
+            const float ex = t.ex[i], ey = t.ey[i], ez = t.ez[i], d = t.fd[i], slack = 1e-6f * d;
+            float g[3], m = INFINITY;
+            for (int k = 0; k < 3; ++k) {
+                g[k] = ex * ax[k][0] + ey * ax[k][1] + ez * ax[k][2];
+                m = std::min(m, hi[k] + slack - std::min(g[k], 0.0f));
+                m = std::min(m, std::max(g[k], 0.0f) + slack - lo[k]);
+            }
+            for (int k = 0; k < 3; ++k) {
+                const int j = (k + 1) % 3, n = (k + 2) % 3;
+                m = std::min(m, hf[j] * std::fabs(g[n]) + hf[n] * std::fabs(g[j]) + tol * d -
+                                    std::fabs(ex * w[k][0] + ey * w[k][1] + ez * w[k][2]));
+            }
+            keep |= uint64_t(m >= 0) << i;
+        }
+#endif
+        subset &= keep;
         return true;
     }
 
@@ -748,17 +771,30 @@ private:
     uint64_t sphere_points(uint32_t f, uint64_t subset, const Tile& t) const {
         const uint32_t begin = shadow_detail::lowest_bit(subset) & ~3u, end = 64 - (shadow_detail::leading_zeros(subset) & ~3u);
         const float cx = sx_[f], cy = sy_[f], cz = sz_[f], r = sr_[f], r2 = r * r;
-        alignas(16) float margin[tile_capacity];
-        for (uint32_t i = begin; i < end; ++i) {
-            float ex = t.ex[i], ey = t.ey[i], ez = t.ez[i], d = t.fd[i];
-            float a = cy * ez - cz * ey, b = cz * ex - cx * ez, c = cx * ey - cy * ex;
-            float along = cx * ex + cy * ey + cz * ez;
-            float m = r2 * d * d - (a * a + b * b + c * c);
-            float lo = along + r * d, hi = (d + r) * d - along;
-            m = lo < m ? lo : m;
-            margin[i] = hi < m ? hi : m;
+        uint64_t keep = 0;
+#if defined(__SSE2__)
+        const __m128 x = _mm_set1_ps(cx), y = _mm_set1_ps(cy), z = _mm_set1_ps(cz), vr = _mm_set1_ps(r), vr2 = _mm_set1_ps(r2);
+        for (uint32_t i = begin; i < end; i += 4) {
+            if (!(subset >> i & 15)) continue;
+            const __m128 ex = _mm_load_ps(t.ex + i), ey = _mm_load_ps(t.ey + i), ez = _mm_load_ps(t.ez + i), d = _mm_load_ps(t.fd + i);
+            const __m128 a = _mm_sub_ps(_mm_mul_ps(y, ez), _mm_mul_ps(z, ey)), b = _mm_sub_ps(_mm_mul_ps(z, ex), _mm_mul_ps(x, ez)),
+                         c = _mm_sub_ps(_mm_mul_ps(x, ey), _mm_mul_ps(y, ex));
+            const __m128 along = _mm_add_ps(_mm_add_ps(_mm_mul_ps(x, ex), _mm_mul_ps(y, ey)), _mm_mul_ps(z, ez));
+            const __m128 cross2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(a, a), _mm_mul_ps(b, b)), _mm_mul_ps(c, c));
+            __m128 m = _mm_sub_ps(_mm_mul_ps(_mm_mul_ps(vr2, d), d), cross2);
+            m = _mm_min_ps(m, _mm_add_ps(along, _mm_mul_ps(vr, d)));
+            m = _mm_min_ps(m, _mm_sub_ps(_mm_mul_ps(_mm_add_ps(d, vr), d), along));
+            keep |= uint64_t(_mm_movemask_ps(_mm_cmpge_ps(m, _mm_setzero_ps()))) << i;
         }
-        return shadow_detail::nonnegative_bits(margin, begin, end) & subset;
+#else
+        for (uint32_t i = begin; i < end; ++i) {
+            const float ex = t.ex[i], ey = t.ey[i], ez = t.ez[i], d = t.fd[i];
+            const float a = cy * ez - cz * ey, b = cz * ex - cx * ez, c = cx * ey - cy * ex, along = cx * ex + cy * ey + cz * ez;
+            const float m = std::min(std::min(r2 * d * d - (a * a + b * b + c * c), along + r * d), (d + r) * d - along);
+            keep |= uint64_t(m >= 0) << i;
+        }
+#endif
+        return keep & subset;
     }
 
     // Scan mode: the fine clusters `range` of an entered coarse cluster whose sphere may meet the pyramid of
@@ -788,19 +824,33 @@ private:
             nx[r] = float(n[0] / l), ny[r] = float(n[1] / l), nz[r] = float(n[2] / l);
         }
         const float dmax = round_up(P.dmax), slack = round_up(1e-6 * P.dmax);
-        alignas(16) uint8_t keep[256];
-        for (uint32_t first = range.first; first < range.first + range.count; first += 256) {
-            const uint32_t count = std::min<uint32_t>(256, range.first + range.count - first);
+        const uint32_t stop = range.first + range.count;
+        for (uint32_t first = range.first; first < stop; first += 64) {
+            const uint32_t count = std::min<uint32_t>(64, stop - first);
             const float *x = &sx_[first], *y = &sy_[first], *z = &sz_[first], *rr = &sr_[first], *nr = &snear_[first];
-            for (uint32_t j = 0; j < count; ++j) {
-                float reach = -(rr[j] + slack);
-                bool k = nr[j] <= dmax;
-                for (int r = 0; r < 4; ++r) k &= nx[r] * x[j] + ny[r] * y[j] + nz[r] * z[j] >= reach;
-                keep[j] = k;
+            uint64_t keep = 0;  // bit j: sphere first + j may meet the pyramid, nearer than its farthest point
+            uint32_t j = 0;
+#if defined(__SSE2__)
+            const __m128 vd = _mm_set1_ps(dmax), vs = _mm_set1_ps(slack), sign = _mm_set1_ps(-0.0f);
+            for (; j + 4 <= count; j += 4) {
+                const __m128 cx = _mm_loadu_ps(x + j), cy = _mm_loadu_ps(y + j), cz = _mm_loadu_ps(z + j);
+                const __m128 reach = _mm_xor_ps(sign, _mm_add_ps(_mm_loadu_ps(rr + j), vs));  // -(r + slack)
+                __m128 k = _mm_cmple_ps(_mm_loadu_ps(nr + j), vd);
+                for (int r = 0; r < 4; ++r) {
+                    __m128 side = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(nx[r]), cx), _mm_mul_ps(_mm_set1_ps(ny[r]), cy)),
+                                             _mm_mul_ps(_mm_set1_ps(nz[r]), cz));
+                    k = _mm_and_ps(k, _mm_cmpge_ps(side, reach));
+                }
+                keep |= uint64_t(_mm_movemask_ps(k)) << j;
             }
-            for (uint32_t j = 0; j < count; ++j) {
-                if (!keep[j]) continue;
-                uint32_t f = first + j;
+#endif
+            for (; j < count; ++j) {
+                bool k = nr[j] <= dmax;
+                for (int r = 0; r < 4; ++r) k &= nx[r] * x[j] + ny[r] * y[j] + nz[r] * z[j] >= -(rr[j] + slack);
+                keep |= uint64_t(k) << j;
+            }
+            for (; keep; keep &= keep - 1) {
+                uint32_t f = first + shadow_detail::lowest_bit(keep);
                 uint64_t near = sphere_points(f, in, t);
                 if (!near || skippable_fine(f)) continue;
                 if (t.pending_count == Tile::pending_capacity) test_pending(t);
