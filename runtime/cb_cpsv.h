@@ -396,7 +396,7 @@ private:
 
     // The smallest and largest sine of the pyramid's rays against the plane with normal n (4 at once with SSE).
     static void ray_sines(const float* n, const Pyramid& P, float& smin, float& smax) {
-#if defined(__SSE2__)
+#ifdef CB_SSE2
         __m128 s = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(n[0]), _mm_load_ps(P.rx)), _mm_mul_ps(_mm_set1_ps(n[1]), _mm_load_ps(P.ry))),
                               _mm_mul_ps(_mm_set1_ps(n[2]), _mm_load_ps(P.rz)));
         __m128 swapped = _mm_shuffle_ps(s, s, _MM_SHUFFLE(1, 0, 3, 2));
@@ -556,7 +556,7 @@ private:
         // Per lane, the smallest margin of the 9 checks (>= 0: no separating axis): on box axis k, the segment's
         // shadow [min(0, g), max(0, g)] must meet [lo, hi]; on e x axis k, where the segment projects to 0, the
         // box's centre projects to e . (axis k x c) = e . w[k], and its support is hf[j] |g[m]| + hf[m] |g[j]|.
-#if defined(__SSE2__)
+#ifdef CB_SSE2
         const __m128 zero = _mm_setzero_ps(), sign = _mm_set1_ps(-0.0f), micro = _mm_set1_ps(1e-6f), vtol = _mm_set1_ps(tol);
         for (uint32_t i = begin; i < end; i += 4) {
             if (!(subset >> i & 15)) continue;  // no point in these 4 lanes (the subset is often sparse)
@@ -772,7 +772,7 @@ private:
         const uint32_t begin = shadow_detail::lowest_bit(subset) & ~3u, end = 64 - (shadow_detail::leading_zeros(subset) & ~3u);
         const float cx = sx_[f], cy = sy_[f], cz = sz_[f], r = sr_[f], r2 = r * r;
         uint64_t keep = 0;
-#if defined(__SSE2__)
+#ifdef CB_SSE2
         const __m128 x = _mm_set1_ps(cx), y = _mm_set1_ps(cy), z = _mm_set1_ps(cz), vr = _mm_set1_ps(r), vr2 = _mm_set1_ps(r2);
         for (uint32_t i = begin; i < end; i += 4) {
             if (!(subset >> i & 15)) continue;
@@ -830,7 +830,7 @@ private:
             const float *x = &sx_[first], *y = &sy_[first], *z = &sz_[first], *rr = &sr_[first], *nr = &snear_[first];
             uint64_t keep = 0;  // bit j: sphere first + j may meet the pyramid, nearer than its farthest point
             uint32_t j = 0;
-#if defined(__SSE2__)
+#ifdef CB_SSE2
             const __m128 vd = _mm_set1_ps(dmax), vs = _mm_set1_ps(slack), sign = _mm_set1_ps(-0.0f);
             for (; j + 4 <= count; j += 4) {
                 const __m128 cx = _mm_loadu_ps(x + j), cy = _mm_loadu_ps(y + j), cz = _mm_loadu_ps(z + j);

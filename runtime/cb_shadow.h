@@ -32,7 +32,10 @@
 #include "cb_asset.h"
 #include "cb_exact.h"
 
-#if defined(__SSE2__)
+// The filters run 4 lanes at a time with SSE2 where the compiler targets it; CB_NO_SIMD selects their
+// portable loops instead (same answers; the tests build both).
+#if defined(__SSE2__) && !defined(CB_NO_SIMD)
+#define CB_SSE2 1
 #include <emmintrin.h>
 #endif
 
@@ -294,7 +297,7 @@ inline uint32_t leading_zeros(uint64_t x) {  // x != 0
 // masks 4 at a time where there is SSE2.
 inline uint64_t nonnegative_bits(const float* v, uint32_t begin, uint32_t end) {
     uint64_t bits = 0;
-#if defined(__SSE2__)
+#ifdef CB_SSE2
     const __m128 zero = _mm_setzero_ps();
     for (uint32_t i = begin; i < end; i += 4) bits |= uint64_t(_mm_movemask_ps(_mm_cmpge_ps(_mm_loadu_ps(v + i), zero))) << i;
 #else
