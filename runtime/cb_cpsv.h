@@ -255,7 +255,7 @@ public:
     // own volume (its 4 planes and closing distance) before its cluster's triangles, so a point meets the
     // clusters whose volumes hold it, as its own walk would. Points too far from the tile's mean direction
     // (over 60 degrees), at the light or not finite walk alone. `stack` holds stack_size() entries; uses
-    // about 8 KB of the thread's stack besides (and cluster_blocks_points' 9 KB).
+    // about 8 KB of the thread's stack besides (and cluster_blocks_points' 10 KB).
     uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t* stack,
                            QueryStats* stats = nullptr) const {
         if (!usable_ || alive == 0) return 0;

@@ -336,6 +336,9 @@ struct LitTriangles {
     bool two_sided[lit_capacity];
     double nx[3][lit_capacity], ny[3][lit_capacity], nz[3][lit_capacity];  // edge plane normals
     double scale[3][lit_capacity];  // |u|_1 |v|_1: times det_error |e|_1, it bounds the dot product's error
+    // The normals in float, for a first line test 4 triangles an instruction; times |e|_1, fbound bounds the
+    // float dot product's distance from the exact value.
+    alignas(16) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
     double dq[lit_capacity], bq[lit_capacity];  // orient3d(a, b, c, light) and its error bound
     double max_scale = 0;  // the largest scale: |e|_1 times it bounds every dot product
 };
@@ -390,11 +393,18 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
             out.nx[k][t] = n[k][0], out.ny[k][t] = n[k][1], out.nz[k][t] = n[k][2];
             out.scale[k][t] = a1[k] * a1[(k + 1) % 3];
             out.max_scale = std::max(out.max_scale, out.scale[k][t]);
+            // Rounding e and n to float and the float dot product err by under 6 float epsilons of
+            // |e|_1 |n|_max <= |e|_1 scale (4e-7 of it), on top of the double value's own bound; grown for
+            // its own rounding.
+            out.fx[k][t] = float(n[k][0]), out.fy[k][t] = float(n[k][1]), out.fz[k][t] = float(n[k][2]);
+            out.fbound[k][t] = float((4e-7 + det_error) * 1.001 * out.scale[k][t]);
         }
         // orient3d(a, b, c, light) = a . (b x c), with b x c edge 1's normal.
         out.dq[t] = dot3(a[0], n[1]), out.bq[t] = det_error * a1[0] * a1[1] * a1[2];
         out.two_sided[t] = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t);
     }
+    for (uint32_t t = count; t < ((count + 3) & ~3u); ++t)  // the float line test's last group: never settled
+        for (int k = 0; k < 3; ++k) out.fx[k][t] = out.fy[k][t] = out.fz[k][t] = out.fbound[k][t] = 0;
 }
 
 // True when segment p -> light meets a triangle of `lit` that blocks; the same answers as
@@ -406,30 +416,48 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
 inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const double* light, QueryStats* stats, bool* touched) {
     const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
     const double edge_scale = det_error * (std::fabs(e0) + std::fabs(e1) + std::fabs(e2));
-    // Above 0 where the line certainly misses the triangle: every edge sign settled (|o| beyond its bound)
-    // and not all alike. Branch-free, so that it runs over 2 or 4 triangles per instruction; only when no
-    // dot product can overflow (otherwise every triangle goes to the careful loop below). A float pass
-    // was tried: its wider bound leaves the triangles around the point to the careful loop, and it is slower.
-    double miss[lit_capacity];
-    if ((std::fabs(e0) + std::fabs(e1) + std::fabs(e2)) * lit.max_scale < 1e300) {
-        for (uint32_t t = 0; t < lit.count; ++t) {
-            double o0 = e0 * lit.nx[0][t] + e1 * lit.ny[0][t] + e2 * lit.nz[0][t];
-            double o1 = e0 * lit.nx[1][t] + e1 * lit.ny[1][t] + e2 * lit.nz[1][t];
-            double o2 = e0 * lit.nx[2][t] + e1 * lit.ny[2][t] + e2 * lit.nz[2][t];
-            double s0 = std::fabs(o0) - edge_scale * lit.scale[0][t];  // the sign of a difference is exact
-            double s1 = std::fabs(o1) - edge_scale * lit.scale[1][t];
-            double s2 = std::fabs(o2) - edge_scale * lit.scale[2][t];
-            double lo = o0 < o1 ? o0 : o1, hi = o0 > o1 ? o0 : o1, settled = s0 < s1 ? s0 : s1;
-            lo = lo < o2 ? lo : o2, hi = hi > o2 ? hi : o2, settled = settled < s2 ? settled : s2;
-            double m = settled < -lo ? settled : -lo;  // > 0: settled, and some edge negative
-            miss[t] = m < hi ? m : hi;                 // and some edge positive
+    // Bit t set where the line may meet triangle t: not every edge sign settled (|o| beyond its bound), or
+    // all alike. First in float, 4 triangles an instruction, then the others in double; only when nothing
+    // can overflow or fall to subnormals (the 1e-30 absolute term stands for the latter); otherwise every
+    // triangle goes to the careful loop below.
+    uint32_t may_meet = lit.count == 32 ? ~0u : (1u << lit.count) - 1;
+    const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2);
+    if (e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20) {
+        const float f0 = float(e0), f1 = float(e1), f2 = float(e2), fl1 = float(e_l1 * 1.000001);
+        uint32_t missed = 0;
+        uint32_t t = 0;
+#ifdef CB_SSE2
+        const __m128 v0 = _mm_set1_ps(f0), v1 = _mm_set1_ps(f1), v2 = _mm_set1_ps(f2), vl = _mm_set1_ps(fl1);
+        const __m128 tiny = _mm_set1_ps(1e-30f), sign = _mm_set1_ps(-0.0f), zero = _mm_setzero_ps();
+        for (; t < lit.count; t += 4) {  // the last group padded (light_triangles)
+            __m128 lo = _mm_set1_ps(INFINITY), hi = _mm_set1_ps(-INFINITY), settled = _mm_castsi128_ps(_mm_set1_epi32(-1));
+            for (int k = 0; k < 3; ++k) {
+                __m128 o = _mm_add_ps(_mm_add_ps(_mm_mul_ps(v0, _mm_load_ps(lit.fx[k] + t)), _mm_mul_ps(v1, _mm_load_ps(lit.fy[k] + t))),
+                                      _mm_mul_ps(v2, _mm_load_ps(lit.fz[k] + t)));
+                __m128 bound = _mm_add_ps(_mm_mul_ps(vl, _mm_load_ps(lit.fbound[k] + t)), tiny);
+                settled = _mm_and_ps(settled, _mm_cmpgt_ps(_mm_andnot_ps(sign, o), bound));
+                lo = _mm_min_ps(lo, o), hi = _mm_max_ps(hi, o);
+            }
+            __m128 miss = _mm_and_ps(settled, _mm_and_ps(_mm_cmplt_ps(lo, zero), _mm_cmpgt_ps(hi, zero)));
+            missed |= uint32_t(_mm_movemask_ps(miss)) << t;
         }
-    } else {
-        for (uint32_t t = 0; t < lit.count; ++t) miss[t] = 0;
+#endif
+        // (without SSE2, every triangle here)
+        for (; t < lit.count; ++t) {
+            bool settled = true;
+            float lo = INFINITY, hi = -INFINITY;
+            for (int k = 0; k < 3; ++k) {
+                float o = f0 * lit.fx[k][t] + f1 * lit.fy[k][t] + f2 * lit.fz[k][t];
+                settled = settled && std::fabs(o) > fl1 * lit.fbound[k][t] + 1e-30f;
+                lo = std::min(lo, o), hi = std::max(hi, o);
+            }
+            missed |= uint32_t(settled && lo < 0 && hi > 0) << t;
+        }
+        may_meet &= ~missed;
     }
     if (stats) stats->triangles_tested += lit.count;
-    for (uint32_t t = 0; t < lit.count; ++t) {
-        if (miss[t] > 0) continue;  // the line passes outside
+    for (; may_meet; may_meet &= may_meet - 1) {
+        const uint32_t t = lowest_bit(may_meet);
         double o[3];
         bool settled = true;
         for (int k = 0; k < 3; ++k) {
@@ -470,7 +498,7 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
 // Which of the points p[i], i in `which` (bits of a mask), the triangles of fine cluster `f` (mesh-local)
 // of `mesh` shadow from the light, in the mesh's frame: the same answers as cb::segment_triangle on each
 // triangle. The light's terms are computed once for all the points, 32 triangles at a time. Sets *touched
-// when an exactly tested triangle was touched. Uses about 9 KB of stack.
+// when an exactly tested triangle was touched. Uses about 10 KB of stack.
 inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double (*p)[3], uint64_t which,
                                       const double* light, bool one_sided, QueryStats* stats, bool* touched = nullptr) {
     using namespace shadow_detail;
