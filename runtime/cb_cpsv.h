@@ -474,7 +474,7 @@ private:
             const double* e = t.e[i];
             double depth = shadow_detail::dot3(e, z);
             if (!(depth > 0.5 * t.dist[i])) continue;  // over 60 degrees off: walks alone
-            double x = shadow_detail::dot3(e, a) / depth, y = shadow_detail::dot3(e, b) / depth;
+            double inv = 1 / depth, x = shadow_detail::dot3(e, a) * inv, y = shadow_detail::dot3(e, b) * inv;
             lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y), hi[1] = std::max(hi[1], y);
             out.dmin = std::min(out.dmin, t.dist[i]), out.dmax = std::max(out.dmax, t.dist[i]);
             held |= uint64_t(1) << i;
