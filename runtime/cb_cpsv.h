@@ -797,8 +797,8 @@ private:
         return keep & subset;
     }
 
-    // Asks for fine cluster f's box, record and first triangles ahead of its test (pending clusters are tested
-    // once the whole coarse cluster is scanned): on large meshes these reads otherwise miss the cache.
+    // Asks for fine cluster f's box and record ahead of its test (pending clusters are tested once the whole
+    // coarse cluster is scanned): on large meshes these reads otherwise miss the cache.
     void prefetch(uint32_t f) const {
 #if defined(__GNUC__)
         const size_t g = size_t(mesh_->first_fine) + f;
