@@ -421,6 +421,7 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
     // can overflow or fall to subnormals (the 1e-30 absolute term stands for the latter); otherwise every
     // triangle goes to the careful loop below.
     uint32_t may_meet = lit.count == 32 ? ~0u : (1u << lit.count) - 1;
+    uint32_t through = 0;  // bit t: every edge sign settled and alike, so the line passes through the interior
     const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2);
     if (e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20) {
         const float f0 = float(e0), f1 = float(e1), f2 = float(e2), fl1 = float(e_l1 * 1.000001);
@@ -438,8 +439,9 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
                 settled = _mm_and_ps(settled, _mm_cmpgt_ps(_mm_andnot_ps(sign, o), bound));
                 lo = _mm_min_ps(lo, o), hi = _mm_max_ps(hi, o);
             }
-            __m128 miss = _mm_and_ps(settled, _mm_and_ps(_mm_cmplt_ps(lo, zero), _mm_cmpgt_ps(hi, zero)));
-            missed |= uint32_t(_mm_movemask_ps(miss)) << t;
+            __m128 mixed = _mm_and_ps(_mm_cmplt_ps(lo, zero), _mm_cmpgt_ps(hi, zero));
+            missed |= uint32_t(_mm_movemask_ps(_mm_and_ps(settled, mixed))) << t;
+            through |= uint32_t(_mm_movemask_ps(_mm_andnot_ps(mixed, settled))) << t;
         }
 #endif
         // (without SSE2, every triangle here)
@@ -452,19 +454,24 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
                 lo = std::min(lo, o), hi = std::max(hi, o);
             }
             missed |= uint32_t(settled && lo < 0 && hi > 0) << t;
+            through |= uint32_t(settled && !(lo < 0 && hi > 0)) << t;
         }
         may_meet &= ~missed;
+        through &= may_meet;  // not the padding
     }
     if (stats) stats->triangles_tested += lit.count;
     for (; may_meet; may_meet &= may_meet - 1) {
         const uint32_t t = lowest_bit(may_meet);
-        double o[3];
-        bool settled = true;
-        for (int k = 0; k < 3; ++k) {
-            o[k] = e0 * lit.nx[k][t] + e1 * lit.ny[k][t] + e2 * lit.nz[k][t];
-            settled = settled && std::fabs(o[k]) > edge_scale * lit.scale[k][t];
+        bool settled = through >> t & 1;
+        if (!settled) {  // the signs in double
+            double o[3];
+            settled = true;
+            for (int k = 0; k < 3; ++k) {
+                o[k] = e0 * lit.nx[k][t] + e1 * lit.ny[k][t] + e2 * lit.nz[k][t];
+                settled = settled && std::fabs(o[k]) > edge_scale * lit.scale[k][t];
+            }
+            if (settled && ((o[0] > 0) != (o[1] > 0) || (o[1] > 0) != (o[2] > 0))) continue;  // the line passes outside
         }
-        if (settled && ((o[0] > 0) != (o[1] > 0) || (o[1] > 0) != (o[2] > 0))) continue;  // the line passes outside
         bool decided = false, blocks = false;
         if (settled && std::fabs(lit.dq[t]) > lit.bq[t]) {
             // Through the interior: the point's side of the plane (the light's is dq).
