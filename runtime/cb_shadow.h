@@ -394,10 +394,11 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
             out.scale[k][t] = a1[k] * a1[(k + 1) % 3];
             out.max_scale = std::max(out.max_scale, out.scale[k][t]);
             // Rounding e and n to float and the float dot product err by under 6 float epsilons of
-            // |e|_1 |n|_max <= |e|_1 scale (4e-7 of it), on top of the double value's own bound; grown for
-            // its own rounding.
+            // |e|_1 |n|_max (4e-7 of it), on top of the double value's own bound; grown for its own rounding.
+            // (|n| is far below scale when the light is far: u and v are then nearly parallel.)
+            const double nmax = std::max(std::max(std::fabs(n[k][0]), std::fabs(n[k][1])), std::fabs(n[k][2]));
             out.fx[k][t] = float(n[k][0]), out.fy[k][t] = float(n[k][1]), out.fz[k][t] = float(n[k][2]);
-            out.fbound[k][t] = float((4e-7 + det_error) * 1.001 * out.scale[k][t]);
+            out.fbound[k][t] = float((4e-7 * nmax + det_error * out.scale[k][t]) * 1.001);
         }
         // orient3d(a, b, c, light) = a . (b x c), with b x c edge 1's normal.
         out.dq[t] = dot3(a[0], n[1]), out.bq[t] = det_error * a1[0] * a1[1] * a1[2];
