@@ -373,6 +373,11 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     out.count = count;
     out.max_scale = 0;
     const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle + first) * 3;
+    if (count & 3) {  // the float line test's last group, padded with zeros (never settled); the loop below fills the rest
+        const uint32_t g = count & ~3u;
+        for (int k = 0; k < 3; ++k)
+            for (uint32_t j = 0; j < 4; ++j) out.fx[k][g + j] = out.fy[k][g + j] = out.fz[k][g + j] = out.fbound[k][g + j] = 0;
+    }
     for (uint32_t t = 0; t < count; ++t) {
         double corner_a[3][3];
         const double* a[3];
@@ -404,8 +409,6 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
         out.dq[t] = dot3(a[0], n[1]), out.bq[t] = det_error * a1[0] * a1[1] * a1[2];
         out.two_sided[t] = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t);
     }
-    for (uint32_t t = count; t < ((count + 3) & ~3u); ++t)  // the float line test's last group: never settled
-        for (int k = 0; k < 3; ++k) out.fx[k][t] = out.fy[k][t] = out.fz[k][t] = out.fbound[k][t] = 0;
 }
 
 // True when segment p -> light meets a triangle of `lit` that blocks; the same answers as
