@@ -105,32 +105,22 @@ public:
             shrink(all, work);
             return;
         }
-        // Two levels: a fine tree per coarse cluster (parts of the coarse clusters on their own threads,
-        // each into its own arrays, then appended in order), then the coarse tree over them.
         const uint32_t coarse_count = mesh_->coarse_count;
-        if (scan_) {  // the coarse tree; its cluster nodes name their fine clusters
-            make_spheres(threads);
-            uint32_t coarse_depth = 0;
-            for (uint32_t c : shuffled(coarse_count)) {
+        if (scan_) {  // the coarse tree, whose cluster nodes name their fine clusters; the fine spheres
+            make_spheres();
+            std::vector<uint8_t> wanted(coarse_count, 1);
+            for (uint32_t c = 0; c < coarse_count; ++c)
+                if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c)))
+                    skipped_ += view.coarse[mesh_->first_coarse + c].count, wanted[c] = 0;
+            depth_ = build_coarse_tree(all, wanted, [&](uint32_t c, Leaf& leaf) {
                 const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
-                if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
-                    skipped_ += r.count;
-                    continue;
-                }
-                ShadowVolume v = make_shadow_volume(view.coarse_bounds.obb(mesh_->first_coarse + c), light_);
-                Leaf leaf;
                 leaf.always = {r.first, r.count};
-                if (!v.valid) {
-                    leaf.near = leaf.near_min = 0;
-                    always_coarse_.push_back(add_leaf(all, leaf));
-                    continue;
-                }
-                insert(all, root_, v, leaf, coarse_depth);
-            }
-            depth_ = coarse_depth + 1;
+            }) + 1;
             shrink(all, work);
             return;
         }
+        // Fine trees: one per coarse cluster (parts of the coarse clusters on their own threads, each into its
+        // own arrays, then appended in order), then the coarse tree over them.
         std::vector<uint32_t> fine_roots(coarse_count, none);
         std::vector<Range> fine_always(coarse_count);
         std::vector<uint8_t> wanted(coarse_count, 1);
@@ -207,20 +197,10 @@ public:
             }
             always_fine_.swap(always);
         }
-        uint32_t coarse_depth = 0;
-        for (uint32_t c : shuffled(coarse_count)) {
-            if (!wanted[c]) continue;
-            ShadowVolume v = make_shadow_volume(view.coarse_bounds.obb(mesh_->first_coarse + c), light_);
-            Leaf leaf;
+        uint32_t coarse_depth = build_coarse_tree(all, wanted, [&](uint32_t c, Leaf& leaf) {
             leaf.fine_root = fine_roots[c];
             leaf.always = fine_always[c];
-            if (!v.valid) {  // the light is in or level with this coarse box: enter its fine tree every time
-                leaf.near = leaf.near_min = 0;
-                always_coarse_.push_back(add_leaf(all, leaf));
-                continue;
-            }
-            insert(all, root_, v, leaf, coarse_depth);
-        }
+        });
         depth_ = coarse_depth + fine_depth + 1;
         shrink(all, work);
     }
@@ -709,8 +689,7 @@ private:
     // to nearest float, but the radius is grown by 2e-5 of itself and of the distance, and the closing
     // distance shrunk by 1e-6 of both: far more than the rounding of the centre and the radius to float
     // (below 1e-7 of the distance) and the errors of the float tests that read them (below 1e-6).
-    // Long meshes split across `threads` threads; each sphere depends on its box only.
-    void make_spheres(unsigned threads) {
+    void make_spheres() {
         const uint32_t n = mesh_->fine_count;
         sx_.resize(n), sy_.resize(n), sz_.resize(n), sr_.resize(n), snear_.resize(n);
         spheres_small_ = false;
@@ -721,29 +700,20 @@ private:
         }
         const PackedObb* boxes = view_->fine_bounds.obbs + mesh_->first_fine;
         const double lx = light_[0], ly = light_[1], lz = light_[2];
-        double largest[16] = {};  // per part: the largest coordinate or radius
-        auto part = [&](uint32_t k, uint32_t begin, uint32_t end) {
-            double big = 0;
-            for (uint32_t f = begin; f < end; ++f) {
-                const PackedObb& b = boxes[f];
-                double h0 = b.half[0], h1 = b.half[1], h2 = b.half[2], pad = 1e-6 * (h0 + h1 + h2);
-                h0 += pad, h1 += pad, h2 += pad;
-                double x = b.center[0] - lx, y = b.center[1] - ly, z = b.center[2] - lz;
-                double dist = std::sqrt(x * x + y * y + z * z), r = std::sqrt(h0 * h0 + h1 * h1 + h2 * h2);
-                r += 2e-5 * (r + dist);
-                sx_[f] = float(x), sy_[f] = float(y), sz_[f] = float(z);
-                sr_[f] = float(r);
-                snear_[f] = float(dist - r - 1e-6 * (dist + r));
-                big = std::max(big, std::max(std::max(std::fabs(x), std::fabs(y)), std::max(std::fabs(z), r)));
-            }
-            largest[k] = big;
-        };
-        const uint32_t parts = n >= 65536 ? std::max(1u, std::min(threads, 16u)) : 1;
-        std::vector<std::thread> pool;
-        for (uint32_t k = 1; k < parts; ++k) pool.emplace_back(part, k, uint32_t(uint64_t(n) * k / parts), uint32_t(uint64_t(n) * (k + 1) / parts));
-        part(0, 0, uint32_t(n / parts));
-        for (std::thread& t : pool) t.join();
-        spheres_small_ = *std::max_element(largest, largest + parts) < float_safe;
+        double big = 0;  // the largest coordinate or radius
+        for (uint32_t f = 0; f < n; ++f) {
+            const PackedObb& b = boxes[f];
+            double h0 = b.half[0], h1 = b.half[1], h2 = b.half[2], pad = 1e-6 * (h0 + h1 + h2);
+            h0 += pad, h1 += pad, h2 += pad;
+            double x = b.center[0] - lx, y = b.center[1] - ly, z = b.center[2] - lz;
+            double dist = std::sqrt(x * x + y * y + z * z), r = std::sqrt(h0 * h0 + h1 * h1 + h2 * h2);
+            r += 2e-5 * (r + dist);
+            sx_[f] = float(x), sy_[f] = float(y), sz_[f] = float(z);
+            sr_[f] = float(r);
+            snear_[f] = float(dist - r - 1e-6 * (dist + r));
+            big = std::max(big, std::max(std::max(std::fabs(x), std::fabs(y)), std::max(std::fabs(z), r)));
+        }
+        spheres_small_ = big < float_safe;
     }
 
     bool skippable_fine(uint32_t f) const {
@@ -996,6 +966,27 @@ private:
         for (uint32_t t = triangles.first; t < triangles.first + triangles.count; ++t)
             if (view_->double_sided(size_t(mesh_->first_triangle) + t)) return false;
         return true;
+    }
+
+    // The tree over the coarse clusters set in `wanted`, in the shuffled order, into root_; `fill(c, leaf)`
+    // says where each one's cluster node leads. A coarse cluster whose box holds the light (or is level
+    // with it) gets no volume: its node goes to always_coarse_, entered by every point. Returns the depth.
+    template <class Fill>
+    uint32_t build_coarse_tree(Nodes& all, const std::vector<uint8_t>& wanted, Fill fill) {
+        uint32_t depth = 0;
+        for (uint32_t c : shuffled(mesh_->coarse_count)) {
+            if (!wanted[c]) continue;
+            ShadowVolume v = make_shadow_volume(view_->coarse_bounds.obb(mesh_->first_coarse + c), light_);
+            Leaf leaf;
+            fill(c, leaf);
+            if (!v.valid) {
+                leaf.near = leaf.near_min = 0;
+                always_coarse_.push_back(add_leaf(all, leaf));
+                continue;
+            }
+            insert(all, root_, v, leaf, depth);
+        }
+        return depth;
     }
 
     // A tree over the fine clusters [first, first + count) of the mesh; returns its root. Clusters without
