@@ -18,13 +18,17 @@ struct Baked {
     cb::Scene scene;                // what was baked: oracles built from it do not depend on the encoding
 };
 
+// `fine_bounds` false drops the fine level's volumes before encoding, leaving the coarse ones: an asset the
+// tools never write, but a hand-made file may be.
 inline Baked bake_scene(const cb::Scene& scene, const cb::ClusterOptions& clustering = {},
-                        uint32_t bounds = cb::bounds_auto, unsigned threads = 0) {
+                        uint32_t bounds = cb::bounds_auto, unsigned threads = 0, bool fine_bounds = true) {
     cb::BakeStats stats;
     std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, clustering, stats);
     cb::BoundsOptions b;
     b.mask = bounds;
     cb::fit_scene_bounds(meshes, b, threads, stats);
+    if (!fine_bounds)
+        for (cb::AssetMesh& m : meshes) m.fine_volumes = {};
     std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
     Baked out;
     out.storage.resize((bytes.size() + 7) / 8);

@@ -134,7 +134,9 @@ void check_all(const Soup& s, const char* what, int expect_cone) {
         EXPECT_EQ(containment_misses(b, s.positions.data(), s.indices.data(), tris.data(), tris.size()), 0u) << int(method);
         std::mt19937 rng(1);
         EXPECT_EQ(cone_violations(b, s.positions.data(), s.indices.data(), tris.data(), tris.size(), rng, 50), 0u);
-        if (expect_cone >= 0) EXPECT_EQ(bool(b.cone.valid), expect_cone == 1);
+        if (expect_cone >= 0) {
+            EXPECT_EQ(bool(b.cone.valid), expect_cone == 1);
+        }
     }
 }
 

@@ -385,6 +385,52 @@ TEST(Shadow, ParallelBuildGivesTheSameTree) {
     EXPECT_GT(split, 0u);  // some build really ran on 3 threads
 }
 
+// An asset with coarse boxes but no fine ones: the coarse tree is built, and every fine cluster of an entered
+// coarse cluster is tested (scan: spheres that hold everything; fine trees: every fine cluster without a
+// volume). Answers as the reference's, which tests every cluster then.
+TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
+    Baked b = cb::test::bake_scene(cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"), {}, cb::bounds_auto, 1,
+                                   /*fine_bounds=*/false);
+    ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
+    const cb::AssetView& v = b.view;
+    ASSERT_TRUE(v.coarse_bounds.obbs != nullptr);
+    ASSERT_TRUE(v.fine_bounds.obbs == nullptr);
+    WorldSample world = sample_scene(b.scene, 1);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<double> points;
+    for (int k = 0; k < 1500; ++k) {
+        if (k % 2 == 0) {
+            const auto& s = world.surface[size_t(k) * 7919 % world.surface.size()];
+            points.insert(points.end(), s.begin(), s.end());
+        } else {
+            for (int j = 0; j < 3; ++j) points.push_back(world.lo[j] + (world.hi[j] - world.lo[j]) * (1.2 * u(rng) - 0.1));
+        }
+    }
+    const size_t n = points.size() / 3;
+    const double light[3] = {-4, 30, 2};
+    std::vector<uint8_t> reference(n);
+    size_t shadowed = 0;
+    for (size_t k = 0; k < n; ++k) shadowed += reference[k] = cb::occluded_reference(v, &points[k * 3], light);
+    EXPECT_GT(shadowed, 50u);
+    using Level = cb::ClusterShadowTree::FineLevel;
+    for (Level level : {Level::scan, Level::trees, Level::one_tree}) {
+        std::vector<cb::ClusterShadowTree> trees(v.instance_count);
+        for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light, false, level);
+        std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
+        std::vector<uint8_t> batch(n);
+        cb::occluded_batch(trees.data(), trees.size(), points.data(), n, batch.data(), scratch.data());
+        size_t bad = 0, bad_walk = 0;
+        for (size_t k = 0; k < n; ++k) {
+            bool walk = false;
+            for (const cb::ClusterShadowTree& t : trees) walk = walk || t.occluded(&points[k * 3], scratch.data());
+            bad += batch[k] != reference[k], bad_walk += walk != bool(reference[k]);
+        }
+        EXPECT_EQ(bad, 0u) << "fine level " << int(level);
+        EXPECT_EQ(bad_walk, 0u) << "fine level " << int(level);
+    }
+}
+
 namespace {
 
 // A scene of one mesh and one identity instance, baked in memory with small clusters.
