@@ -473,11 +473,17 @@ private:
         return held;
     }
 
-    // A coarse cluster's fine tree, walked by the points `in` with a pyramid refitted to them when they are
-    // not all the tile's live points (narrower, so fewer fine volumes are straddled).
-    void walk_fine_tree(uint32_t root, uint64_t in, Tile& t, uint32_t* stack) const {
+    // Refits the tile's pyramid to the points `in` when they are not all its live points (narrower, so fewer
+    // fine volumes or spheres meet it); returns the tile's pyramid, to be put back.
+    static Pyramid narrow_pyramid(Tile& t, uint64_t in) {
         const Pyramid whole = t.pyramid;
         if (in != t.alive && make_pyramid(t, in, t.pyramid) != in) t.pyramid = whole;  // some point off: the tile's
+        return whole;
+    }
+
+    // A coarse cluster's fine tree, walked by the points `in` with the pyramid narrowed to them.
+    void walk_fine_tree(uint32_t root, uint64_t in, Tile& t, uint32_t* stack) const {
+        const Pyramid whole = narrow_pyramid(t, in);
         tile_walk(root, in, t, stack);
         t.pyramid = whole;
     }
@@ -489,7 +495,8 @@ private:
     uint64_t volume_points(const Leaf& leaf, uint64_t subset, uint32_t straddled, const Tile& t) const {
         if (!subset) return 0;
         // Only the groups of 4 slots the subset spans.
-        const uint32_t begin = shadow_detail::lowest_bit(subset) & ~3u, end = 64 - (shadow_detail::leading_zeros(subset) & ~3u);
+        uint32_t begin, end;
+        shadow_detail::lane_span(subset, begin, end);
         alignas(16) float margin[tile_capacity];  // >= 0: inside everything checked (a float difference has the exact sign)
         const float near = leaf.near;
         for (uint32_t i = begin; i < end; ++i) margin[i] = t.fd[i] - near;
@@ -531,7 +538,8 @@ private:
             for (int j = 0; j < 3; ++j) w[k][j] = float(wk[j]), ax[k][j] = box.axis[k][j];
         }
         const float tol = float(2e-6 * (hs + c1));
-        const uint32_t begin = shadow_detail::lowest_bit(subset) & ~3u, end = 64 - (shadow_detail::leading_zeros(subset) & ~3u);
+        uint32_t begin, end;
+        shadow_detail::lane_span(subset, begin, end);
         uint64_t keep = 0;
         // Per lane, the smallest margin of the 9 checks (>= 0: no separating axis): on box axis k, the segment's
         // shadow [min(0, g), max(0, g)] must meet [lo, hi]; on e x axis k, where the segment projects to 0, the
@@ -612,11 +620,10 @@ private:
             if (!in) continue;
             if (scan_) {
                 scan_fine(leaf.always, in, t);
-                test_pending(t);
-                continue;
+            } else {
+                for (uint32_t k = leaf.always.first; k < leaf.always.first + leaf.always.count; ++k) test_points(always_fine_[k], in, t);
+                if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in & t.alive, t, stack);
             }
-            for (uint32_t k = leaf.always.first; k < leaf.always.first + leaf.always.count; ++k) test_points(always_fine_[k], in, t);
-            if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in & t.alive, t, stack);
             test_pending(t);
         }
     }
@@ -739,7 +746,8 @@ private:
     // light passes within the radius (|c x e| <= r |e|) and the sphere is not wholly behind the light or
     // beyond the point. Float, branch-free; the radius holds the float errors (make_spheres).
     uint64_t sphere_points(uint32_t f, uint64_t subset, const Tile& t) const {
-        const uint32_t begin = shadow_detail::lowest_bit(subset) & ~3u, end = 64 - (shadow_detail::leading_zeros(subset) & ~3u);
+        uint32_t begin, end;
+        shadow_detail::lane_span(subset, begin, end);
         const float cx = sx_[f], cy = sy_[f], cz = sz_[f], r = sr_[f], r2 = r * r;
         uint64_t keep = 0;
 #ifdef CB_SSE2
@@ -790,8 +798,7 @@ private:
             }
             return;
         }
-        const Pyramid whole = t.pyramid;
-        if (in != t.alive && make_pyramid(t, in, t.pyramid) != in) t.pyramid = whole;
+        const Pyramid whole = narrow_pyramid(t, in);
         const Pyramid& P = t.pyramid;
         float nx[4], ny[4], nz[4];
         double sum[3] = {0, 0, 0};

@@ -305,6 +305,10 @@ inline uint64_t nonnegative_bits(const float* v, uint32_t begin, uint32_t end) {
 #endif
     return bits;
 }
+// The groups of 4 lanes that nonzero mask `subset` spans: [begin, end), both multiples of 4.
+inline void lane_span(uint64_t subset, uint32_t& begin, uint32_t& end) {
+    begin = lowest_bit(subset) & ~3u, end = 64 - (leading_zeros(subset) & ~3u);
+}
 inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 inline void cross3(const double* a, const double* b, double* out) {
     out[0] = a[1] * b[2] - a[2] * b[1], out[1] = a[2] * b[0] - a[0] * b[2], out[2] = a[0] * b[1] - a[1] * b[0];
@@ -419,14 +423,13 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
 // exactly tested triangle was touched.
 inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const double* light, QueryStats* stats, bool* touched) {
     const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
-    const double edge_scale = det_error * (std::fabs(e0) + std::fabs(e1) + std::fabs(e2));
+    const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2), edge_scale = det_error * e_l1;
     // Bit t set where the line may meet triangle t: not every edge sign settled (|o| beyond its bound), or
     // all alike. First in float, 4 triangles an instruction, then the others in double; only when nothing
     // can overflow or fall to subnormals (the 1e-30 absolute term stands for the latter); otherwise every
     // triangle goes to the careful loop below.
     uint32_t may_meet = lit.count == 32 ? ~0u : (1u << lit.count) - 1;
     uint32_t through = 0;  // bit t: every edge sign settled and alike, so the line passes through the interior
-    const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2);
     if (e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20) {
         const float f0 = float(e0), f1 = float(e1), f2 = float(e2), fl1 = float(e_l1 * 1.000001);
         uint32_t missed = 0;
