@@ -376,7 +376,7 @@ private:
 
     // The smallest and largest sine of the pyramid's rays against the plane with normal n (4 at once with SSE).
     static void ray_sines(const float* n, const Pyramid& P, float& smin, float& smax) {
-#ifdef CB_SSE2
+#ifdef CB_SIMD_SSE2
         __m128 s = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(n[0]), _mm_load_ps(P.rx)), _mm_mul_ps(_mm_set1_ps(n[1]), _mm_load_ps(P.ry))),
                               _mm_mul_ps(_mm_set1_ps(n[2]), _mm_load_ps(P.rz)));
         __m128 swapped = _mm_shuffle_ps(s, s, _MM_SHUFFLE(1, 0, 3, 2));
@@ -398,8 +398,8 @@ private:
         uint64_t shadowed;
         bool small;               // every live point within float_safe of the light: the float filters apply
         double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
-        alignas(16) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
-        alignas(16) float slack[tile_capacity];  // the plane checks' tolerance, 2e-6 of the distance
+        alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
+        alignas(64) float slack[tile_capacity];  // the plane checks' tolerance, 2e-6 of the distance
         Pyramid pyramid;          // holds the points walking now
         // Fine clusters met by the walk and the points inside their volumes, tested nearest to the light
         // first once the whole walk is done (or the list is full): a point in shadow then usually meets
@@ -494,23 +494,27 @@ private:
     // Branch-free over all 64 slots, so that it runs 4 or 8 points to an instruction.
     uint64_t volume_points(const Leaf& leaf, uint64_t subset, uint32_t straddled, const Tile& t) const {
         if (!subset) return 0;
-        // Only the groups of 4 slots the subset spans.
-        uint32_t begin, end;
-        shadow_detail::lane_span(subset, begin, end);
-        alignas(16) float margin[tile_capacity];  // >= 0: inside everything checked (a float difference has the exact sign)
-        const float near = leaf.near;
-        for (uint32_t i = begin; i < end; ++i) margin[i] = t.fd[i] - near;
+        float n[4][3];  // the planes to check
+        int planes = 0;
         if (leaf.first_plane != none)
             for (int k = 0; k < 4; ++k) {
                 if (!(straddled >> k & 1)) continue;
-                const float* n = planes_[leaf.first_plane + k].n;
-                const float n0 = n[0], n1 = n[1], n2 = n[2];
-                for (uint32_t i = begin; i < end; ++i) {
-                    float s = n0 * t.ex[i] + n1 * t.ey[i] + n2 * t.ez[i] + t.slack[i];
-                    margin[i] = s < margin[i] ? s : margin[i];
-                }
+                const float* from = planes_[leaf.first_plane + k].n;
+                n[planes][0] = from[0], n[planes][1] = from[1], n[planes][2] = from[2];
+                ++planes;
             }
-        return shadow_detail::nonnegative_bits(margin, begin, end) & subset;
+        uint32_t begin, end;
+        simd::lane_span(subset, begin, end);
+        const simd::Floats near = simd::splat(leaf.near), zero = simd::splat(0.0f);
+        uint64_t in = 0;
+        for (uint32_t i = begin; i < end; i += simd::width) {
+            if (!simd::group(subset, i)) continue;
+            const simd::Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i), slack = simd::load(t.slack + i);
+            simd::Floats margin = simd::load(t.fd + i) - near;  // >= 0: inside everything checked (a float difference has the exact sign)
+            for (int k = 0; k < planes; ++k) margin = simd::min(margin, simd::dot(ex, ey, ez, n[k][0], n[k][1], n[k][2]) + slack);
+            in |= uint64_t(simd::bits(margin >= zero)) << i;
+        }
+        return in & subset;
     }
 
     // Drops from `subset` the points whose segment to the light certainly misses `box`: separating axis tests
@@ -539,53 +543,33 @@ private:
         }
         const float tol = float(2e-6 * (hs + c1));
         uint32_t begin, end;
-        shadow_detail::lane_span(subset, begin, end);
+        simd::lane_span(subset, begin, end);
         uint64_t keep = 0;
         // Per lane, the smallest margin of the 9 checks (>= 0: no separating axis): on box axis k, the segment's
         // shadow [min(0, g), max(0, g)] must meet [lo, hi]; on e x axis k, where the segment projects to 0, the
         // box's centre projects to e . (axis k x c) = e . w[k], and its support is hf[j] |g[m]| + hf[m] |g[j]|.
-#ifdef CB_SSE2
-        const __m128 zero = _mm_setzero_ps(), sign = _mm_set1_ps(-0.0f), micro = _mm_set1_ps(1e-6f), vtol = _mm_set1_ps(tol);
-        for (uint32_t i = begin; i < end; i += 4) {
-            if (!(subset >> i & 15)) continue;  // no point in these 4 lanes (the subset is often sparse)
-            const __m128 ex = _mm_load_ps(t.ex + i), ey = _mm_load_ps(t.ey + i), ez = _mm_load_ps(t.ez + i), d = _mm_load_ps(t.fd + i);
-            const __m128 slack = _mm_mul_ps(micro, d);
-            auto dot = [&](const float* v) {
-                return _mm_add_ps(_mm_add_ps(_mm_mul_ps(ex, _mm_set1_ps(v[0])), _mm_mul_ps(ey, _mm_set1_ps(v[1]))),
-                                  _mm_mul_ps(ez, _mm_set1_ps(v[2])));
-            };
-            const __m128 g[3] = {dot(ax[0]), dot(ax[1]), dot(ax[2])};
-            __m128 m = _mm_set1_ps(INFINITY);
+        using simd::Floats;
+        const Floats zero = simd::splat(0.0f), micro = simd::splat(1e-6f), vtol = simd::splat(tol);
+        for (uint32_t i = begin; i < end; i += simd::width) {
+            if (!simd::group(subset, i)) continue;  // no point in these lanes (the subset is often sparse)
+            const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i), d = simd::load(t.fd + i);
+            const Floats slack = micro * d;
+            const Floats g[3] = {simd::dot(ex, ey, ez, ax[0][0], ax[0][1], ax[0][2]), simd::dot(ex, ey, ez, ax[1][0], ax[1][1], ax[1][2]),
+                                 simd::dot(ex, ey, ez, ax[2][0], ax[2][1], ax[2][2])};
+            Floats m = simd::splat(INFINITY);
             for (int k = 0; k < 3; ++k) {
-                m = _mm_min_ps(m, _mm_sub_ps(_mm_add_ps(_mm_set1_ps(hi[k]), slack), _mm_min_ps(g[k], zero)));
-                m = _mm_min_ps(m, _mm_sub_ps(_mm_add_ps(_mm_max_ps(g[k], zero), slack), _mm_set1_ps(lo[k])));
+                m = simd::min(m, (simd::splat(hi[k]) + slack) - simd::min(g[k], zero));
+                m = simd::min(m, (simd::max(g[k], zero) + slack) - simd::splat(lo[k]));
             }
-            const __m128 a[3] = {_mm_andnot_ps(sign, g[0]), _mm_andnot_ps(sign, g[1]), _mm_andnot_ps(sign, g[2])};
-            const __m128 td = _mm_mul_ps(vtol, d);
+            const Floats a[3] = {simd::abs(g[0]), simd::abs(g[1]), simd::abs(g[2])};
+            const Floats td = vtol * d;
             for (int k = 0; k < 3; ++k) {
                 const int j = (k + 1) % 3, n = (k + 2) % 3;
-                __m128 support = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(hf[j]), a[n]), _mm_mul_ps(_mm_set1_ps(hf[n]), a[j])), td);
-                m = _mm_min_ps(m, _mm_sub_ps(support, _mm_andnot_ps(sign, dot(w[k]))));
+                const Floats support = simd::splat(hf[j]) * a[n] + simd::splat(hf[n]) * a[j] + td;
+                m = simd::min(m, support - simd::abs(simd::dot(ex, ey, ez, w[k][0], w[k][1], w[k][2])));
             }
-            keep |= uint64_t(_mm_movemask_ps(_mm_cmpge_ps(m, zero))) << i;
+            keep |= uint64_t(simd::bits(m >= zero)) << i;
         }
-#else
-        for (uint32_t i = begin; i < end; ++i) {
-            const float ex = t.ex[i], ey = t.ey[i], ez = t.ez[i], d = t.fd[i], slack = 1e-6f * d;
-            float g[3], m = INFINITY;
-            for (int k = 0; k < 3; ++k) {
-                g[k] = ex * ax[k][0] + ey * ax[k][1] + ez * ax[k][2];
-                m = std::min(m, hi[k] + slack - std::min(g[k], 0.0f));
-                m = std::min(m, std::max(g[k], 0.0f) + slack - lo[k]);
-            }
-            for (int k = 0; k < 3; ++k) {
-                const int j = (k + 1) % 3, n = (k + 2) % 3;
-                m = std::min(m, hf[j] * std::fabs(g[n]) + hf[n] * std::fabs(g[j]) + tol * d -
-                                    std::fabs(ex * w[k][0] + ey * w[k][1] + ez * w[k][2]));
-            }
-            keep |= uint64_t(m >= 0) << i;
-        }
-#endif
         subset &= keep;
         return true;
     }
@@ -698,11 +682,12 @@ private:
     // (below 1e-7 of the distance) and the errors of the float tests that read them (below 1e-6).
     void make_spheres() {
         const uint32_t n = mesh_->fine_count;
-        sx_.resize(n), sy_.resize(n), sz_.resize(n), sr_.resize(n), snear_.resize(n);
+        // Padded by a group of lanes that never passes (the scan reads whole groups past a coarse cluster's end).
+        sx_.assign(n + simd::width, 0.0f), sy_.assign(n + simd::width, 0.0f), sz_.assign(n + simd::width, 0.0f);
+        sr_.assign(n + simd::width, 0.0f), snear_.assign(n + simd::width, INFINITY);
         spheres_small_ = false;
         if (!view_->fine_bounds.obbs) {  // no boxes: spheres that hold everything (and no filtering)
-            std::fill(sx_.begin(), sx_.end(), 0.0f), std::fill(sy_.begin(), sy_.end(), 0.0f), std::fill(sz_.begin(), sz_.end(), 0.0f);
-            std::fill(sr_.begin(), sr_.end(), INFINITY), std::fill(snear_.begin(), snear_.end(), -INFINITY);
+            std::fill(sr_.begin(), sr_.begin() + n, INFINITY), std::fill(snear_.begin(), snear_.begin() + n, -INFINITY);
             return;
         }
         const PackedObb* boxes = view_->fine_bounds.obbs + mesh_->first_fine;
@@ -747,31 +732,21 @@ private:
     // beyond the point. Float, branch-free; the radius holds the float errors (make_spheres).
     uint64_t sphere_points(uint32_t f, uint64_t subset, const Tile& t) const {
         uint32_t begin, end;
-        shadow_detail::lane_span(subset, begin, end);
-        const float cx = sx_[f], cy = sy_[f], cz = sz_[f], r = sr_[f], r2 = r * r;
+        simd::lane_span(subset, begin, end);
+        using simd::Floats;
+        const Floats x = simd::splat(sx_[f]), y = simd::splat(sy_[f]), z = simd::splat(sz_[f]), r = simd::splat(sr_[f]),
+                     r2 = simd::splat(sr_[f] * sr_[f]), zero = simd::splat(0.0f);
         uint64_t keep = 0;
-#ifdef CB_SSE2
-        const __m128 x = _mm_set1_ps(cx), y = _mm_set1_ps(cy), z = _mm_set1_ps(cz), vr = _mm_set1_ps(r), vr2 = _mm_set1_ps(r2);
-        for (uint32_t i = begin; i < end; i += 4) {
-            if (!(subset >> i & 15)) continue;
-            const __m128 ex = _mm_load_ps(t.ex + i), ey = _mm_load_ps(t.ey + i), ez = _mm_load_ps(t.ez + i), d = _mm_load_ps(t.fd + i);
-            const __m128 a = _mm_sub_ps(_mm_mul_ps(y, ez), _mm_mul_ps(z, ey)), b = _mm_sub_ps(_mm_mul_ps(z, ex), _mm_mul_ps(x, ez)),
-                         c = _mm_sub_ps(_mm_mul_ps(x, ey), _mm_mul_ps(y, ex));
-            const __m128 along = _mm_add_ps(_mm_add_ps(_mm_mul_ps(x, ex), _mm_mul_ps(y, ey)), _mm_mul_ps(z, ez));
-            const __m128 cross2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(a, a), _mm_mul_ps(b, b)), _mm_mul_ps(c, c));
-            __m128 m = _mm_sub_ps(_mm_mul_ps(_mm_mul_ps(vr2, d), d), cross2);
-            m = _mm_min_ps(m, _mm_add_ps(along, _mm_mul_ps(vr, d)));
-            m = _mm_min_ps(m, _mm_sub_ps(_mm_mul_ps(_mm_add_ps(d, vr), d), along));
-            keep |= uint64_t(_mm_movemask_ps(_mm_cmpge_ps(m, _mm_setzero_ps()))) << i;
+        for (uint32_t i = begin; i < end; i += simd::width) {
+            if (!simd::group(subset, i)) continue;
+            const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i), d = simd::load(t.fd + i);
+            const Floats a = y * ez - z * ey, b = z * ex - x * ez, c = x * ey - y * ex;
+            const Floats along = x * ex + y * ey + z * ez, cross2 = a * a + b * b + c * c;
+            Floats m = r2 * d * d - cross2;
+            m = simd::min(m, along + r * d);
+            m = simd::min(m, (d + r) * d - along);
+            keep |= uint64_t(simd::bits(m >= zero)) << i;
         }
-#else
-        for (uint32_t i = begin; i < end; ++i) {
-            const float ex = t.ex[i], ey = t.ey[i], ez = t.ez[i], d = t.fd[i];
-            const float a = cy * ez - cz * ey, b = cz * ex - cx * ez, c = cx * ey - cy * ex, along = cx * ex + cy * ey + cz * ez;
-            const float m = std::min(std::min(r2 * d * d - (a * a + b * b + c * c), along + r * d), (d + r) * d - along);
-            keep |= uint64_t(m >= 0) << i;
-        }
-#endif
         return keep & subset;
     }
 
@@ -812,32 +787,20 @@ private:
             if (!(l != 0)) { nx[r] = ny[r] = nz[r] = 0; continue; }
             nx[r] = float(n[0] / l), ny[r] = float(n[1] / l), nz[r] = float(n[2] / l);
         }
-        const float dmax = round_up(P.dmax), slack = round_up(1e-6 * P.dmax);
+        const simd::Floats vd = simd::splat(round_up(P.dmax)), vs = simd::splat(round_up(1e-6 * P.dmax));
         const uint32_t stop = range.first + range.count;
         for (uint32_t first = range.first; first < stop; first += 64) {
             const uint32_t count = std::min<uint32_t>(64, stop - first);
             const float *x = &sx_[first], *y = &sy_[first], *z = &sz_[first], *rr = &sr_[first], *nr = &snear_[first];
             uint64_t keep = 0;  // bit j: sphere first + j may meet the pyramid, nearer than its farthest point
-            uint32_t j = 0;
-#ifdef CB_SSE2
-            const __m128 vd = _mm_set1_ps(dmax), vs = _mm_set1_ps(slack), sign = _mm_set1_ps(-0.0f);
-            for (; j + 4 <= count; j += 4) {
-                const __m128 cx = _mm_loadu_ps(x + j), cy = _mm_loadu_ps(y + j), cz = _mm_loadu_ps(z + j);
-                const __m128 reach = _mm_xor_ps(sign, _mm_add_ps(_mm_loadu_ps(rr + j), vs));  // -(r + slack)
-                __m128 k = _mm_cmple_ps(_mm_loadu_ps(nr + j), vd);
-                for (int r = 0; r < 4; ++r) {
-                    __m128 side = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(nx[r]), cx), _mm_mul_ps(_mm_set1_ps(ny[r]), cy)),
-                                             _mm_mul_ps(_mm_set1_ps(nz[r]), cz));
-                    k = _mm_and_ps(k, _mm_cmpge_ps(side, reach));
-                }
-                keep |= uint64_t(_mm_movemask_ps(k)) << j;
+            for (uint32_t j = 0; j < count; j += simd::width) {  // the arrays are padded past the last group
+                const simd::Floats cx = simd::loadu(x + j), cy = simd::loadu(y + j), cz = simd::loadu(z + j);
+                const simd::Floats reach = -(simd::loadu(rr + j) + vs);
+                simd::Mask k = simd::loadu(nr + j) <= vd;
+                for (int r = 0; r < 4; ++r) k = k & (simd::dot(cx, cy, cz, nx[r], ny[r], nz[r]) >= reach);
+                keep |= uint64_t(simd::bits(k)) << j;
             }
-#endif
-            for (; j < count; ++j) {
-                bool k = nr[j] <= dmax;
-                for (int r = 0; r < 4; ++r) k &= nx[r] * x[j] + ny[r] * y[j] + nz[r] * z[j] >= -(rr[j] + slack);
-                keep |= uint64_t(k) << j;
-            }
+            if (count < 64) keep &= (uint64_t(1) << count) - 1;
             for (; keep; keep &= keep - 1) {
                 uint32_t f = first + shadow_detail::lowest_bit(keep);
                 uint64_t near = sphere_points(f, in, t);

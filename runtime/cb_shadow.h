@@ -31,13 +31,8 @@
 
 #include "cb_asset.h"
 #include "cb_exact.h"
+#include "cb_simd.h"
 
-// The filters run 4 lanes at a time with SSE2 where the compiler targets it; CB_NO_SIMD selects their
-// portable loops instead (same answers; the tests build both).
-#if defined(__SSE2__) && !defined(CB_NO_SIMD)
-#define CB_SSE2 1
-#include <emmintrin.h>
-#endif
 
 namespace cb {
 
@@ -293,22 +288,6 @@ inline uint32_t leading_zeros(uint64_t x) {  // x != 0
     return n;
 #endif
 }
-// Bit i set when v[i] >= 0 (not NaN), for i in [begin, end), both multiples of 4 up to 64: SSE2's sign
-// masks 4 at a time where there is SSE2.
-inline uint64_t nonnegative_bits(const float* v, uint32_t begin, uint32_t end) {
-    uint64_t bits = 0;
-#ifdef CB_SSE2
-    const __m128 zero = _mm_setzero_ps();
-    for (uint32_t i = begin; i < end; i += 4) bits |= uint64_t(_mm_movemask_ps(_mm_cmpge_ps(_mm_loadu_ps(v + i), zero))) << i;
-#else
-    for (uint32_t i = begin; i < end; ++i) bits |= uint64_t(v[i] >= 0) << i;
-#endif
-    return bits;
-}
-// The groups of 4 lanes that nonzero mask `subset` spans: [begin, end), both multiples of 4.
-inline void lane_span(uint64_t subset, uint32_t& begin, uint32_t& end) {
-    begin = lowest_bit(subset) & ~3u, end = 64 - (leading_zeros(subset) & ~3u);
-}
 inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 inline void cross3(const double* a, const double* b, double* out) {
     out[0] = a[1] * b[2] - a[2] * b[1], out[1] = a[2] * b[0] - a[0] * b[2], out[2] = a[0] * b[1] - a[1] * b[0];
@@ -342,7 +321,7 @@ struct LitTriangles {
     double scale[3][lit_capacity];  // |u|_1 |v|_1: times det_error |e|_1, it bounds the dot product's error
     // The normals in float, for a first line test 4 triangles an instruction; times |e|_1, fbound bounds the
     // float dot product's distance from the exact value.
-    alignas(16) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
+    alignas(64) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
     double dq[lit_capacity], bq[lit_capacity];  // orient3d(a, b, c, light) and its error bound
     double max_scale = 0;  // the largest scale: |e|_1 times it bounds every dot product
 };
@@ -377,10 +356,11 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     out.count = count;
     out.max_scale = 0;
     const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle + first) * 3;
-    if (count & 3) {  // the float line test's last group, padded with zeros (never settled); the loop below fills the rest
-        const uint32_t g = count & ~3u;
+    if (count % simd::width) {  // the float line test's last group, padded with zeros (never settled); the loop below
+                                 // fills the rest
+        const uint32_t g = count - count % simd::width;
         for (int k = 0; k < 3; ++k)
-            for (uint32_t j = 0; j < 4; ++j) out.fx[k][g + j] = out.fy[k][g + j] = out.fz[k][g + j] = out.fbound[k][g + j] = 0;
+            for (uint32_t j = 0; j < simd::width; ++j) out.fx[k][g + j] = out.fy[k][g + j] = out.fz[k][g + j] = out.fbound[k][g + j] = 0;
     }
     for (uint32_t t = 0; t < count; ++t) {
         double corner_a[3][3];
@@ -433,35 +413,19 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
     if (e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20) {
         const float f0 = float(e0), f1 = float(e1), f2 = float(e2), fl1 = float(e_l1 * 1.000001);
         uint32_t missed = 0;
-        uint32_t t = 0;
-#ifdef CB_SSE2
-        const __m128 v0 = _mm_set1_ps(f0), v1 = _mm_set1_ps(f1), v2 = _mm_set1_ps(f2), vl = _mm_set1_ps(fl1);
-        const __m128 tiny = _mm_set1_ps(1e-30f), sign = _mm_set1_ps(-0.0f), zero = _mm_setzero_ps();
-        for (; t < lit.count; t += 4) {  // the last group padded (light_triangles)
-            __m128 lo = _mm_set1_ps(INFINITY), hi = _mm_set1_ps(-INFINITY), settled = _mm_castsi128_ps(_mm_set1_epi32(-1));
+        const simd::Floats v0 = simd::splat(f0), v1 = simd::splat(f1), v2 = simd::splat(f2), vl = simd::splat(fl1);
+        const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f);
+        for (uint32_t t = 0; t < lit.count; t += simd::width) {  // the last group padded (light_triangles)
+            simd::Floats lo = simd::splat(INFINITY), hi = simd::splat(-INFINITY);
+            simd::Mask settled = simd::all_lanes();
             for (int k = 0; k < 3; ++k) {
-                __m128 o = _mm_add_ps(_mm_add_ps(_mm_mul_ps(v0, _mm_load_ps(lit.fx[k] + t)), _mm_mul_ps(v1, _mm_load_ps(lit.fy[k] + t))),
-                                      _mm_mul_ps(v2, _mm_load_ps(lit.fz[k] + t)));
-                __m128 bound = _mm_add_ps(_mm_mul_ps(vl, _mm_load_ps(lit.fbound[k] + t)), tiny);
-                settled = _mm_and_ps(settled, _mm_cmpgt_ps(_mm_andnot_ps(sign, o), bound));
-                lo = _mm_min_ps(lo, o), hi = _mm_max_ps(hi, o);
+                simd::Floats o = v0 * simd::load(lit.fx[k] + t) + v1 * simd::load(lit.fy[k] + t) + v2 * simd::load(lit.fz[k] + t);
+                settled = settled & (simd::abs(o) > vl * simd::load(lit.fbound[k] + t) + tiny);
+                lo = simd::min(lo, o), hi = simd::max(hi, o);
             }
-            __m128 mixed = _mm_and_ps(_mm_cmplt_ps(lo, zero), _mm_cmpgt_ps(hi, zero));
-            missed |= uint32_t(_mm_movemask_ps(_mm_and_ps(settled, mixed))) << t;
-            through |= uint32_t(_mm_movemask_ps(_mm_andnot_ps(mixed, settled))) << t;
-        }
-#endif
-        // (without SSE2, every triangle here)
-        for (; t < lit.count; ++t) {
-            bool settled = true;
-            float lo = INFINITY, hi = -INFINITY;
-            for (int k = 0; k < 3; ++k) {
-                float o = f0 * lit.fx[k][t] + f1 * lit.fy[k][t] + f2 * lit.fz[k][t];
-                settled = settled && std::fabs(o) > fl1 * lit.fbound[k][t] + 1e-30f;
-                lo = std::min(lo, o), hi = std::max(hi, o);
-            }
-            missed |= uint32_t(settled && lo < 0 && hi > 0) << t;
-            through |= uint32_t(settled && !(lo < 0 && hi > 0)) << t;
+            simd::Mask mixed = (lo < zero) & (hi > zero);
+            missed |= simd::bits(settled & mixed) << t;
+            through |= simd::bits(simd::and_not(settled, mixed)) << t;
         }
         may_meet &= ~missed;
         through &= may_meet;  // not the padding

@@ -38,6 +38,17 @@ int cgal_orient(const double* a, const double* b, const double* c, const double*
 
 }  // namespace
 
+// Each test build runs the filters on the lanes it was meant for (tests/CMakeLists.txt), so every width is
+// checked where the machine has it.
+TEST(Lanes, BuiltForTheIntendedWidth) {
+    EXPECT_EQ(cb::simd::width, uint32_t(CB_EXPECTED_LANES));
+#ifdef CB_NO_SIMD
+#ifdef CB_SIMD_SSE2
+    ADD_FAILURE() << "CB_NO_SIMD still selected SSE2";
+#endif
+#endif
+}
+
 TEST(Exact, OrientationAgreesWithCgal) {
     std::mt19937 rng(5);
     std::uniform_real_distribution<double> u(-1, 1);

@@ -1,0 +1,159 @@
+// The float lanes the runtime's filters run on: 16 with AVX-512, 8 with AVX, 4 with SSE2, 4 portable (CB_NO_SIMD, or a
+// target without SSE2). Each filter is written once over cb::simd::Floats; every build gives the same
+// answers, since each lane computes the same IEEE operations in the same order. Every translation unit
+// that includes the runtime must see the same choice (compile them all with the same target flags).
+// Header-only C++17, no dependencies. MIT licensed.
+#pragma once
+
+#include <cstdint>
+
+#include <cmath>
+
+// CB_SIMD_SSE2: SSE2 intrinsics may be used (also for fixed 4-wide work); CB_SIMD_AVX: the lanes are AVX's.
+#if defined(__SSE2__) && !defined(CB_NO_SIMD)
+#define CB_SIMD_SSE2 1
+#include <emmintrin.h>
+#if defined(__AVX512F__)
+#define CB_SIMD_AVX512 1
+#include <immintrin.h>
+#elif defined(__AVX__)
+#define CB_SIMD_AVX 1
+#include <immintrin.h>
+#endif
+#endif
+
+namespace cb {
+namespace simd {
+// Each lane type in its own namespace, so that objects built for different ones cannot be mixed up at link time.
+#if defined(CB_SIMD_AVX512)
+inline namespace avx512 {
+#elif defined(CB_SIMD_AVX)
+inline namespace avx {
+#elif defined(CB_SIMD_SSE2)
+inline namespace sse2 {
+#else
+inline namespace portable {
+#endif
+
+// Comparisons are ordered: a lane holding NaN compares false. min(a, b) and max(a, b) return b when
+// either is NaN, as the x86 instructions do.
+#if defined(CB_SIMD_AVX512)
+constexpr uint32_t width = 16;
+struct Floats { __m512 v; };
+struct Mask { __mmask16 m; };
+inline Floats load(const float* p) { return {_mm512_load_ps(p)}; }  // 64-byte aligned
+inline Floats loadu(const float* p) { return {_mm512_loadu_ps(p)}; }
+inline Floats splat(float x) { return {_mm512_set1_ps(x)}; }
+inline Floats operator+(Floats a, Floats b) { return {_mm512_add_ps(a.v, b.v)}; }
+inline Floats operator-(Floats a, Floats b) { return {_mm512_sub_ps(a.v, b.v)}; }
+inline Floats operator*(Floats a, Floats b) { return {_mm512_mul_ps(a.v, b.v)}; }
+// (The masked forms: GCC 12 warns that the plain ones read an undefined register.)
+inline Floats min(Floats a, Floats b) { return {_mm512_mask_min_ps(a.v, 0xffff, a.v, b.v)}; }
+inline Floats max(Floats a, Floats b) { return {_mm512_mask_max_ps(a.v, 0xffff, a.v, b.v)}; }
+inline Floats abs(Floats a) { return {_mm512_abs_ps(a.v)}; }
+inline Mask operator>=(Floats a, Floats b) { return {_mm512_cmp_ps_mask(a.v, b.v, _CMP_GE_OQ)}; }
+inline Mask operator>(Floats a, Floats b) { return {_mm512_cmp_ps_mask(a.v, b.v, _CMP_GT_OQ)}; }
+inline Mask operator<=(Floats a, Floats b) { return {_mm512_cmp_ps_mask(a.v, b.v, _CMP_LE_OQ)}; }
+inline Mask operator<(Floats a, Floats b) { return {_mm512_cmp_ps_mask(a.v, b.v, _CMP_LT_OQ)}; }
+inline Mask operator&(Mask a, Mask b) { return {__mmask16(a.m & b.m)}; }
+inline Mask and_not(Mask a, Mask b) { return {__mmask16(a.m & ~b.m)}; }
+inline Mask all_lanes() { return {__mmask16(0xffff)}; }
+inline uint32_t bits(Mask m) { return m.m; }
+#elif defined(CB_SIMD_AVX)
+constexpr uint32_t width = 8;
+struct Floats { __m256 v; };
+struct Mask { __m256 v; };
+inline Floats load(const float* p) { return {_mm256_load_ps(p)}; }  // 32-byte aligned
+inline Floats loadu(const float* p) { return {_mm256_loadu_ps(p)}; }
+inline Floats splat(float x) { return {_mm256_set1_ps(x)}; }
+inline Floats operator+(Floats a, Floats b) { return {_mm256_add_ps(a.v, b.v)}; }
+inline Floats operator-(Floats a, Floats b) { return {_mm256_sub_ps(a.v, b.v)}; }
+inline Floats operator*(Floats a, Floats b) { return {_mm256_mul_ps(a.v, b.v)}; }
+inline Floats min(Floats a, Floats b) { return {_mm256_min_ps(a.v, b.v)}; }
+inline Floats max(Floats a, Floats b) { return {_mm256_max_ps(a.v, b.v)}; }
+inline Floats abs(Floats a) { return {_mm256_andnot_ps(_mm256_set1_ps(-0.0f), a.v)}; }
+inline Mask operator>=(Floats a, Floats b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_GE_OQ)}; }
+inline Mask operator>(Floats a, Floats b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_GT_OQ)}; }
+inline Mask operator<=(Floats a, Floats b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_LE_OQ)}; }
+inline Mask operator<(Floats a, Floats b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_LT_OQ)}; }
+inline Mask operator&(Mask a, Mask b) { return {_mm256_and_ps(a.v, b.v)}; }
+inline Mask and_not(Mask a, Mask b) { return {_mm256_andnot_ps(b.v, a.v)}; }  // a and not b
+inline Mask all_lanes() { return {_mm256_castsi256_ps(_mm256_set1_epi32(-1))}; }
+inline uint32_t bits(Mask m) { return uint32_t(_mm256_movemask_ps(m.v)); }
+#elif defined(CB_SIMD_SSE2)
+constexpr uint32_t width = 4;
+struct Floats { __m128 v; };
+struct Mask { __m128 v; };
+inline Floats load(const float* p) { return {_mm_load_ps(p)}; }  // 16-byte aligned
+inline Floats loadu(const float* p) { return {_mm_loadu_ps(p)}; }
+inline Floats splat(float x) { return {_mm_set1_ps(x)}; }
+inline Floats operator+(Floats a, Floats b) { return {_mm_add_ps(a.v, b.v)}; }
+inline Floats operator-(Floats a, Floats b) { return {_mm_sub_ps(a.v, b.v)}; }
+inline Floats operator*(Floats a, Floats b) { return {_mm_mul_ps(a.v, b.v)}; }
+inline Floats min(Floats a, Floats b) { return {_mm_min_ps(a.v, b.v)}; }
+inline Floats max(Floats a, Floats b) { return {_mm_max_ps(a.v, b.v)}; }
+inline Floats abs(Floats a) { return {_mm_andnot_ps(_mm_set1_ps(-0.0f), a.v)}; }
+inline Mask operator>=(Floats a, Floats b) { return {_mm_cmpge_ps(a.v, b.v)}; }
+inline Mask operator>(Floats a, Floats b) { return {_mm_cmpgt_ps(a.v, b.v)}; }
+inline Mask operator<=(Floats a, Floats b) { return {_mm_cmple_ps(a.v, b.v)}; }
+inline Mask operator<(Floats a, Floats b) { return {_mm_cmplt_ps(a.v, b.v)}; }
+inline Mask operator&(Mask a, Mask b) { return {_mm_and_ps(a.v, b.v)}; }
+inline Mask and_not(Mask a, Mask b) { return {_mm_andnot_ps(b.v, a.v)}; }
+inline Mask all_lanes() { return {_mm_castsi128_ps(_mm_set1_epi32(-1))}; }
+inline uint32_t bits(Mask m) { return uint32_t(_mm_movemask_ps(m.v)); }
+#else
+constexpr uint32_t width = 4;
+struct Floats { float v[width]; };
+struct Mask { uint32_t b; };  // bit i: lane i
+template <class F>
+inline Floats each(F f) {
+    Floats r;
+    for (uint32_t i = 0; i < width; ++i) r.v[i] = f(i);
+    return r;
+}
+template <class F>
+inline Mask each_bit(F f) {
+    uint32_t b = 0;
+    for (uint32_t i = 0; i < width; ++i) b |= uint32_t(f(i)) << i;
+    return {b};
+}
+inline Floats load(const float* p) { return each([&](uint32_t i) { return p[i]; }); }
+inline Floats loadu(const float* p) { return load(p); }
+inline Floats splat(float x) { return each([&](uint32_t) { return x; }); }
+inline Floats operator+(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] + b.v[i]; }); }
+inline Floats operator-(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] - b.v[i]; }); }
+inline Floats operator*(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] * b.v[i]; }); }
+inline Floats min(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] < b.v[i] ? a.v[i] : b.v[i]; }); }
+inline Floats max(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] > b.v[i] ? a.v[i] : b.v[i]; }); }
+inline Floats abs(Floats a) { return each([&](uint32_t i) { return std::fabs(a.v[i]); }); }
+inline Mask operator>=(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] >= b.v[i]; }); }
+inline Mask operator>(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] > b.v[i]; }); }
+inline Mask operator<=(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] <= b.v[i]; }); }
+inline Mask operator<(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] < b.v[i]; }); }
+inline Mask operator&(Mask a, Mask b) { return {a.b & b.b}; }
+inline Mask and_not(Mask a, Mask b) { return {a.b & ~b.b}; }
+inline Mask all_lanes() { return {(1u << width) - 1}; }
+inline uint32_t bits(Mask m) { return m.b; }
+#endif
+
+inline Floats operator-(Floats a) { return splat(0.0f) - a; }
+inline Floats dot(Floats x, Floats y, Floats z, float a, float b, float c) { return x * splat(a) + y * splat(b) + z * splat(c); }
+
+// The lanes, in whole groups of `width`, that nonzero mask `subset` spans: [begin, end).
+inline void lane_span(uint64_t subset, uint32_t& begin, uint32_t& end) {
+#if defined(__GNUC__)
+    const uint32_t low = uint32_t(__builtin_ctzll(subset)), high = 63 - uint32_t(__builtin_clzll(subset));
+#else
+    uint32_t low = 0, high = 63;
+    while (!(subset >> low & 1)) ++low;
+    while (!(subset >> high & 1)) --high;
+#endif
+    begin = low & ~(width - 1), end = (high | (width - 1)) + 1;
+}
+
+// The bits of lanes [i, i + width) of a 64-bit mask.
+inline uint32_t group(uint64_t mask, uint32_t i) { return uint32_t(mask >> i) & ((1u << width) - 1); }
+
+}  // namespace avx, sse2 or portable
+}  // namespace simd
+}  // namespace cb
