@@ -33,6 +33,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <new>
 #include <thread>
 #include <vector>
 
@@ -237,11 +238,12 @@ public:
     // (over 60 degrees), at the light, not finite or beyond 1e30 walk alone. `stack` holds stack_size() entries; uses
     // about 8 KB of the thread's stack besides (and cluster_blocks_points' 10 KB).
     uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t* stack,
-                           QueryStats* stats = nullptr) const {
+                           QueryStats* stats = nullptr, LitCache* cache = nullptr) const {
         if (!usable_ || alive == 0) return 0;
         Tile t;
         t.count = count;
         t.stats = stats;
+        t.cache = cache;
         t.alive = t.shadowed = 0;
         t.pending_count = t.entered_count = 0;
         uint64_t alone = 0;
@@ -425,6 +427,7 @@ private:
         Entered entered[entered_capacity];
         uint32_t entered_count;
         QueryStats* stats;
+        LitCache* cache;  // lit triangle groups kept between tiles, under this tree's name (may be null)
     };
 
     // The pyramid from the light about the mean direction of the points `which`: their central projections
@@ -587,7 +590,7 @@ private:
             }
         }
         if (!todo) return;
-        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats);
+        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr, t.cache, this);
         t.alive &= ~hit, t.shadowed |= hit;
     }
 
@@ -1097,7 +1100,7 @@ private:
 inline size_t batch_scratch_size(const ClusterShadowTree* trees, size_t tree_count, size_t n) {
     size_t stack = 0;
     for (size_t t = 0; t < tree_count; ++t) stack = std::max(stack, trees[t].stack_size());
-    return 4 * n + stack;
+    return 4 * n + stack + (sizeof(LitCache) + alignof(LitCache)) / sizeof(uint32_t) + 1;
 }
 
 namespace cpsv_detail {
@@ -1131,7 +1134,13 @@ inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, co
         return;
     }
     const double* light = trees[0].world_light();
+    size_t stack_size = 0;
+    for (size_t t = 0; t < tree_count; ++t) stack_size = std::max(stack_size, trees[t].stack_size());
     uint32_t *key = scratch, *index = scratch + n, *key2 = scratch + 2 * n, *index2 = scratch + 3 * n, *stack = scratch + 4 * n;
+    // The lit triangle groups, kept from tile to tile (neighbouring tiles meet many of the same clusters).
+    uintptr_t at = reinterpret_cast<uintptr_t>(stack + stack_size);
+    LitCache* cache = new (reinterpret_cast<void*>((at + alignof(LitCache) - 1) / alignof(LitCache) * alignof(LitCache))) LitCache;
+    cache->clear();
     for (size_t i = 0; i < n; ++i) {
         double e[3] = {points[i * 3] - light[0], points[i * 3 + 1] - light[1], points[i * 3 + 2] - light[2]};
         key[i] = cpsv_detail::direction_key(e);
@@ -1151,7 +1160,7 @@ inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, co
         uint32_t count = uint32_t(std::min<size_t>(ClusterShadowTree::tile_capacity, n - first));
         uint64_t alive = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1, shadowed = 0;
         for (size_t t = 0; t < tree_count && alive; ++t) {
-            uint64_t s = trees[t].occluded_tile(points, index + first, count, alive, stack, stats);
+            uint64_t s = trees[t].occluded_tile(points, index + first, count, alive, stack, stats, cache);
             shadowed |= s, alive &= ~s;
         }
         for (uint32_t i = 0; i < count; ++i) out[index[first + i]] = uint8_t(shadowed >> i & 1);

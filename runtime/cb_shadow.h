@@ -307,12 +307,13 @@ inline SegmentTest exact_triangle(const double* p, const double* light, const fl
     return segment_triangle(p, light, c[0], c[1], c[2], two_sided);
 }
 
-// Up to 32 triangles of a cluster seen from the light: the terms every segment test from that light shares.
+// Up to 16 triangles of a cluster seen from the light: the terms every segment test from that light shares.
 // Triangle t's edge k runs from corner k to corner k + 1 (mod 3); with u and v its corners relative to the
 // light, the plane through the light and the edge has normal u x v, and for a point p (e = p - light)
 // orient3d(p, light, corner k, corner k + 1) = e . (u x v): one dot product per edge and point. Edge-major
 // arrays, so that the line test runs over several triangles per instruction.
-constexpr uint32_t lit_capacity = 32;
+constexpr uint32_t lit_capacity = 16;  // a fine cluster of the default size (larger ones take several)
+static_assert(lit_capacity < 32 && lit_capacity % simd::width == 0, "triangles are bits of a uint32_t, in whole lane groups");
 struct LitTriangles {
     uint32_t count = 0;
     const float* corner[lit_capacity][3];
@@ -322,17 +323,13 @@ struct LitTriangles {
     // The normals in float, for a first line test 4 triangles an instruction; times |e|_1, fbound bounds the
     // float dot product's distance from the exact value.
     alignas(64) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
+    // The triangle's plane, for the sides of the segment's ends: with N = (b - a) x (c - a),
+    // orient3d(a, b, c, x) = N . (a - x), within det_error |b - a|_1 |c - a|_1 |a - x|_1 (plane_bound times
+    // |a - x|_1) in double: the same products of three differences as about x, taken about a instead.
+    double plane_x[lit_capacity], plane_y[lit_capacity], plane_z[lit_capacity], plane_bound[lit_capacity];
+    double ax[lit_capacity], ay[lit_capacity], az[lit_capacity];  // corner a
     double dq[lit_capacity], bq[lit_capacity];  // orient3d(a, b, c, light) and its error bound
     double max_scale = 0;  // the largest scale: |e|_1 times it bounds every dot product
-};
-
-// A cluster's vertex list seen from the light: each vertex's offset from the light and its L1 norm, computed
-// once for all the triangles that share it (lists longer than `capacity` are taken corner by corner).
-struct LitVertices {
-    static constexpr uint32_t capacity = 96;
-    uint32_t count = 0;  // 0: the list is longer than capacity
-    const float* position[capacity];
-    double a[capacity][3], a1[capacity];
 };
 
 inline const float* list_position(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t i) {
@@ -340,58 +337,63 @@ inline const float* list_position(const AssetView& v, const MeshRecord& mesh, co
                                                : c.first_vertex - v.vertex_refs[size_t(mesh.first_ref) + c.first_ref + i - c.vertex_count]);
 }
 
-inline void light_vertices(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, const double* light, LitVertices& out) {
-    uint32_t list = uint32_t(c.vertex_count) + c.ref_count;
-    out.count = list <= LitVertices::capacity ? list : 0;
-    for (uint32_t i = 0; i < out.count; ++i) {
-        out.position[i] = list_position(v, mesh, c, i);
-        for (int j = 0; j < 3; ++j) out.a[i][j] = double(out.position[i][j]) - light[j];
-        out.a1[i] = l1(out.a[i]);
-    }
-}
-
-// Triangles [first, first + count) of fine cluster c (count <= lit_capacity), from the light.
-inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, const LitVertices& lv, uint32_t first,
-                            uint32_t count, const double* light, bool one_sided, LitTriangles& out) {
+// Triangles [first, first + count) of fine cluster c (count <= lit_capacity), from the light: the corners
+// gathered first, then every term in loops over the triangles that the compiler runs several to an instruction.
+inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first, uint32_t count,
+                            const double* light, bool one_sided, LitTriangles& out) {
     out.count = count;
-    out.max_scale = 0;
     const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle + first) * 3;
+    // Corner k of each triangle: its position (exact in double), its offset from the light and that's L1 norm.
+    double px[3][lit_capacity], py[3][lit_capacity], pz[3][lit_capacity];
+    double ux[3][lit_capacity], uy[3][lit_capacity], uz[3][lit_capacity], u1[3][lit_capacity];
+    for (uint32_t t = 0; t < count; ++t) {
+        for (int k = 0; k < 3; ++k) {
+            const float* at = list_position(v, mesh, c, local[t * 3 + k]);
+            out.corner[t][k] = at;
+            px[k][t] = at[0], py[k][t] = at[1], pz[k][t] = at[2];
+        }
+        out.two_sided[t] = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t);
+    }
+    for (int k = 0; k < 3; ++k)
+        for (uint32_t t = 0; t < count; ++t) {
+            ux[k][t] = px[k][t] - light[0], uy[k][t] = py[k][t] - light[1], uz[k][t] = pz[k][t] - light[2];
+            u1[k][t] = std::fabs(ux[k][t]) + std::fabs(uy[k][t]) + std::fabs(uz[k][t]);
+        }
     if (count % simd::width) {  // the float line test's last group, padded with zeros (never settled); the loop below
                                  // fills the rest
         const uint32_t g = count - count % simd::width;
         for (int k = 0; k < 3; ++k)
             for (uint32_t j = 0; j < simd::width; ++j) out.fx[k][g + j] = out.fy[k][g + j] = out.fz[k][g + j] = out.fbound[k][g + j] = 0;
     }
-    for (uint32_t t = 0; t < count; ++t) {
-        double corner_a[3][3];
-        const double* a[3];
-        double a1[3];
-        for (int k = 0; k < 3; ++k) {
-            uint8_t i = local[t * 3 + k];
-            if (lv.count) {
-                out.corner[t][k] = lv.position[i], a[k] = lv.a[i], a1[k] = lv.a1[i];
-            } else {
-                out.corner[t][k] = list_position(v, mesh, c, i);
-                for (int j = 0; j < 3; ++j) corner_a[k][j] = double(out.corner[t][k][j]) - light[j];
-                a[k] = corner_a[k], a1[k] = l1(corner_a[k]);
-            }
-        }
-        double n[3][3];
-        for (int k = 0; k < 3; ++k) {
-            cross3(a[k], a[(k + 1) % 3], n[k]);
-            out.nx[k][t] = n[k][0], out.ny[k][t] = n[k][1], out.nz[k][t] = n[k][2];
-            out.scale[k][t] = a1[k] * a1[(k + 1) % 3];
-            out.max_scale = std::max(out.max_scale, out.scale[k][t]);
+    double widest[lit_capacity];  // per triangle, its largest scale
+    for (int k = 0; k < 3; ++k) {
+        const int j = (k + 1) % 3;
+        for (uint32_t t = 0; t < count; ++t) {
+            // Edge k's plane through the light: u x v, with u and v its corners from the light.
+            const double nx = uy[k][t] * uz[j][t] - uz[k][t] * uy[j][t], ny = uz[k][t] * ux[j][t] - ux[k][t] * uz[j][t],
+                         nz = ux[k][t] * uy[j][t] - uy[k][t] * ux[j][t];
+            const double scale = u1[k][t] * u1[j][t];
+            out.nx[k][t] = nx, out.ny[k][t] = ny, out.nz[k][t] = nz, out.scale[k][t] = scale;
+            widest[t] = k == 0 ? scale : std::max(widest[t], scale);
             // Rounding e and n to float and the float dot product err by under 6 float epsilons of
             // |e|_1 |n|_max (4e-7 of it), on top of the double value's own bound; grown for its own rounding.
             // (|n| is far below scale when the light is far: u and v are then nearly parallel.)
-            const double nmax = std::max(std::max(std::fabs(n[k][0]), std::fabs(n[k][1])), std::fabs(n[k][2]));
-            out.fx[k][t] = float(n[k][0]), out.fy[k][t] = float(n[k][1]), out.fz[k][t] = float(n[k][2]);
-            out.fbound[k][t] = float((4e-7 * nmax + det_error * out.scale[k][t]) * 1.001);
+            const double nmax = std::max(std::max(std::fabs(nx), std::fabs(ny)), std::fabs(nz));
+            out.fx[k][t] = float(nx), out.fy[k][t] = float(ny), out.fz[k][t] = float(nz);
+            out.fbound[k][t] = float((4e-7 * nmax + det_error * scale) * 1.001);
         }
-        // orient3d(a, b, c, light) = a . (b x c), with b x c edge 1's normal.
-        out.dq[t] = dot3(a[0], n[1]), out.bq[t] = det_error * a1[0] * a1[1] * a1[2];
-        out.two_sided[t] = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t);
+    }
+    out.max_scale = 0;
+    for (uint32_t t = 0; t < count; ++t) out.max_scale = std::max(out.max_scale, widest[t]);
+    for (uint32_t t = 0; t < count; ++t) {
+        const double e1x = px[1][t] - px[0][t], e1y = py[1][t] - py[0][t], e1z = pz[1][t] - pz[0][t];
+        const double e2x = px[2][t] - px[0][t], e2y = py[2][t] - py[0][t], e2z = pz[2][t] - pz[0][t];
+        const double nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
+        const double bound = det_error * (std::fabs(e1x) + std::fabs(e1y) + std::fabs(e1z)) * (std::fabs(e2x) + std::fabs(e2y) + std::fabs(e2z));
+        out.plane_x[t] = nx, out.plane_y[t] = ny, out.plane_z[t] = nz, out.plane_bound[t] = bound;
+        out.ax[t] = px[0][t], out.ay[t] = py[0][t], out.az[t] = pz[0][t];
+        // orient3d(a, b, c, light) = N . (a - light), a - light being corner 0's offset from the light.
+        out.dq[t] = nx * ux[0][t] + ny * uy[0][t] + nz * uz[0][t], out.bq[t] = bound * u1[0][t];
     }
 }
 
@@ -408,7 +410,7 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
     // all alike. First in float, 4 triangles an instruction, then the others in double; only when nothing
     // can overflow or fall to subnormals (the 1e-30 absolute term stands for the latter); otherwise every
     // triangle goes to the careful loop below.
-    uint32_t may_meet = lit.count == 32 ? ~0u : (1u << lit.count) - 1;
+    uint32_t may_meet = (1u << lit.count) - 1;  // (lit_capacity < 32)
     uint32_t through = 0;  // bit t: every edge sign settled and alike, so the line passes through the interior
     if (e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20) {
         const float f0 = float(e0), f1 = float(e1), f2 = float(e2), fl1 = float(e_l1 * 1.000001);
@@ -446,11 +448,9 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
         bool decided = false, blocks = false;
         if (settled && std::fabs(lit.dq[t]) > lit.bq[t]) {
             // Through the interior: the point's side of the plane (the light's is dq).
-            double pv[3][3], cap[3];
-            for (int k = 0; k < 3; ++k)
-                for (int j = 0; j < 3; ++j) pv[k][j] = double(lit.corner[t][k][j]) - p[j];
-            cross3(pv[1], pv[2], cap);
-            double dp = dot3(pv[0], cap), bp = det_error * l1(pv[0]) * l1(pv[1]) * l1(pv[2]), dq = lit.dq[t];
+            const double d0 = lit.ax[t] - p[0], d1 = lit.ay[t] - p[1], d2 = lit.az[t] - p[2];
+            const double dp = lit.plane_x[t] * d0 + lit.plane_y[t] * d1 + lit.plane_z[t] * d2, dq = lit.dq[t];
+            const double bp = lit.plane_bound[t] * (std::fabs(d0) + std::fabs(d1) + std::fabs(d2));
             if (std::fabs(dp) > bp) {
                 decided = true;
                 if ((dq > 0) == (dp > 0) || (!lit.two_sided[t] && dq < 0)) continue;  // no crossing, or front-facing
@@ -473,25 +473,49 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
 
 }  // namespace shadow_detail
 
+// Triangle groups already lit, kept for later tests from the same light: a direct-mapped table, about 250 KB.
+// An entry is named by its owner (a token for one mesh, light and mode: cb::occluded_batch uses the tree),
+// its fine cluster and its first triangle. clear() before the owners' lights or meshes change.
+struct LitCache {
+    static constexpr uint32_t size = 64;
+    const void* owner[size];
+    uint32_t cluster[size], first[size];
+    shadow_detail::LitTriangles entry[size];
+    void clear() {
+        for (const void*& o : owner) o = nullptr;
+    }
+};
+
 // Which of the points p[i], i in `which` (bits of a mask), the triangles of fine cluster `f` (mesh-local)
 // of `mesh` shadow from the light, in the mesh's frame: the same answers as cb::segment_triangle on each
-// triangle. The light's terms are computed once for all the points, 32 triangles at a time. Sets *touched
-// when an exactly tested triangle was touched. Uses about 10 KB of stack.
+// triangle. The light's terms are computed once for all the points, 16 triangles at a time (or taken from
+// `cache`, under `owner`, and left there). Sets *touched when an exactly tested triangle was touched. Uses
+// about 6 KB of stack.
 inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double (*p)[3], uint64_t which,
-                                      const double* light, bool one_sided, QueryStats* stats, bool* touched = nullptr) {
+                                      const double* light, bool one_sided, QueryStats* stats, bool* touched = nullptr,
+                                      LitCache* cache = nullptr, const void* owner = nullptr) {
     using namespace shadow_detail;
     const FineCluster& c = v.fine[mesh.first_fine + f];
     uint64_t blocked = 0;
     if (stats)
         for (uint64_t w = which; w; w &= w - 1) ++stats->clusters_tested;
-    LitVertices lv;
-    light_vertices(v, mesh, c, light, lv);
-    LitTriangles lit;
+    LitTriangles own;
     for (uint32_t first = 0; first < c.triangle_count && which; first += lit_capacity) {
-        light_triangles(v, mesh, c, lv, first, std::min<uint32_t>(lit_capacity, c.triangle_count - first), light, one_sided, lit);
+        const uint32_t count = std::min<uint32_t>(lit_capacity, c.triangle_count - first);
+        LitTriangles* lit = &own;
+        if (cache) {
+            const uint32_t slot = (f + first / lit_capacity) % LitCache::size;
+            lit = &cache->entry[slot];
+            if (cache->owner[slot] != owner || cache->cluster[slot] != f || cache->first[slot] != first) {
+                light_triangles(v, mesh, c, first, count, light, one_sided, *lit);
+                cache->owner[slot] = owner, cache->cluster[slot] = f, cache->first[slot] = first;
+            }
+        } else {
+            light_triangles(v, mesh, c, first, count, light, one_sided, own);
+        }
         for (uint64_t w = which; w; w &= w - 1) {
             uint32_t i = lowest_bit(w);
-            if (lit_triangles_block(lit, p[i], light, stats, touched)) blocked |= uint64_t(1) << i, which &= ~(uint64_t(1) << i);
+            if (lit_triangles_block(*lit, p[i], light, stats, touched)) blocked |= uint64_t(1) << i, which &= ~(uint64_t(1) << i);
         }
     }
     return blocked;
