@@ -225,6 +225,27 @@ public:
         return root_ != none && walk(root_, stack, q);
     }
 
+    // A fine cluster's box set up for one light's float separating-axis test (box_filter).
+    struct BoxFilter {
+        float lo[3], hi[3], hf[3], w[3][3], ax[3][3], tol;
+        bool usable;  // false where float could overflow: the points are then tested in double
+    };
+
+    // What one thread's batch keeps from tile to tile (neighbouring tiles meet many of the same fine
+    // clusters): lit triangle groups and box filters, each under its tree's name. clear() before the trees
+    // change.
+    struct Cache {
+        LitCache lit;
+        static constexpr uint32_t box_slots = 256;
+        const void* box_owner[box_slots];
+        uint32_t box_cluster[box_slots];
+        BoxFilter box[box_slots];
+        void clear() {
+            lit.clear();
+            for (const void*& o : box_owner) o = nullptr;
+        }
+    };
+
     // Points a batch query walks together (cb::occluded_batch): with close directions from the light, one
     // walk with the pyramid that holds them all stands for a walk per point.
     static constexpr uint32_t tile_capacity = 64;
@@ -238,7 +259,7 @@ public:
     // (over 60 degrees), at the light, not finite or beyond 1e30 walk alone. `stack` holds stack_size() entries; uses
     // about 8 KB of the thread's stack besides (and cluster_blocks_points' 10 KB).
     uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t* stack,
-                           QueryStats* stats = nullptr, LitCache* cache = nullptr) const {
+                           QueryStats* stats = nullptr, Cache* cache = nullptr) const {
         if (!usable_ || alive == 0) return 0;
         Tile t;
         t.count = count;
@@ -259,11 +280,12 @@ public:
             }
             t.alive |= uint64_t(1) << i;
         }
-        uint64_t held = t.alive ? make_pyramid(t, t.alive, t.pyramid) : 0;
+        uint64_t held = t.alive ? make_frame(t, t.alive) : 0;
         alone |= t.alive & ~held;
         t.alive &= held;
-        t.small = t.pyramid.dmax < float_safe;
         if (t.alive) {
+            make_pyramid(t, t.alive, t.pyramid);
+            t.small = t.pyramid.dmax < float_safe;
             for (uint32_t i = 0; i < tile_capacity; ++i) {
                 bool in = t.alive >> i & 1;
                 t.ex[i] = in ? float(t.e[i][0]) : 0.0f, t.ey[i] = in ? float(t.e[i][1]) : 0.0f, t.ez[i] = in ? float(t.e[i][2]) : 0.0f;
@@ -373,7 +395,7 @@ private:
     // A pyramid from the light that holds the directions of some points, and their distances to the light.
     struct Pyramid {
         alignas(16) float rx[4], ry[4], rz[4];  // unit edge rays (in float): every direction is a positive mix of them
-        double dmin, dmax;
+        double dmax;
     };
 
     // The smallest and largest sine of the pyramid's rays against the plane with normal n (4 at once with SSE).
@@ -402,6 +424,8 @@ private:
         double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
         alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
         alignas(64) float slack[tile_capacity];  // the plane checks' tolerance, 2e-6 of the distance
+        double frame[3][3];        // the mean direction from the light and two axes across it (make_frame)
+        double across[tile_capacity][2];  // each point's central projection in that frame
         Pyramid pyramid;          // holds the points walking now
         // Fine clusters met by the walk and the points inside their volumes, tested nearest to the light
         // first once the whole walk is done (or the list is full): a point in shadow then usually meets
@@ -427,60 +451,72 @@ private:
         Entered entered[entered_capacity];
         uint32_t entered_count;
         QueryStats* stats;
-        LitCache* cache;  // lit triangle groups kept between tiles, under this tree's name (may be null)
+        Cache* cache;  // kept between tiles (may be null)
     };
 
-    // The pyramid from the light about the mean direction of the points `which`: their central projections
-    // onto the plane across it, bounded by a rectangle. Returns the points it holds: all but those over 60
-    // degrees off the mean.
-    static uint64_t make_pyramid(const Tile& t, uint64_t which, Pyramid& out) {
+    // The tile's frame: the mean direction z from the light of the points `which` and two unit axes across
+    // it, and each point's central projection onto the plane across z at distance 1. Returns the points it
+    // holds: all but those over 60 degrees off the mean.
+    static uint64_t make_frame(Tile& t, uint64_t which) {
         double m[3] = {0, 0, 0};
         for (uint64_t w = which; w; w &= w - 1) {
             uint32_t i = shadow_detail::lowest_bit(w);
-            for (int k = 0; k < 3; ++k) m[k] += t.e[i][k] / t.dist[i];
+            const double inv = 1 / t.dist[i];
+            for (int k = 0; k < 3; ++k) m[k] += t.e[i][k] * inv;
         }
         double ml = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
-        uint64_t held = 0;
         if (!(ml > 0)) return 0;
-        double z[3] = {m[0] / ml, m[1] / ml, m[2] / ml}, a[3], b[3];
+        double *z = t.frame[0], *a = t.frame[1], *b = t.frame[2];
+        for (int k = 0; k < 3; ++k) z[k] = m[k] / ml;
         int k0 = std::fabs(z[0]) < std::fabs(z[1]) ? (std::fabs(z[0]) < std::fabs(z[2]) ? 0 : 2) : (std::fabs(z[1]) < std::fabs(z[2]) ? 1 : 2);
         double axis[3] = {0, 0, 0};
         axis[k0] = 1;
         shadow_detail::cross3(z, axis, a);
         double al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-        for (double& x : a) x /= al;
+        for (int k = 0; k < 3; ++k) a[k] /= al;
         shadow_detail::cross3(z, a, b);
-        double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-        out.dmin = INFINITY, out.dmax = 0;
+        uint64_t held = 0;
         for (uint64_t w = which; w; w &= w - 1) {
             uint32_t i = shadow_detail::lowest_bit(w);
             const double* e = t.e[i];
             double depth = shadow_detail::dot3(e, z);
             if (!(depth > 0.5 * t.dist[i])) continue;  // over 60 degrees off: walks alone
-            double inv = 1 / depth, x = shadow_detail::dot3(e, a) * inv, y = shadow_detail::dot3(e, b) * inv;
-            lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y), hi[1] = std::max(hi[1], y);
-            out.dmin = std::min(out.dmin, t.dist[i]), out.dmax = std::max(out.dmax, t.dist[i]);
+            double inv = 1 / depth;
+            t.across[i][0] = shadow_detail::dot3(e, a) * inv, t.across[i][1] = shadow_detail::dot3(e, b) * inv;
             held |= uint64_t(1) << i;
         }
-        if (!held) return 0;
+        return held;
+    }
+
+    // The pyramid from the light through the rectangle in the tile's frame that bounds the projections of
+    // the points `which` (held by the frame).
+    static void make_pyramid(const Tile& t, uint64_t which, Pyramid& out) {
+        double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+        out.dmax = 0;
+        for (uint64_t w = which; w; w &= w - 1) {
+            uint32_t i = shadow_detail::lowest_bit(w);
+            const double x = t.across[i][0], y = t.across[i][1];
+            lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y), hi[1] = std::max(hi[1], y);
+            out.dmax = std::max(out.dmax, t.dist[i]);
+        }
         // Widened far beyond the rounding of x and y (a few 1e-16 for |x|, |y| below 2) and of the rays to
         // float (below 1e-7): the float rays still hold every point's direction.
         for (int k = 0; k < 2; ++k) lo[k] -= 1e-6, hi[k] += 1e-6;
         const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
+        const double *z = t.frame[0], *a = t.frame[1], *b = t.frame[2];
         for (int r = 0; r < 4; ++r) {
             double ray[3], l = 0;
             for (int k = 0; k < 3; ++k) ray[k] = z[k] + corner[r][0] * a[k] + corner[r][1] * b[k], l += ray[k] * ray[k];
             l = std::sqrt(l);
             out.rx[r] = float(ray[0] / l), out.ry[r] = float(ray[1] / l), out.rz[r] = float(ray[2] / l);
         }
-        return held;
     }
 
     // Refits the tile's pyramid to the points `in` when they are not all its live points (narrower, so fewer
     // fine volumes or spheres meet it); returns the tile's pyramid, to be put back.
     static Pyramid narrow_pyramid(Tile& t, uint64_t in) {
         const Pyramid whole = t.pyramid;
-        if (in != t.alive && make_pyramid(t, in, t.pyramid) != in) t.pyramid = whole;  // some point off: the tile's
+        if (in != t.alive) make_pyramid(t, in, t.pyramid);
         return whole;
     }
 
@@ -520,14 +556,14 @@ private:
         return in & subset;
     }
 
-    // Drops from `subset` the points whose segment to the light certainly misses `box`: separating axis tests
-    // in float over the subset's lanes, on the box's 3 axes and on the segment's direction crossed with each.
-    // The box is taken as the parallelepiped centre + sum of +-padded half[k] axis[k] (cb_asset.h), whose
-    // projection on any direction those terms give exactly; the tolerances, 1e-6 of the sizes involved, exceed
-    // the float evaluation's errors (below 5e-7 of them) and the axes' departure from orthonormal (2e-7).
-    // Returns false, changing nothing, where float could overflow (sizes from float_safe up): the caller
-    // then tests point by point in double.
-    bool box_points(const Obb& box, uint64_t& subset, const Tile& t) const {
+    // Fine cluster f's box, set up for box_points from this light. The box is taken as the parallelepiped
+    // centre + sum of +-padded half[k] axis[k] (cb_asset.h), whose projection on any direction those terms
+    // give exactly; the tolerances, 1e-6 of the sizes involved, exceed the float evaluation's errors (below
+    // 5e-7 of them) and the axes' departure from orthonormal (2e-7). Not usable where float could overflow
+    // (sizes from float_safe up): points are then tested in double.
+    BoxFilter box_filter(uint32_t f) const {
+        const Obb box = view_->fine_bounds.obb(mesh_->first_fine + f);
+        BoxFilter b{};
         double h[3], c[3], a[3][3];
         padded_halves(box, h);
         for (int k = 0; k < 3; ++k) {
@@ -535,16 +571,35 @@ private:
             for (int j = 0; j < 3; ++j) a[k][j] = box.axis[k][j];
         }
         const double hs = h[0] + h[1] + h[2], c1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]);
-        if (!t.small || !(c1 + hs < float_safe)) return false;
-        float lo[3], hi[3], w[3][3], ax[3][3], hf[3];
+        b.usable = c1 + hs < float_safe;
+        if (!b.usable) return b;
         for (int k = 0; k < 3; ++k) {
             double qk = shadow_detail::dot3(c, a[k]), reach = h[k] + 1e-6 * (hs + c1);
-            lo[k] = float(qk - reach), hi[k] = float(qk + reach), hf[k] = float(h[k]);
+            b.lo[k] = float(qk - reach), b.hi[k] = float(qk + reach), b.hf[k] = float(h[k]);
             double wk[3];
             shadow_detail::cross3(a[k], c, wk);
-            for (int j = 0; j < 3; ++j) w[k][j] = float(wk[j]), ax[k][j] = box.axis[k][j];
+            for (int j = 0; j < 3; ++j) b.w[k][j] = float(wk[j]), b.ax[k][j] = box.axis[k][j];
         }
-        const float tol = float(2e-6 * (hs + c1));
+        b.tol = float(2e-6 * (hs + c1));
+        return b;
+    }
+
+    // Fine cluster f's box filter from the batch's cache, set up there when it is not yet.
+    const BoxFilter& cached_box_filter(uint32_t f, Cache& cache) const {
+        const uint32_t slot = f % Cache::box_slots;
+        if (cache.box_owner[slot] != this || cache.box_cluster[slot] != f) {
+            cache.box[slot] = box_filter(f);
+            cache.box_owner[slot] = this, cache.box_cluster[slot] = f;
+        }
+        return cache.box[slot];
+    }
+
+    // The points of `subset` whose segment to the light may touch the box of `b` (usable, and the tile small):
+    // separating axis tests in float over the subset's lanes, on the box's 3 axes and on the segment's
+    // direction crossed with each.
+    uint64_t box_points(const BoxFilter& b, uint64_t subset, const Tile& t) const {
+        const float(&lo)[3] = b.lo, (&hi)[3] = b.hi, (&hf)[3] = b.hf, (&w)[3][3] = b.w, (&ax)[3][3] = b.ax;
+        const float tol = b.tol;
         uint32_t begin, end;
         simd::lane_span(subset, begin, end);
         uint64_t keep = 0;
@@ -573,16 +628,19 @@ private:
             }
             keep |= uint64_t(simd::bits(m >= zero)) << i;
         }
-        subset &= keep;
-        return true;
+        return subset & keep;
     }
 
     // Tests fine cluster f's triangles for the points of `subset` still alive whose segment may touch its box.
     void test_points(uint32_t f, uint64_t subset, Tile& t) const {
         uint64_t todo = subset & t.alive;
         if (view_->fine_bounds.obbs && todo) {
-            Obb box = view_->fine_bounds.obb(mesh_->first_fine + f);
-            if (!box_points(box, todo, t)) {
+            BoxFilter own;
+            const BoxFilter& b = t.cache ? cached_box_filter(f, *t.cache) : (own = box_filter(f));
+            if (b.usable && t.small) {
+                todo = box_points(b, todo, t);
+            } else {
+                const Obb box = view_->fine_bounds.obb(mesh_->first_fine + f);
                 for (uint64_t w = todo; w; w &= w - 1) {
                     uint32_t i = shadow_detail::lowest_bit(w);
                     if (!segment_may_touch_box(box, t.p[i], light_)) todo &= ~(uint64_t(1) << i);
@@ -590,7 +648,7 @@ private:
             }
         }
         if (!todo) return;
-        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr, t.cache, this);
+        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr, t.cache ? &t.cache->lit : nullptr, this);
         t.alive &= ~hit, t.shadowed |= hit;
     }
 
@@ -1100,7 +1158,8 @@ private:
 inline size_t batch_scratch_size(const ClusterShadowTree* trees, size_t tree_count, size_t n) {
     size_t stack = 0;
     for (size_t t = 0; t < tree_count; ++t) stack = std::max(stack, trees[t].stack_size());
-    return 4 * n + stack + (sizeof(LitCache) + alignof(LitCache)) / sizeof(uint32_t) + 1;
+    const size_t cache = sizeof(ClusterShadowTree::Cache) + alignof(ClusterShadowTree::Cache);
+    return 4 * n + stack + (cache + sizeof(uint32_t) - 1) / sizeof(uint32_t);
 }
 
 namespace cpsv_detail {
@@ -1112,8 +1171,9 @@ inline uint32_t direction_key(const double* e) {
     int m = ax[0] >= ax[1] ? (ax[0] >= ax[2] ? 0 : 2) : (ax[1] >= ax[2] ? 1 : 2);
     if (!(ax[m] > 0) || !(ax[m] < INFINITY)) return 0x7fffffu;
     uint32_t cell[2];
+    const double inv = 1 / ax[m];
     for (int j = 0; j < 2; ++j) {
-        double u = e[(m + 1 + j) % 3] / ax[m];  // in [-1, 1]
+        double u = e[(m + 1 + j) % 3] * inv;  // in [-1, 1] (to rounding)
         double c = (u + 1) * 511.5;
         cell[j] = c >= 0 && c <= 1023 ? uint32_t(c) : c > 1023 ? 1023u : 0u;
     }
@@ -1137,21 +1197,21 @@ inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, co
     size_t stack_size = 0;
     for (size_t t = 0; t < tree_count; ++t) stack_size = std::max(stack_size, trees[t].stack_size());
     uint32_t *key = scratch, *index = scratch + n, *key2 = scratch + 2 * n, *index2 = scratch + 3 * n, *stack = scratch + 4 * n;
-    // The lit triangle groups, kept from tile to tile (neighbouring tiles meet many of the same clusters).
-    uintptr_t at = reinterpret_cast<uintptr_t>(stack + stack_size);
-    LitCache* cache = new (reinterpret_cast<void*>((at + alignof(LitCache) - 1) / alignof(LitCache) * alignof(LitCache))) LitCache;
+    using Cache = ClusterShadowTree::Cache;
+    const uintptr_t at = reinterpret_cast<uintptr_t>(stack + stack_size);
+    Cache* cache = new (reinterpret_cast<void*>((at + alignof(Cache) - 1) / alignof(Cache) * alignof(Cache))) Cache;
     cache->clear();
     for (size_t i = 0; i < n; ++i) {
         double e[3] = {points[i * 3] - light[0], points[i * 3 + 1] - light[1], points[i * 3 + 2] - light[2]};
         key[i] = cpsv_detail::direction_key(e);
         index[i] = uint32_t(i);
     }
-    for (int shift = 0; shift < 24; shift += 8) {  // radix sort, 8 bits a pass, stable
-        uint32_t start[257] = {};
-        for (size_t i = 0; i < n; ++i) ++start[(key[i] >> shift & 255) + 1];
-        for (int b = 0; b < 256; ++b) start[b + 1] += start[b];
+    for (int shift = 0; shift < 24; shift += 12) {  // radix sort, 12 bits a pass, stable
+        uint32_t start[4097] = {};
+        for (size_t i = 0; i < n; ++i) ++start[(key[i] >> shift & 4095) + 1];
+        for (int b = 0; b < 4096; ++b) start[b + 1] += start[b];
         for (size_t i = 0; i < n; ++i) {
-            uint32_t at = start[key[i] >> shift & 255]++;
+            uint32_t at = start[key[i] >> shift & 4095]++;
             key2[at] = key[i], index2[at] = index[i];
         }
         std::swap(key, key2), std::swap(index, index2);
