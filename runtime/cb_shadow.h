@@ -308,9 +308,9 @@ inline SegmentTest exact_triangle(const double* p, const double* light, const fl
 }
 
 // Up to 16 triangles of a cluster seen from the light: the terms every segment test from that light shares.
-// Triangle t's edge k runs from corner k to corner k + 1 (mod 3). With u that corner relative to the light and
-// d the edge, the plane through the light and the edge has normal u x d, and for a point p (e = p - light)
-// orient3d(p, light, corner k, corner k + 1) = e . (u x d): one dot product per edge and point. Edge-major
+// Triangle t's edge k runs from corner k to corner k + 1 (mod 3); with u and v its corners relative to the
+// light, the plane through the light and the edge has normal u x v, and for a point p (e = p - light)
+// orient3d(p, light, corner k, corner k + 1) = e . (u x v): one dot product per edge and point. Edge-major
 // arrays, so that the line test runs over several triangles per instruction.
 constexpr uint32_t lit_capacity = 16;  // a fine cluster of the default size (larger ones take several)
 static_assert(lit_capacity < 32 && lit_capacity % simd::width == 0, "triangles are bits of a uint32_t, in whole lane groups");
@@ -318,8 +318,10 @@ struct LitTriangles {
     uint32_t count = 0;
     const float* corner[lit_capacity][3];
     bool two_sided[lit_capacity];
-    // The edge planes' normals u x d in float, from u and d rounded to float: the float dot product with e
-    // rounded to float is within fbound |e|_1 of the exact value (light_triangles).
+    double nx[3][lit_capacity], ny[3][lit_capacity], nz[3][lit_capacity];  // edge plane normals
+    double scale[3][lit_capacity];  // |u|_1 |v|_1: times det_error |e|_1, it bounds the dot product's error
+    // The normals in float, for a first line test 4 triangles an instruction; times |e|_1, fbound bounds the
+    // float dot product's distance from the exact value.
     alignas(64) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
     // The triangle's plane, for the sides of the segment's ends: with N = (b - a) x (c - a),
     // orient3d(a, b, c, x) = N . (a - x), within det_error |b - a|_1 |c - a|_1 |a - x|_1 (plane_bound times
@@ -327,7 +329,7 @@ struct LitTriangles {
     double plane_x[lit_capacity], plane_y[lit_capacity], plane_z[lit_capacity], plane_bound[lit_capacity];
     double ax[lit_capacity], ay[lit_capacity], az[lit_capacity];  // corner a
     double dq[lit_capacity], bq[lit_capacity];  // orient3d(a, b, c, light) and its error bound
-    double max_scale = 0;  // the largest |u|_1 |d|_1: |e|_1 times it bounds every float dot product
+    double max_scale = 0;  // the largest scale: |e|_1 times it bounds every dot product
 };
 
 inline const float* list_position(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t i) {
@@ -337,17 +339,13 @@ inline const float* list_position(const AssetView& v, const MeshRecord& mesh, co
 
 // Triangles [first, first + count) of fine cluster c (count <= lit_capacity), from the light: the corners
 // gathered first, then every term in loops over the triangles that the compiler runs several to an instruction.
-//
-// The float normals' bound: each of the six products p_i u_j d_k that make up the exact orient3d goes
-// through at most 8 float roundings (e, u and d to float, the cross product's product and difference, the dot
-// product's product and two sums), so the float value is within (1 + 2^-24)^8 - 1 < 4.8e-7 of
-// |e|_1 |u|_1 |d|_1 from it; 6e-7 leaves room for the double differences before. The absolute term covers
-// results that fall to subnormals (2^-150 an operation), the factor 1.001 the bound's own rounding.
 inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first, uint32_t count,
                             const double* light, bool one_sided, LitTriangles& out) {
     out.count = count;
     const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle + first) * 3;
-    float px[3][lit_capacity], py[3][lit_capacity], pz[3][lit_capacity];  // the corners
+    // Corner k of each triangle: its position (exact in double), its offset from the light and that's L1 norm.
+    double px[3][lit_capacity], py[3][lit_capacity], pz[3][lit_capacity];
+    double ux[3][lit_capacity], uy[3][lit_capacity], uz[3][lit_capacity], u1[3][lit_capacity];
     for (uint32_t t = 0; t < count; ++t) {
         for (int k = 0; k < 3; ++k) {
             const float* at = list_position(v, mesh, c, local[t * 3 + k]);
@@ -356,38 +354,46 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
         }
         out.two_sided[t] = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t);
     }
-    // The rest are triangles with every corner at the origin: edges of length 0, normals 0, never settled.
-    // The loops below run over all lit_capacity slots, so that they take whole vectors.
-    for (uint32_t t = count; t < lit_capacity; ++t)
-        for (int k = 0; k < 3; ++k) px[k][t] = py[k][t] = pz[k][t] = 0;
-    const double lx = light[0], ly = light[1], lz = light[2];
-    double widest[lit_capacity];  // per triangle, its largest |u|_1 |d|_1
+    for (int k = 0; k < 3; ++k)
+        for (uint32_t t = 0; t < count; ++t) {
+            ux[k][t] = px[k][t] - light[0], uy[k][t] = py[k][t] - light[1], uz[k][t] = pz[k][t] - light[2];
+            u1[k][t] = std::fabs(ux[k][t]) + std::fabs(uy[k][t]) + std::fabs(uz[k][t]);
+        }
+    if (count % simd::width) {  // the float line test's last group, padded with zeros (never settled); the loop below
+                                 // fills the rest
+        const uint32_t g = count - count % simd::width;
+        for (int k = 0; k < 3; ++k)
+            for (uint32_t j = 0; j < simd::width; ++j) out.fx[k][g + j] = out.fy[k][g + j] = out.fz[k][g + j] = out.fbound[k][g + j] = 0;
+    }
+    double widest[lit_capacity];  // per triangle, its largest scale
     for (int k = 0; k < 3; ++k) {
         const int j = (k + 1) % 3;
-        for (uint32_t t = 0; t < lit_capacity; ++t) {
-            const double ux = double(px[k][t]) - lx, uy = double(py[k][t]) - ly, uz = double(pz[k][t]) - lz;
-            const double dx = double(px[j][t]) - double(px[k][t]), dy = double(py[j][t]) - double(py[k][t]),
-                         dz = double(pz[j][t]) - double(pz[k][t]);
-            const float fux = float(ux), fuy = float(uy), fuz = float(uz), fdx = float(dx), fdy = float(dy), fdz = float(dz);
-            out.fx[k][t] = fuy * fdz - fuz * fdy, out.fy[k][t] = fuz * fdx - fux * fdz, out.fz[k][t] = fux * fdy - fuy * fdx;
-            const double u1 = std::fabs(ux) + std::fabs(uy) + std::fabs(uz), d1 = std::fabs(dx) + std::fabs(dy) + std::fabs(dz);
-            out.fbound[k][t] = float((6e-7 * u1 * d1 + 2e-44 * (u1 + d1 + 1)) * 1.001);
-            widest[t] = k == 0 ? u1 * d1 : std::max(widest[t], u1 * d1);
+        for (uint32_t t = 0; t < count; ++t) {
+            // Edge k's plane through the light: u x v, with u and v its corners from the light.
+            const double nx = uy[k][t] * uz[j][t] - uz[k][t] * uy[j][t], ny = uz[k][t] * ux[j][t] - ux[k][t] * uz[j][t],
+                         nz = ux[k][t] * uy[j][t] - uy[k][t] * ux[j][t];
+            const double scale = u1[k][t] * u1[j][t];
+            out.nx[k][t] = nx, out.ny[k][t] = ny, out.nz[k][t] = nz, out.scale[k][t] = scale;
+            widest[t] = k == 0 ? scale : std::max(widest[t], scale);
+            // Rounding e and n to float and the float dot product err by under 6 float epsilons of
+            // |e|_1 |n|_max (4e-7 of it), on top of the double value's own bound; grown for its own rounding.
+            // (|n| is far below scale when the light is far: u and v are then nearly parallel.)
+            const double nmax = std::max(std::max(std::fabs(nx), std::fabs(ny)), std::fabs(nz));
+            out.fx[k][t] = float(nx), out.fy[k][t] = float(ny), out.fz[k][t] = float(nz);
+            out.fbound[k][t] = float((4e-7 * nmax + det_error * scale) * 1.001);
         }
     }
     out.max_scale = 0;
-    for (uint32_t t = 0; t < lit_capacity; ++t) out.max_scale = std::max(out.max_scale, widest[t]);
-    for (uint32_t t = 0; t < lit_capacity; ++t) {
-        const double ax = px[0][t], ay = py[0][t], az = pz[0][t];
-        const double e1x = double(px[1][t]) - ax, e1y = double(py[1][t]) - ay, e1z = double(pz[1][t]) - az;
-        const double e2x = double(px[2][t]) - ax, e2y = double(py[2][t]) - ay, e2z = double(pz[2][t]) - az;
+    for (uint32_t t = 0; t < count; ++t) out.max_scale = std::max(out.max_scale, widest[t]);
+    for (uint32_t t = 0; t < count; ++t) {
+        const double e1x = px[1][t] - px[0][t], e1y = py[1][t] - py[0][t], e1z = pz[1][t] - pz[0][t];
+        const double e2x = px[2][t] - px[0][t], e2y = py[2][t] - py[0][t], e2z = pz[2][t] - pz[0][t];
         const double nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
         const double bound = det_error * (std::fabs(e1x) + std::fabs(e1y) + std::fabs(e1z)) * (std::fabs(e2x) + std::fabs(e2y) + std::fabs(e2z));
         out.plane_x[t] = nx, out.plane_y[t] = ny, out.plane_z[t] = nz, out.plane_bound[t] = bound;
-        out.ax[t] = ax, out.ay[t] = ay, out.az[t] = az;
-        // orient3d(a, b, c, light) = N . (a - light).
-        const double ux = ax - lx, uy = ay - ly, uz = az - lz;
-        out.dq[t] = nx * ux + ny * uy + nz * uz, out.bq[t] = bound * (std::fabs(ux) + std::fabs(uy) + std::fabs(uz));
+        out.ax[t] = px[0][t], out.ay[t] = py[0][t], out.az[t] = pz[0][t];
+        // orient3d(a, b, c, light) = N . (a - light), a - light being corner 0's offset from the light.
+        out.dq[t] = nx * ux[0][t] + ny * uy[0][t] + nz * uz[0][t], out.bq[t] = bound * u1[0][t];
     }
 }
 
@@ -401,7 +407,7 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
     const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
     const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2), edge_scale = det_error * e_l1;
     // Bit t set where the line may meet triangle t: not every edge sign settled (|o| beyond its bound), or
-    // all alike. First in float, several triangles an instruction, then the others in double; only when nothing
+    // all alike. First in float, 4 triangles an instruction, then the others in double; only when nothing
     // can overflow or fall to subnormals (the 1e-30 absolute term stands for the latter); otherwise every
     // triangle goes to the careful loop below.
     uint32_t may_meet = (1u << lit.count) - 1;  // (lit_capacity < 32)
@@ -430,18 +436,12 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
     for (; may_meet; may_meet &= may_meet - 1) {
         const uint32_t t = lowest_bit(may_meet);
         bool settled = through >> t & 1;
-        if (!settled) {  // the signs in double: e . (u x v) with u and v the edge's corners from the light
-            double u[3][3], u1[3], o[3];
-            for (int k = 0; k < 3; ++k) {
-                for (int j = 0; j < 3; ++j) u[k][j] = double(lit.corner[t][k][j]) - light[j];
-                u1[k] = l1(u[k]);
-            }
+        if (!settled) {  // the signs in double
+            double o[3];
             settled = true;
             for (int k = 0; k < 3; ++k) {
-                double n[3];
-                cross3(u[k], u[(k + 1) % 3], n);
-                o[k] = e0 * n[0] + e1 * n[1] + e2 * n[2];
-                settled = settled && std::fabs(o[k]) > edge_scale * (u1[k] * u1[(k + 1) % 3]);
+                o[k] = e0 * lit.nx[k][t] + e1 * lit.ny[k][t] + e2 * lit.nz[k][t];
+                settled = settled && std::fabs(o[k]) > edge_scale * lit.scale[k][t];
             }
             if (settled && ((o[0] > 0) != (o[1] > 0) || (o[1] > 0) != (o[2] > 0))) continue;  // the line passes outside
         }
