@@ -1218,6 +1218,11 @@ inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, co
     }
     for (size_t first = 0; first < n; first += ClusterShadowTree::tile_capacity) {
         uint32_t count = uint32_t(std::min<size_t>(ClusterShadowTree::tile_capacity, n - first));
+#if defined(__GNUC__)
+        // The next tile's points, asked for now: sorted by direction, they lie all over the caller's array.
+        for (size_t i = first + count; i < std::min(n, first + count + ClusterShadowTree::tile_capacity); ++i)
+            __builtin_prefetch(points + size_t(index[i]) * 3);
+#endif
         uint64_t alive = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1, shadowed = 0;
         for (size_t t = 0; t < tree_count && alive; ++t) {
             uint64_t s = trees[t].occluded_tile(points, index + first, count, alive, stack, stats, cache);
