@@ -257,7 +257,7 @@ public:
     // own volume (its 4 planes and closing distance) before its cluster's triangles, so a point meets the
     // clusters whose volumes hold it, as its own walk would. Points too far from the tile's mean direction
     // (over 60 degrees), at the light, not finite or beyond 1e30 walk alone. `stack` holds stack_size() entries; uses
-    // about 8 KB of the thread's stack besides (and cluster_blocks_points' 10 KB).
+    // about 10 KB of the thread's stack besides (and a cluster test's, docs/RUNTIME.md).
     uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t* stack,
                            QueryStats* stats = nullptr, Cache* cache = nullptr) const {
         if (!usable_ || alive == 0) return 0;
@@ -1159,7 +1159,7 @@ inline size_t batch_scratch_size(const ClusterShadowTree* trees, size_t tree_cou
     size_t stack = 0;
     for (size_t t = 0; t < tree_count; ++t) stack = std::max(stack, trees[t].stack_size());
     const size_t cache = sizeof(ClusterShadowTree::Cache) + alignof(ClusterShadowTree::Cache);
-    return 4 * n + stack + (cache + sizeof(uint32_t) - 1) / sizeof(uint32_t);
+    return 4 * n + 4097 + stack + (cache + sizeof(uint32_t) - 1) / sizeof(uint32_t);
 }
 
 namespace cpsv_detail {
@@ -1196,7 +1196,8 @@ inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, co
     const double* light = trees[0].world_light();
     size_t stack_size = 0;
     for (size_t t = 0; t < tree_count; ++t) stack_size = std::max(stack_size, trees[t].stack_size());
-    uint32_t *key = scratch, *index = scratch + n, *key2 = scratch + 2 * n, *index2 = scratch + 3 * n, *stack = scratch + 4 * n;
+    uint32_t *key = scratch, *index = scratch + n, *key2 = scratch + 2 * n, *index2 = scratch + 3 * n, *start = scratch + 4 * n;
+    uint32_t* stack = start + 4097;
     using Cache = ClusterShadowTree::Cache;
     const uintptr_t at = reinterpret_cast<uintptr_t>(stack + stack_size);
     Cache* cache = new (reinterpret_cast<void*>((at + alignof(Cache) - 1) / alignof(Cache) * alignof(Cache))) Cache;
@@ -1207,7 +1208,7 @@ inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, co
         index[i] = uint32_t(i);
     }
     for (int shift = 0; shift < 24; shift += 12) {  // radix sort, 12 bits a pass, stable
-        uint32_t start[4097] = {};
+        std::fill(start, start + 4097, 0u);
         for (size_t i = 0; i < n; ++i) ++start[(key[i] >> shift & 4095) + 1];
         for (int b = 0; b < 4096; ++b) start[b + 1] += start[b];
         for (size_t i = 0; i < n; ++i) {

@@ -320,7 +320,7 @@ struct LitTriangles {
     bool two_sided[lit_capacity];
     double nx[3][lit_capacity], ny[3][lit_capacity], nz[3][lit_capacity];  // edge plane normals
     double scale[3][lit_capacity];  // |u|_1 |v|_1: times det_error |e|_1, it bounds the dot product's error
-    // The normals in float, for a first line test 4 triangles an instruction; times |e|_1, fbound bounds the
+    // The normals in float, for a first line test a vector of triangles an instruction; times |e|_1, fbound bounds the
     // float dot product's distance from the exact value.
     alignas(64) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
     // The triangle's plane, for the sides of the segment's ends: with N = (b - a) x (c - a),
@@ -407,7 +407,7 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
     const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
     const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2), edge_scale = det_error * e_l1;
     // Bit t set where the line may meet triangle t: not every edge sign settled (|o| beyond its bound), or
-    // all alike. First in float, 4 triangles an instruction, then the others in double; only when nothing
+    // all alike. First in float, a vector of triangles an instruction, then the others in double; only when nothing
     // can overflow or fall to subnormals (the 1e-30 absolute term stands for the latter); otherwise every
     // triangle goes to the careful loop below.
     uint32_t may_meet = (1u << lit.count) - 1;  // (lit_capacity < 32)
@@ -490,7 +490,7 @@ struct LitCache {
 // of `mesh` shadow from the light, in the mesh's frame: the same answers as cb::segment_triangle on each
 // triangle. The light's terms are computed once for all the points, 16 triangles at a time (or taken from
 // `cache`, under `owner`, and left there). Sets *touched when an exactly tested triangle was touched. Uses
-// about 6 KB of stack.
+// about 7 KB of stack, and the exact test's 50 KB when a sign needs it (docs/RUNTIME.md).
 inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double (*p)[3], uint64_t which,
                                       const double* light, bool one_sided, QueryStats* stats, bool* touched = nullptr,
                                       LitCache* cache = nullptr, const void* owner = nullptr) {
