@@ -562,8 +562,9 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
 
 TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
     // cluster_blocks decides most triangles in double with error bounds; segments built to pass within
-    // rounding of a triangle's plane, of its edge lines, or with the light on the plane, at offsets where
-    // double evaluation alone gets signs wrong, must still get segment_triangle's exact answers.
+    // rounding of a triangle's plane, of its edge lines, or with the light on the plane, or to cross a
+    // triangle within rounding of the self-shadowing threshold, at offsets where double evaluation alone
+    // gets signs wrong, must still get segment_triangle's exact answers.
     std::mt19937 rng(5);
     std::uniform_real_distribution<double> u(0, 1);
     size_t tests = 0, disagreements = 0, blocked = 0;
@@ -592,7 +593,7 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
             for (int k = 0; k < 3; ++k)
                 a[k] = v.position(m, id[0])[k], bb[k] = v.position(m, id[1])[k], cc[k] = v.position(m, id[2])[k];
             double s = u(rng), t = u(rng) * (1 - s), far[3] = {offset + 20 * u(rng) - 7, offset + 20 * u(rng) - 7, offset + 5 + 5 * u(rng)};
-            switch (trial % 3) {
+            switch (trial % 4) {
                 case 0:  // p within rounding of the triangle's plane, the light above or below
                     for (int k = 0; k < 3; ++k) p[k] = a[k] + s * (bb[k] - a[k]) + t * (cc[k] - a[k]), light[k] = far[k];
                     if (trial % 2) std::swap(p, light);
@@ -600,9 +601,15 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
                 case 1:  // the light within rounding of the plane of p, a and b: the segment grazes edge a-b
                     for (int k = 0; k < 3; ++k) p[k] = far[k], light[k] = a[k] + s * (bb[k] - a[k]) + 1.5 * (a[k] + s * (bb[k] - a[k]) - far[k]);
                     break;
-                default:  // both within rounding of the triangle's plane (edge-on, nearly)
+                case 2:  // both within rounding of the triangle's plane (edge-on, nearly)
                     for (int k = 0; k < 3; ++k)
                         p[k] = a[k] + 3 * s * (bb[k] - a[k]) - t * (cc[k] - a[k]), light[k] = a[k] - 2 * t * (bb[k] - a[k]) + 4 * s * (cc[k] - a[k]);
+                    break;
+                default:  // the segment crosses the triangle within rounding of 2^-13 of the way from p
+                    for (int k = 0; k < 3; ++k) {
+                        double x = a[k] + s * (bb[k] - a[k]) + t * (cc[k] - a[k]);
+                        light[k] = far[k], p[k] = (x - cb::self_shadow_fraction * far[k]) / (1 - cb::self_shadow_fraction);
+                    }
             }
             for (bool one_sided : {false, true}) {
                 bool fast = cb::cluster_blocks(v, m, f, p, light, one_sided, nullptr);
