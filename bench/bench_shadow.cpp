@@ -155,6 +155,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         };
         std::vector<uint8_t> ours(n), embree1(n), embree16(n);
         cb::QueryStats stats;
+        std::vector<std::vector<uint32_t>> query_scratch(2);  // per query thread, kept between frames like the build's
         auto ours_pass = [&](unsigned threads) {
             auto s = std::chrono::steady_clock::now();
             std::vector<std::thread> pool;
@@ -163,7 +164,8 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
                 pool.emplace_back([&, th] {
                     // Contiguous halves: interleaved points would have the threads write neighbouring bytes.
                     size_t chunk = (n + threads - 1) / threads, begin = th * chunk, end = std::min(n, begin + chunk);
-                    std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), end - begin));
+                    std::vector<uint32_t>& scratch = query_scratch[th];
+                    scratch.resize(std::max(scratch.size(), cb::batch_scratch_size(trees.data(), trees.size(), end - begin)));
                     cb::QueryStats local;  // per thread, copied out once: counters in one shared array would false-share
                     if (begin < end)
                         cb::occluded_batch(trees.data(), trees.size(), &pts[begin * 3], end - begin, &ours[begin], scratch.data(), &local);
@@ -245,7 +247,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         for (const cb::ClusterShadowTree& tr : trees) ours_bytes += tr.memory_bytes();
         size_t scratch_bytes = 0;
         for (const cb::ClusterShadowTree::BuildScratch& b : build_scratch) scratch_bytes += b.memory_bytes();
-        scratch_bytes += 2 * cb::batch_scratch_size(trees.data(), trees.size(), (n + 1) / 2) * sizeof(uint32_t);  // two threads' queries
+        for (const std::vector<uint32_t>& q : query_scratch) scratch_bytes += q.capacity() * sizeof(uint32_t);
         std::printf("| %-16s | %s | %zu | %.0f%% | %.1f / %.1f ms | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %.0f ms | %.2f / %.2f | %.1f | %.1f | %.1f | %.1f | %zu | %.1f + %.1f / %.1f | %zu (%.3f%%) |\n",
                     in.name.c_str(), light_names[li], n, 100.0 * double(shadowed) / double(n), build * 1e3,
                     build2 * 1e3, mq / ours1, mq / ours2, mq / e1, mq / e2, mq / p1, mq / p2, embree_build * 1e3, ratio1, ratio2, double(stats.nodes_visited) / double(n), double(stats.clusters_tested) / double(n),
@@ -267,7 +269,7 @@ int main(int argc, char** argv) {
     std::printf("%s, fine level '%s'; %dx%d view; medians of %d rounds; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = "
                 "(our build + our queries) / Embree's queries alone, 1 / 2 threads, the median of the rounds' ratios (below 1: we "
                 "are faster); memory: our asset and "
-                "trees + scratch (the build's, kept between builds, and two query threads') / Embree's peak\n\n", o.one_sided ? "one-sided trees" : "two-sided trees",
+                "trees + scratch kept between frames (the build's and the two query threads') / Embree's peak\n\n", o.one_sided ? "one-sided trees" : "two-sided trees",
                 level == Level::trees ? "trees" : level == Level::one_tree ? "one-tree" : "scan", o.view, o.view, std::max(1, o.runs));
     std::printf("| scene | light | points | in shadow | our build 1 / 2 threads | ours M q/s | Embree occluded1 M q/s | Embree occluded16 M q/s | "
                 "Embree build | ours vs Embree | nodes/query | clusters/query | triangles/query | useless clusters/query | always tested | MB ours + scratch / Embree | disagree |\n");
