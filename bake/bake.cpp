@@ -41,7 +41,7 @@ AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h) {
         out.double_sided.resize(h.order.size());
         for (size_t i = 0; i < h.order.size(); ++i) out.double_sided[i] = sided[h.order[i]];
     }
-    out.flags = (is_closed(mesh) ? mesh_closed : 0) | (any ? mesh_has_double_sided : 0);
+    out.flags = (is_closed(mesh) ? uint32_t(mesh_closed) : 0u) | (any ? uint32_t(mesh_has_double_sided) : 0u);
     for (size_t f = 0; f < h.fine_count(); ++f)
         out.fine.push_back({h.fine_offsets[f], h.fine_offsets[f + 1] - h.fine_offsets[f]});
     for (size_t c = 0; c < h.coarse_count(); ++c)
