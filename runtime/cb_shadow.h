@@ -397,6 +397,13 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     }
 }
 
+// orient3d(a, b, c, x) for triangle t of `lit`, in double, and a bound on its error in `bound`.
+inline double plane_side(const LitTriangles& lit, uint32_t t, const double* x, double& bound) {
+    const double d0 = lit.ax[t] - x[0], d1 = lit.ay[t] - x[1], d2 = lit.az[t] - x[2];
+    bound = lit.plane_bound[t] * (std::fabs(d0) + std::fabs(d1) + std::fabs(d2));
+    return lit.plane_x[t] * d0 + lit.plane_y[t] * d1 + lit.plane_z[t] * d2;
+}
+
 // True when segment p -> light meets a triangle of `lit` that blocks; the same answers as
 // cb::segment_triangle on each. Every sign it needs is first settled in double against its error bound:
 // the line through p and the light first, for all triangles at once (it misses most of them, and then
@@ -448,9 +455,8 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
         bool decided = false, blocks = false;
         if (settled && std::fabs(lit.dq[t]) > lit.bq[t]) {
             // Through the interior: the point's side of the plane (the light's is dq).
-            const double d0 = lit.ax[t] - p[0], d1 = lit.ay[t] - p[1], d2 = lit.az[t] - p[2];
-            const double dp = lit.plane_x[t] * d0 + lit.plane_y[t] * d1 + lit.plane_z[t] * d2, dq = lit.dq[t];
-            const double bp = lit.plane_bound[t] * (std::fabs(d0) + std::fabs(d1) + std::fabs(d2));
+            double bp;
+            const double dp = plane_side(lit, t, p, bp), dq = lit.dq[t];
             if (std::fabs(dp) > bp) {
                 decided = true;
                 if ((dq > 0) == (dp > 0) || (!lit.two_sided[t] && dq < 0)) continue;  // no crossing, or front-facing

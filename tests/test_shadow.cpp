@@ -632,6 +632,68 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
     EXPECT_GT(blocked, tests / 20);
 }
 
+TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
+    // The cluster test decides a segment end's side of a triangle's plane in double whenever the value clears
+    // its error bound (plane_side for points, dq and bq for the light): the bound must hold the exact
+    // orient3d, checked here with exact expansions, for points on, near and off the planes, at large offsets.
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(0, 1);
+    size_t checked = 0, outside = 0, inexact = 0;
+    auto within = [&](const double* a, const double* b, const double* c, const double* x, double value, double bound) {
+        cb::exact::Expansion low = cb::exact::orient3d_exact(a, b, c, x), high = low;
+        cb::exact::grow(low, -value), cb::exact::grow(low, bound);    // exact - value + bound >= 0
+        cb::exact::grow(high, -value), cb::exact::grow(high, -bound); // exact - value - bound <= 0
+        cb::exact::Expansion error = cb::exact::orient3d_exact(a, b, c, x);
+        cb::exact::grow(error, -value);
+        inexact += cb::exact::sign(error) != 0;
+        ++checked;
+        outside += cb::exact::sign(low) < 0 || cb::exact::sign(high) > 0;
+    };
+    for (double offset : {0.0, 1e3, 1e6, 3e7}) {
+        std::vector<float> pos;
+        std::vector<uint32_t> idx;
+        for (int j = 0; j <= 6; ++j)
+            for (int i = 0; i <= 6; ++i)
+                pos.insert(pos.end(), {float(offset + i * 0.7), float(offset + j * 1.3), float(offset + 0.4 * std::sin(i * 1.9 + j))});
+        for (uint32_t j = 0; j < 6; ++j)
+            for (uint32_t i = 0; i < 6; ++i) {
+                uint32_t a = j * 7 + i;
+                idx.insert(idx.end(), {a, a + 1, a + 7, a + 1, a + 8, a + 7});
+            }
+        Baked b = bake_mesh(pos, idx);
+        const cb::AssetView& v = b.view;
+        ASSERT_GT(v.mesh_count, 0u);
+        const cb::MeshRecord& m = v.meshes[0];
+        for (int trial = 0; trial < 300; ++trial) {
+            const uint32_t f = uint32_t(rng() % m.fine_count);
+            const cb::FineCluster& c = v.fine[m.first_fine + f];
+            const double light[3] = {offset + 10 * u(rng) - 3, offset + 10 * u(rng) - 3, offset + (trial % 2 ? 0.2 : 6) * u(rng)};
+            cb::shadow_detail::LitTriangles lit;
+            const uint32_t count = std::min<uint32_t>(cb::shadow_detail::lit_capacity, c.triangle_count);
+            cb::shadow_detail::light_triangles(v, m, c, 0, count, light, false, lit);
+            for (uint32_t t = 0; t < count; ++t) {
+                double corner[3][3];
+                for (int k = 0; k < 3; ++k)
+                    for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
+                within(corner[0], corner[1], corner[2], light, lit.dq[t], lit.bq[t]);
+                for (int k = 0; k < 4; ++k) {
+                    // On the plane (to rounding), barely off it, and off it: the bound is needed most near zero.
+                    const double s = u(rng), w = u(rng) * (1 - s), lift[4] = {0, 1e-12, 1e-6, 0.3};
+                    double x[3], n[3], e1[3], e2[3];
+                    for (int j = 0; j < 3; ++j) e1[j] = corner[1][j] - corner[0][j], e2[j] = corner[2][j] - corner[0][j];
+                    cb::shadow_detail::cross3(e1, e2, n);
+                    for (int j = 0; j < 3; ++j) x[j] = corner[0][j] + s * e1[j] + w * e2[j] + lift[k] * n[j];
+                    double bound;
+                    const double value = cb::shadow_detail::plane_side(lit, t, x, bound);
+                    within(corner[0], corner[1], corner[2], x, value, bound);
+                }
+            }
+        }
+    }
+    EXPECT_EQ(outside, 0u) << "of " << checked;
+    EXPECT_GT(inexact, checked / 10) << "the double values were exact too often for the bound to be tested";
+}
+
 TEST(Shadow, PaddedBoxCornersHoldEveryClusterVertex) {
     // Shadow volumes and culling take a box as center + sum of +-half[i] axis[i]; the format's box is the
     // slab intersection |dot(v - center, axis[i])| <= half[i], with axes orthonormal only to float
