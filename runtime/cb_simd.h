@@ -1,15 +1,15 @@
-// The float lanes the runtime's filters run on: 16 with AVX-512, 8 with AVX, 4 with SSE2, 4 portable (CB_NO_SIMD, or a
-// target without SSE2). Each filter is written once over cb::simd::Floats; every build gives the same
-// answers, since each lane computes the same IEEE operations in the same order. Every translation unit
-// that includes the runtime must see the same choice (compile them all with the same target flags).
-// Header-only C++17, no dependencies. MIT licensed.
+// The float lanes the runtime's filters run on: 16 with AVX-512, 8 with AVX, 4 with SSE2, and 4 portable
+// ones (CB_NO_SIMD, or a target without SSE2). Each filter is written once over cb::simd::Floats; every
+// build gives the same answers, since each lane computes the same IEEE operations in the same order. Every
+// translation unit that includes the runtime must see the same choice (compile them all with the same
+// target flags). Header-only C++17, no dependencies. MIT licensed.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
-#include <cmath>
-
-// CB_SIMD_SSE2: SSE2 intrinsics may be used (also for fixed 4-wide work); CB_SIMD_AVX: the lanes are AVX's.
+// CB_SIMD_SSE2: SSE2 intrinsics may be used (also for fixed 4-wide work); CB_SIMD_AVX512 or CB_SIMD_AVX:
+// the lanes are AVX-512's or AVX's.
 #if defined(__SSE2__) && !defined(CB_NO_SIMD)
 #define CB_SIMD_SSE2 1
 #include <emmintrin.h>
