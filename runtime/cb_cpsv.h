@@ -1155,9 +1155,19 @@ private:
 // Z-order curve on it) and walked in tiles of ClusterShadowTree::tile_capacity. `scratch` holds
 // batch_scratch_size() words. The trees are const: callers may split the points across threads, each with
 // its own scratch.
-inline size_t batch_scratch_size(const ClusterShadowTree* trees, size_t tree_count, size_t n) {
+namespace cpsv_detail {
+
+// The batch's stack: room for the deepest of the trees.
+inline size_t batch_stack_size(const ClusterShadowTree* trees, size_t tree_count) {
     size_t stack = 0;
     for (size_t t = 0; t < tree_count; ++t) stack = std::max(stack, trees[t].stack_size());
+    return stack;
+}
+
+}  // namespace cpsv_detail
+
+inline size_t batch_scratch_size(const ClusterShadowTree* trees, size_t tree_count, size_t n) {
+    const size_t stack = cpsv_detail::batch_stack_size(trees, tree_count);
     const size_t cache = sizeof(ClusterShadowTree::Cache) + alignof(ClusterShadowTree::Cache);
     return 4 * n + 4097 + stack + (cache + sizeof(uint32_t) - 1) / sizeof(uint32_t);
 }
@@ -1194,8 +1204,7 @@ inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, co
         return;
     }
     const double* light = trees[0].world_light();
-    size_t stack_size = 0;
-    for (size_t t = 0; t < tree_count; ++t) stack_size = std::max(stack_size, trees[t].stack_size());
+    const size_t stack_size = cpsv_detail::batch_stack_size(trees, tree_count);
     uint32_t *key = scratch, *index = scratch + n, *key2 = scratch + 2 * n, *index2 = scratch + 3 * n, *start = scratch + 4 * n;
     uint32_t* stack = start + 4097;
     using Cache = ClusterShadowTree::Cache;

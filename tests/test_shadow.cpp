@@ -459,6 +459,22 @@ Baked bake_mesh(std::vector<float> positions, std::vector<uint32_t> indices) {
     return cb::test::bake_scene(scene, co, cb::bounds_auto, 1);
 }
 
+// A bumpy grid of 6 x 6 cells, dx by dy, float coordinates around (offset, offset, offset): heights
+// `height` sin(wave i + j), baked as bake_mesh does.
+Baked bumpy_grid(double offset, double dx, double dy, double height, double wave) {
+    std::vector<float> pos;
+    std::vector<uint32_t> idx;
+    for (int j = 0; j <= 6; ++j)
+        for (int i = 0; i <= 6; ++i)
+            pos.insert(pos.end(), {float(offset + i * dx), float(offset + j * dy), float(offset + height * std::sin(i * wave + j))});
+    for (uint32_t j = 0; j < 6; ++j)
+        for (uint32_t i = 0; i < 6; ++i) {
+            uint32_t a = j * 7 + i;
+            idx.insert(idx.end(), {a, a + 1, a + 7, a + 1, a + 8, a + 7});
+        }
+    return bake_mesh(pos, idx);
+}
+
 }  // namespace
 
 TEST(Shadow, HardCasesAgreeWithTheOracle) {
@@ -569,18 +585,7 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
     std::uniform_real_distribution<double> u(0, 1);
     size_t tests = 0, disagreements = 0, blocked = 0;
     for (double offset : {0.0, 1e6, 3e7}) {
-        // A bumpy 6 x 6 grid of 1-unit cells, float coordinates, around (offset, offset, offset).
-        std::vector<float> pos;
-        std::vector<uint32_t> idx;
-        for (int j = 0; j <= 6; ++j)
-            for (int i = 0; i <= 6; ++i)
-                pos.insert(pos.end(), {float(offset + i), float(offset + j), float(offset + 0.3 * std::sin(i * 1.7 + j))});
-        for (uint32_t j = 0; j < 6; ++j)
-            for (uint32_t i = 0; i < 6; ++i) {
-                uint32_t a = j * 7 + i;
-                idx.insert(idx.end(), {a, a + 1, a + 7, a + 1, a + 8, a + 7});
-            }
-        Baked b = bake_mesh(pos, idx);
+        Baked b = bumpy_grid(offset, 1, 1, 0.3, 1.7);  // cells of 1 unit
         const cb::AssetView& v = b.view;
         ASSERT_GT(v.mesh_count, 0u);
         const cb::MeshRecord& m = v.meshes[0];
@@ -650,17 +655,7 @@ TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
         outside += cb::exact::sign(low) < 0 || cb::exact::sign(high) > 0;
     };
     for (double offset : {0.0, 1e3, 1e6, 3e7}) {
-        std::vector<float> pos;
-        std::vector<uint32_t> idx;
-        for (int j = 0; j <= 6; ++j)
-            for (int i = 0; i <= 6; ++i)
-                pos.insert(pos.end(), {float(offset + i * 0.7), float(offset + j * 1.3), float(offset + 0.4 * std::sin(i * 1.9 + j))});
-        for (uint32_t j = 0; j < 6; ++j)
-            for (uint32_t i = 0; i < 6; ++i) {
-                uint32_t a = j * 7 + i;
-                idx.insert(idx.end(), {a, a + 1, a + 7, a + 1, a + 8, a + 7});
-            }
-        Baked b = bake_mesh(pos, idx);
+        Baked b = bumpy_grid(offset, 0.7, 1.3, 0.4, 1.9);
         const cb::AssetView& v = b.view;
         ASSERT_GT(v.mesh_count, 0u);
         const cb::MeshRecord& m = v.meshes[0];
