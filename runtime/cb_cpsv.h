@@ -683,8 +683,20 @@ private:
     // Tests the pending clusters, nearest closing distance first.
     void test_pending(Tile& t) const {
         Tile::Pending* p = t.pending;
-        sort_by_near(p, t.pending_count);
-        for (uint32_t i = 0; i < t.pending_count && t.alive; ++i) test_points(p[i].cluster, p[i].points, t);
+        const uint32_t n = t.pending_count;
+        sort_by_near(p, n);
+        // A cluster's triangles and new vertices are asked for three tests ahead, its reused vertices one test
+        // ahead (unless its first group is lit already).
+        auto ask = [&](uint32_t i, int step) {
+            if (i >= n || !(p[i].points & t.alive)) return;
+            if (t.cache && t.cache->lit.holds(this, p[i].cluster, 0)) return;
+            shadow_detail::prefetch_lit(*view_, *mesh_, view_->fine[mesh_->first_fine + p[i].cluster], step);
+        };
+        ask(0, 0), ask(1, 0), ask(2, 0), ask(0, 1);
+        for (uint32_t i = 0; i < n && t.alive; ++i) {
+            ask(i + 3, 0), ask(i + 1, 1);
+            test_points(p[i].cluster, p[i].points, t);
+        }
         t.pending_count = 0;
     }
 
@@ -814,13 +826,9 @@ private:
     // Asks for fine cluster f's box and record ahead of its test (pending clusters are tested once the whole
     // coarse cluster is scanned): on large meshes these reads otherwise miss the cache.
     void prefetch(uint32_t f) const {
-#if defined(__GNUC__)
         const size_t g = size_t(mesh_->first_fine) + f;
-        if (view_->fine_bounds.obbs) __builtin_prefetch(view_->fine_bounds.obbs + g);
-        __builtin_prefetch(view_->fine + g);
-#else
-        (void)f;
-#endif
+        if (view_->fine_bounds.obbs) simd::prefetch(view_->fine_bounds.obbs + g);
+        simd::prefetch(view_->fine + g);
     }
 
     // Scan mode: the fine clusters `range` of an entered coarse cluster whose sphere may meet the pyramid of
@@ -1228,11 +1236,9 @@ inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, co
     }
     for (size_t first = 0; first < n; first += ClusterShadowTree::tile_capacity) {
         uint32_t count = uint32_t(std::min<size_t>(ClusterShadowTree::tile_capacity, n - first));
-#if defined(__GNUC__)
         // The next tile's points, asked for now: sorted by direction, they lie all over the caller's array.
         for (size_t i = first + count; i < std::min(n, first + count + ClusterShadowTree::tile_capacity); ++i)
-            __builtin_prefetch(points + size_t(index[i]) * 3);
-#endif
+            simd::prefetch(points + size_t(index[i]) * 3);
         uint64_t alive = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1, shadowed = 0;
         for (size_t t = 0; t < tree_count && alive; ++t) {
             uint64_t s = trees[t].occluded_tile(points, index + first, count, alive, stack, stats, cache);

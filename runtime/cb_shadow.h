@@ -337,6 +337,25 @@ inline const float* list_position(const AssetView& v, const MeshRecord& mesh, co
                                                : c.first_vertex - v.vertex_refs[size_t(mesh.first_ref) + c.first_ref + i - c.vertex_count]);
 }
 
+// Asks for the memory light_triangles reads for fine cluster c, in two steps a few cluster tests apart
+// (each needs what the previous one asked for): step 0 its local triangles, new vertices and references
+// (from its record), step 1 the vertices it reuses (from its references). On meshes far larger than the
+// cache these reads otherwise miss one after another, each waiting on the last.
+inline void prefetch_lit(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, int step) {
+    if (step == 0) {
+        const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle) * 3;
+        simd::prefetch(local);
+        simd::prefetch(local + std::min<uint32_t>(c.triangle_count, lit_capacity) * 3 - 1);
+        const char* from = reinterpret_cast<const char*>(v.position(mesh, c.first_vertex));
+        for (uint32_t b = 0; b < uint32_t(c.vertex_count) * 12; b += 64) simd::prefetch(from + b);
+        if (c.vertex_count) simd::prefetch(from + uint32_t(c.vertex_count) * 12 - 1);
+        if (c.ref_count) simd::prefetch(v.vertex_refs + size_t(mesh.first_ref) + c.first_ref);
+    } else {
+        const uint16_t* back = v.vertex_refs + size_t(mesh.first_ref) + c.first_ref;
+        for (uint32_t r = 0; r < c.ref_count; ++r) simd::prefetch(v.position(mesh, c.first_vertex - back[r]));
+    }
+}
+
 // Triangles [first, first + count) of fine cluster c (count <= lit_capacity), from the light: the corners
 // gathered first, then every term in loops over the triangles that the compiler runs several to an instruction.
 inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first, uint32_t count,
@@ -490,6 +509,11 @@ struct LitCache {
     void clear() {
         for (const void*& o : owner) o = nullptr;
     }
+    static uint32_t slot(uint32_t f, uint32_t first) { return (f + first / shadow_detail::lit_capacity) % size; }
+    bool holds(const void* o, uint32_t f, uint32_t first) const {
+        const uint32_t s = slot(f, first);
+        return owner[s] == o && cluster[s] == f && this->first[s] == first;
+    }
 };
 
 // Which of the points p[i], i in `which` (bits of a mask), the triangles of fine cluster `f` (mesh-local)
@@ -510,9 +534,9 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         const uint32_t count = std::min<uint32_t>(lit_capacity, c.triangle_count - first);
         LitTriangles* lit = &own;
         if (cache) {
-            const uint32_t slot = (f + first / lit_capacity) % LitCache::size;
+            const uint32_t slot = LitCache::slot(f, first);
             lit = &cache->entry[slot];
-            if (cache->owner[slot] != owner || cache->cluster[slot] != f || cache->first[slot] != first) {
+            if (!cache->holds(owner, f, first)) {
                 light_triangles(v, mesh, c, first, count, light, one_sided, *lit);
                 cache->owner[slot] = owner, cache->cluster[slot] = f, cache->first[slot] = first;
             }

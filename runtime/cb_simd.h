@@ -155,5 +155,17 @@ inline void lane_span(uint64_t subset, uint32_t& begin, uint32_t& end) {
 inline uint32_t group(uint64_t mask, uint32_t i) { return uint32_t(mask >> i) & ((1u << width) - 1); }
 
 }  // namespace avx, sse2 or portable
+
+// Asks for the cache line holding p (any address: a prefetch never faults). An asm statement on x86, since
+// GCC deletes calls to a function that does nothing but __builtin_prefetch (it deems it pure).
+inline void prefetch(const void* p) {
+#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__)) && defined(CB_SIMD_SSE2)
+    asm volatile("prefetcht0 %0" : : "m"(*static_cast<const char*>(p)));
+#elif defined(__GNUC__)
+    __builtin_prefetch(p);
+#else
+    (void)p;
+#endif
+}
 }  // namespace simd
 }  // namespace cb
