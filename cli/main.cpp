@@ -540,8 +540,10 @@ int main(int argc, char** argv) {
         c->add_option("--seed", a.options.seed, "Seed of k-means++ (default 1)");
         c->add_option("--k0", a.options.kmeans_branching, "k-means children per node (default 8)");
         c->add_option("--iterations", a.options.kmeans_max_iterations, "Cap on Lloyd iterations per node (default 16)");
-        c->add_flag("--coarse-from-tree", a.options.kmeans_coarse_from_tree,
-                    "kmeans: take the coarse level from the top of the k-means tree instead of Morton chunks");
+        c->add_flag_callback("--coarse-morton", [&a] { a.options.kmeans_coarse_from_tree = false; },
+                             "kmeans: Morton chunks as the coarse level instead of the top of the k-means trees");
+        c->add_option("--presplit", a.options.kmeans_presplit,
+                      "kmeans: triangles per Morton chunk the trees grow in, in parallel (default 65536; 0: one tree)");
         c->add_option("--cache", a.options.vco_cache_size, "vco: vertex cache size (default 32)");
     };
     auto clustering_options = [&](CLI::App* c, ClusterArgs& a) {

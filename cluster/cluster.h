@@ -1,6 +1,7 @@
-// Two-level triangle clustering of one mesh: coarse clusters (about `coarse_size` triangles) each split
+// Two-level triangle clustering of one mesh: coarse clusters (at most `coarse_size` triangles) each split
 // into fine clusters (at most `fine_size` triangles), by Morton order, hierarchical k-means++ over triangle
-// boxes, or Forsyth vertex-cache order cut into connected patches.
+// boxes, or Forsyth vertex-cache order cut into connected patches. With k-means the coarse clusters are
+// the top of the same trees (compact: a Morton chunk can be two distant pieces); otherwise Morton chunks.
 //
 // Pure functions over flat arrays: positions are xyz floats, indices 3 per triangle. The output is a
 // permutation of the triangles plus two levels of ranges over it, identical for any thread count.
@@ -20,11 +21,13 @@ bool parse_method(const std::string& name, ClusterMethod& out);
 
 struct ClusterOptions {
     ClusterMethod method = ClusterMethod::kmeans;
-    uint32_t coarse_size = 2048;   // target triangles per coarse cluster (Morton chunks hold exactly this many)
+    uint32_t coarse_size = 2048;   // maximum triangles per coarse cluster (Morton chunks hold exactly this many)
     uint32_t fine_size = 16;       // hard maximum triangles per fine cluster
     uint32_t kmeans_branching = 8; // k0: children per k-means node
     uint32_t kmeans_max_iterations = 16;
-    bool kmeans_coarse_from_tree = false;  // coarse level from the top of the k-means tree, not Morton
+    bool kmeans_coarse_from_tree = true;  // coarse level from the top of the k-means trees, not Morton chunks
+    uint32_t kmeans_presplit = 65536;     // the trees grow in Morton chunks of this many triangles, in parallel
+                                          // (0: one tree over the whole mesh, on one thread)
     uint32_t vco_cache_size = 32;
     uint64_t seed = 1;
     unsigned threads = 0;          // 0: all hardware threads

@@ -7,6 +7,7 @@
 
 #include "cluster.h"
 #include "parallel.h"
+#include "random.h"
 
 namespace cb {
 
@@ -122,11 +123,20 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
 
     // Coarse level.
     std::vector<uint32_t> chunk_sizes;
-    if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree) {
+    if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree && o.kmeans_presplit == 0) {
         h.order.resize(triangle_count);
         std::iota(h.order.begin(), h.order.end(), 0u);
         kmeans_split(boxes.data(), h.order.data(), triangle_count, o.coarse_size, o.kmeans_branching,
                      o.kmeans_max_iterations, o.seed, chunk_sizes);
+    } else if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree) {
+        h.order = morton_order(positions, indices, triangle_count);
+        const size_t part = std::max<size_t>(o.kmeans_presplit, o.coarse_size), parts = (triangle_count + part - 1) / part;
+        std::vector<std::vector<uint32_t>> sizes(parts);
+        parallel_for(parts, o.threads, [&](size_t p) {
+            kmeans_split(boxes.data(), h.order.data() + p * part, std::min(part, triangle_count - p * part), o.coarse_size,
+                         o.kmeans_branching, o.kmeans_max_iterations, splitmix(o.seed ^ (p + 1)), sizes[p]);
+        });
+        for (const auto& s : sizes) chunk_sizes.insert(chunk_sizes.end(), s.begin(), s.end());
     } else {
         h.order = morton_order(positions, indices, triangle_count);
         for (size_t at = 0; at < triangle_count; at += o.coarse_size)

@@ -126,16 +126,54 @@ TEST(Cluster, InvariantsOnAGridForEveryMethodAndSize) {
             o.coarse_size = 1024;
             check_hierarchy(cluster(m, o), m.indices.data(), m.triangles(), o);
         }
-    cb::ClusterOptions tree;
-    tree.kmeans_coarse_from_tree = true;
-    tree.coarse_size = 1000;  // not a multiple of anything: the tree's leaves are at most this
-    check_hierarchy(cluster(m, tree), m.indices.data(), m.triangles(), tree);
+    // The k-means coarse level (the default): tree nodes of at most coarse_size, grown in Morton chunks
+    // (several here), or in one tree over the whole mesh.
+    for (uint32_t presplit : {0u, 2500u, 65536u}) {
+        SCOPED_TRACE("presplit " + std::to_string(presplit));
+        cb::ClusterOptions tree;
+        tree.coarse_size = 1000;  // not a multiple of anything: the tree's leaves are at most this
+        tree.kmeans_presplit = presplit;
+        cb::Hierarchy h = cluster(m, tree);
+        check_hierarchy(h, m.indices.data(), m.triangles(), tree);
+        EXPECT_GE(h.coarse_count(), 7u);
+    }
+}
+
+TEST(Cluster, KmeansCoarseClustersAreCompacterThanMortonChunks) {
+    // Two far apart grids interleaved in the triangle order: a Morton chunk that straddles the gap between
+    // them spans both, a k-means node does not. Compared by the summed AABB diagonals of the coarse clusters.
+    TestMesh a = grid(40, 25, 1, 0, 5), b = grid(40, 25, 1, 0, 6);
+    TestMesh m = a;
+    const uint32_t offset = uint32_t(a.positions.size() / 3);
+    for (size_t i = 0; i < b.positions.size(); i += 3) m.positions.insert(m.positions.end(), {b.positions[i] + 1000.0f, b.positions[i + 1], b.positions[i + 2]});
+    for (uint32_t i : b.indices) m.indices.push_back(i + offset);
+    auto spread = [&](const cb::Hierarchy& h) {
+        double sum = 0;
+        for (size_t c = 0; c < h.coarse_count(); ++c) {
+            float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+            for (uint32_t at = h.fine_offsets[h.coarse_offsets[c]]; at < h.fine_offsets[h.coarse_offsets[c + 1]]; ++at)
+                for (int k = 0; k < 3; ++k)
+                    for (int j = 0; j < 3; ++j) {
+                        float x = m.positions[size_t(m.indices[size_t(h.order[at]) * 3 + k]) * 3 + j];
+                        lo[j] = std::min(lo[j], x), hi[j] = std::max(hi[j], x);
+                    }
+            sum += std::sqrt(double(hi[0] - lo[0]) * (hi[0] - lo[0]) + double(hi[1] - lo[1]) * (hi[1] - lo[1]) + double(hi[2] - lo[2]) * (hi[2] - lo[2]));
+        }
+        return sum;
+    };
+    cb::ClusterOptions tree, morton;
+    tree.coarse_size = morton.coarse_size = 300;
+    morton.kmeans_coarse_from_tree = false;
+    cb::Hierarchy ht = cluster(m, tree), hm = cluster(m, morton);
+    check_hierarchy(ht, m.indices.data(), m.triangles(), tree);
+    EXPECT_LT(spread(ht), 0.5 * spread(hm));
 }
 
 TEST(Cluster, MortonChunksAreExactlyTheCoarseSize) {
     TestMesh m = grid(40, 40, 1, 0, 3);  // 3200 triangles
     cb::ClusterOptions o;
     o.coarse_size = 1000;
+    o.kmeans_coarse_from_tree = false;
     cb::Hierarchy h = cluster(m, o);
     ASSERT_EQ(h.coarse_count(), 4u);
     for (size_t c = 0; c + 1 < h.coarse_count(); ++c)
@@ -147,6 +185,7 @@ TEST(Cluster, IdenticalForAnyThreadCount) {
     for (cb::ClusterMethod method : all_methods) {
         cb::ClusterOptions o;
         o.method = method;
+        o.kmeans_presplit = 4096;  // k-means: trees grown in 6 Morton chunks at once
         o.threads = 1;
         cb::Hierarchy one = cluster(m, o);
         for (unsigned threads : {2u, 3u, 8u}) {
