@@ -33,6 +33,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <new>
 #include <thread>
 #include <vector>
@@ -673,11 +674,30 @@ private:
         }
     }
 
-    // Insertion sort by closing distance: lists of a few dozen entries, mostly in order already.
+    // Sorts by closing distance. Lists of up to 32 entries (nearly all) are placed by rank, counted without
+    // branches: an insertion sort mispredicted a branch per entry, a few percent of the query time on large
+    // scenes. Each key is unique (the position breaks ties), so the ranks are a permutation.
     template <class T>
     static void sort_by_near(T* a, uint32_t count) {
-        for (uint32_t i = 1; i < count; ++i)
-            for (uint32_t j = i; j > 0 && a[j].near < a[j - 1].near; --j) std::swap(a[j], a[j - 1]);
+        if (count > 32) {
+            for (uint32_t i = 1; i < count; ++i)
+                for (uint32_t j = i; j > 0 && a[j].near < a[j - 1].near; --j) std::swap(a[j], a[j - 1]);
+            return;
+        }
+        uint64_t key[32];
+        for (uint32_t i = 0; i < count; ++i) {
+            uint32_t bits;  // the float's order as an unsigned integer
+            std::memcpy(&bits, &a[i].near, sizeof bits);
+            bits = bits >> 31 ? ~bits : bits | 0x80000000u;
+            key[i] = uint64_t(bits) << 32 | i;
+        }
+        T sorted[32];
+        for (uint32_t i = 0; i < count; ++i) {
+            uint32_t rank = 0;
+            for (uint32_t j = 0; j < count; ++j) rank += key[j] < key[i];
+            sorted[rank] = a[i];
+        }
+        std::copy(sorted, sorted + count, a);
     }
 
     // Tests the pending clusters, nearest closing distance first.

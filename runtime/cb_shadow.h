@@ -332,11 +332,6 @@ struct LitTriangles {
     double max_scale = 0;  // the largest scale: |e|_1 times it bounds every dot product
 };
 
-inline const float* list_position(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t i) {
-    return v.position(mesh, i < c.vertex_count ? c.first_vertex + i
-                                               : c.first_vertex - v.vertex_refs[size_t(mesh.first_ref) + c.first_ref + i - c.vertex_count]);
-}
-
 // Asks for the memory light_triangles reads for fine cluster c, in two steps a few cluster tests apart
 // (each needs what the previous one asked for): step 0 its local triangles, new vertices and references
 // (from its record), step 1 the vertices it reuses (from its references). On meshes far larger than the
@@ -365,9 +360,15 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     // Corner k of each triangle: its position (exact in double), its offset from the light and that's L1 norm.
     double px[3][lit_capacity], py[3][lit_capacity], pz[3][lit_capacity];
     double ux[3][lit_capacity], uy[3][lit_capacity], uz[3][lit_capacity], u1[3][lit_capacity];
+    // The cluster's vertex list (its new vertices, then those it reuses), resolved once rather than per corner.
+    const float* list[max_cluster_vertices];
+    const float* fresh = v.position(mesh, c.first_vertex);
+    for (uint32_t i = 0; i < c.vertex_count; ++i) list[i] = fresh + size_t(i) * 3;
+    const uint16_t* back = v.vertex_refs + size_t(mesh.first_ref) + c.first_ref;
+    for (uint32_t r = 0; r < c.ref_count; ++r) list[c.vertex_count + r] = v.position(mesh, c.first_vertex - back[r]);
     for (uint32_t t = 0; t < count; ++t) {
         for (int k = 0; k < 3; ++k) {
-            const float* at = list_position(v, mesh, c, local[t * 3 + k]);
+            const float* at = list[local[t * 3 + k]];
             out.corner[t][k] = at;
             px[k][t] = at[0], py[k][t] = at[1], pz[k][t] = at[2];
         }
