@@ -61,8 +61,9 @@ public:
     // One instance of the asset's meshes, for one light given in world space. In one-sided mode
     // (cb_shadow.h), clusters whose front cone holds the light, and that have no double-sided triangle,
     // cannot block anything and are left out. Without coarse boxes in the asset, every FineLevel builds one
-    // tree. With FineLevel::trees, up to `threads` threads (std::thread) build the coarse clusters' fine trees;
-    // the tree is the same for any thread count.
+    // tree. Up to `threads` threads (std::thread) build the coarse clusters' fine trees (FineLevel::trees) or
+    // the fine spheres (FineLevel::scan, on meshes of 32,768 fine clusters or more); the tree is the same for
+    // any thread count.
     //
     // `scratch`, when given, keeps the build's working arrays between builds (one per concurrent build):
     // a tree rebuilt every frame then reuses memory instead of asking the system for fresh pages. The
@@ -109,7 +110,7 @@ public:
         }
         const uint32_t coarse_count = mesh_->coarse_count;
         if (scan_) {  // the coarse tree, whose cluster nodes name their fine clusters; the fine spheres
-            make_spheres();
+            make_spheres(threads);
             std::vector<uint8_t> wanted(coarse_count, 1);
             for (uint32_t c = 0; c < coarse_count; ++c)
                 if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c)))
@@ -275,7 +276,7 @@ public:
             apply_instance(inverse_, w, t.p[i]);
             for (int k = 0; k < 3; ++k) t.e[i][k] = t.p[i][k] - light_[k];
             t.dist[i] = std::sqrt(t.e[i][0] * t.e[i][0] + t.e[i][1] * t.e[i][1] + t.e[i][2] * t.e[i][2]);
-            if (!(t.dist[i] > 0) || !(t.dist[i] < 1e30)) {  // at the light, not finite, or beyond float's range
+            if (!(t.dist[i] > float_tiny) || !(t.dist[i] < 1e30)) {  // at or by the light, not finite, or beyond float's range
                 alone |= uint64_t(1) << i;
                 continue;
             }
@@ -323,6 +324,10 @@ private:
     // Sizes (distances, coordinates from the light) below which the float filters cannot overflow: their
     // largest terms are products of four such sizes.
     static constexpr double float_safe = 1e9;
+    // And sizes above which their margins stay far above the absolute rounding of results that fall to
+    // float's subnormals (1e-45): points nearer the light walk alone (in double), boxes and spheres that lie
+    // wholly within this of it are not filtered in float.
+    static constexpr double float_tiny = 1e-7;
 
     struct Range {
         uint32_t first = 0, count = 0;
@@ -572,7 +577,7 @@ private:
             for (int j = 0; j < 3; ++j) a[k][j] = box.axis[k][j];
         }
         const double hs = h[0] + h[1] + h[2], c1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]);
-        b.usable = c1 + hs < float_safe;
+        b.usable = c1 + hs < float_safe && c1 + hs > float_tiny;
         if (!b.usable) return b;
         for (int k = 0; k < 3; ++k) {
             double qk = shadow_detail::dot3(c, a[k]), reach = h[k] + 1e-6 * (hs + c1);
@@ -674,28 +679,31 @@ private:
         }
     }
 
-    // Sorts by closing distance. Lists of up to 32 entries (nearly all) are placed by rank, counted without
-    // branches: an insertion sort mispredicted a branch per entry, a few percent of the query time on large
-    // scenes. Each key is unique (the position breaks ties), so the ranks are a permutation.
+    // Sorts by closing distance, on keys that are unique (the position breaks ties). Short lists (most) are
+    // placed by rank, counted without branches; an insertion sort mispredicted a branch per entry and was
+    // quadratic on the long lists some coarse clusters of large scenes give, a few percent of query time.
     template <class T>
     static void sort_by_near(T* a, uint32_t count) {
-        if (count > 32) {
-            for (uint32_t i = 1; i < count; ++i)
-                for (uint32_t j = i; j > 0 && a[j].near < a[j - 1].near; --j) std::swap(a[j], a[j - 1]);
-            return;
-        }
-        uint64_t key[32];
+        constexpr uint32_t most = 128;  // the longest list (Tile's capacities); a longer one stays unsorted
+        static_assert(Tile::pending_capacity <= most && Tile::entered_capacity <= most, "lists sort_by_near can sort");
+        if (count < 2 || count > most) return;
+        uint64_t key[most];
         for (uint32_t i = 0; i < count; ++i) {
             uint32_t bits;  // the float's order as an unsigned integer
             std::memcpy(&bits, &a[i].near, sizeof bits);
             bits = bits >> 31 ? ~bits : bits | 0x80000000u;
             key[i] = uint64_t(bits) << 32 | i;
         }
-        T sorted[32];
-        for (uint32_t i = 0; i < count; ++i) {
-            uint32_t rank = 0;
-            for (uint32_t j = 0; j < count; ++j) rank += key[j] < key[i];
-            sorted[rank] = a[i];
+        T sorted[most];
+        if (count <= 32) {
+            for (uint32_t i = 0; i < count; ++i) {
+                uint32_t rank = 0;
+                for (uint32_t j = 0; j < count; ++j) rank += key[j] < key[i];
+                sorted[rank] = a[i];
+            }
+        } else {
+            std::sort(key, key + count);
+            for (uint32_t i = 0; i < count; ++i) sorted[i] = a[uint32_t(key[i])];
         }
         std::copy(sorted, sorted + count, a);
     }
@@ -773,32 +781,97 @@ private:
     // to nearest float, but the radius is grown by 2e-5 of itself and of the distance, and the closing
     // distance shrunk by 1e-6 of both: far more than the rounding of the centre and the radius to float
     // (below 1e-7 of the distance) and the errors of the float tests that read them (below 1e-6).
-    void make_spheres() {
+    void make_spheres(unsigned threads) {
         const uint32_t n = mesh_->fine_count;
         // Padded by a group of lanes that never passes (the scan reads whole groups past a coarse cluster's end).
-        sx_.assign(n + simd::width, 0.0f), sy_.assign(n + simd::width, 0.0f), sz_.assign(n + simd::width, 0.0f);
-        sr_.assign(n + simd::width, 0.0f), snear_.assign(n + simd::width, INFINITY);
+        for (std::vector<float>* a : {&sx_, &sy_, &sz_, &sr_, &snear_}) a->resize(size_t(n) + simd::width);
+        for (uint32_t f = n; f < n + simd::width; ++f) sx_[f] = sy_[f] = sz_[f] = sr_[f] = 0, snear_[f] = INFINITY;
         spheres_small_ = false;
         if (!view_->fine_bounds.obbs) {  // no boxes: spheres that hold everything (and no filtering)
-            std::fill(sr_.begin(), sr_.begin() + n, INFINITY), std::fill(snear_.begin(), snear_.begin() + n, -INFINITY);
+            std::fill(sx_.begin(), sx_.begin() + n, 0.0f), std::fill(sy_.begin(), sy_.begin() + n, 0.0f);
+            std::fill(sz_.begin(), sz_.begin() + n, 0.0f), std::fill(sr_.begin(), sr_.begin() + n, INFINITY);
+            std::fill(snear_.begin(), snear_.begin() + n, -INFINITY);
             return;
         }
+        // Parts of the clusters on their own threads (a large mesh has hundreds of thousands).
+        const uint32_t parts = std::max(1u, std::min(threads, n / 16384));
+        std::vector<uint64_t> big(parts, 0);
+        auto part = [&](uint32_t k) { big[k] = sphere_range(uint64_t(n) * k / parts, uint64_t(n) * (k + 1) / parts); };
+        std::vector<std::thread> pool;
+        for (uint32_t k = 1; k < parts; ++k) pool.emplace_back(part, k);
+        part(0);
+        for (std::thread& t : pool) t.join();
+        spheres_small_ = true;
+        for (uint64_t b : big) spheres_small_ = spheres_small_ && b < double_bits(float_safe);
+    }
+
+    static uint64_t double_bits(double x) {
+        uint64_t b;
+        std::memcpy(&b, &x, sizeof b);
+        return b;
+    }
+
+    // make_spheres for fine clusters [begin, end): blocks copied out of the packed boxes, then each block's
+    // terms in loops the compiler runs several clusters to an instruction, the square roots in float lanes
+    // (std::sqrt in a loop keeps it scalar: it may set errno). Returns the bits of the largest coordinate or
+    // radius (|x| as an unsigned integer orders like x, and a NaN's exceeds infinity's).
+    uint64_t sphere_range(uint32_t begin, uint32_t end) {
         const PackedObb* boxes = view_->fine_bounds.obbs + mesh_->first_fine;
         const double lx = light_[0], ly = light_[1], lz = light_[2];
-        double big = 0;  // the largest coordinate or radius
-        for (uint32_t f = 0; f < n; ++f) {
-            const PackedObb& b = boxes[f];
-            double h0 = b.half[0], h1 = b.half[1], h2 = b.half[2], pad = 1e-6 * (h0 + h1 + h2);
-            h0 += pad, h1 += pad, h2 += pad;
-            double x = b.center[0] - lx, y = b.center[1] - ly, z = b.center[2] - lz;
-            double dist = std::sqrt(x * x + y * y + z * z), r = std::sqrt(h0 * h0 + h1 * h1 + h2 * h2);
-            r += 2e-5 * (r + dist);
-            sx_[f] = float(x), sy_[f] = float(y), sz_[f] = float(z);
-            sr_[f] = float(r);
-            snear_[f] = float(dist - r - 1e-6 * (dist + r));
-            big = std::max(big, std::max(std::max(std::fabs(x), std::fabs(y)), std::max(std::fabs(z), r)));
+        constexpr uint32_t block = 256;
+        static_assert(block % simd::width == 0, "whole lane groups");
+        double cx[block], cy[block], cz[block], h0[block], h1[block], h2[block];
+        alignas(64) float dist2[block], radius2[block], dist_root[block], radius_root[block];
+        double size[block];
+        uint64_t big = 0;
+        for (uint32_t first = begin; first < end; first += block) {
+            const uint32_t count = std::min(block, end - first);
+            for (uint32_t i = 0; i < count; ++i) {
+                const PackedObb& b = boxes[first + i];
+                cx[i] = b.center[0] - lx, cy[i] = b.center[1] - ly, cz[i] = b.center[2] - lz;
+                const double pad = 1e-6 * (double(b.half[0]) + double(b.half[1]) + double(b.half[2]));
+                h0[i] = b.half[0] + pad, h1[i] = b.half[1] + pad, h2[i] = b.half[2] + pad;
+            }
+            for (uint32_t i = 0; i < count; ++i) {
+                dist2[i] = float(cx[i] * cx[i] + cy[i] * cy[i] + cz[i] * cz[i]);
+                radius2[i] = float(h0[i] * h0[i] + h1[i] * h1[i] + h2[i] * h2[i]);
+            }
+            // The roots, rounded: within 2e-7 of the true lengths, far inside the margins below (beyond
+            // float's range they are infinite, and big says so).
+            for (uint32_t i = count; i % simd::width; ++i) dist2[i] = radius2[i] = 0;
+            for (uint32_t i = 0; i < count; i += simd::width) {
+                simd::store(dist_root + i, simd::sqrt(simd::load(dist2 + i)));
+                simd::store(radius_root + i, simd::sqrt(simd::load(radius2 + i)));
+            }
+            float *sx = &sx_[first], *sy = &sy_[first], *sz = &sz_[first], *sr = &sr_[first], *sn = &snear_[first];
+            for (uint32_t i = 0; i < count; ++i) {
+                const double x = cx[i], y = cy[i], z = cz[i], dist = dist_root[i];
+                double r = radius_root[i];
+                r += 2e-5 * (r + dist);
+                sx[i] = float(x), sy[i] = float(y), sz[i] = float(z);
+                sr[i] = float(r);
+                sn[i] = float(dist - r - 1e-6 * (dist + r));
+                size[i] = std::fabs(x) + std::fabs(y) + std::fabs(z) + r;  // bounds each coordinate and the radius
+            }
+            // Squares below 1e-30, where float loses precision (rare): that cluster again, in double; and a
+            // sphere wholly within float_tiny of the light holds everything (the float tests pass it).
+            for (uint32_t i = 0; i < count; ++i) {
+                if (!(dist2[i] < 1e-14f || radius2[i] < 1e-30f)) continue;
+                const double x = cx[i], y = cy[i], z = cz[i];
+                const double dist = std::sqrt(x * x + y * y + z * z);
+                double r = std::sqrt(h0[i] * h0[i] + h1[i] * h1[i] + h2[i] * h2[i]);
+                r += 2e-5 * (r + dist);
+                const bool near_light = dist + r < float_tiny;
+                sr[i] = near_light ? INFINITY : float(r);
+                sn[i] = near_light ? -INFINITY : float(dist - r - 1e-6 * (dist + r));
+                size[i] = std::fabs(x) + std::fabs(y) + std::fabs(z) + r;
+            }
+            for (uint32_t i = 0; i < count; ++i) {
+                const uint64_t bits = double_bits(size[i]);
+                big = bits > big ? bits : big;
+            }
         }
-        spheres_small_ = big < float_safe;
+        return big;
     }
 
     bool skippable_fine(uint32_t f) const {

@@ -51,6 +51,8 @@ inline Floats operator*(Floats a, Floats b) { return {_mm512_mul_ps(a.v, b.v)}; 
 inline Floats min(Floats a, Floats b) { return {_mm512_mask_min_ps(a.v, 0xffff, a.v, b.v)}; }
 inline Floats max(Floats a, Floats b) { return {_mm512_mask_max_ps(a.v, 0xffff, a.v, b.v)}; }
 inline Floats abs(Floats a) { return {_mm512_abs_ps(a.v)}; }
+inline Floats sqrt(Floats a) { return {_mm512_mask_sqrt_ps(a.v, 0xffff, a.v)}; }
+inline void store(float* p, Floats a) { _mm512_store_ps(p, a.v); }
 inline Mask operator>=(Floats a, Floats b) { return {_mm512_cmp_ps_mask(a.v, b.v, _CMP_GE_OQ)}; }
 inline Mask operator>(Floats a, Floats b) { return {_mm512_cmp_ps_mask(a.v, b.v, _CMP_GT_OQ)}; }
 inline Mask operator<=(Floats a, Floats b) { return {_mm512_cmp_ps_mask(a.v, b.v, _CMP_LE_OQ)}; }
@@ -72,6 +74,8 @@ inline Floats operator*(Floats a, Floats b) { return {_mm256_mul_ps(a.v, b.v)}; 
 inline Floats min(Floats a, Floats b) { return {_mm256_min_ps(a.v, b.v)}; }
 inline Floats max(Floats a, Floats b) { return {_mm256_max_ps(a.v, b.v)}; }
 inline Floats abs(Floats a) { return {_mm256_andnot_ps(_mm256_set1_ps(-0.0f), a.v)}; }
+inline Floats sqrt(Floats a) { return {_mm256_sqrt_ps(a.v)}; }
+inline void store(float* p, Floats a) { _mm256_store_ps(p, a.v); }
 inline Mask operator>=(Floats a, Floats b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_GE_OQ)}; }
 inline Mask operator>(Floats a, Floats b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_GT_OQ)}; }
 inline Mask operator<=(Floats a, Floats b) { return {_mm256_cmp_ps(a.v, b.v, _CMP_LE_OQ)}; }
@@ -93,6 +97,8 @@ inline Floats operator*(Floats a, Floats b) { return {_mm_mul_ps(a.v, b.v)}; }
 inline Floats min(Floats a, Floats b) { return {_mm_min_ps(a.v, b.v)}; }
 inline Floats max(Floats a, Floats b) { return {_mm_max_ps(a.v, b.v)}; }
 inline Floats abs(Floats a) { return {_mm_andnot_ps(_mm_set1_ps(-0.0f), a.v)}; }
+inline Floats sqrt(Floats a) { return {_mm_sqrt_ps(a.v)}; }
+inline void store(float* p, Floats a) { _mm_store_ps(p, a.v); }
 inline Mask operator>=(Floats a, Floats b) { return {_mm_cmpge_ps(a.v, b.v)}; }
 inline Mask operator>(Floats a, Floats b) { return {_mm_cmpgt_ps(a.v, b.v)}; }
 inline Mask operator<=(Floats a, Floats b) { return {_mm_cmple_ps(a.v, b.v)}; }
@@ -126,6 +132,10 @@ inline Floats operator*(Floats a, Floats b) { return each([&](uint32_t i) { retu
 inline Floats min(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] < b.v[i] ? a.v[i] : b.v[i]; }); }
 inline Floats max(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] > b.v[i] ? a.v[i] : b.v[i]; }); }
 inline Floats abs(Floats a) { return each([&](uint32_t i) { return std::fabs(a.v[i]); }); }
+inline Floats sqrt(Floats a) { return each([&](uint32_t i) { return std::sqrt(a.v[i]); }); }
+inline void store(float* p, Floats a) {
+    for (uint32_t i = 0; i < width; ++i) p[i] = a.v[i];
+}
 inline Mask operator>=(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] >= b.v[i]; }); }
 inline Mask operator>(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] > b.v[i]; }); }
 inline Mask operator<=(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] <= b.v[i]; }); }

@@ -503,6 +503,26 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                        {offset + 2.5, offset + 2.5, 0}, {offset + 4.2, offset + 3.9, 2e9}};
         cases.push_back(flat);
     }
+    // Two bumpy layers at scales where float squares vanish (1e-23: squares near 1e-46) or where
+    // products of four sizes do (1e-12), the light above both, beside and between them.
+    for (double scale : {1e-12, 1e-23}) {
+        Case tiny{scale == 1e-12 ? "two layers at 1e-12" : "two layers at 1e-23", {}, {}, {}};
+        for (int layer = 0; layer < 2; ++layer) {
+            const uint32_t base = uint32_t(tiny.positions.size() / 3), n = layer == 0 ? 10 : 5;
+            for (uint32_t j = 0; j <= n; ++j)
+                for (uint32_t i = 0; i <= n; ++i) {
+                    double x = layer == 0 ? i : 2.5 + i, y = layer == 0 ? j : 2.5 + j, z = 4.0 * layer + 0.3 * std::sin(1.7 * i + 2.3 * j);
+                    tiny.positions.insert(tiny.positions.end(), {float(x * scale), float(y * scale), float(z * scale)});
+                }
+            for (uint32_t j = 0; j < n; ++j)
+                for (uint32_t i = 0; i < n; ++i) {
+                    uint32_t a = base + j * (n + 1) + i;
+                    tiny.indices.insert(tiny.indices.end(), {a, a + 1, a + n + 1, a + 1, a + n + 2, a + n + 1});
+                }
+        }
+        tiny.lights = {{5.1 * scale, 4.9 * scale, 9 * scale}, {-6 * scale, 5 * scale, 4 * scale}, {5.2 * scale, 4.7 * scale, 2 * scale}};
+        cases.push_back(tiny);
+    }
     // Needles: long, thin triangles fanned around the origin, and a light among them (inside their boxes).
     Case needles{"needles", {}, {}, {{0.1, 0.05, 0.02}, {30, 5, 2}}};
     for (int i = 0; i < 40; ++i) {
