@@ -779,8 +779,9 @@ private:
     // Scan mode: every fine cluster's bounding sphere, from the light (mesh frame): the sphere about its box
     // (the stored centre; the padded half extents' length, the axes being unit to float precision). Rounded
     // to nearest float, but the radius is grown by 2e-5 of itself and of the distance, and the closing
-    // distance shrunk by 1e-6 of both: far more than the rounding of the centre and the radius to float
-    // (below 1e-7 of the distance) and the errors of the float tests that read them (below 1e-6).
+    // distance shrunk by 1e-6 of both: far more than the rounding of the centre, the radius and their
+    // square roots to float (below 2e-7 of the distance) and the errors of the float tests that read them
+    // (below 1e-6).
     void make_spheres(unsigned threads) {
         const uint32_t n = mesh_->fine_count;
         // Padded by a group of lanes that never passes (the scan reads whole groups past a coarse cluster's end).
@@ -853,8 +854,9 @@ private:
                 sn[i] = float(dist - r - 1e-6 * (dist + r));
                 size[i] = std::fabs(x) + std::fabs(y) + std::fabs(z) + r;  // bounds each coordinate and the radius
             }
-            // Squares below 1e-30, where float loses precision (rare): that cluster again, in double; and a
-            // sphere wholly within float_tiny of the light holds everything (the float tests pass it).
+            // Squares below 1e-30, where float loses precision, or a centre within 1e-7 of the light (both
+            // rare): that cluster again, in double; a sphere wholly within float_tiny of the light holds
+            // everything (the float tests pass it).
             for (uint32_t i = 0; i < count; ++i) {
                 if (!(dist2[i] < 1e-14f || radius2[i] < 1e-30f)) continue;
                 const double x = cx[i], y = cy[i], z = cz[i];
