@@ -24,10 +24,11 @@ struct Options {
     std::string only;  // run only inputs whose name contains this
     int one_sided = 0; // bench_shadow: 1 builds one-sided trees (the thesis's mode for closed models)
     std::string level = "scan";  // bench_shadow: how the trees reach fine clusters (scan, trees, one-tree)
+    int frames = 0;    // bench_shadow: N > 0 times only our frames (build and queries, one thread), N per light
 };
 
-// --data DIR --fine N --runs N --copies N --view N --only NAME --one-sided 0|1 --level scan|trees|one-tree, over
-// the given defaults.
+// --data DIR --fine N --runs N --copies N --view N --only NAME --one-sided 0|1 --level scan|trees|one-tree
+// --frames N, over the given defaults.
 inline Options parse_options(int argc, char** argv, Options o) {
     for (int i = 1; i + 1 < argc; i += 2) {
         std::string a = argv[i];
@@ -39,6 +40,7 @@ inline Options parse_options(int argc, char** argv, Options o) {
         else if (a == "--only") o.only = argv[i + 1];
         else if (a == "--one-sided") o.one_sided = std::stoi(argv[i + 1]);
         else if (a == "--level") o.level = argv[i + 1];
+        else if (a == "--frames") o.frames = std::stoi(argv[i + 1]);
         else std::fprintf(stderr, "ignoring unknown option %s\n", a.c_str());
     }
     return o;

@@ -6,9 +6,12 @@
 // passes and Embree's one after the other, so noise hits both alike. Asserts nothing.
 //
 //   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--runs 3] [--only NAME] [--one-sided 1] [--level L]
+//                [--frames N]
 //   (NAME "big": only the big scene; --one-sided 1: our trees in one-sided mode, whose answers equal
 //   two-sided ones outside closed meshes; Embree stays two-sided; L: scan (default), trees or one-tree, how
-//   our trees reach the fine clusters, ClusterShadowTree::FineLevel)
+//   our trees reach the fine clusters, ClusterShadowTree::FineLevel; --frames N: no Embree passes, only N of
+//   our frames per light on one thread, their shortest and median time: on a noisy machine the shortest of
+//   many is the steadier figure for comparing two builds of the runtime, run alternately)
 #include <embree3/rtcore.h>
 
 #include <cb_cpsv.h>
@@ -64,7 +67,7 @@ void flatten(const cb::Scene& s, std::vector<float>& v, std::vector<unsigned>& t
     }
 }
 
-void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowTree::FineLevel level) {
+void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowTree::FineLevel level, int frames) {
     // Bake with the default options and open the asset as the runtime would.
     cb::BakeStats bs;
     std::vector<cb::AssetMesh> meshes = cb::cluster_scene(in.scene, {}, bs);
@@ -222,6 +225,16 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
             std::this_thread::sleep_for(std::chrono::milliseconds(30));
             return step();
         };
+        if (frames > 0) {  // our frames alone (see the usage above)
+            std::vector<double> f;
+            for (int r = 0; r < frames; ++r) {
+                const double b = build_trees(1);
+                f.push_back(b + ours_pass(1));
+            }
+            std::sort(f.begin(), f.end());
+            std::printf("| %-16s | %s | %zu | %.2f ms | %.2f ms |\n", in.name.c_str(), light_names[li], n, f[0] * 1e3, f[f.size() / 2] * 1e3);
+            continue;
+        }
         for (int r = 0; r < std::max(1, runs); ++r) {
             t[7].push_back(settled([&] { return build_trees(2); })), t[2].push_back(settled([&] { return ours_pass(2); }));
             t[0].push_back(settled([&] { return build_trees(1); })), t[1].push_back(settled([&] { return ours_pass(1); }));
@@ -266,14 +279,21 @@ int main(int argc, char** argv) {
     cb::bench::Options o = cb::bench::parse_options(argc, argv, defaults);
     using Level = cb::ClusterShadowTree::FineLevel;
     Level level = o.level == "trees" ? Level::trees : o.level == "one-tree" ? Level::one_tree : Level::scan;
-    std::printf("%s, fine level '%s'; %dx%d view; medians of %d rounds; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = "
-                "(our build + our queries) / Embree's queries alone, 1 / 2 threads, the median of the rounds' ratios (below 1: we "
-                "are faster); memory: our asset and "
-                "trees + scratch kept between frames (the build's and the two query threads') / Embree's peak\n\n", o.one_sided ? "one-sided trees" : "two-sided trees",
-                level == Level::trees ? "trees" : level == Level::one_tree ? "one-tree" : "scan", o.view, o.view, std::max(1, o.runs));
-    std::printf("| scene | light | points | in shadow | our build 1 / 2 threads | ours M q/s | Embree occluded1 M q/s | Embree occluded16 M q/s | "
-                "Embree build | ours vs Embree | nodes/query | clusters/query | triangles/query | useless clusters/query | always tested | MB ours + scratch / Embree | disagree |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    if (o.frames > 0) {
+        std::printf("%s, fine level '%s'; %dx%d view; our frames alone (build and queries, one thread), %d per light\n\n",
+                    o.one_sided ? "one-sided trees" : "two-sided trees",
+                    level == Level::trees ? "trees" : level == Level::one_tree ? "one-tree" : "scan", o.view, o.view, o.frames);
+        std::printf("| scene | light | points | shortest frame | median frame |\n|---|---|---|---|---|\n");
+    } else {
+        std::printf("%s, fine level '%s'; %dx%d view; medians of %d rounds; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = "
+                    "(our build + our queries) / Embree's queries alone, 1 / 2 threads, the median of the rounds' ratios (below 1: we "
+                    "are faster); memory: our asset and "
+                    "trees + scratch kept between frames (the build's and the two query threads') / Embree's peak\n\n", o.one_sided ? "one-sided trees" : "two-sided trees",
+                    level == Level::trees ? "trees" : level == Level::one_tree ? "one-tree" : "scan", o.view, o.view, std::max(1, o.runs));
+        std::printf("| scene | light | points | in shadow | our build 1 / 2 threads | ours M q/s | Embree occluded1 M q/s | Embree occluded16 M q/s | "
+                    "Embree build | ours vs Embree | nodes/query | clusters/query | triangles/query | useless clusters/query | always tested | MB ours + scratch / Embree | disagree |\n");
+        std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    }
     std::vector<Input> inputs;
     for (const char* f : {"scanned/dragon_vrip_res2_binary.ply", "scanned/horse.ply"})
         if (cb::bench::wanted(o, f)) inputs.push_back({fs::path(f).filename().string(), cb::load_scene((o.data / f).string())});
@@ -284,6 +304,6 @@ int main(int argc, char** argv) {
         big.instances.push_back({0, cb::identity_transform(), "big"});
         inputs.push_back({std::to_string(o.copies) + "x dragon", std::move(big)});
     }
-    for (const Input& in : inputs) run(in, o.view, o.runs, o.one_sided != 0, level);
+    for (const Input& in : inputs) run(in, o.view, o.runs, o.one_sided != 0, level, o.frames);
     return 0;
 }
