@@ -140,8 +140,8 @@ TEST(Cluster, InvariantsOnAGridForEveryMethodAndSize) {
 }
 
 TEST(Cluster, KmeansCoarseClustersAreCompacterThanMortonChunks) {
-    // Two far apart grids interleaved in the triangle order: a Morton chunk that straddles the gap between
-    // them spans both, a k-means node does not. Compared by the summed AABB diagonals of the coarse clusters.
+    // Two grids 1000 apart: the Morton chunk at the end of the first grid reaches into the second and spans
+    // the gap; a k-means node does not. Compared by the summed AABB diagonals of the coarse clusters.
     TestMesh a = grid(40, 25, 1, 0, 5), b = grid(40, 25, 1, 0, 6);
     TestMesh m = a;
     const uint32_t offset = uint32_t(a.positions.size() / 3);
