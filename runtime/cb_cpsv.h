@@ -61,9 +61,8 @@ public:
     // One instance of the asset's meshes, for one light given in world space. In one-sided mode
     // (cb_shadow.h), clusters whose front cone holds the light, and that have no double-sided triangle,
     // cannot block anything and are left out. Without coarse boxes in the asset, every FineLevel builds one
-    // tree. Up to `threads` threads (std::thread) build the coarse clusters' fine trees (FineLevel::trees) or
-    // the fine spheres (FineLevel::scan, on meshes of 32,768 fine clusters or more); the tree is the same for
-    // any thread count.
+    // tree. With FineLevel::trees, up to `threads` threads (std::thread) build the coarse clusters' fine trees;
+    // the tree is the same for any thread count.
     //
     // `scratch`, when given, keeps the build's working arrays between builds (one per concurrent build):
     // a tree rebuilt every frame then reuses memory instead of asking the system for fresh pages. The
@@ -110,7 +109,7 @@ public:
         }
         const uint32_t coarse_count = mesh_->coarse_count;
         if (scan_) {  // the coarse tree, whose cluster nodes name their fine clusters; the fine spheres
-            make_spheres(threads);
+            make_spheres();
             std::vector<uint8_t> wanted(coarse_count, 1);
             for (uint32_t c = 0; c < coarse_count; ++c)
                 if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c)))
@@ -782,7 +781,7 @@ private:
     // distance shrunk by 1e-6 of both: far more than the rounding of the centre, the radius and their
     // square roots to float (below 2e-7 of the distance) and the errors of the float tests that read them
     // (below 1e-6).
-    void make_spheres(unsigned threads) {
+    void make_spheres() {
         const uint32_t n = mesh_->fine_count;
         // Padded by a group of lanes that never passes (the scan reads whole groups past a coarse cluster's end).
         for (std::vector<float>* a : {&sx_, &sy_, &sz_, &sr_, &snear_}) a->resize(size_t(n) + simd::width);
@@ -794,16 +793,9 @@ private:
             std::fill(snear_.begin(), snear_.begin() + n, -INFINITY);
             return;
         }
-        // Parts of the clusters on their own threads (a large mesh has hundreds of thousands).
-        const uint32_t parts = std::max(1u, std::min(threads, n / 16384));
-        std::vector<uint64_t> big(parts, 0);
-        auto part = [&](uint32_t k) { big[k] = sphere_range(uint64_t(n) * k / parts, uint64_t(n) * (k + 1) / parts); };
-        std::vector<std::thread> pool;
-        for (uint32_t k = 1; k < parts; ++k) pool.emplace_back(part, k);
-        part(0);
-        for (std::thread& t : pool) t.join();
-        spheres_small_ = true;
-        for (uint64_t b : big) spheres_small_ = spheres_small_ && b < double_bits(float_safe);
+        // One thread: the pass is bound by memory (a second one, here or on the coarse tree at the same
+        // time, measured no faster on the 5 M-triangle scene).
+        spheres_small_ = sphere_range(0, n) < double_bits(float_safe);
     }
 
     static uint64_t double_bits(double x) {
