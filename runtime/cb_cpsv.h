@@ -795,7 +795,7 @@ private:
         }
         // One thread: the pass is bound by memory (a second one, here or on the coarse tree at the same
         // time, measured no faster on the 5 M-triangle scene).
-        spheres_small_ = sphere_range(0, n) < double_bits(float_safe);
+        spheres_small_ = sphere_pass() < double_bits(float_safe);
     }
 
     static uint64_t double_bits(double x) {
@@ -804,11 +804,11 @@ private:
         return b;
     }
 
-    // make_spheres for fine clusters [begin, end): blocks copied out of the packed boxes, then each block's
+    // make_spheres' pass over the fine clusters: blocks copied out of the packed boxes, then each block's
     // terms in loops the compiler runs several clusters to an instruction, the square roots in float lanes
     // (std::sqrt in a loop keeps it scalar: it may set errno). Returns the bits of the largest coordinate or
     // radius (|x| as an unsigned integer orders like x, and a NaN's exceeds infinity's).
-    uint64_t sphere_range(uint32_t begin, uint32_t end) {
+    uint64_t sphere_pass() {
         const PackedObb* boxes = view_->fine_bounds.obbs + mesh_->first_fine;
         const double lx = light_[0], ly = light_[1], lz = light_[2];
         constexpr uint32_t block = 256;
@@ -817,8 +817,9 @@ private:
         alignas(64) float dist2[block], radius2[block], dist_root[block], radius_root[block];
         double size[block];
         uint64_t big = 0;
-        for (uint32_t first = begin; first < end; first += block) {
-            const uint32_t count = std::min(block, end - first);
+        const uint32_t n = mesh_->fine_count;
+        for (uint32_t first = 0; first < n; first += block) {
+            const uint32_t count = std::min(block, n - first);
             for (uint32_t i = 0; i < count; ++i) {
                 const PackedObb& b = boxes[first + i];
                 cx[i] = b.center[0] - lx, cy[i] = b.center[1] - ly, cz[i] = b.center[2] - lz;
