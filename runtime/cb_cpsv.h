@@ -1,28 +1,37 @@
-// Clustered partitioned shadow volumes (the thesis's CPSV, chapter 2): per point light, ternary trees of
-// planes through the light (TOP-trees) over the shadow volumes of cluster boxes. A query walks the trees to
-// the few clusters whose volume holds the point and tests their triangles exactly (cb_shadow.h), so its
-// answers are those of occluded_reference, faster.
+// Point-light shadow queries over the asset's two-level cluster hierarchy, after the thesis's clustered
+// partitioned shadow volumes (CPSV, chapter 2): for one light, find the few clusters whose shadow volume
+// may hold a point and test only their triangles, exactly (cb_shadow.h), so that the answers are those of
+// occluded_reference, faster. Two ways to find them (FineLevel):
 //
-// A tree. Each volume is a chain of its 4 planes: the inside branch of one plane leads to the next, and
-// the last to a cluster node. A plane node has three children: inside (volumes entirely on its inside),
-// outside (entirely outside) and straddling (both); a query follows the side its point is on, and the
-// straddling child unless the point is farther from the plane than any volume down there reaches. A
+// The scan (the default) builds no tree. A cluster's shadow volume is taken as the cone from the light
+// around its bounding sphere (about its box). A batch's tile of points checks every coarse cluster's sphere
+// against the pyramid from the light that holds the tile's directions, its points against the boxes of
+// those that pass, then the fine spheres of the coarse clusters entered, a vector of spheres an
+// instruction. The spheres do not depend on the light (ClusterSpheres, made once per asset), so a light's
+// build only sets up the coarse boxes. On 2 cores, a linear pass over a few thousand coarse spheres per tile
+// measured cheaper than building and walking a tree over their volumes every frame (docs/RUNTIME.md).
+//
+// The TOP-trees (the thesis's method): ternary trees of planes through the light over the shadow volumes of
+// cluster boxes. Each volume is a chain of its 4 planes: the inside branch of one plane leads to the next,
+// and the last to a cluster node. A plane node has three children: inside (volumes entirely on its
+// inside), outside (entirely outside) and straddling (both); a query follows the side its point is on, and
+// the straddling child unless the point is farther from the plane than any volume down there reaches. A
 // cluster node acts when the point is beyond the closing distance, then goes on into its own subtree:
 // volumes inserted later that lie inside this one. Nothing is dropped there: a volume is only conservative,
 // so a point inside it may still be lit by its cluster and shadowed by a later one. Volumes go in, one by
 // one, in a shuffled order (fixed seed) that keeps the trees balanced. Clusters whose box holds the light,
-// or is level with it, have no volume: they are tested for every point that gets that far.
-//
-// Two levels: a tree over the coarse clusters' volumes whose cluster nodes enter a tree over that coarse
-// cluster's fine clusters (when the asset has coarse boxes; otherwise one tree over the fine clusters).
+// or is level with it, have no volume: they are tested for every point that gets that far. Two levels: a
+// tree over the coarse clusters' volumes whose cluster nodes enter a tree over that coarse cluster's fine
+// clusters (FineLevel::trees, when the asset has coarse boxes; otherwise, and with FineLevel::one_tree, one
+// tree over the fine clusters).
 //
 // Every node also keeps the smallest closing distance of the volumes below it: a point nearer the light
 // than that skips the whole subtree (nothing there can shadow it). Plane nodes and cluster nodes live in
 // two arrays of 32-byte records; a child reference with the top bit set names a cluster node.
 //
-// Batches (occluded_batch) sort their points by direction from the light and walk each tree once per tile of
-// 64 points, with a pyramid from the light that holds their directions (occluded_tile); the answers are
-// those of a walk per point.
+// Batches (occluded_batch) sort their points by direction from the light and take them in tiles of 64
+// points, with a pyramid from the light that holds their directions (occluded_tile): one scan, or one walk
+// of each tree, per tile; the answers are those of a walk per point.
 //
 // Building allocates (std::vector; a BuildScratch lets rebuilds reuse memory); queries do not: occluded()
 // takes a stack of stack_size() entries, occluded_batch a scratch of batch_scratch_size() words.
@@ -43,6 +52,71 @@
 
 namespace cb {
 
+// The bounding spheres of one mesh's fine and coarse clusters, about their boxes, which
+// ClusterShadowTree's scan (FineLevel::scan) checks. They do not depend on the light: make them once per
+// asset (make_cluster_spheres) and pass them to every build. Centres are stored in float from `origin`,
+// the middle of the mesh's coarse box centres, so that their precision follows the mesh's size rather than
+// its distance from the frame's origin; each radius holds the box's corners (to 1e-6 of itself, more than
+// the axes' departure from orthonormal) and its centre's rounding, rounded up.
+struct ClusterSpheres {
+    const PackedObb* fine_boxes = nullptr;  // what they were made from (build() checks it)
+    const PackedObb* coarse_boxes = nullptr;
+    uint32_t fine_count = 0, coarse_count = 0;
+    uint32_t coarse_first = 0;  // the first coarse sphere's index: after the fine ones and a group of padding
+    double origin[3] = {0, 0, 0};
+    double extent = INFINITY;  // at least |centre|_1 + radius of every sphere; not below float_safe: unusable
+    std::vector<float> x, y, z, r;  // fine spheres, padding, coarse spheres, padding (a lane group each)
+
+    // Mesh `mesh` of `view`, which needs fine and coarse boxes (otherwise nothing is made).
+    void make(const AssetView& view, uint32_t mesh_index) {
+        const MeshRecord& mesh = view.meshes[mesh_index];
+        *this = ClusterSpheres{};
+        if (!view.fine_bounds.obbs || !view.coarse_bounds.obbs) return;
+        fine_boxes = view.fine_bounds.obbs + mesh.first_fine, coarse_boxes = view.coarse_bounds.obbs + mesh.first_coarse;
+        fine_count = mesh.fine_count, coarse_count = mesh.coarse_count;
+        const uint32_t w = simd::width;
+        coarse_first = (fine_count + w - 1) / w * w + w;
+        const size_t total = size_t(coarse_first) + (coarse_count + w - 1) / w * w + w;
+        for (std::vector<float>* a : {&x, &y, &z, &r}) a->assign(total, 0.0f);
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (uint32_t c = 0; c < coarse_count; ++c)
+            for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], double(coarse_boxes[c].center[k])), hi[k] = std::max(hi[k], double(coarse_boxes[c].center[k]));
+        for (int k = 0; k < 3; ++k) origin[k] = coarse_count ? 0.5 * (lo[k] + hi[k]) : 0.0;
+        extent = 0;
+        auto fill = [&](const PackedObb* boxes, uint32_t count, uint32_t out) {
+            for (uint32_t i = 0; i < count; ++i) {
+                const PackedObb& b = boxes[i];
+                const double pad = 1e-6 * (double(b.half[0]) + double(b.half[1]) + double(b.half[2]));
+                const double h0 = b.half[0] + pad, h1 = b.half[1] + pad, h2 = b.half[2] + pad;
+                const double cx = b.center[0] - origin[0], cy = b.center[1] - origin[1], cz = b.center[2] - origin[2];
+                const double c1 = std::fabs(cx) + std::fabs(cy) + std::fabs(cz);
+                const double radius = std::sqrt(h0 * h0 + h1 * h1 + h2 * h2) * (1 + 1e-6) + 2.4e-7 * c1;  // + the centre's rounding
+                float f = float(radius);
+                if (double(f) < radius) f = std::nextafter(f, INFINITY);
+                x[out + i] = float(cx), y[out + i] = float(cy), z[out + i] = float(cz), r[out + i] = f;
+                extent = std::max(extent, c1 + double(f));  // NaN never wins: std::max keeps the first
+                if (!(c1 + double(f) < INFINITY)) extent = INFINITY;
+            }
+        };
+        fill(fine_boxes, fine_count, 0);
+        fill(coarse_boxes, coarse_count, coarse_first);
+    }
+
+    bool made_from(const AssetView& view, const MeshRecord& mesh) const {
+        return fine_boxes && fine_boxes == view.fine_bounds.obbs + mesh.first_fine && coarse_boxes == view.coarse_bounds.obbs + mesh.first_coarse &&
+               fine_count == mesh.fine_count && coarse_count == mesh.coarse_count;
+    }
+
+    size_t memory_bytes() const { return (x.capacity() + y.capacity() + z.capacity() + r.capacity()) * sizeof(float); }
+};
+
+// The spheres of every mesh of `view`, indexed by mesh (what ClusterShadowTree::build takes).
+inline std::vector<ClusterSpheres> make_cluster_spheres(const AssetView& view) {
+    std::vector<ClusterSpheres> all(view.mesh_count);
+    for (uint32_t m = 0; m < view.mesh_count; ++m) all[m].make(view, m);
+    return all;
+}
+
 class ClusterShadowTree {
 public:
     static constexpr uint32_t none = 0xffffffffu;
@@ -50,9 +124,9 @@ public:
 
     // How a query reaches the fine clusters.
     enum class FineLevel : uint8_t {
-        scan,      // a tree over the coarse clusters; an entered coarse cluster's fine clusters are scanned: their
-                   // bounding spheres against the pyramid of the points inside (the default: no per-light work
-                   // for the fine level but a pass over the spheres)
+        scan,      // no tree: the coarse clusters' bounding spheres are scanned against a tile's pyramid, then
+                   // each entered one's fine spheres against the pyramid of its points (the default: the only
+                   // per-light work is setting up the coarse boxes)
         trees,     // a tree over the coarse clusters whose cluster nodes enter a tree over that coarse cluster's
                    // fine clusters (the thesis's two levels)
         one_tree,  // one tree over all the fine clusters
@@ -67,8 +141,13 @@ public:
     // `scratch`, when given, keeps the build's working arrays between builds (one per concurrent build):
     // a tree rebuilt every frame then reuses memory instead of asking the system for fresh pages. The
     // tree's own arrays are reused the same way when the tree object is.
+    //
+    // `spheres` (scan mode): the asset's ClusterSpheres, indexed by mesh (make_cluster_spheres), read by
+    // every query and so kept alive and unchanged while the tree is used. Without them, or when they were
+    // made from another asset view, the tree makes its mesh's own at each build (a pass over its boxes).
     void build(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided = false,
-               FineLevel fine = FineLevel::scan, unsigned threads = 1, BuildScratch* scratch = nullptr) {
+               FineLevel fine = FineLevel::scan, unsigned threads = 1, BuildScratch* scratch = nullptr,
+               const ClusterSpheres* spheres = nullptr) {
         BuildScratch own;
         BuildScratch& work = scratch ? *scratch : own;
         view_ = &view;
@@ -82,6 +161,9 @@ public:
         root_ = none;
         depth_ = 0;
         top_always_ = {};
+        shared_spheres_ = nullptr;
+        coarse_boxes_.clear();
+        coarse_skipped_.clear();
         for (int k = 0; k < 3; ++k) world_light_[k] = world_light[k];
         // A singular transform flattens the mesh: it blocks nothing. A light that is not finite lights nothing.
         usable_ = invert_instance(view.instances[instance].transform, inverse_) && finite3(world_light);
@@ -94,7 +176,7 @@ public:
         all.planes.clear();
         all.leaves.clear();
         // At most 4 planes and a cluster node per volume.
-        size_t volumes = (scan_ ? 0 : mesh_->fine_count) + (two ? mesh_->coarse_count : 0);
+        size_t volumes = scan_ ? 0 : mesh_->fine_count + (two ? mesh_->coarse_count : 0);
         all.planes.reserve(volumes * 4);
         all.leaves.reserve(volumes);
 
@@ -108,17 +190,20 @@ public:
             return;
         }
         const uint32_t coarse_count = mesh_->coarse_count;
-        if (scan_) {  // the coarse tree, whose cluster nodes name their fine clusters; the fine spheres
-            make_spheres();
-            std::vector<uint8_t> wanted(coarse_count, 1);
-            for (uint32_t c = 0; c < coarse_count; ++c)
+        if (scan_) {  // no tree: the spheres, and the coarse boxes set up for this light
+            const uint32_t m = view.instances[instance].mesh;
+            shared_spheres_ = spheres && spheres[m].made_from(view, *mesh_) ? &spheres[m] : nullptr;
+            if (!shared_spheres_) own_spheres_.make(view, m);
+            const ClusterSpheres& s = cluster_spheres();
+            for (int k = 0; k < 3; ++k) light_from_origin_[k] = light_[k] - s.origin[k];
+            spheres_small_ = s.extent + shadow_detail::l1(light_from_origin_) < float_safe;
+            coarse_boxes_.resize(coarse_count);
+            coarse_skipped_.assign(coarse_count, 0);
+            for (uint32_t c = 0; c < coarse_count; ++c) {
+                coarse_boxes_[c] = box_filter_of(view.coarse_bounds.obb(mesh_->first_coarse + c));
                 if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c)))
-                    skipped_ += view.coarse[mesh_->first_coarse + c].count, wanted[c] = 0;
-            depth_ = build_coarse_tree(all, wanted, [&](uint32_t c, Leaf& leaf) {
-                const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
-                leaf.always = {r.first, r.count};
-            }) + 1;
-            shrink(all, work);
+                    skipped_ += view.coarse[mesh_->first_coarse + c].count, coarse_skipped_[c] = 1;
+            }
             return;
         }
         // Fine trees: one per coarse cluster (parts of the coarse clusters on their own threads, each into its
@@ -211,19 +296,15 @@ public:
     size_t stack_size() const { return size_t(depth_) * 2 + 4; }
 
     // True when the segment from world point p to the light is blocked by this instance. `stack` holds
-    // stack_size() entries.
+    // stack_size() entries. In scan mode the point is a tile of one (occluded_tile's stack use): a batch
+    // is far faster per point.
     bool occluded(const double* world_p, uint32_t* stack, QueryStats* stats = nullptr) const {
         if (!usable_ || !finite3(world_p)) return false;  // a point that is not finite is never in shadow
-        Query q;
-        apply_instance(inverse_, world_p, q.p);
-        for (int k = 0; k < 3; ++k) q.e[k] = q.p[k] - light_[k];
-        q.dist = std::sqrt(q.e[0] * q.e[0] + q.e[1] * q.e[1] + q.e[2] * q.e[2]);
-        q.stats = stats;
-        for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count; ++i)
-            if (test_cluster(always_fine_[i], q)) return true;
-        for (uint32_t node : always_coarse_)  // coarse clusters around the light, one walk each
-            if (walk(node, stack, q)) return true;
-        return root_ != none && walk(root_, stack, q);
+        if (scan_) {  // a tile of one point (which walks alone when it must, see occluded_tile)
+            const uint32_t first = 0;
+            return occluded_tile(world_p, &first, 1, 1, stack, stats) != 0;
+        }
+        return walk_alone(world_p, stack, stats);
     }
 
     // A fine cluster's box set up for one light's float separating-axis test (box_filter).
@@ -297,12 +378,16 @@ public:
                 test_points(always_fine_[i], t.alive, t);
             for (uint32_t node : always_coarse_)
                 if (t.alive) tile_walk(node, t.alive, t, stack);
-            if (root_ != none && t.alive) tile_walk(root_, t.alive, t, stack);
+            if (scan_) {
+                if (t.alive) scan_coarse(t);
+            } else if (root_ != none && t.alive) {
+                tile_walk(root_, t.alive, t, stack);
+            }
             walk_entered(t, stack);
             test_pending(t);
         }
         for (uint32_t i = 0; i < count; ++i)
-            if ((alone >> i & 1) && occluded(points + size_t(index[i]) * 3, stack, stats)) t.shadowed |= uint64_t(1) << i;
+            if ((alone >> i & 1) && walk_alone(points + size_t(index[i]) * 3, stack, stats)) t.shadowed |= uint64_t(1) << i;
         return t.shadowed;
     }
 
@@ -313,7 +398,7 @@ public:
     size_t memory_bytes() const {
         return planes_.capacity() * sizeof(PlaneNode) + leaves_.capacity() * sizeof(Leaf) +
                (always_fine_.capacity() + always_coarse_.capacity()) * sizeof(uint32_t) +
-               (sx_.capacity() + sy_.capacity() + sz_.capacity() + sr_.capacity() + snear_.capacity()) * sizeof(float);
+               own_spheres_.memory_bytes() + coarse_boxes_.capacity() * sizeof(BoxFilter) + coarse_skipped_.capacity();
     }
     size_t always_tested() const { return always_fine_.size(); }
     size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the light sees from the front
@@ -349,8 +434,8 @@ private:
         uint32_t inside = none;
         uint32_t fine_root = none;  // coarse: the root of its fine tree
         uint32_t cluster = none;    // fine: the fine cluster (mesh-local); none for a coarse cluster
-        Range always;               // coarse: its fine clusters tested whenever it is entered (scan: all of
-                                    // them, mesh-local; trees: a range of always_fine_)
+        Range always;               // coarse: its fine clusters tested whenever it is entered (a range of
+                                    // always_fine_)
         uint32_t first_plane = none;  // the 4 planes of its volume, consecutive (none: no volume)
     };
 
@@ -449,7 +534,7 @@ private:
         // tested before the next, so that farther ones leave out the points already found in shadow.
         struct Entered {
             float near;
-            uint32_t leaf;
+            uint32_t id;  // its cluster node (trees), or the coarse cluster (scan)
             uint64_t points;
         };
         static constexpr uint32_t entered_capacity = 64;
@@ -561,13 +646,13 @@ private:
         return in & subset;
     }
 
-    // Fine cluster f's box, set up for box_points from this light. The box is taken as the parallelepiped
+    // A box (fine cluster f's, or a coarse one's) set up for box_points from this light. The box is taken as the parallelepiped
     // centre + sum of +-padded half[k] axis[k] (cb_asset.h), whose projection on any direction those terms
     // give exactly; the tolerances, 1e-6 of the sizes involved, exceed the float evaluation's errors (below
     // 5e-7 of them) and the axes' departure from orthonormal (2e-7). Not usable where float could overflow
     // (sizes from float_safe up): points are then tested in double.
-    BoxFilter box_filter(uint32_t f) const {
-        const Obb box = view_->fine_bounds.obb(mesh_->first_fine + f);
+    BoxFilter box_filter(uint32_t f) const { return box_filter_of(view_->fine_bounds.obb(mesh_->first_fine + f)); }
+    BoxFilter box_filter_of(const Obb& box) const {
         BoxFilter b{};
         double h[3], c[3], a[3][3];
         padded_halves(box, h);
@@ -657,6 +742,34 @@ private:
         t.alive &= ~hit, t.shadowed |= hit;
     }
 
+    // One point on its own, in double: the tree walk; in scan mode, every sphere (for the points a tile
+    // cannot take: beside the light or beyond float's range).
+    bool walk_alone(const double* world_p, uint32_t* stack, QueryStats* stats) const {
+        if (!usable_ || !finite3(world_p)) return false;
+        Query q;
+        apply_instance(inverse_, world_p, q.p);
+        for (int k = 0; k < 3; ++k) q.e[k] = q.p[k] - light_[k];
+        q.dist = std::sqrt(q.e[0] * q.e[0] + q.e[1] * q.e[1] + q.e[2] * q.e[2]);
+        q.stats = stats;
+        if (scan_) {
+            if (!(q.dist > 0)) return false;  // at the light: the segment is a point, which blocks nothing
+            const ClusterSpheres& s = cluster_spheres();
+            const bool spheres = s.fine_boxes != nullptr;  // none without fine boxes: every cluster is tested
+            for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
+                if ((one_sided_ && coarse_skipped_[c]) || (spheres && !segment_may_touch_sphere(s.coarse_first + c, q))) continue;
+                const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
+                for (uint32_t f = r.first; f < r.first + r.count; ++f)
+                    if ((!spheres || segment_may_touch_sphere(f, q)) && !skippable_fine(f) && test_cluster(f, q)) return true;
+            }
+            return false;
+        }
+        for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count; ++i)
+            if (test_cluster(always_fine_[i], q)) return true;
+        for (uint32_t node : always_coarse_)  // coarse clusters around the light, one walk each
+            if (walk(node, stack, q)) return true;
+        return root_ != none && walk(root_, stack, q);
+    }
+
     // The entered coarse clusters, nearest closing distance first: their always-tested fine clusters, then
     // their fine trees, whose clusters are tested before the next coarse cluster's walk.
     void walk_entered(Tile& t, uint32_t* stack) const {
@@ -665,12 +778,13 @@ private:
         t.entered_count = 0;
         sort_by_near(e, count);
         for (uint32_t i = 0; i < count && t.alive; ++i) {
-            const Leaf& leaf = leaves_[e[i].leaf];
             uint64_t in = e[i].points & t.alive;
             if (!in) continue;
             if (scan_) {
-                scan_fine(leaf.always, in, t);
+                const ClusterRange& r = view_->coarse[mesh_->first_coarse + e[i].id];
+                scan_fine({r.first, r.count}, in, t);
             } else {
+                const Leaf& leaf = leaves_[e[i].id];
                 for (uint32_t k = leaf.always.first; k < leaf.always.first + leaf.always.count; ++k) test_points(always_fine_[k], in, t);
                 if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in & t.alive, t, stack);
             }
@@ -775,99 +889,7 @@ private:
         }
     }
 
-    // Scan mode: every fine cluster's bounding sphere, from the light (mesh frame): the sphere about its box
-    // (the stored centre; the padded half extents' length, the axes being unit to float precision). Rounded
-    // to nearest float, but the radius is grown by 2e-5 of itself and of the distance, and the closing
-    // distance shrunk by 1e-6 of both: far more than the rounding of the centre, the radius and their
-    // square roots to float (below 2e-7 of the distance) and the errors of the float tests that read them
-    // (below 1e-6).
-    void make_spheres() {
-        const uint32_t n = mesh_->fine_count;
-        // Padded by a group of lanes that never passes (the scan reads whole groups past a coarse cluster's end).
-        for (std::vector<float>* a : {&sx_, &sy_, &sz_, &sr_, &snear_}) a->resize(size_t(n) + simd::width);
-        for (uint32_t f = n; f < n + simd::width; ++f) sx_[f] = sy_[f] = sz_[f] = sr_[f] = 0, snear_[f] = INFINITY;
-        spheres_small_ = false;
-        if (!view_->fine_bounds.obbs) {  // no boxes: spheres that hold everything (and no filtering)
-            std::fill(sx_.begin(), sx_.begin() + n, 0.0f), std::fill(sy_.begin(), sy_.begin() + n, 0.0f);
-            std::fill(sz_.begin(), sz_.begin() + n, 0.0f), std::fill(sr_.begin(), sr_.begin() + n, INFINITY);
-            std::fill(snear_.begin(), snear_.begin() + n, -INFINITY);
-            return;
-        }
-        // One thread: the pass is bound by memory (a second one, here or on the coarse tree at the same
-        // time, measured no faster on the 5 M-triangle scene).
-        spheres_small_ = sphere_pass() < double_bits(float_safe);
-    }
-
-    static uint64_t double_bits(double x) {
-        uint64_t b;
-        std::memcpy(&b, &x, sizeof b);
-        return b;
-    }
-
-    // make_spheres' pass over the fine clusters: blocks copied out of the packed boxes, then each block's
-    // terms in loops the compiler runs several clusters to an instruction, the square roots in float lanes
-    // (std::sqrt in a loop keeps it scalar: it may set errno). Returns the bits of the largest coordinate or
-    // radius (|x| as an unsigned integer orders like x, and a NaN's exceeds infinity's).
-    uint64_t sphere_pass() {
-        const PackedObb* boxes = view_->fine_bounds.obbs + mesh_->first_fine;
-        const double lx = light_[0], ly = light_[1], lz = light_[2];
-        constexpr uint32_t block = 256;
-        static_assert(block % simd::width == 0, "whole lane groups");
-        double cx[block], cy[block], cz[block], h0[block], h1[block], h2[block];
-        alignas(64) float dist2[block], radius2[block], dist_root[block], radius_root[block];
-        double size[block];
-        uint64_t big = 0;
-        const uint32_t n = mesh_->fine_count;
-        for (uint32_t first = 0; first < n; first += block) {
-            const uint32_t count = std::min(block, n - first);
-            for (uint32_t i = 0; i < count; ++i) {
-                const PackedObb& b = boxes[first + i];
-                cx[i] = b.center[0] - lx, cy[i] = b.center[1] - ly, cz[i] = b.center[2] - lz;
-                const double pad = 1e-6 * (double(b.half[0]) + double(b.half[1]) + double(b.half[2]));
-                h0[i] = b.half[0] + pad, h1[i] = b.half[1] + pad, h2[i] = b.half[2] + pad;
-            }
-            for (uint32_t i = 0; i < count; ++i) {
-                dist2[i] = float(cx[i] * cx[i] + cy[i] * cy[i] + cz[i] * cz[i]);
-                radius2[i] = float(h0[i] * h0[i] + h1[i] * h1[i] + h2[i] * h2[i]);
-            }
-            // The roots, rounded: within 2e-7 of the true lengths, far inside the margins below (beyond
-            // float's range they are infinite, and big says so).
-            for (uint32_t i = count; i % simd::width; ++i) dist2[i] = radius2[i] = 0;
-            for (uint32_t i = 0; i < count; i += simd::width) {
-                simd::store(dist_root + i, simd::sqrt(simd::load(dist2 + i)));
-                simd::store(radius_root + i, simd::sqrt(simd::load(radius2 + i)));
-            }
-            float *sx = &sx_[first], *sy = &sy_[first], *sz = &sz_[first], *sr = &sr_[first], *sn = &snear_[first];
-            for (uint32_t i = 0; i < count; ++i) {
-                const double x = cx[i], y = cy[i], z = cz[i], dist = dist_root[i];
-                double r = radius_root[i];
-                r += 2e-5 * (r + dist);
-                sx[i] = float(x), sy[i] = float(y), sz[i] = float(z);
-                sr[i] = float(r);
-                sn[i] = float(dist - r - 1e-6 * (dist + r));
-                size[i] = std::fabs(x) + std::fabs(y) + std::fabs(z) + r;  // bounds each coordinate and the radius
-            }
-            // Squares below 1e-30, where float loses precision, or a centre within 1e-7 of the light (both
-            // rare): that cluster again, in double; a sphere wholly within float_tiny of the light holds
-            // everything (the float tests pass it).
-            for (uint32_t i = 0; i < count; ++i) {
-                if (!(dist2[i] < 1e-14f || radius2[i] < 1e-30f)) continue;
-                const double x = cx[i], y = cy[i], z = cz[i];
-                const double dist = std::sqrt(x * x + y * y + z * z);
-                double r = std::sqrt(h0[i] * h0[i] + h1[i] * h1[i] + h2[i] * h2[i]);
-                r += 2e-5 * (r + dist);
-                const bool near_light = dist + r < float_tiny;
-                sr[i] = near_light ? INFINITY : float(r);
-                sn[i] = near_light ? -INFINITY : float(dist - r - 1e-6 * (dist + r));
-                size[i] = std::fabs(x) + std::fabs(y) + std::fabs(z) + r;
-            }
-            for (uint32_t i = 0; i < count; ++i) {
-                const uint64_t bits = double_bits(size[i]);
-                big = bits > big ? bits : big;
-            }
-        }
-        return big;
-    }
+    const ClusterSpheres& cluster_spheres() const { return shared_spheres_ ? *shared_spheres_ : own_spheres_; }
 
     bool skippable_fine(uint32_t f) const {
         if (!one_sided_) return false;
@@ -875,8 +897,27 @@ private:
         return skippable(view_->fine_bounds, mesh_->first_fine + f, {r.first_triangle, r.triangle_count});
     }
 
-    bool segment_may_touch_sphere(uint32_t f, const Query& q) const {
-        double c[3] = {double(sx_[f]), double(sy_[f]), double(sz_[f])}, r = sr_[f];
+    // Sphere i of cluster_spheres() from the light, for the float tests of sphere_points: the centre in
+    // float, the radius grown by 2e-5 of itself and of the distance (|d|_1 bounds it), far more than the
+    // rounding of the centre to float (below 1e-7 of the distance) and the errors of the float tests (below
+    // 1e-6). A sphere wholly within float_tiny of the light holds every point (float products of such sizes
+    // could fall to subnormals).
+    struct LitSphere {
+        float x, y, z, r;
+        bool everything;
+    };
+    LitSphere lit_sphere(uint32_t i) const {
+        const ClusterSpheres& s = cluster_spheres();
+        const double x = double(s.x[i]) - light_from_origin_[0], y = double(s.y[i]) - light_from_origin_[1], z = double(s.z[i]) - light_from_origin_[2];
+        const double d1 = std::fabs(x) + std::fabs(y) + std::fabs(z), r = s.r[i], grown = r + 2e-5 * (r + d1);
+        return {float(x), float(y), float(z), float(grown), d1 + grown < float_tiny};
+    }
+
+    // Conservative, in double: the segment from the query point to the light may meet sphere i.
+    bool segment_may_touch_sphere(uint32_t i, const Query& q) const {
+        const ClusterSpheres& s = cluster_spheres();
+        const double c[3] = {double(s.x[i]) - light_from_origin_[0], double(s.y[i]) - light_from_origin_[1], double(s.z[i]) - light_from_origin_[2]};
+        const double r = s.r[i];
         double t = (c[0] * q.e[0] + c[1] * q.e[1] + c[2] * q.e[2]) / q.dist;
         t = std::min(std::max(t, 0.0), q.dist);
         double d2 = 0;
@@ -884,19 +925,19 @@ private:
             double x = c[k] - t * q.e[k] / q.dist;
             d2 += x * x;
         }
-        double reach = r * (1 + 1e-9) + 1e-9 * q.dist;
+        double reach = r * (1 + 1e-9) + 1e-9 * (q.dist + shadow_detail::l1(c));
         return d2 <= reach * reach;
     }
 
-    // The points of `subset` whose segment to the light may meet fine cluster f's sphere: the ray from the
-    // light passes within the radius (|c x e| <= r |e|) and the sphere is not wholly behind the light or
-    // beyond the point. Float, branch-free; the radius holds the float errors (make_spheres).
-    uint64_t sphere_points(uint32_t f, uint64_t subset, const Tile& t) const {
+    // The points of `subset` whose segment to the light may meet sphere s: the ray from the light passes
+    // within the radius (|c x e| <= r |e|) and the sphere is not wholly behind the light or beyond the point.
+    // Float, branch-free; the radius holds the float errors (lit_sphere).
+    uint64_t sphere_points(const LitSphere& s, uint64_t subset, const Tile& t) const {
         uint32_t begin, end;
         simd::lane_span(subset, begin, end);
         using simd::Floats;
-        const Floats x = simd::splat(sx_[f]), y = simd::splat(sy_[f]), z = simd::splat(sz_[f]), r = simd::splat(sr_[f]),
-                     r2 = simd::splat(sr_[f] * sr_[f]), zero = simd::splat(0.0f);
+        const Floats x = simd::splat(s.x), y = simd::splat(s.y), z = simd::splat(s.z), r = simd::splat(s.r), r2 = simd::splat(s.r * s.r),
+                     zero = simd::splat(0.0f);
         uint64_t keep = 0;
         for (uint32_t i = begin; i < end; i += simd::width) {
             if (!simd::group(subset, i)) continue;
@@ -919,55 +960,99 @@ private:
         simd::prefetch(view_->fine + g);
     }
 
-    // Scan mode: the fine clusters `range` of an entered coarse cluster whose sphere may meet the pyramid of
-    // the points `in`, onto the pending list.
-    void scan_fine(Range range, uint64_t in, Tile& t) const {
-        if (!t.small || !spheres_small_) {  // the float tests could overflow: every fine cluster, every point
-            for (uint32_t f = range.first; f < range.first + range.count; ++f) {
-                if (skippable_fine(f)) continue;
-                if (t.pending_count == Tile::pending_capacity) test_pending(t);
-                t.pending[t.pending_count++] = {snear_[f], f, in};
-            }
+    // The scan over spheres [first, first + count) of cluster_spheres() for the tile's points `in`: those
+    // that may meet the pyramid of these points, nearer the light than the farthest, go to
+    // pass(sphere, points, key) with the points whose segment may meet them (every point of `in` when
+    // `each_point` is false) and a key that orders them by distance from the light. When the float tests
+    // could overflow, every sphere passes with every point.
+    //
+    // A sphere (centre c from the light, radius r) may meet the pyramid only if it reaches the inside of
+    // each side plane, n . c + r >= 0, and of the plane across the tile's axis z at the farthest point's
+    // distance, -z . c + r >= -dmax. The centres are stored from the spheres' origin o, so with c = s - l
+    // (l the light from o), each test is n . s + r >= n . l (the right side once per scan, in double): a
+    // vector of spheres an instruction. The right sides are lowered by 1e-6 of |s|_1 + |l|_1 + dmax, above
+    // the float products' errors (3 float epsilons of |s|_1) and the rounding of n (the pyramid's
+    // tolerance, which make_pyramid leaves for it).
+    template <bool each_point, class Pass>
+    void scan_spheres(uint32_t first_sphere, uint32_t count, uint64_t in, Tile& t, Pass pass) const {
+        if (!t.small || !spheres_small_) {
+            for (uint32_t i = first_sphere; i < first_sphere + count; ++i) pass(i, in, 0.0f);
             return;
         }
         const Pyramid whole = narrow_pyramid(t, in);
         const Pyramid& P = t.pyramid;
-        float nx[4], ny[4], nz[4];
+        const double* l = light_from_origin_;
+        const double slack = 1e-6 * (cluster_spheres().extent + shadow_detail::l1(l) + P.dmax);
+        float nx[5], ny[5], nz[5], side[5];
         double sum[3] = {0, 0, 0};
         for (int r = 0; r < 4; ++r) sum[0] += P.rx[r], sum[1] += P.ry[r], sum[2] += P.rz[r];
         for (int r = 0; r < 4; ++r) {
-            int s = (r + 1) & 3;
-            double a[3] = {P.rx[r], P.ry[r], P.rz[r]}, b[3] = {P.rx[s], P.ry[s], P.rz[s]}, n[3];
+            int q = (r + 1) & 3;
+            double a[3] = {P.rx[r], P.ry[r], P.rz[r]}, b[3] = {P.rx[q], P.ry[q], P.rz[q]}, n[3];
             shadow_detail::cross3(a, b, n);
-            double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-            if (shadow_detail::dot3(n, sum) < 0) l = -l;
-            if (!(l != 0)) { nx[r] = ny[r] = nz[r] = 0; continue; }
-            nx[r] = float(n[0] / l), ny[r] = float(n[1] / l), nz[r] = float(n[2] / l);
+            double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+            if (shadow_detail::dot3(n, sum) < 0) len = -len;
+            if (!(len != 0)) {  // two rays alike: no plane there
+                nx[r] = ny[r] = nz[r] = 0, side[r] = -INFINITY;
+                continue;
+            }
+            nx[r] = float(n[0] / len), ny[r] = float(n[1] / len), nz[r] = float(n[2] / len);
+            side[r] = round_down(nx[r] * l[0] + ny[r] * l[1] + nz[r] * l[2] - slack);
         }
-        const simd::Floats vd = simd::splat(round_up(P.dmax)), vs = simd::splat(round_up(1e-6 * P.dmax));
-        const uint32_t stop = range.first + range.count;
-        for (uint32_t first = range.first; first < stop; first += 64) {
-            const uint32_t count = std::min<uint32_t>(64, stop - first);
-            const float *x = &sx_[first], *y = &sy_[first], *z = &sz_[first], *rr = &sr_[first], *nr = &snear_[first];
-            uint64_t keep = 0;  // bit j: sphere first + j may meet the pyramid, nearer than its farthest point
-            for (uint32_t j = 0; j < count; j += simd::width) {  // the arrays are padded past the last group
-                const simd::Floats cx = simd::loadu(x + j), cy = simd::loadu(y + j), cz = simd::loadu(z + j);
-                const simd::Floats reach = -(simd::loadu(rr + j) + vs);
-                simd::Mask k = simd::loadu(nr + j) <= vd;
-                for (int r = 0; r < 4; ++r) k = k & (simd::dot(cx, cy, cz, nx[r], ny[r], nz[r]) >= reach);
+        const double* axis = t.frame[0];
+        nx[4] = float(-axis[0]), ny[4] = float(-axis[1]), nz[4] = float(-axis[2]);
+        side[4] = round_down(nx[4] * l[0] + ny[4] * l[1] + nz[4] * l[2] - P.dmax - slack);
+        const float ax = float(axis[0]), ay = float(axis[1]), az = float(axis[2]);
+        const ClusterSpheres& s = cluster_spheres();
+        const uint32_t stop = first_sphere + count;
+        for (uint32_t first = first_sphere; first < stop; first += 64) {
+            const uint32_t n = std::min<uint32_t>(64, stop - first);
+            const float *x = &s.x[first], *y = &s.y[first], *z = &s.z[first], *rr = &s.r[first];
+            uint64_t keep = 0;  // bit j: sphere first + j may meet the pyramid
+            for (uint32_t j = 0; j < n; j += simd::width) {  // the arrays are padded past each level's last group
+                const simd::Floats cx = simd::loadu(x + j), cy = simd::loadu(y + j), cz = simd::loadu(z + j), r = simd::loadu(rr + j);
+                simd::Mask k = simd::dot(cx, cy, cz, nx[4], ny[4], nz[4]) + r >= simd::splat(side[4]);
+                for (int q = 0; q < 4; ++q) k = k & (simd::dot(cx, cy, cz, nx[q], ny[q], nz[q]) + r >= simd::splat(side[q]));
                 keep |= uint64_t(simd::bits(k)) << j;
             }
-            if (count < 64) keep &= (uint64_t(1) << count) - 1;
+            if (n < 64) keep &= (uint64_t(1) << n) - 1;
             for (; keep; keep &= keep - 1) {
-                uint32_t f = first + shadow_detail::lowest_bit(keep);
-                uint64_t near = sphere_points(f, in, t);
-                if (!near || skippable_fine(f)) continue;
-                prefetch(f);
-                if (t.pending_count == Tile::pending_capacity) test_pending(t);
-                t.pending[t.pending_count++] = {snear_[f], f, near};
+                const uint32_t i = first + shadow_detail::lowest_bit(keep);
+                const LitSphere lit = lit_sphere(i);
+                const uint64_t points = lit.everything || !each_point ? in : sphere_points(lit, in, t);
+                if (points) pass(i, points, lit.x * ax + lit.y * ay + lit.z * az - lit.r);
             }
         }
         t.pyramid = whole;
+    }
+
+    // The coarse clusters whose spheres the tile's pyramid may meet, with the points whose segment may meet
+    // their boxes (or spheres, where a box's float test could overflow), onto the entered list.
+    void scan_coarse(Tile& t) const {
+        const uint32_t first = cluster_spheres().coarse_first;
+        const bool narrow = t.small && spheres_small_;
+        scan_spheres<false>(first, mesh_->coarse_count, t.alive, t, [&](uint32_t i, uint64_t points, float key) {
+            const uint32_t c = i - first;
+            if (one_sided_ && coarse_skipped_[c]) return;
+            if (narrow) {
+                const BoxFilter& b = coarse_boxes_[c];
+                points = b.usable ? box_points(b, points, t) : sphere_points(lit_sphere(i), points, t);
+                if (!points) return;
+            }
+            if (t.entered_count == Tile::entered_capacity) walk_entered(t, nullptr);
+            t.entered[t.entered_count++] = {key, c, points};
+        });
+    }
+
+    // The fine clusters `range` of an entered coarse cluster whose spheres may meet the segments of the
+    // points `in`, onto the pending list.
+    void scan_fine(Range range, uint64_t in, Tile& t) const {
+        scan_spheres<true>(range.first, range.count, in, t, [&](uint32_t f, uint64_t points, float key) {
+            if (skippable_fine(f)) return;
+            prefetch(f);
+            if (t.pending_count == Tile::pending_capacity) test_pending(t);
+            t.pending[t.pending_count++] = {key, f, points};
+        });
     }
 
     static float round_down(double x) {
@@ -1044,9 +1129,6 @@ private:
                     if (q.dist < leaf.near) break;
                     if (leaf.cluster != none) {  // its triangles
                         if (test_cluster(leaf.cluster, q)) return true;
-                    } else if (scan_) {
-                        for (uint32_t f = leaf.always.first; f < leaf.always.first + leaf.always.count; ++f)
-                            if (segment_may_touch_sphere(f, q) && !skippable_fine(f) && test_cluster(f, q)) return true;
                     } else {  // into its fine tree
                         for (uint32_t i = leaf.always.first; i < leaf.always.first + leaf.always.count; ++i)
                             if (test_cluster(always_fine_[i], q)) return true;
@@ -1235,11 +1317,15 @@ private:
     std::vector<PlaneNode> planes_;
     std::vector<Leaf> leaves_;
     std::vector<uint32_t> always_fine_;    // fine clusters tested without a volume (ranges per coarse node)
-    // Scan mode: per fine cluster of the mesh, its bounding sphere's centre from the light (mesh frame),
-    // radius and closing distance, for this light (make_spheres).
-    std::vector<float> sx_, sy_, sz_, sr_, snear_;
+    // Scan mode: the spheres (shared, or the tree's own), the light from their origin, the coarse boxes set up
+    // for this light, and which coarse clusters one-sided mode leaves out.
+    const ClusterSpheres* shared_spheres_ = nullptr;
+    ClusterSpheres own_spheres_;
+    double light_from_origin_[3] = {};
+    std::vector<BoxFilter> coarse_boxes_;
+    std::vector<uint8_t> coarse_skipped_;
     bool scan_ = false;
-    bool spheres_small_ = false;  // every sphere's coordinates and radius below float_safe
+    bool spheres_small_ = false;  // every sphere's coordinates and radius, and the light's, below float_safe
     std::vector<uint32_t> always_coarse_;  // coarse cluster nodes entered for every query
     Range top_always_;                     // one level: the always-tested fine clusters
     uint32_t root_ = none;
