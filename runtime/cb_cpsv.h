@@ -338,8 +338,9 @@ public:
     // when no point of the tile could reach it. At a cluster node, each point is tested against the node's
     // own volume (its 4 planes and closing distance) before its cluster's triangles, so a point meets the
     // clusters whose volumes hold it, as its own walk would. Points too far from the tile's mean direction
-    // (over 60 degrees), at the light, not finite or beyond 1e30 walk alone. `stack` holds stack_size() entries; uses
-    // about 10 KB of the thread's stack besides (and a cluster test's, docs/RUNTIME.md).
+    // (over 60 degrees; in scan mode, these make a tile of one), at the light, not finite or beyond 1e30 walk
+    // alone. `stack` holds stack_size() entries; uses about 10 KB of the thread's stack besides, twice that
+    // for a tile of one inside (and a cluster test's, docs/RUNTIME.md).
     uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t* stack,
                            QueryStats* stats = nullptr, Cache* cache = nullptr) const {
         if (!usable_ || alive == 0) return 0;
@@ -363,7 +364,8 @@ public:
             t.alive |= uint64_t(1) << i;
         }
         uint64_t held = t.alive ? make_frame(t, t.alive) : 0;
-        alone |= t.alive & ~held;
+        const uint64_t off = t.alive & ~held;  // over 60 degrees off the mean: in scan mode, each a tile of its own
+        alone |= scan_ ? 0 : off;
         t.alive &= held;
         if (t.alive) {
             make_pyramid(t, t.alive, t.pyramid);
@@ -386,8 +388,12 @@ public:
             walk_entered(t, stack);
             test_pending(t);
         }
-        for (uint32_t i = 0; i < count; ++i)
-            if ((alone >> i & 1) && walk_alone(points + size_t(index[i]) * 3, stack, stats)) t.shadowed |= uint64_t(1) << i;
+        for (uint32_t i = 0; i < count; ++i) {
+            const bool own_tile = scan_ && (off >> i & 1);
+            if ((own_tile && occluded_tile(points, index + i, 1, 1, stack, stats, cache)) ||
+                ((alone >> i & 1) && walk_alone(points + size_t(index[i]) * 3, stack, stats)))
+                t.shadowed |= uint64_t(1) << i;
+        }
         return t.shadowed;
     }
 
