@@ -165,19 +165,26 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         std::vector<uint8_t> ours(n), embree1(n), embree16(n);
         cb::QueryStats stats;
         std::vector<std::vector<uint32_t>> query_scratch(2);  // per query thread, kept between frames like the build's
+        // Both sides' threads take the points in contiguous chunks (interleaved points would have them write
+        // neighbouring bytes), 8 per thread, handed out as they finish: halves of the view can differ in cost.
+        auto chunk_for = [n](unsigned threads) {
+            return threads == 1 ? std::max<size_t>(n, 1) : std::max<size_t>(4096, (n / (8 * threads) + 63) / 64 * 64);
+        };
         auto ours_pass = [&](unsigned threads) {
             auto s = std::chrono::steady_clock::now();
             std::vector<std::thread> pool;
             std::vector<cb::QueryStats> st(threads);
+            std::atomic<size_t> next{0};
+            const size_t chunk = chunk_for(threads);
             for (unsigned th = 0; th < threads; ++th)
                 pool.emplace_back([&, th] {
-                    // Contiguous halves: interleaved points would have the threads write neighbouring bytes.
-                    size_t chunk = (n + threads - 1) / threads, begin = th * chunk, end = std::min(n, begin + chunk);
                     std::vector<uint32_t>& scratch = query_scratch[th];
-                    scratch.resize(std::max(scratch.size(), cb::batch_scratch_size(trees.data(), trees.size(), end - begin)));
+                    scratch.resize(std::max(scratch.size(), cb::batch_scratch_size(trees.data(), trees.size(), chunk)));
                     cb::QueryStats local;  // per thread, copied out once: counters in one shared array would false-share
-                    if (begin < end)
+                    for (size_t begin = next.fetch_add(chunk); begin < n; begin = next.fetch_add(chunk)) {
+                        const size_t end = std::min(n, begin + chunk);
                         cb::occluded_batch(trees.data(), trees.size(), &pts[begin * 3], end - begin, &ours[begin], scratch.data(), &local);
+                    }
                     st[th] = local;
                 });
             for (auto& p : pool) p.join();
@@ -190,34 +197,38 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         auto embree_pass = [&](unsigned threads, bool packets) {
             auto s = std::chrono::steady_clock::now();
             std::vector<std::thread> pool;
+            std::atomic<size_t> next{0};
+            const size_t chunk = chunk_for(threads);
             for (unsigned th = 0; th < threads; ++th)
-                pool.emplace_back([&, th] {
+                pool.emplace_back([&] {
                     RTCIntersectContext c;
                     rtcInitIntersectContext(&c);
-                    size_t chunk = (n + threads - 1) / threads, begin = th * chunk, end = std::min(n, begin + chunk);
-                    if (!packets) {
-                        for (size_t i = begin; i < end; ++i) {
-                            RTCRay r{};
-                            r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
-                            r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]), r.dir_z = float(light[2] - pts[i * 3 + 2]);
-                            r.tnear = float(cb::self_shadow_fraction), r.tfar = 1.0f, r.mask = 0xffffffff;
-                            rtcOccluded1(scene, &c, &r);
-                            embree1[i] = r.tfar < 0;
+                    for (size_t begin = next.fetch_add(chunk); begin < n; begin = next.fetch_add(chunk)) {
+                        const size_t end = std::min(n, begin + chunk);
+                        if (!packets) {
+                            for (size_t i = begin; i < end; ++i) {
+                                RTCRay r{};
+                                r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
+                                r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]), r.dir_z = float(light[2] - pts[i * 3 + 2]);
+                                r.tnear = float(cb::self_shadow_fraction), r.tfar = 1.0f, r.mask = 0xffffffff;
+                                rtcOccluded1(scene, &c, &r);
+                                embree1[i] = r.tfar < 0;
+                            }
+                            continue;
                         }
-                        return;
-                    }
-                    for (size_t i = begin; i < end; i += 16) {
-                        RTCRay16 r{};
-                        alignas(64) int valid[16];
-                        for (int k = 0; k < 16; ++k) {
-                            size_t j = std::min(i + k, end - 1);
-                            valid[k] = i + k < end ? -1 : 0;
-                            r.org_x[k] = float(pts[j * 3]), r.org_y[k] = float(pts[j * 3 + 1]), r.org_z[k] = float(pts[j * 3 + 2]);
-                            r.dir_x[k] = float(light[0] - pts[j * 3]), r.dir_y[k] = float(light[1] - pts[j * 3 + 1]), r.dir_z[k] = float(light[2] - pts[j * 3 + 2]);
-                            r.tnear[k] = float(cb::self_shadow_fraction), r.tfar[k] = 1.0f, r.mask[k] = 0xffffffff;
+                        for (size_t i = begin; i < end; i += 16) {
+                            RTCRay16 r{};
+                            alignas(64) int valid[16];
+                            for (int k = 0; k < 16; ++k) {
+                                size_t j = std::min(i + k, end - 1);
+                                valid[k] = i + k < end ? -1 : 0;
+                                r.org_x[k] = float(pts[j * 3]), r.org_y[k] = float(pts[j * 3 + 1]), r.org_z[k] = float(pts[j * 3 + 2]);
+                                r.dir_x[k] = float(light[0] - pts[j * 3]), r.dir_y[k] = float(light[1] - pts[j * 3 + 1]), r.dir_z[k] = float(light[2] - pts[j * 3 + 2]);
+                                r.tnear[k] = float(cb::self_shadow_fraction), r.tfar[k] = 1.0f, r.mask[k] = 0xffffffff;
+                            }
+                            rtcOccluded16(valid, scene, &c, &r);
+                            for (int k = 0; k < 16 && i + k < end; ++k) embree16[i + k] = r.tfar[k] < 0;
                         }
-                        rtcOccluded16(valid, scene, &c, &r);
-                        for (int k = 0; k < 16 && i + k < end; ++k) embree16[i + k] = r.tfar[k] < 0;
                     }
                 });
             for (auto& p : pool) p.join();
