@@ -632,11 +632,12 @@ int main(int argc, char** argv) {
                                                   "(double-sided glTF primitives stay two-sided)");
     query->add_flag("--stats", qa.stats, "Print build and query time and traversal counts on stderr");
     query->add_flag("--reference", qa.reference, "Use the reference traversal (every cluster box the segment may touch) "
-                                                  "instead of the per-light clustered shadow trees; same answers");
+                                                  "instead of the clustered shadow volumes; same answers");
     query->add_option("--threads", qa.threads, "Build and query threads, 0 = all (default 1); the answers do not depend on it");
-    query->add_option("--fine", qa.fine, "How queries reach the fine clusters: 'scan' (default: a tree over the coarse clusters, "
-                                         "then a scan of the entered ones' fine clusters), 'trees' (a fine tree per coarse "
-                                         "cluster, built per light) or 'one-tree' (one tree over the fine clusters); same answers")
+    query->add_option("--fine", qa.fine, "How queries find the clusters: 'scan' (default: no per-light tree; the coarse clusters' "
+                                         "spheres, then the entered ones' fine spheres), 'trees' (per light, a tree over the coarse "
+                                         "clusters and one per coarse cluster over its fine clusters) or 'one-tree' (one tree over "
+                                         "the fine clusters); same answers")
         ->check(CLI::IsMember({"scan", "trees", "one-tree"}));
 
     try {

@@ -652,9 +652,9 @@ private:
         return in & subset;
     }
 
-    // A box (fine cluster f's, or a coarse one's) set up for box_points from this light. The box is taken as the parallelepiped
-    // centre + sum of +-padded half[k] axis[k] (cb_asset.h), whose projection on any direction those terms
-    // give exactly; the tolerances, 1e-6 of the sizes involved, exceed the float evaluation's errors (below
+    // A box (fine cluster f's, or a coarse cluster's) set up for box_points from this light. The box is taken
+    // as the parallelepiped centre + sum of +-padded half[k] axis[k] (cb_asset.h), whose projection on any
+    // direction those terms give exactly; the tolerances, 1e-6 of the sizes involved, exceed the float evaluation's errors (below
     // 5e-7 of them) and the axes' departure from orthonormal (2e-7). Not usable where float could overflow
     // (sizes from float_safe up): points are then tested in double.
     BoxFilter box_filter(uint32_t f) const { return box_filter_of(view_->fine_bounds.obb(mesh_->first_fine + f)); }
@@ -776,8 +776,9 @@ private:
         return root_ != none && walk(root_, stack, q);
     }
 
-    // The entered coarse clusters, nearest closing distance first: their always-tested fine clusters, then
-    // their fine trees, whose clusters are tested before the next coarse cluster's walk.
+    // The entered coarse clusters, nearest first: their fine spheres scanned (scan mode), or their
+    // always-tested fine clusters then their fine trees; each one's pending clusters are tested before the
+    // next coarse cluster's.
     void walk_entered(Tile& t, uint32_t* stack) const {
         Tile::Entered* e = t.entered;
         const uint32_t count = t.entered_count;
