@@ -79,12 +79,12 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
     std::memcpy(storage.data(), bytes.data(), bytes.size());
     cb::AssetView asset;
     if (cb::open_asset(storage.data(), bytes.size(), &asset) != cb::AssetError::ok) return;
-    // The clusters' bounding spheres (scan mode): light-independent, made once, like Embree's BVH.
+    // The scan's bounds (decoded boxes and bounding spheres): light-independent, made once, like Embree's BVH.
     auto s0 = std::chrono::steady_clock::now();
-    const std::vector<cb::ClusterSpheres> spheres = cb::make_cluster_spheres(asset);
-    const double spheres_time = seconds_of(s0);
-    size_t spheres_bytes = 0;
-    for (const cb::ClusterSpheres& s : spheres) spheres_bytes += s.memory_bytes();
+    const std::vector<cb::ScanBounds> scan_bounds = cb::make_scan_bounds(asset);
+    const double scan_bounds_time = seconds_of(s0);
+    size_t scan_bounds_bytes = 0;
+    for (const cb::ScanBounds& s : scan_bounds) scan_bounds_bytes += s.memory_bytes();
 
     std::vector<float> v;
     std::vector<unsigned> t;
@@ -157,7 +157,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
             auto b0 = std::chrono::steady_clock::now();
             always = 0;
             for (uint32_t i = 0; i < asset.instance_count; ++i) {
-                trees[i].build(asset, i, light, one_sided, level, threads, &build_scratch[i], spheres.data());
+                trees[i].build(asset, i, light, one_sided, level, threads, &build_scratch[i], scan_bounds.data());
                 always += trees[i].always_tested();
             }
             return seconds_of(b0);
@@ -273,14 +273,14 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         size_t shadowed = 0, differ = 0;
         for (size_t i = 0; i < n; ++i) shadowed += ours[i], differ += ours[i] != embree1[i];
         double mq = double(n) / 1e6;
-        size_t ours_bytes = bytes.size() + (level == cb::ClusterShadowTree::FineLevel::scan ? spheres_bytes : 0);
+        size_t ours_bytes = bytes.size() + (level == cb::ClusterShadowTree::FineLevel::scan ? scan_bounds_bytes : 0);
         for (const cb::ClusterShadowTree& tr : trees) ours_bytes += tr.memory_bytes();
         size_t scratch_bytes = 0;
         for (const cb::ClusterShadowTree::BuildScratch& b : build_scratch) scratch_bytes += b.memory_bytes();
         for (const std::vector<uint32_t>& q : query_scratch) scratch_bytes += q.capacity() * sizeof(uint32_t);
         std::printf("| %-16s | %s | %zu | %.0f%% | %.1f / %.1f ms | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %.0f / %.1f ms | %.2f / %.2f | %.1f | %.1f | %.1f | %.1f | %zu | %.1f + %.1f / %.1f | %zu (%.3f%%) |\n",
                     in.name.c_str(), light_names[li], n, 100.0 * double(shadowed) / double(n), build * 1e3,
-                    build2 * 1e3, mq / ours1, mq / ours2, mq / e1, mq / e2, mq / p1, mq / p2, embree_build * 1e3, spheres_time * 1e3, ratio1, ratio2, double(stats.nodes_visited) / double(n), double(stats.clusters_tested) / double(n),
+                    build2 * 1e3, mq / ours1, mq / ours2, mq / e1, mq / e2, mq / p1, mq / p2, embree_build * 1e3, scan_bounds_time * 1e3, ratio1, ratio2, double(stats.nodes_visited) / double(n), double(stats.clusters_tested) / double(n),
                     double(stats.triangles_tested) / double(n), double(stats.clusters_tested - shadowed) / double(n),
                     always, double(ours_bytes) / 1048576.0, double(scratch_bytes) / 1048576.0, double(embree_peak) / 1048576.0, differ, 100.0 * double(differ) / double(n));
     }
@@ -304,11 +304,11 @@ int main(int argc, char** argv) {
     } else {
         std::printf("%s, fine level '%s'; %dx%d view; medians of %d rounds; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = "
                     "(our build + our queries) / Embree's queries alone, 1 / 2 threads, the median of the rounds' ratios (below 1: we "
-                    "are faster); memory: our asset, spheres and "
+                    "are faster); memory: our asset, scan bounds and "
                     "trees + scratch kept between frames (the build's and the two query threads') / Embree's peak\n\n", o.one_sided ? "one-sided trees" : "two-sided trees",
                     level == Level::trees ? "trees" : level == Level::one_tree ? "one-tree" : "scan", o.view, o.view, std::max(1, o.runs));
         std::printf("| scene | light | points | in shadow | our build 1 / 2 threads | ours M q/s | Embree occluded1 M q/s | Embree occluded16 M q/s | "
-                    "Embree build / our spheres (once per asset) | ours vs Embree | nodes/query | clusters/query | triangles/query | useless clusters/query | always tested | MB ours + scratch / Embree | disagree |\n");
+                    "Embree build / our scan bounds (once per asset) | ours vs Embree | nodes/query | clusters/query | triangles/query | useless clusters/query | always tested | MB ours + scratch / Embree | disagree |\n");
         std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     }
     std::vector<Input> inputs;

@@ -325,11 +325,11 @@ int run_query(const QueryArgs& a) {
     unsigned thread_count = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
     using Level = cb::ClusterShadowTree::FineLevel;
     Level level = a.fine == "trees" ? Level::trees : a.fine == "one-tree" ? Level::one_tree : Level::scan;
-    // The clusters' spheres, once per mesh however many instances it has (the scan reads them).
-    const std::vector<cb::ClusterSpheres> spheres = level == Level::scan && !trees.empty() ? cb::make_cluster_spheres(asset.view)
-                                                                                           : std::vector<cb::ClusterSpheres>{};
+    // The scan's bounds, once per mesh however many instances it has.
+    const std::vector<cb::ScanBounds> bounds = level == Level::scan && !trees.empty() ? cb::make_scan_bounds(asset.view)
+                                                                                       : std::vector<cb::ScanBounds>{};
     for (uint32_t i = 0; i < trees.size(); ++i) {
-        trees[i].build(asset.view, i, light, a.one_sided, level, thread_count, nullptr, spheres.empty() ? nullptr : spheres.data());
+        trees[i].build(asset.view, i, light, a.one_sided, level, thread_count, nullptr, bounds.empty() ? nullptr : bounds.data());
         skipped += trees[i].skipped_clusters();
         nodes += trees[i].node_count();
         always += trees[i].always_tested();

@@ -7,8 +7,8 @@
 // around its bounding sphere (about its box). A batch's tile of points checks every coarse cluster's sphere
 // against the pyramid from the light that holds the tile's directions, its points against the boxes of
 // those that pass, then the fine spheres of the coarse clusters entered, a vector of spheres an
-// instruction. The spheres do not depend on the light (ClusterSpheres, made once per asset), so a light's
-// build only sets up the coarse boxes. On 2 cores, a linear pass over a few thousand coarse spheres per tile
+// instruction. The spheres and decoded boxes do not depend on the light (ScanBounds, made once per asset),
+// so a light's build only sets up the coarse boxes. On 2 cores, a linear pass over a few thousand coarse spheres per tile
 // measured cheaper than building and walking a tree over their volumes every frame (docs/RUNTIME.md).
 //
 // The TOP-trees (the thesis's method): ternary trees of planes through the light over the shadow volumes of
@@ -52,28 +52,34 @@
 
 namespace cb {
 
-// The bounding spheres of one mesh's fine and coarse clusters, about their boxes, which
-// ClusterShadowTree's scan (FineLevel::scan) checks. They do not depend on the light: make them once per
-// asset (make_cluster_spheres) and pass them to every build. Centres are stored in float from `origin`,
+// What ClusterShadowTree's scan (FineLevel::scan) reads of one mesh's clusters that does not depend on the
+// light: their boxes, decoded, and the bounding spheres about them. Make them once per asset
+// (make_scan_bounds) and pass them to every build. The spheres' centres are stored in float from `origin`,
 // the middle of the mesh's coarse box centres, so that their precision follows the mesh's size rather than
 // its distance from the frame's origin; each radius holds the box's corners (to 1e-6 of itself, more than
 // the axes' departure from orthonormal) and its centre's rounding, rounded up.
-struct ClusterSpheres {
-    const PackedObb* fine_boxes = nullptr;  // what they were made from (build() checks it)
-    const PackedObb* coarse_boxes = nullptr;
+struct ScanBounds {
+    const PackedObb* source_fine = nullptr;  // the packed boxes they were made from (build() checks them)
+    const PackedObb* source_coarse = nullptr;
     uint32_t fine_count = 0, coarse_count = 0;
+    std::vector<Obb> fine_obbs, coarse_obbs;  // decoded (unpack_obb): the box set-ups read these
     uint32_t coarse_first = 0;  // the first coarse sphere's index: after the fine ones and a group of padding
     double origin[3] = {0, 0, 0};
     double extent = INFINITY;  // at least |centre|_1 + radius of every sphere; not below float_safe: unusable
     std::vector<float> x, y, z, r;  // fine spheres, padding, coarse spheres, padding (a lane group each)
 
-    // Mesh `mesh` of `view`, which needs fine and coarse boxes (otherwise nothing is made).
+    // Mesh `mesh` of `view`, which needs fine and coarse boxes (otherwise nothing is made, and the tree tests
+    // every cluster).
     void make(const AssetView& view, uint32_t mesh_index) {
         const MeshRecord& mesh = view.meshes[mesh_index];
-        *this = ClusterSpheres{};
+        *this = ScanBounds{};
         if (!view.fine_bounds.obbs || !view.coarse_bounds.obbs) return;
-        fine_boxes = view.fine_bounds.obbs + mesh.first_fine, coarse_boxes = view.coarse_bounds.obbs + mesh.first_coarse;
+        const PackedObb *fine_boxes = view.fine_bounds.obbs + mesh.first_fine, *coarse_boxes = view.coarse_bounds.obbs + mesh.first_coarse;
+        source_fine = fine_boxes, source_coarse = coarse_boxes;
         fine_count = mesh.fine_count, coarse_count = mesh.coarse_count;
+        fine_obbs.resize(fine_count), coarse_obbs.resize(coarse_count);
+        for (uint32_t f = 0; f < fine_count; ++f) fine_obbs[f] = unpack_obb(fine_boxes[f]);
+        for (uint32_t c = 0; c < coarse_count; ++c) coarse_obbs[c] = unpack_obb(coarse_boxes[c]);
         const uint32_t w = simd::width;
         coarse_first = (fine_count + w - 1) / w * w + w;
         const size_t total = size_t(coarse_first) + (coarse_count + w - 1) / w * w + w;
@@ -103,16 +109,18 @@ struct ClusterSpheres {
     }
 
     bool made_from(const AssetView& view, const MeshRecord& mesh) const {
-        return fine_boxes && fine_boxes == view.fine_bounds.obbs + mesh.first_fine && coarse_boxes == view.coarse_bounds.obbs + mesh.first_coarse &&
+        return source_fine && source_fine == view.fine_bounds.obbs + mesh.first_fine && source_coarse == view.coarse_bounds.obbs + mesh.first_coarse &&
                fine_count == mesh.fine_count && coarse_count == mesh.coarse_count;
     }
 
-    size_t memory_bytes() const { return (x.capacity() + y.capacity() + z.capacity() + r.capacity()) * sizeof(float); }
+    size_t memory_bytes() const {
+        return (x.capacity() + y.capacity() + z.capacity() + r.capacity()) * sizeof(float) + (fine_obbs.capacity() + coarse_obbs.capacity()) * sizeof(Obb);
+    }
 };
 
-// The spheres of every mesh of `view`, indexed by mesh (what ClusterShadowTree::build takes).
-inline std::vector<ClusterSpheres> make_cluster_spheres(const AssetView& view) {
-    std::vector<ClusterSpheres> all(view.mesh_count);
+// The scan bounds of every mesh of `view`, indexed by mesh (what ClusterShadowTree::build takes).
+inline std::vector<ScanBounds> make_scan_bounds(const AssetView& view) {
+    std::vector<ScanBounds> all(view.mesh_count);
     for (uint32_t m = 0; m < view.mesh_count; ++m) all[m].make(view, m);
     return all;
 }
@@ -142,12 +150,12 @@ public:
     // a tree rebuilt every frame then reuses memory instead of asking the system for fresh pages. The
     // tree's own arrays are reused the same way when the tree object is.
     //
-    // `spheres` (scan mode): the asset's ClusterSpheres, indexed by mesh (make_cluster_spheres), read by
-    // every query and so kept alive and unchanged while the tree is used. Without them, or when they were
-    // made from another asset view, the tree makes its mesh's own at each build (a pass over its boxes).
+    // `bounds` (scan mode): the asset's ScanBounds, indexed by mesh (make_scan_bounds), read by every query
+    // and so kept alive and unchanged while the tree is used. Without them, or when they were made from
+    // another asset view, the tree makes its mesh's own at each build (a pass over its boxes).
     void build(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided = false,
                FineLevel fine = FineLevel::scan, unsigned threads = 1, BuildScratch* scratch = nullptr,
-               const ClusterSpheres* spheres = nullptr) {
+               const ScanBounds* bounds = nullptr) {
         BuildScratch own;
         BuildScratch& work = scratch ? *scratch : own;
         view_ = &view;
@@ -161,7 +169,7 @@ public:
         root_ = none;
         depth_ = 0;
         top_always_ = {};
-        shared_spheres_ = nullptr;
+        shared_bounds_ = nullptr;
         coarse_boxes_.clear();
         coarse_skipped_.clear();
         for (int k = 0; k < 3; ++k) world_light_[k] = world_light[k];
@@ -190,17 +198,17 @@ public:
             return;
         }
         const uint32_t coarse_count = mesh_->coarse_count;
-        if (scan_) {  // no tree: the spheres, and the coarse boxes set up for this light
+        if (scan_) {  // no tree: the scan bounds, and the coarse boxes set up for this light
             const uint32_t m = view.instances[instance].mesh;
-            shared_spheres_ = spheres && spheres[m].made_from(view, *mesh_) ? &spheres[m] : nullptr;
-            if (!shared_spheres_) own_spheres_.make(view, m);
-            const ClusterSpheres& s = cluster_spheres();
+            shared_bounds_ = bounds && bounds[m].made_from(view, *mesh_) ? &bounds[m] : nullptr;
+            if (!shared_bounds_) own_bounds_.make(view, m);
+            const ScanBounds& s = scan_bounds();
             for (int k = 0; k < 3; ++k) light_from_origin_[k] = light_[k] - s.origin[k];
             spheres_small_ = s.extent + shadow_detail::l1(light_from_origin_) < float_safe;
             coarse_boxes_.resize(coarse_count);
             coarse_skipped_.assign(coarse_count, 0);
             for (uint32_t c = 0; c < coarse_count; ++c) {
-                coarse_boxes_[c] = box_filter_of(view.coarse_bounds.obb(mesh_->first_coarse + c));
+                coarse_boxes_[c] = box_filter_of(s.coarse_obbs.empty() ? view.coarse_bounds.obb(mesh_->first_coarse + c) : s.coarse_obbs[c]);
                 if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c)))
                     skipped_ += view.coarse[mesh_->first_coarse + c].count, coarse_skipped_[c] = 1;
             }
@@ -404,7 +412,7 @@ public:
     size_t memory_bytes() const {
         return planes_.capacity() * sizeof(PlaneNode) + leaves_.capacity() * sizeof(Leaf) +
                (always_fine_.capacity() + always_coarse_.capacity()) * sizeof(uint32_t) +
-               own_spheres_.memory_bytes() + coarse_boxes_.capacity() * sizeof(BoxFilter) + coarse_skipped_.capacity();
+               own_bounds_.memory_bytes() + coarse_boxes_.capacity() * sizeof(BoxFilter) + coarse_skipped_.capacity();
     }
     size_t always_tested() const { return always_fine_.size(); }
     size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the light sees from the front
@@ -657,7 +665,7 @@ private:
     // direction those terms give exactly; the tolerances, 1e-6 of the sizes involved, exceed the float evaluation's errors (below
     // 5e-7 of them) and the axes' departure from orthonormal (2e-7). Not usable where float could overflow
     // (sizes from float_safe up): points are then tested in double.
-    BoxFilter box_filter(uint32_t f) const { return box_filter_of(view_->fine_bounds.obb(mesh_->first_fine + f)); }
+    BoxFilter box_filter(uint32_t f) const { return box_filter_of(fine_obb(f)); }
     BoxFilter box_filter_of(const Obb& box) const {
         BoxFilter b{};
         double h[3], c[3], a[3][3];
@@ -736,7 +744,7 @@ private:
             if (b.usable && t.small) {
                 todo = box_points(b, todo, t);
             } else {
-                const Obb box = view_->fine_bounds.obb(mesh_->first_fine + f);
+                const Obb box = fine_obb(f);
                 for (uint64_t w = todo; w; w &= w - 1) {
                     uint32_t i = shadow_detail::lowest_bit(w);
                     if (!segment_may_touch_box(box, t.p[i], light_)) todo &= ~(uint64_t(1) << i);
@@ -759,8 +767,8 @@ private:
         q.stats = stats;
         if (scan_) {
             if (!(q.dist > 0)) return false;  // at the light: the segment is a point, which blocks nothing
-            const ClusterSpheres& s = cluster_spheres();
-            const bool spheres = s.fine_boxes != nullptr;  // none without fine boxes: every cluster is tested
+            const ScanBounds& s = scan_bounds();
+            const bool spheres = s.source_fine != nullptr;  // none without fine boxes: every cluster is tested
             for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
                 if ((one_sided_ && coarse_skipped_[c]) || (spheres && !segment_may_touch_sphere(s.coarse_first + c, q))) continue;
                 const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
@@ -896,7 +904,12 @@ private:
         }
     }
 
-    const ClusterSpheres& cluster_spheres() const { return shared_spheres_ ? *shared_spheres_ : own_spheres_; }
+    const ScanBounds& scan_bounds() const { return shared_bounds_ ? *shared_bounds_ : own_bounds_; }
+
+    // Fine cluster f's box: decoded already in scan mode (ScanBounds), otherwise from the asset.
+    Obb fine_obb(uint32_t f) const {
+        return scan_ && !scan_bounds().fine_obbs.empty() ? scan_bounds().fine_obbs[f] : view_->fine_bounds.obb(mesh_->first_fine + f);
+    }
 
     bool skippable_fine(uint32_t f) const {
         if (!one_sided_) return false;
@@ -904,7 +917,7 @@ private:
         return skippable(view_->fine_bounds, mesh_->first_fine + f, {r.first_triangle, r.triangle_count});
     }
 
-    // Sphere i of cluster_spheres() from the light, for the float tests of sphere_points: the centre in
+    // Sphere i of scan_bounds() from the light, for the float tests of sphere_points: the centre in
     // float, the radius grown by 2e-5 of itself and of the distance (|d|_1 bounds it), far more than the
     // rounding of the centre to float (below 1e-7 of the distance) and the errors of the float tests (below
     // 1e-6). A sphere wholly within float_tiny of the light holds every point (float products of such sizes
@@ -914,7 +927,7 @@ private:
         bool everything;
     };
     LitSphere lit_sphere(uint32_t i) const {
-        const ClusterSpheres& s = cluster_spheres();
+        const ScanBounds& s = scan_bounds();
         const double x = double(s.x[i]) - light_from_origin_[0], y = double(s.y[i]) - light_from_origin_[1], z = double(s.z[i]) - light_from_origin_[2];
         const double d1 = std::fabs(x) + std::fabs(y) + std::fabs(z), r = s.r[i], grown = r + 2e-5 * (r + d1);
         return {float(x), float(y), float(z), float(grown), d1 + grown < float_tiny};
@@ -922,7 +935,7 @@ private:
 
     // Conservative, in double: the segment from the query point to the light may meet sphere i.
     bool segment_may_touch_sphere(uint32_t i, const Query& q) const {
-        const ClusterSpheres& s = cluster_spheres();
+        const ScanBounds& s = scan_bounds();
         const double c[3] = {double(s.x[i]) - light_from_origin_[0], double(s.y[i]) - light_from_origin_[1], double(s.z[i]) - light_from_origin_[2]};
         const double r = s.r[i];
         double t = (c[0] * q.e[0] + c[1] * q.e[1] + c[2] * q.e[2]) / q.dist;
@@ -959,15 +972,18 @@ private:
         return keep & subset;
     }
 
-    // Asks for fine cluster f's box and record ahead of its test (pending clusters are tested once the whole
-    // coarse cluster is scanned): on large meshes these reads otherwise miss the cache.
+    // Asks for fine cluster f's decoded box (scan mode) and record ahead of its test (pending clusters are
+    // tested once the whole coarse cluster is scanned): on large meshes these reads otherwise miss the cache.
     void prefetch(uint32_t f) const {
-        const size_t g = size_t(mesh_->first_fine) + f;
-        if (view_->fine_bounds.obbs) simd::prefetch(view_->fine_bounds.obbs + g);
-        simd::prefetch(view_->fine + g);
+        const std::vector<Obb>& boxes = scan_bounds().fine_obbs;
+        if (!boxes.empty()) {
+            const char* box = reinterpret_cast<const char*>(&boxes[f]);
+            simd::prefetch(box), simd::prefetch(box + sizeof(Obb) - 1);  // it may straddle two lines
+        }
+        simd::prefetch(view_->fine + size_t(mesh_->first_fine) + f);
     }
 
-    // The scan over spheres [first, first + count) of cluster_spheres() for the tile's points `in`: those
+    // The scan over spheres [first, first + count) of scan_bounds() for the tile's points `in`: those
     // that may meet the pyramid of these points, nearer the light than the farthest, go to
     // pass(sphere, points, key) with the points whose segment may meet them (every point of `in` when
     // `each_point` is false) and a key that orders them by distance from the light. When the float tests
@@ -989,7 +1005,7 @@ private:
         const Pyramid whole = narrow_pyramid(t, in);
         const Pyramid& P = t.pyramid;
         const double* l = light_from_origin_;
-        const double slack = 1e-6 * (cluster_spheres().extent + shadow_detail::l1(l) + P.dmax);
+        const double slack = 1e-6 * (scan_bounds().extent + shadow_detail::l1(l) + P.dmax);
         float nx[5], ny[5], nz[5], side[5];
         double sum[3] = {0, 0, 0};
         for (int r = 0; r < 4; ++r) sum[0] += P.rx[r], sum[1] += P.ry[r], sum[2] += P.rz[r];
@@ -1010,7 +1026,7 @@ private:
         nx[4] = float(-axis[0]), ny[4] = float(-axis[1]), nz[4] = float(-axis[2]);
         side[4] = round_down(nx[4] * l[0] + ny[4] * l[1] + nz[4] * l[2] - P.dmax - slack);
         const float ax = float(axis[0]), ay = float(axis[1]), az = float(axis[2]);
-        const ClusterSpheres& s = cluster_spheres();
+        const ScanBounds& s = scan_bounds();
         const uint32_t stop = first_sphere + count;
         for (uint32_t first = first_sphere; first < stop; first += 64) {
             const uint32_t n = std::min<uint32_t>(64, stop - first);
@@ -1036,7 +1052,7 @@ private:
     // The coarse clusters whose spheres the tile's pyramid may meet, with the points whose segment may meet
     // their boxes (or spheres, where a box's float test could overflow), onto the entered list.
     void scan_coarse(Tile& t) const {
-        const uint32_t first = cluster_spheres().coarse_first;
+        const uint32_t first = scan_bounds().coarse_first;
         const bool narrow = t.small && spheres_small_;
         scan_spheres<false>(first, mesh_->coarse_count, t.alive, t, [&](uint32_t i, uint64_t points, float key) {
             const uint32_t c = i - first;
@@ -1311,7 +1327,7 @@ private:
     // A cluster's triangles, unless the segment certainly misses its box (a volume only says the point
     // is in the box's shadow cone, which a 4-plane outline makes wider than the box).
     bool test_cluster(uint32_t f, const Query& q) const {
-        if (view_->fine_bounds.obbs && !segment_may_touch_box(view_->fine_bounds.obb(mesh_->first_fine + f), q.p, light_))
+        if (view_->fine_bounds.obbs && !segment_may_touch_box(fine_obb(f), q.p, light_))
             return false;
         return cluster_blocks(*view_, *mesh_, f, q.p, light_, one_sided_, q.stats);
     }
@@ -1324,10 +1340,10 @@ private:
     std::vector<PlaneNode> planes_;
     std::vector<Leaf> leaves_;
     std::vector<uint32_t> always_fine_;    // fine clusters tested without a volume (ranges per coarse node)
-    // Scan mode: the spheres (shared, or the tree's own), the light from their origin, the coarse boxes set up
+    // Scan mode: the scan bounds (shared, or the tree's own), the light from their origin, the coarse boxes set up
     // for this light, and which coarse clusters one-sided mode leaves out.
-    const ClusterSpheres* shared_spheres_ = nullptr;
-    ClusterSpheres own_spheres_;
+    const ScanBounds* shared_bounds_ = nullptr;
+    ScanBounds own_bounds_;
     double light_from_origin_[3] = {};
     std::vector<BoxFilter> coarse_boxes_;
     std::vector<uint8_t> coarse_skipped_;

@@ -9,6 +9,7 @@
 #include <cb_cpsv.h>
 #include <cb_shadow.h>
 
+#include <cstring>
 #include <filesystem>
 #include <random>
 
@@ -260,15 +261,15 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
                                {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])},
                                {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
                                {sv[0], sv[1], sv[2]}};
-        const std::vector<cb::ClusterSpheres> spheres = cb::make_cluster_spheres(v);
+        const std::vector<cb::ScanBounds> bounds = cb::make_scan_bounds(v);
         for (int variant = 0; variant < 24; ++variant) {
             const double* light = lights[variant % 4];
             bool one_sided = variant / 4 % 2 == 1;
             auto level = cb::ClusterShadowTree::FineLevel(variant / 8);
             std::vector<cb::ClusterShadowTree> trees(v.instance_count);
             size_t stack = 0;
-            for (uint32_t i = 0; i < v.instance_count; ++i) {  // half the scans share the spheres, half make their own
-                trees[i].build(v, i, light, one_sided, level, 1, nullptr, variant % 2 == 0 ? spheres.data() : nullptr);
+            for (uint32_t i = 0; i < v.instance_count; ++i) {  // half the scans share the bounds, half make their own
+                trees[i].build(v, i, light, one_sided, level, 1, nullptr, variant % 2 == 0 ? bounds.data() : nullptr);
                 stack = std::max(stack, trees[i].stack_size());
                 skipped += trees[i].skipped_clusters();
             }
@@ -775,26 +776,32 @@ TEST(Shadow, PaddedBoxCornersHoldEveryClusterVertex) {
     EXPECT_EQ(outside, 0u);
 }
 
-TEST(Shadow, ClusterSpheresHoldTheirClusters) {
+TEST(Shadow, ScanBoundsHoldTheirClusters) {
     // The scan's spheres are stored in float from an origin in the mesh: each must still hold every vertex
-    // of its cluster, far from the frame's origin (1e6) and at tiny scales (1e-23) as well.
+    // of its cluster, far from the frame's origin (1e6) and at tiny scales (1e-23) as well. Its decoded boxes
+    // must be the asset's, bit for bit.
     std::vector<Baked> scenes;
     for (const char* f : {"scanned/bunny_npm.obj", "hard/wallhole.obj"})
         if (fs::exists(fs::path(CB_SHARED_DATA) / f)) scenes.push_back(cb::test::bake((fs::path(CB_SHARED_DATA) / f).string()));
     scenes.push_back(cb::test::bake(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"));
     scenes.push_back(bumpy_grid(1e6, 1.5, 1, 0.7, 0.9));
     scenes.push_back(bumpy_grid(0, 3e-23, 2e-23, 1e-23, 1.3));
-    size_t checked = 0, outside = 0;
+    size_t checked = 0, outside = 0, boxes = 0, other_boxes = 0;
     double widest = 0;  // the largest radius over the farthest vertex's distance
     for (const Baked& b : scenes) {
         const cb::AssetView& v = b.view;
         ASSERT_GT(v.mesh_count, 0u);
-        const std::vector<cb::ClusterSpheres> spheres = cb::make_cluster_spheres(v);
+        const std::vector<cb::ScanBounds> bounds = cb::make_scan_bounds(v);
         for (uint32_t m = 0; m < v.mesh_count; ++m) {
             const cb::MeshRecord& r = v.meshes[m];
-            const cb::ClusterSpheres& s = spheres[m];
+            const cb::ScanBounds& s = bounds[m];
             ASSERT_TRUE(s.made_from(v, r));
             ASSERT_LT(s.extent, 1e9);
+            ASSERT_EQ(s.fine_obbs.size(), r.fine_count);
+            ASSERT_EQ(s.coarse_obbs.size(), r.coarse_count);
+            auto same = [](const cb::Obb& a, const cb::Obb& b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+            for (uint32_t f = 0; f < r.fine_count; ++f, ++boxes) other_boxes += !same(s.fine_obbs[f], v.fine_bounds.obb(r.first_fine + f));
+            for (uint32_t c = 0; c < r.coarse_count; ++c, ++boxes) other_boxes += !same(s.coarse_obbs[c], v.coarse_bounds.obb(r.first_coarse + c));
             auto check = [&](uint32_t sphere, uint32_t first_fine, uint32_t fine_count) {
                 const double c[3] = {s.origin[0] + s.x[sphere], s.origin[1] + s.y[sphere], s.origin[2] + s.z[sphere]};
                 double farthest = 0;
@@ -818,19 +825,21 @@ TEST(Shadow, ClusterSpheresHoldTheirClusters) {
             for (uint32_t c = 0; c < r.coarse_count; ++c) check(s.coarse_first + c, v.coarse[r.first_coarse + c].first, v.coarse[r.first_coarse + c].count);
         }
     }
-    std::printf("%zu cluster vertices checked against their spheres; radius up to %.2f times the farthest vertex's distance\n", checked, widest);
+    std::printf("%zu cluster vertices checked against their spheres; radius up to %.2f times the farthest vertex's distance; "
+                "%zu decoded boxes\n", checked, widest, boxes);
     EXPECT_GT(checked, 100000u);
     EXPECT_EQ(outside, 0u);
+    EXPECT_EQ(other_boxes, 0u);
     EXPECT_LT(widest, 3.0);  // about the box: at most its diagonal over its longest half extent, sqrt(3), and rounding
 }
 
-TEST(Shadow, SharedSpheresGiveTheTreesOwnAnswers) {
-    // Trees given the asset's spheres, none (they make their own), or spheres made from another view of the
+TEST(Shadow, SharedScanBoundsGiveTheTreesOwnAnswers) {
+    // Trees given the asset's scan bounds, none (they make their own), or bounds made from another view of the
     // same scene (not theirs: ignored) answer alike; only the first share them.
     const std::string file = std::string(CB_SOURCE_DIR) + "/data/default_scene.glb";
     Baked b = cb::test::bake(file), other = cb::test::bake(file);
     const cb::AssetView& v = b.view;
-    const std::vector<cb::ClusterSpheres> shared = cb::make_cluster_spheres(v), foreign = cb::make_cluster_spheres(other.view);
+    const std::vector<cb::ScanBounds> shared = cb::make_scan_bounds(v), foreign = cb::make_scan_bounds(other.view);
     WorldSample world = sample_scene(b.scene, 1);
     std::vector<double> points;
     for (size_t k = 0; k < world.surface.size(); k += 7) points.insert(points.end(), world.surface[k].begin(), world.surface[k].end());
@@ -838,7 +847,7 @@ TEST(Shadow, SharedSpheresGiveTheTreesOwnAnswers) {
     const double light[3] = {world.lo[0] - world.size(), world.hi[1] + world.size(), world.lo[2]};
     std::vector<uint8_t> answers[3];
     size_t bytes[3] = {0, 0, 0};
-    const cb::ClusterSpheres* given[3] = {shared.data(), nullptr, foreign.data()};
+    const cb::ScanBounds* given[3] = {shared.data(), nullptr, foreign.data()};
     for (int k = 0; k < 3; ++k) {
         std::vector<cb::ClusterShadowTree> trees(v.instance_count);
         for (uint32_t i = 0; i < v.instance_count; ++i) {
