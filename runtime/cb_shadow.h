@@ -314,23 +314,52 @@ inline SegmentTest exact_triangle(const double* p, const double* light, const fl
 // arrays, so that the line test runs over several triangles per instruction.
 constexpr uint32_t lit_capacity = 16;  // a fine cluster of the default size (larger ones take several)
 static_assert(lit_capacity < 32 && lit_capacity % simd::width == 0, "triangles are bits of a uint32_t, in whole lane groups");
+
+// The rest of a triangle's terms from the light, in double, for the points whose line the float test cannot
+// rule out: per edge k, the normal n[k] = u x v and scale[k] = |u|_1 |v|_1 (times det_error |e|_1, it bounds
+// the double dot product's error); the triangle's plane about corner a, N = (b - a) x (c - a), with
+// orient3d(a, b, c, x) = N . (a - x) within plane_bound |a - x|_1 (the same products of three differences
+// as about x, taken about a instead); the light's side dq and its bound bq.
+struct TriangleTerms {
+    double n[3][3], scale[3];
+    double plane[3], plane_bound, a[3], dq, bq;
+};
+
 struct LitTriangles {
     uint32_t count = 0;
     const float* corner[lit_capacity][3];
     bool two_sided[lit_capacity];
-    double nx[3][lit_capacity], ny[3][lit_capacity], nz[3][lit_capacity];  // edge plane normals
-    double scale[3][lit_capacity];  // |u|_1 |v|_1: times det_error |e|_1, it bounds the dot product's error
-    // The normals in float, for a first line test a vector of triangles an instruction; times |e|_1, fbound bounds the
-    // float dot product's distance from the exact value.
+    // The edge plane normals in float, for a first line test a vector of triangles an instruction; times |e|_1,
+    // fbound bounds the float dot product's distance from the exact value.
     alignas(64) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
-    // The triangle's plane, for the sides of the segment's ends: with N = (b - a) x (c - a),
-    // orient3d(a, b, c, x) = N . (a - x), within det_error |b - a|_1 |c - a|_1 |a - x|_1 (plane_bound times
-    // |a - x|_1) in double: the same products of three differences as about x, taken about a instead.
-    double plane_x[lit_capacity], plane_y[lit_capacity], plane_z[lit_capacity], plane_bound[lit_capacity];
-    double ax[lit_capacity], ay[lit_capacity], az[lit_capacity];  // corner a
-    double dq[lit_capacity], bq[lit_capacity];  // orient3d(a, b, c, light) and its error bound
-    double max_scale = 0;  // the largest scale: |e|_1 times it bounds every dot product
+    double max_scale = 0;  // the largest |u|_1 |v|_1 over the edges: |e|_1 times it bounds every dot product
+    // A triangle's double terms, made when a point first needs them (triangle_terms): most points' lines miss
+    // every triangle in float, and on large meshes a group is often set up for one or two points.
+    uint32_t has_terms = 0;  // bit t: terms[t] is made
+    TriangleTerms terms[lit_capacity];
 };
+
+// Triangle t's double terms, from its corners.
+inline void triangle_terms(const LitTriangles& lit, uint32_t t, const double* light, TriangleTerms& out) {
+    double p[3][3], u[3][3], u1[3];
+    for (int k = 0; k < 3; ++k) {
+        for (int j = 0; j < 3; ++j) p[k][j] = lit.corner[t][k][j], u[k][j] = p[k][j] - light[j];
+        u1[k] = std::fabs(u[k][0]) + std::fabs(u[k][1]) + std::fabs(u[k][2]);
+    }
+    for (int k = 0; k < 3; ++k) {
+        const int j = (k + 1) % 3;
+        out.n[k][0] = u[k][1] * u[j][2] - u[k][2] * u[j][1], out.n[k][1] = u[k][2] * u[j][0] - u[k][0] * u[j][2],
+        out.n[k][2] = u[k][0] * u[j][1] - u[k][1] * u[j][0];
+        out.scale[k] = u1[k] * u1[j];
+    }
+    const double e1x = p[1][0] - p[0][0], e1y = p[1][1] - p[0][1], e1z = p[1][2] - p[0][2];
+    const double e2x = p[2][0] - p[0][0], e2y = p[2][1] - p[0][1], e2z = p[2][2] - p[0][2];
+    out.plane[0] = e1y * e2z - e1z * e2y, out.plane[1] = e1z * e2x - e1x * e2z, out.plane[2] = e1x * e2y - e1y * e2x;
+    out.plane_bound = det_error * (std::fabs(e1x) + std::fabs(e1y) + std::fabs(e1z)) * (std::fabs(e2x) + std::fabs(e2y) + std::fabs(e2z));
+    for (int j = 0; j < 3; ++j) out.a[j] = p[0][j];
+    // orient3d(a, b, c, light) = N . (a - light), a - light being corner 0's offset from the light.
+    out.dq = out.plane[0] * u[0][0] + out.plane[1] * u[0][1] + out.plane[2] * u[0][2], out.bq = out.plane_bound * u1[0];
+}
 
 // Asks for the memory light_triangles reads for fine cluster c, in two steps a few cluster tests apart
 // (each needs what the previous one asked for): step 0 its local triangles, new vertices and references
@@ -393,7 +422,6 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
             const double nx = uy[k][t] * uz[j][t] - uz[k][t] * uy[j][t], ny = uz[k][t] * ux[j][t] - ux[k][t] * uz[j][t],
                          nz = ux[k][t] * uy[j][t] - uy[k][t] * ux[j][t];
             const double scale = u1[k][t] * u1[j][t];
-            out.nx[k][t] = nx, out.ny[k][t] = ny, out.nz[k][t] = nz, out.scale[k][t] = scale;
             widest[t] = k == 0 ? scale : std::max(widest[t], scale);
             // Rounding e and n to float and the float dot product err by under 6 float epsilons of
             // |e|_1 |n|_max (4e-7 of it), on top of the double value's own bound; grown for its own rounding.
@@ -404,24 +432,15 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
         }
     }
     out.max_scale = 0;
+    out.has_terms = 0;
     for (uint32_t t = 0; t < count; ++t) out.max_scale = std::max(out.max_scale, widest[t]);
-    for (uint32_t t = 0; t < count; ++t) {
-        const double e1x = px[1][t] - px[0][t], e1y = py[1][t] - py[0][t], e1z = pz[1][t] - pz[0][t];
-        const double e2x = px[2][t] - px[0][t], e2y = py[2][t] - py[0][t], e2z = pz[2][t] - pz[0][t];
-        const double nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
-        const double bound = det_error * (std::fabs(e1x) + std::fabs(e1y) + std::fabs(e1z)) * (std::fabs(e2x) + std::fabs(e2y) + std::fabs(e2z));
-        out.plane_x[t] = nx, out.plane_y[t] = ny, out.plane_z[t] = nz, out.plane_bound[t] = bound;
-        out.ax[t] = px[0][t], out.ay[t] = py[0][t], out.az[t] = pz[0][t];
-        // orient3d(a, b, c, light) = N . (a - light), a - light being corner 0's offset from the light.
-        out.dq[t] = nx * ux[0][t] + ny * uy[0][t] + nz * uz[0][t], out.bq[t] = bound * u1[0][t];
-    }
 }
 
-// orient3d(a, b, c, x) for triangle t of `lit`, in double, and a bound on its error in `bound`.
-inline double plane_side(const LitTriangles& lit, uint32_t t, const double* x, double& bound) {
-    const double d0 = lit.ax[t] - x[0], d1 = lit.ay[t] - x[1], d2 = lit.az[t] - x[2];
-    bound = lit.plane_bound[t] * (std::fabs(d0) + std::fabs(d1) + std::fabs(d2));
-    return lit.plane_x[t] * d0 + lit.plane_y[t] * d1 + lit.plane_z[t] * d2;
+// orient3d(a, b, c, x) for a triangle with `terms`, in double, and a bound on its error in `bound`.
+inline double plane_side(const TriangleTerms& terms, const double* x, double& bound) {
+    const double d0 = terms.a[0] - x[0], d1 = terms.a[1] - x[1], d2 = terms.a[2] - x[2];
+    bound = terms.plane_bound * (std::fabs(d0) + std::fabs(d1) + std::fabs(d2));
+    return terms.plane[0] * d0 + terms.plane[1] * d1 + terms.plane[2] * d2;
 }
 
 // True when segment p -> light meets a triangle of `lit` that blocks; the same answers as
@@ -429,8 +448,8 @@ inline double plane_side(const LitTriangles& lit, uint32_t t, const double* x, d
 // the line through p and the light first, for all triangles at once (it misses most of them, and then
 // nothing else matters), then the two ends' sides of the plane; a triangle the bounds cannot settle (a
 // segment within rounding of its plane or of an edge line) goes to the exact test. Sets *touched when an
-// exactly tested triangle was touched.
-inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const double* light, QueryStats* stats, bool* touched) {
+// exactly tested triangle was touched. Makes the double terms of the triangles it needs that `lit` lacks.
+inline bool lit_triangles_block(LitTriangles& lit, const double* p, const double* light, QueryStats* stats, bool* touched) {
     const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
     const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2), edge_scale = det_error * e_l1;
     // Bit t set where the line may meet triangle t: not every edge sign settled (|o| beyond its bound), or
@@ -462,27 +481,29 @@ inline bool lit_triangles_block(const LitTriangles& lit, const double* p, const 
     if (stats) stats->triangles_tested += lit.count;
     for (; may_meet; may_meet &= may_meet - 1) {
         const uint32_t t = lowest_bit(may_meet);
+        if (!(lit.has_terms >> t & 1)) triangle_terms(lit, t, light, lit.terms[t]), lit.has_terms |= 1u << t;
+        const TriangleTerms& terms = lit.terms[t];
         bool settled = through >> t & 1;
         if (!settled) {  // the signs in double
             double o[3];
             settled = true;
             for (int k = 0; k < 3; ++k) {
-                o[k] = e0 * lit.nx[k][t] + e1 * lit.ny[k][t] + e2 * lit.nz[k][t];
-                settled = settled && std::fabs(o[k]) > edge_scale * lit.scale[k][t];
+                o[k] = e0 * terms.n[k][0] + e1 * terms.n[k][1] + e2 * terms.n[k][2];
+                settled = settled && std::fabs(o[k]) > edge_scale * terms.scale[k];
             }
             if (settled && ((o[0] > 0) != (o[1] > 0) || (o[1] > 0) != (o[2] > 0))) continue;  // the line passes outside
         }
         bool decided = false, blocks = false;
-        if (settled && std::fabs(lit.dq[t]) > lit.bq[t]) {
+        if (settled && std::fabs(terms.dq) > terms.bq) {
             // Through the interior: the point's side of the plane (the light's is dq).
             double bp;
-            const double dp = plane_side(lit, t, p, bp), dq = lit.dq[t];
+            const double dp = plane_side(terms, p, bp), dq = terms.dq;
             if (std::fabs(dp) > bp) {
                 decided = true;
                 if ((dq > 0) == (dp > 0) || (!lit.two_sided[t] && dq < 0)) continue;  // no crossing, or front-facing
                 // The crossing counts when it is at t >= f (see segment_triangle).
                 double mix = (1 - self_shadow_fraction) * dp + self_shadow_fraction * dq;
-                double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * lit.bq[t] + 4e-16 * (std::fabs(dp) + std::fabs(dq));
+                double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * terms.bq + 4e-16 * (std::fabs(dp) + std::fabs(dq));
                 if (std::fabs(mix) > mix_bound) blocks = (mix > 0) == (dp > 0);
                 else decided = false;
             }

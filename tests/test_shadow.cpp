@@ -692,7 +692,9 @@ TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
                 double corner[3][3];
                 for (int k = 0; k < 3; ++k)
                     for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
-                within(corner[0], corner[1], corner[2], light, lit.dq[t], lit.bq[t]);
+                cb::shadow_detail::TriangleTerms terms;
+                cb::shadow_detail::triangle_terms(lit, t, light, terms);
+                within(corner[0], corner[1], corner[2], light, terms.dq, terms.bq);
                 for (int k = 0; k < 4; ++k) {
                     // On the plane (to rounding), barely off it, and off it: the bound is needed most near zero.
                     const double s = u(rng), w = u(rng) * (1 - s), lift[4] = {0, 1e-12, 1e-6, 0.3};
@@ -701,7 +703,7 @@ TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
                     cb::shadow_detail::cross3(e1, e2, n);
                     for (int j = 0; j < 3; ++j) x[j] = corner[0][j] + s * e1[j] + w * e2[j] + lift[k] * n[j];
                     double bound;
-                    const double value = cb::shadow_detail::plane_side(lit, t, x, bound);
+                    const double value = cb::shadow_detail::plane_side(terms, x, bound);
                     within(corner[0], corner[1], corner[2], x, value, bound);
                 }
             }
