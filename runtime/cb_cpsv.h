@@ -347,7 +347,7 @@ public:
     // own volume (its 4 planes and closing distance) before its cluster's triangles, so a point meets the
     // clusters whose volumes hold it, as its own walk would. Points too far from the tile's mean direction
     // (over 60 degrees; in scan mode, these make a tile of one), at the light, not finite or beyond 1e30 walk
-    // alone. `stack` holds stack_size() entries; uses about 10 KB of the thread's stack besides, twice that
+    // alone. `stack` holds stack_size() entries; uses about 13 KB of the thread's stack besides, twice that
     // for a tile of one inside (and a cluster test's, docs/RUNTIME.md).
     uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t* stack,
                            QueryStats* stats = nullptr, Cache* cache = nullptr) const {
