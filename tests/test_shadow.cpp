@@ -461,6 +461,19 @@ Baked bake_mesh(std::vector<float> positions, std::vector<uint32_t> indices) {
     return cb::test::bake_scene(scene, co, cb::bounds_auto, 1);
 }
 
+// Calls visit(position) for every corner of every triangle of fine clusters [first, first + count) of mesh r.
+template <class Visit>
+void for_each_corner(const cb::AssetView& v, const cb::MeshRecord& r, uint32_t first, uint32_t count, Visit visit) {
+    for (uint32_t f = first; f < first + count; ++f) {
+        const cb::FineCluster& c = v.fine[r.first_fine + f];
+        for (uint32_t t = c.first_triangle; t < c.first_triangle + c.triangle_count; ++t) {
+            uint32_t id[3];
+            v.triangle(r, f, t, id);
+            for (uint32_t vertex : id) visit(v.position(r, vertex));
+        }
+    }
+}
+
 // A bumpy grid of 6 x 6 cells, dx by dy, float coordinates around (offset, offset, offset): heights
 // `height` sin(wave i + j), baked as bake_mesh does.
 Baked bumpy_grid(double offset, double dx, double dy, double height, double wave) {
@@ -731,17 +744,9 @@ TEST(Shadow, PaddedBoxCornersHoldEveryClusterVertex) {
             const cb::MeshRecord& r = v.meshes[m];
             auto check = [&](cb::Obb box, uint32_t first_fine, uint32_t fine_count) {
                 std::vector<Eigen::Vector3d> offsets;
-                for (uint32_t f = first_fine; f < first_fine + fine_count; ++f) {
-                    const cb::FineCluster& c = v.fine[r.first_fine + f];
-                    for (uint32_t t = c.first_triangle; t < c.first_triangle + c.triangle_count; ++t) {
-                        uint32_t id[3];
-                        v.triangle(r, f, t, id);
-                        for (uint32_t vertex : id) {
-                            const float* q = v.position(r, vertex);
-                            offsets.emplace_back(double(q[0]) - box.center[0], double(q[1]) - box.center[1], double(q[2]) - box.center[2]);
-                        }
-                    }
-                }
+                for_each_corner(v, r, first_fine, fine_count, [&](const float* q) {
+                    offsets.emplace_back(double(q[0]) - box.center[0], double(q[1]) - box.center[1], double(q[2]) - box.center[2]);
+                });
                 Eigen::Matrix3d axes;  // rows are the axes
                 for (int i = 0; i < 3; ++i)
                     for (int k = 0; k < 3; ++k) axes(i, k) = box.axis[i][k];
@@ -807,20 +812,12 @@ TEST(Shadow, ScanBoundsHoldTheirClusters) {
             auto check = [&](uint32_t sphere, uint32_t first_fine, uint32_t fine_count) {
                 const double c[3] = {s.origin[0] + s.x[sphere], s.origin[1] + s.y[sphere], s.origin[2] + s.z[sphere]};
                 double farthest = 0;
-                for (uint32_t f = first_fine; f < first_fine + fine_count; ++f) {
-                    const cb::FineCluster& fc = v.fine[r.first_fine + f];
-                    for (uint32_t t = fc.first_triangle; t < fc.first_triangle + fc.triangle_count; ++t) {
-                        uint32_t id[3];
-                        v.triangle(r, f, t, id);
-                        for (uint32_t vertex : id) {
-                            const float* q = v.position(r, vertex);
-                            const double d = std::hypot(q[0] - c[0], q[1] - c[1], q[2] - c[2]);
-                            outside += d > double(s.r[sphere]);
-                            farthest = std::max(farthest, d);
-                            ++checked;
-                        }
-                    }
-                }
+                for_each_corner(v, r, first_fine, fine_count, [&](const float* q) {
+                    const double d = std::hypot(q[0] - c[0], q[1] - c[1], q[2] - c[2]);
+                    outside += d > double(s.r[sphere]);
+                    farthest = std::max(farthest, d);
+                    ++checked;
+                });
                 if (farthest > 0) widest = std::max(widest, double(s.r[sphere]) / farthest);
             };
             for (uint32_t f = 0; f < r.fine_count; ++f) check(f, f, 1);
