@@ -8,8 +8,9 @@
 // against the pyramid from the light that holds the tile's directions, its points against the boxes of
 // those that pass, then the fine spheres of the coarse clusters entered, a vector of spheres an
 // instruction. The spheres and decoded boxes do not depend on the light (ScanBounds, made once per asset),
-// so a light's build only sets up the coarse boxes. On 2 cores, a linear pass over a few thousand coarse spheres per tile
-// measured cheaper than building and walking a tree over their volumes every frame (docs/RUNTIME.md).
+// so a light's build only sets up the coarse boxes. On 2 cores, a linear pass over a few thousand coarse
+// spheres per tile measured cheaper than building and walking a tree over their volumes every frame
+// (docs/RUNTIME.md).
 //
 // The TOP-trees (the thesis's method): ternary trees of planes through the light over the shadow volumes of
 // cluster boxes. Each volume is a chain of its 4 planes: the inside branch of one plane leads to the next,
