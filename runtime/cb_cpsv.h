@@ -101,8 +101,7 @@ struct ScanBounds {
                 float f = float(radius);
                 if (double(f) < radius) f = std::nextafter(f, INFINITY);
                 x[out + i] = float(cx), y[out + i] = float(cy), z[out + i] = float(cz), r[out + i] = f;
-                extent = std::max(extent, c1 + double(f));  // NaN never wins: std::max keeps the first
-                if (!(c1 + double(f) < INFINITY)) extent = INFINITY;
+                extent = c1 + double(f) < INFINITY ? std::max(extent, c1 + double(f)) : INFINITY;  // NaN too: unusable
             }
         };
         fill(fine_boxes, fine_count, 0);
