@@ -336,20 +336,28 @@ int run_query(const QueryArgs& a) {
     }
     double build_seconds = seconds_since(build_start);
 
-    // The trees are const: threads take contiguous slices of the points, each with its own scratch and counts.
+    // The trees are const: threads take contiguous slices of the points' order by direction from the light
+    // (the order a batch takes them in, so that each slice's tiles are as close as one batch's), each with
+    // its own scratch and counts; the reference takes slices of the points as given.
     auto start = std::chrono::steady_clock::now();
     size_t n = pts.size() / 3;
     std::vector<uint8_t> shadow(n);
     std::vector<cb::QueryStats> counts(thread_count);
+    std::vector<uint32_t> order;
+    if (!a.reference) {
+        order.resize(n);
+        std::vector<uint32_t> sort_scratch(cb::batch_order_scratch_size(n));
+        cb::batch_order(light, pts.data(), n, order.data(), sort_scratch.data());
+    }
     auto slice = [&](unsigned t) {
         size_t first = n * t / thread_count, last = n * (t + 1) / thread_count;
         if (a.reference) {
             for (size_t i = first; i < last; ++i)
                 shadow[i] = cb::occluded_reference(asset.view, &pts[i * 3], light, &counts[t], a.one_sided);
         } else {
-            std::vector<uint32_t> own(cb::batch_scratch_size(trees.data(), trees.size(), last - first));
-            cb::occluded_batch(trees.data(), trees.size(), pts.data() + first * 3, last - first, shadow.data() + first, own.data(),
-                               &counts[t]);
+            std::vector<uint32_t> own(cb::ordered_scratch_size(trees.data(), trees.size()));
+            cb::occluded_ordered(trees.data(), trees.size(), pts.data(), order.data() + first, last - first, shadow.data(), own.data(),
+                                 &counts[t]);
         }
     };
     std::vector<std::thread> pool;

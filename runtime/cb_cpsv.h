@@ -1359,7 +1359,10 @@ private:
 // (xyz doubles) is in shadow. The points are sorted by their direction from the light (cube face, then a
 // Z-order curve on it) and walked in tiles of ClusterShadowTree::tile_capacity. `scratch` holds
 // batch_scratch_size() words. The trees are const: callers may split the points across threads, each with
-// its own scratch.
+// its own scratch. To split one batch across threads, order it once (batch_order) and give each thread
+// ranges of that order (occluded_ordered): points close in direction then share tiles, and slices of the
+// caller's array would not (a slice of an image is a band of it, whose tiles are narrower and more of them
+// meet its edges).
 namespace cpsv_detail {
 
 // The batch's stack: room for the deepest of the trees.
@@ -1368,16 +1371,6 @@ inline size_t batch_stack_size(const ClusterShadowTree* trees, size_t tree_count
     for (size_t t = 0; t < tree_count; ++t) stack = std::max(stack, trees[t].stack_size());
     return stack;
 }
-
-}  // namespace cpsv_detail
-
-inline size_t batch_scratch_size(const ClusterShadowTree* trees, size_t tree_count, size_t n) {
-    const size_t stack = cpsv_detail::batch_stack_size(trees, tree_count);
-    const size_t cache = sizeof(ClusterShadowTree::Cache) + alignof(ClusterShadowTree::Cache);
-    return 4 * n + 4097 + stack + (cache + sizeof(uint32_t) - 1) / sizeof(uint32_t);
-}
-
-namespace cpsv_detail {
 
 // 23 bits: the cube face of direction e (3 bits), then its two face coordinates' bits interleaved (10 each).
 // Directions that are zero or not finite get the largest key.
@@ -1402,26 +1395,19 @@ inline uint32_t direction_key(const double* e) {
 
 }  // namespace cpsv_detail
 
-inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, const double* points, size_t n, uint8_t* out,
-                           uint32_t* scratch, QueryStats* stats = nullptr) {
-    if (tree_count == 0) {
-        std::fill(out, out + n, uint8_t(0));
-        return;
-    }
-    const double* light = trees[0].world_light();
-    const size_t stack_size = cpsv_detail::batch_stack_size(trees, tree_count);
-    uint32_t *key = scratch, *index = scratch + n, *key2 = scratch + 2 * n, *index2 = scratch + 3 * n, *start = scratch + 4 * n;
-    uint32_t* stack = start + 4097;
-    using Cache = ClusterShadowTree::Cache;
-    const uintptr_t at = reinterpret_cast<uintptr_t>(stack + stack_size);
-    Cache* cache = new (reinterpret_cast<void*>((at + alignof(Cache) - 1) / alignof(Cache) * alignof(Cache))) Cache;
-    cache->clear();
+// Words of scratch batch_order needs for n points.
+inline size_t batch_order_scratch_size(size_t n) { return 3 * n + 4097; }
+
+// order[0, n): the indices of the n points (xyz doubles) sorted by direction from `light`, the order
+// occluded_batch takes them in. `scratch` holds batch_order_scratch_size(n) words.
+inline void batch_order(const double* light, const double* points, size_t n, uint32_t* order, uint32_t* scratch) {
+    uint32_t *key = scratch, *key2 = scratch + n, *index2 = scratch + 2 * n, *start = scratch + 3 * n, *index = order;
     for (size_t i = 0; i < n; ++i) {
         double e[3] = {points[i * 3] - light[0], points[i * 3 + 1] - light[1], points[i * 3 + 2] - light[2]};
         key[i] = cpsv_detail::direction_key(e);
         index[i] = uint32_t(i);
     }
-    for (int shift = 0; shift < 24; shift += 12) {  // radix sort, 12 bits a pass, stable
+    for (int shift = 0; shift < 24; shift += 12) {  // radix sort, 12 bits a pass, stable (two passes: back in `order`)
         std::fill(start, start + 4097, 0u);
         for (size_t i = 0; i < n; ++i) ++start[(key[i] >> shift & 4095) + 1];
         for (int b = 0; b < 4096; ++b) start[b + 1] += start[b];
@@ -1431,18 +1417,55 @@ inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, co
         }
         std::swap(key, key2), std::swap(index, index2);
     }
-    for (size_t first = 0; first < n; first += ClusterShadowTree::tile_capacity) {
-        uint32_t count = uint32_t(std::min<size_t>(ClusterShadowTree::tile_capacity, n - first));
+}
+
+// Words of scratch occluded_ordered needs: the stack and the tables kept from tile to tile.
+inline size_t ordered_scratch_size(const ClusterShadowTree* trees, size_t tree_count) {
+    const size_t cache = sizeof(ClusterShadowTree::Cache) + alignof(ClusterShadowTree::Cache);
+    return cpsv_detail::batch_stack_size(trees, tree_count) + (cache + sizeof(uint32_t) - 1) / sizeof(uint32_t);
+}
+
+// The points order[0, count) of `points`, in that order (a range of batch_order's), in tiles: out[order[i]]
+// is 1 when that point is in shadow. `scratch` holds ordered_scratch_size() words.
+inline void occluded_ordered(const ClusterShadowTree* trees, size_t tree_count, const double* points, const uint32_t* order, size_t count,
+                             uint8_t* out, uint32_t* scratch, QueryStats* stats = nullptr) {
+    if (tree_count == 0) {
+        for (size_t i = 0; i < count; ++i) out[order[i]] = 0;
+        return;
+    }
+    uint32_t* stack = scratch;
+    using Cache = ClusterShadowTree::Cache;
+    const uintptr_t at = reinterpret_cast<uintptr_t>(stack + cpsv_detail::batch_stack_size(trees, tree_count));
+    Cache* cache = new (reinterpret_cast<void*>((at + alignof(Cache) - 1) / alignof(Cache) * alignof(Cache))) Cache;
+    cache->clear();
+    for (size_t first = 0; first < count; first += ClusterShadowTree::tile_capacity) {
+        uint32_t tile = uint32_t(std::min<size_t>(ClusterShadowTree::tile_capacity, count - first));
         // The next tile's points, asked for now: sorted by direction, they lie all over the caller's array.
-        for (size_t i = first + count; i < std::min(n, first + count + ClusterShadowTree::tile_capacity); ++i)
-            simd::prefetch(points + size_t(index[i]) * 3);
-        uint64_t alive = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1, shadowed = 0;
+        for (size_t i = first + tile; i < std::min(count, first + tile + ClusterShadowTree::tile_capacity); ++i)
+            simd::prefetch(points + size_t(order[i]) * 3);
+        uint64_t alive = tile == 64 ? ~uint64_t(0) : (uint64_t(1) << tile) - 1, shadowed = 0;
         for (size_t t = 0; t < tree_count && alive; ++t) {
-            uint64_t s = trees[t].occluded_tile(points, index + first, count, alive, stack, stats, cache);
+            uint64_t s = trees[t].occluded_tile(points, order + first, tile, alive, stack, stats, cache);
             shadowed |= s, alive &= ~s;
         }
-        for (uint32_t i = 0; i < count; ++i) out[index[first + i]] = uint8_t(shadowed >> i & 1);
+        for (uint32_t i = 0; i < tile; ++i) out[order[first + i]] = uint8_t(shadowed >> i & 1);
     }
+}
+
+inline size_t batch_scratch_size(const ClusterShadowTree* trees, size_t tree_count, size_t n) {
+    return n + std::max(batch_order_scratch_size(n), ordered_scratch_size(trees, tree_count));
+}
+
+// batch_order, then occluded_ordered over the whole order.
+inline void occluded_batch(const ClusterShadowTree* trees, size_t tree_count, const double* points, size_t n, uint8_t* out,
+                           uint32_t* scratch, QueryStats* stats = nullptr) {
+    if (tree_count == 0) {
+        std::fill(out, out + n, uint8_t(0));
+        return;
+    }
+    uint32_t* order = scratch;
+    batch_order(trees[0].world_light(), points, n, order, scratch + n);
+    occluded_ordered(trees, tree_count, points, order, n, out, scratch + n, stats);
 }
 
 }  // namespace cb

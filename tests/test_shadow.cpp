@@ -243,7 +243,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
     for (const char* f : {"scanned/bunny_npm.obj", "scanned/dragon_vrip_res4.ply", "hard/tube.obj", "hard/3dfier_testarea/testarea.obj",
                           "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf"})
         if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back((fs::path(CB_SHARED_DATA) / f).string());
-    size_t queries = 0, disagreements = 0, batch_disagreements = 0, shadowed = 0, skipped = 0;
+    size_t queries = 0, disagreements = 0, batch_disagreements = 0, ordered_disagreements = 0, shadowed = 0, skipped = 0;
     uint64_t tested_tree = 0, tested_reference = 0;
     for (const std::string& file : files) {
         SCOPED_TRACE(file);
@@ -304,6 +304,22 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
             std::vector<uint8_t> batch(references.size());
             cb::occluded_batch(trees.data(), trees.size(), points.data(), batch.size(), batch.data(), batch_scratch.data());
             for (size_t k = 0; k < batch.size(); ++k) batch_disagreements += bool(batch[k]) != references[k];
+            // And ordered once, then answered in uneven ranges of the order, the last first (as threads would
+            // take them): every range of the order gives the same answers.
+            const size_t n = references.size();
+            std::vector<uint32_t> order(n), order_scratch(cb::batch_order_scratch_size(n));
+            cb::batch_order(light, points.data(), n, order.data(), order_scratch.data());
+            std::vector<uint32_t> sorted(order);
+            std::sort(sorted.begin(), sorted.end());
+            for (size_t k = 0; k < n; ++k) ordered_disagreements += sorted[k] != k;  // a permutation
+            std::vector<uint32_t> ordered_scratch(cb::ordered_scratch_size(trees.data(), trees.size()));
+            std::vector<uint8_t> ordered(n, 2);
+            for (size_t end = n; end > 0;) {
+                const size_t begin = end > 101 ? end - 101 : 0;
+                cb::occluded_ordered(trees.data(), trees.size(), points.data(), &order[begin], end - begin, ordered.data(), ordered_scratch.data());
+                end = begin;
+            }
+            for (size_t k = 0; k < n; ++k) ordered_disagreements += ordered[k] != batch[k];
         }
     }
     std::printf("%zu queries (fine scan, fine trees and one tree; two- and one-sided), %zu in shadow, %zu disagreements; triangles tested per query: tree %.1f, "
@@ -311,6 +327,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
                 queries, shadowed, disagreements, double(tested_tree) / double(queries), double(tested_reference) / double(queries), skipped);
     EXPECT_EQ(disagreements, 0u);
     EXPECT_EQ(batch_disagreements, 0u);
+    EXPECT_EQ(ordered_disagreements, 0u);
     EXPECT_GT(queries, 50000u);
     EXPECT_GT(skipped, 0u);
 }
