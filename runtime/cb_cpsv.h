@@ -1373,24 +1373,26 @@ inline size_t batch_stack_size(const ClusterShadowTree* trees, size_t tree_count
 }
 
 // 23 bits: the cube face of direction e (3 bits), then its two face coordinates' bits interleaved (10 each).
-// Directions that are zero or not finite get the largest key.
+// Directions that are zero or not finite get the largest key. Without branches (selects only), so that the
+// loop over a batch's points runs several to an instruction: directions are as good as random to a
+// branch predictor.
 inline uint32_t direction_key(const double* e) {
-    double ax[3] = {std::fabs(e[0]), std::fabs(e[1]), std::fabs(e[2])};
-    int m = ax[0] >= ax[1] ? (ax[0] >= ax[2] ? 0 : 2) : (ax[1] >= ax[2] ? 1 : 2);
-    if (!(ax[m] > 0) || !(ax[m] < INFINITY)) return 0x7fffffu;
-    uint32_t cell[2];
-    const double inv = 1 / ax[m];
-    for (int j = 0; j < 2; ++j) {
-        double u = e[(m + 1 + j) % 3] * inv;  // in [-1, 1] (to rounding)
-        double c = (u + 1) * 511.5;
-        cell[j] = c >= 0 && c <= 1023 ? uint32_t(c) : c > 1023 ? 1023u : 0u;
-    }
-    auto spread = [](uint32_t x) {  // bit i of x to bit 2i
-        x = (x | x << 8) & 0x00ff00ffu, x = (x | x << 4) & 0x0f0f0f0fu;
-        x = (x | x << 2) & 0x33333333u, x = (x | x << 1) & 0x55555555u;
-        return x;
+    const double x = e[0], y = e[1], z = e[2], ax = std::fabs(x), ay = std::fabs(y), az = std::fabs(z);
+    const bool on_x = (ax >= ay) & (ax >= az), on_y = !on_x & (ay >= az);  // the major axis m (else z)
+    const double major = on_x ? ax : on_y ? ay : az, sign = on_x ? x : on_y ? y : z;
+    const double a = on_x ? y : on_y ? z : x, b = on_x ? z : on_y ? x : y;  // axes m + 1 and m + 2 (mod 3)
+    const double scale = 511.5 / major;
+    // Each in [0, 1023] to rounding (|a|, |b| <= major); NaN goes to 0.
+    const double ca = std::min(a * scale + 511.5 > 0 ? a * scale + 511.5 : 0.0, 1023.0);
+    const double cb = std::min(b * scale + 511.5 > 0 ? b * scale + 511.5 : 0.0, 1023.0);
+    auto spread = [](uint32_t v) {  // bit i of v to bit 2i
+        v = (v | v << 8) & 0x00ff00ffu, v = (v | v << 4) & 0x0f0f0f0fu;
+        v = (v | v << 2) & 0x33333333u, v = (v | v << 1) & 0x55555555u;
+        return v;
     };
-    return uint32_t(m * 2 + (e[m] < 0)) << 20 | spread(cell[0]) | spread(cell[1]) << 1;
+    const uint32_t face = uint32_t(on_x ? 0 : on_y ? 2 : 4) + uint32_t(sign < 0);
+    const uint32_t key = face << 20 | spread(uint32_t(int32_t(ca))) | spread(uint32_t(int32_t(cb))) << 1;
+    return (major > 0) & (major < INFINITY) ? key : 0x7fffffu;
 }
 
 }  // namespace cpsv_detail

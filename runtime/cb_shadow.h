@@ -313,7 +313,7 @@ inline SegmentTest exact_triangle(const double* p, const double* light, const fl
 // orient3d(p, light, corner k, corner k + 1) = e . (u x v): one dot product per edge and point. Edge-major
 // arrays, so that the line test runs over several triangles per instruction.
 constexpr uint32_t lit_capacity = 16;  // a fine cluster of the default size (larger ones take several)
-static_assert(lit_capacity < 32 && lit_capacity % simd::width == 0, "triangles are bits of a uint32_t, in whole lane groups");
+static_assert(lit_capacity < 32 && lit_capacity % simd::width == 0 && (lit_capacity & (lit_capacity - 1)) == 0, "triangles are bits of a uint32_t, in whole lane groups; a power of two (light_triangles halves it)");
 
 // The rest of a triangle's terms from the light, in double, for the points whose line the float test cannot
 // rule out: per edge k, the normal n[k] = u x v and scale[k] = |u|_1 |v|_1 (times det_error |e|_1, it bounds
@@ -330,9 +330,10 @@ struct LitTriangles {
     const float* corner[lit_capacity][3];
     bool two_sided[lit_capacity];
     // The edge plane normals in float, for a first line test a vector of triangles an instruction; times |e|_1,
-    // fbound bounds the float dot product's distance from the exact value.
+    // fbound bounds the float dot product's distance from the exact value (infinite: never settled in float).
     alignas(64) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
-    double max_scale = 0;  // the largest |u|_1 |v|_1 over the edges: |e|_1 times it bounds every dot product
+    double max_scale = 0;  // the largest max(A) of the usable edges (light_triangles): |e|_1 times it bounds
+                           // their float dot products
     // A triangle's double terms, made when a point first needs them (triangle_terms): most points' lines miss
     // every triangle in float, and on large meshes a group is often set up for one or two points.
     uint32_t has_terms = 0;  // bit t: terms[t] is made
@@ -386,15 +387,14 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
                             const double* light, bool one_sided, LitTriangles& out) {
     out.count = count;
     const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle + first) * 3;
-    // Corner k of each triangle: its position (exact in double), its offset from the light and that's L1 norm.
-    double px[3][lit_capacity], py[3][lit_capacity], pz[3][lit_capacity];
-    double ux[3][lit_capacity], uy[3][lit_capacity], uz[3][lit_capacity], u1[3][lit_capacity];
     // The cluster's vertex list (its new vertices, then those it reuses), resolved once rather than per corner.
     const float* list[max_cluster_vertices];
     const float* fresh = v.position(mesh, c.first_vertex);
     for (uint32_t i = 0; i < c.vertex_count; ++i) list[i] = fresh + size_t(i) * 3;
     const uint16_t* back = v.vertex_refs + size_t(mesh.first_ref) + c.first_ref;
     for (uint32_t r = 0; r < c.ref_count; ++r) list[c.vertex_count + r] = v.position(mesh, c.first_vertex - back[r]);
+    // Corner k of each triangle (zero past `count`: such edges are unusable, below).
+    alignas(64) float px[3][lit_capacity] = {}, py[3][lit_capacity] = {}, pz[3][lit_capacity] = {};
     for (uint32_t t = 0; t < count; ++t) {
         for (int k = 0; k < 3; ++k) {
             const float* at = list[local[t * 3 + k]];
@@ -403,37 +403,37 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
         }
         out.two_sided[t] = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t);
     }
-    for (int k = 0; k < 3; ++k)
-        for (uint32_t t = 0; t < count; ++t) {
-            ux[k][t] = px[k][t] - light[0], uy[k][t] = py[k][t] - light[1], uz[k][t] = pz[k][t] - light[2];
-            u1[k][t] = std::fabs(ux[k][t]) + std::fabs(uy[k][t]) + std::fabs(uz[k][t]);
-        }
-    if (count % simd::width) {  // the float line test's last group, padded with zeros (never settled); the loop below
-                                 // fills the rest
-        const uint32_t g = count - count % simd::width;
-        for (int k = 0; k < 3; ++k)
-            for (uint32_t j = 0; j < simd::width; ++j) out.fx[k][g + j] = out.fy[k][g + j] = out.fz[k][g + j] = out.fbound[k][g + j] = 0;
-    }
-    double widest[lit_capacity];  // per triangle, its largest scale
+    // Edge k runs from corner k to corner j = k + 1; with u = corner k - light, the plane through the light and
+    // the edge has normal u x (corner j - corner k), equal to u x v. In float, a vector of triangles an
+    // instruction: u rounded from its double value, the edge a float difference of two floats (each within
+    // 2^-24 of itself, past float's subnormals), the cross product N with 2 roundings per component. With
+    // A = |u| x |edge| (component x: |u_y edge_z| + |u_z edge_y|; N's components are at most A's), each
+    // component of N is within 4 2^-24 A of the exact normal's, and the point test's dot product with e in
+    // float adds 4 2^-24 |e|_1 max(N) at most (rounding e, and its own 3 roundings): in all under
+    // 8 2^-24 |e|_1 max(A) = 4.8e-7 |e|_1 max(A), and fbound = 6e-7 max(A). An edge is unusable (an infinite
+    // bound: never settled in float) unless 1e-18 <= max(A) <= 1e30 and |edge|_1 <= 1e20: then products and
+    // results that fall to float's subnormals (each off by at most 2^-150) stay far within the bound, and
+    // nothing overflows.
+    alignas(64) float widest[lit_capacity] = {};  // per triangle, its usable edges' largest max(A)
     for (int k = 0; k < 3; ++k) {
         const int j = (k + 1) % 3;
-        for (uint32_t t = 0; t < count; ++t) {
-            // Edge k's plane through the light: u x v, with u and v its corners from the light.
-            const double nx = uy[k][t] * uz[j][t] - uz[k][t] * uy[j][t], ny = uz[k][t] * ux[j][t] - ux[k][t] * uz[j][t],
-                         nz = ux[k][t] * uy[j][t] - uy[k][t] * ux[j][t];
-            const double scale = u1[k][t] * u1[j][t];
-            widest[t] = k == 0 ? scale : std::max(widest[t], scale);
-            // Rounding e and n to float and the float dot product err by under 6 float epsilons of
-            // |e|_1 |n|_max (4e-7 of it), on top of the double value's own bound; grown for its own rounding.
-            // (|n| is far below scale when the light is far: u and v are then nearly parallel.)
-            const double nmax = std::max(std::max(std::fabs(nx), std::fabs(ny)), std::fabs(nz));
-            out.fx[k][t] = float(nx), out.fy[k][t] = float(ny), out.fz[k][t] = float(nz);
-            out.fbound[k][t] = float((4e-7 * nmax + det_error * scale) * 1.001);
+        for (uint32_t t = 0; t < lit_capacity; ++t) {
+            const float ux = float(double(px[k][t]) - light[0]), uy = float(double(py[k][t]) - light[1]), uz = float(double(pz[k][t]) - light[2]);
+            const float ex = px[j][t] - px[k][t], ey = py[j][t] - py[k][t], ez = pz[j][t] - pz[k][t];
+            const float ax = std::fabs(uy * ez) + std::fabs(uz * ey), ay = std::fabs(uz * ex) + std::fabs(ux * ez),
+                        az = std::fabs(ux * ey) + std::fabs(uy * ex);
+            const float amax = std::max(std::max(ax, ay), az);
+            const bool usable = amax >= 1e-18f && amax <= 1e30f && std::fabs(ex) + std::fabs(ey) + std::fabs(ez) <= 1e20f;
+            out.fx[k][t] = uy * ez - uz * ey, out.fy[k][t] = uz * ex - ux * ez, out.fz[k][t] = ux * ey - uy * ex;
+            out.fbound[k][t] = usable ? 6e-7f * amax : INFINITY;
+            widest[t] = std::max(widest[t], usable ? amax : 0.0f);
         }
     }
-    out.max_scale = 0;
+    // The largest, halving the array each step (a loop carrying one maximum would not run as vectors).
+    for (uint32_t half = lit_capacity / 2; half > 0; half /= 2)
+        for (uint32_t t = 0; t < half; ++t) widest[t] = std::max(widest[t], widest[t + half]);
+    out.max_scale = widest[0];
     out.has_terms = 0;
-    for (uint32_t t = 0; t < count; ++t) out.max_scale = std::max(out.max_scale, widest[t]);
 }
 
 // orient3d(a, b, c, x) for a triangle with `terms`, in double, and a bound on its error in `bound`.
@@ -454,11 +454,11 @@ inline bool lit_triangles_block(LitTriangles& lit, const double* p, const double
     const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2), edge_scale = det_error * e_l1;
     // Bit t set where the line may meet triangle t: not every edge sign settled (|o| beyond its bound), or
     // all alike. First in float, a vector of triangles an instruction, then the others in double; only when nothing
-    // can overflow or fall to subnormals (the 1e-30 absolute term stands for the latter); otherwise every
-    // triangle goes to the careful loop below.
+    // can overflow and e is far above float's subnormals (products that fall there are covered by the 1e-30
+    // absolute term); otherwise every triangle goes to the careful loop below.
     uint32_t may_meet = (1u << lit.count) - 1;  // (lit_capacity < 32)
     uint32_t through = 0;  // bit t: every edge sign settled and alike, so the line passes through the interior
-    if (e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20) {
+    if (e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20 && e_l1 > 1e-30) {
         const float f0 = float(e0), f1 = float(e1), f2 = float(e2), fl1 = float(e_l1 * 1.000001);
         uint32_t missed = 0;
         const simd::Floats v0 = simd::splat(f0), v1 = simd::splat(f1), v2 = simd::splat(f2), vl = simd::splat(fl1);
