@@ -279,6 +279,15 @@ inline uint32_t lowest_bit(uint64_t x) {  // x != 0
     return i;
 #endif
 }
+inline uint32_t bit_count(uint32_t x) {
+#if defined(__GNUC__)
+    return uint32_t(__builtin_popcount(x));
+#else
+    uint32_t n = 0;
+    for (; x; x &= x - 1) ++n;
+    return n;
+#endif
+}
 inline uint32_t leading_zeros(uint64_t x) {  // x != 0
 #if defined(__GNUC__)
     return uint32_t(__builtin_clzll(x));
