@@ -736,21 +736,25 @@ private:
     }
 
     // Tests fine cluster f's triangles for the points of `subset` still alive whose segment may touch its box.
-    void test_points(uint32_t f, uint64_t subset, Tile& t) const {
-        uint64_t todo = subset & t.alive;
-        if (view_->fine_bounds.obbs && todo) {
-            BoxFilter own;
-            const BoxFilter& b = t.cache ? cached_box_filter(f, *t.cache) : (own = box_filter(f));
-            if (b.usable && t.small) {
-                todo = box_points(b, todo, t);
-            } else {
-                const Obb box = fine_obb(f);
-                for (uint64_t w = todo; w; w &= w - 1) {
-                    uint32_t i = shadow_detail::lowest_bit(w);
-                    if (!segment_may_touch_box(box, t.p[i], light_)) todo &= ~(uint64_t(1) << i);
-                }
-            }
+    void test_points(uint32_t f, uint64_t subset, Tile& t) const { test_triangles(f, box_points_of(f, subset & t.alive, t), t); }
+
+    // The points of `subset` whose segment may touch fine cluster f's box.
+    uint64_t box_points_of(uint32_t f, uint64_t subset, Tile& t) const {
+        if (!view_->fine_bounds.obbs || !subset) return subset;
+        BoxFilter own;
+        const BoxFilter& b = t.cache ? cached_box_filter(f, *t.cache) : (own = box_filter(f));
+        if (b.usable && t.small) return box_points(b, subset, t);
+        const Obb box = fine_obb(f);
+        for (uint64_t w = subset; w; w &= w - 1) {
+            uint32_t i = shadow_detail::lowest_bit(w);
+            if (!segment_may_touch_box(box, t.p[i], light_)) subset &= ~(uint64_t(1) << i);
         }
+        return subset;
+    }
+
+    // Tests fine cluster f's triangles for the points of `subset` still alive.
+    void test_triangles(uint32_t f, uint64_t subset, Tile& t) const {
+        const uint64_t todo = subset & t.alive;
         if (!todo) return;
         uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr, t.cache ? &t.cache->lit : nullptr, this);
         t.alive &= ~hit, t.shadowed |= hit;
@@ -834,22 +838,29 @@ private:
         std::copy(sorted, sorted + count, a);
     }
 
-    // Tests the pending clusters, nearest closing distance first.
+    // Tests the pending clusters, nearest closing distance first. A cluster's box is tested three clusters
+    // ahead of its triangles, and only when some point may touch it are its triangles and new vertices asked
+    // for then, its reused vertices one test ahead (unless its first group is lit already): on large meshes
+    // these reads otherwise miss the cache one after another.
     void test_pending(Tile& t) const {
         Tile::Pending* p = t.pending;
         const uint32_t n = t.pending_count;
         sort_by_near(p, n);
-        // A cluster's triangles and new vertices are asked for three tests ahead, its reused vertices one test
-        // ahead (unless its first group is lit already).
         auto ask = [&](uint32_t i, int step) {
-            if (i >= n || !(p[i].points & t.alive)) return;
             if (t.cache && t.cache->lit.holds(this, p[i].cluster, 0)) return;
             shadow_detail::prefetch_lit(*view_, *mesh_, view_->fine[mesh_->first_fine + p[i].cluster], step);
         };
-        ask(0, 0), ask(1, 0), ask(2, 0), ask(0, 1);
+        auto look = [&](uint32_t i) {  // the box test, into the entry's points
+            if (i >= n) return;
+            p[i].points = box_points_of(p[i].cluster, p[i].points & t.alive, t);
+            if (p[i].points) ask(i, 0);
+        };
+        look(0), look(1), look(2);
+        if (n && p[0].points) ask(0, 1);
         for (uint32_t i = 0; i < n && t.alive; ++i) {
-            ask(i + 3, 0), ask(i + 1, 1);
-            test_points(p[i].cluster, p[i].points, t);
+            look(i + 3);
+            if (i + 1 < n && (p[i + 1].points & t.alive)) ask(i + 1, 1);
+            test_triangles(p[i].cluster, p[i].points, t);
         }
         t.pending_count = 0;
     }
