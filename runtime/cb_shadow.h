@@ -343,32 +343,45 @@ struct LitTriangles {
     alignas(64) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
     double max_scale = 0;  // the largest max(A) of the usable edges (light_triangles): |e|_1 times it bounds
                            // their float dot products
-    // A triangle's double terms, made when a point first needs them (triangle_terms): most points' lines miss
-    // every triangle in float, and on large meshes a group is often set up for one or two points.
-    uint32_t has_terms = 0;  // bit t: terms[t] is made
+    // A triangle's double terms, made when a point first needs them: most points' lines miss every triangle in
+    // float, and on large meshes a group is often set up for one or two points. The plane's (plane_terms)
+    // whenever the line may meet it; the edges' (edge_terms) only when the float test left an edge's sign
+    // unsettled (a line through the interior needs none).
+    uint32_t has_plane = 0, has_edges = 0;  // bit t: terms[t]'s plane, edges are made
     TriangleTerms terms[lit_capacity];
 };
 
-// Triangle t's double terms, from its corners.
-inline void triangle_terms(const LitTriangles& lit, uint32_t t, const double* light, TriangleTerms& out) {
-    double p[3][3], u[3][3], u1[3];
-    for (int k = 0; k < 3; ++k) {
+// Triangle t's corners, and their offsets from the light.
+inline void triangle_corners(const LitTriangles& lit, uint32_t t, const double* light, double (&p)[3][3], double (&u)[3][3]) {
+    for (int k = 0; k < 3; ++k)
         for (int j = 0; j < 3; ++j) p[k][j] = lit.corner[t][k][j], u[k][j] = p[k][j] - light[j];
-        u1[k] = std::fabs(u[k][0]) + std::fabs(u[k][1]) + std::fabs(u[k][2]);
-    }
-    for (int k = 0; k < 3; ++k) {
-        const int j = (k + 1) % 3;
-        out.n[k][0] = u[k][1] * u[j][2] - u[k][2] * u[j][1], out.n[k][1] = u[k][2] * u[j][0] - u[k][0] * u[j][2],
-        out.n[k][2] = u[k][0] * u[j][1] - u[k][1] * u[j][0];
-        out.scale[k] = u1[k] * u1[j];
-    }
+}
+
+// Triangle t's plane terms, from its corners.
+inline void plane_terms(const LitTriangles& lit, uint32_t t, const double* light, TriangleTerms& out) {
+    double p[3][3], u[3][3];
+    triangle_corners(lit, t, light, p, u);
     const double e1x = p[1][0] - p[0][0], e1y = p[1][1] - p[0][1], e1z = p[1][2] - p[0][2];
     const double e2x = p[2][0] - p[0][0], e2y = p[2][1] - p[0][1], e2z = p[2][2] - p[0][2];
     out.plane[0] = e1y * e2z - e1z * e2y, out.plane[1] = e1z * e2x - e1x * e2z, out.plane[2] = e1x * e2y - e1y * e2x;
     out.plane_bound = det_error * (std::fabs(e1x) + std::fabs(e1y) + std::fabs(e1z)) * (std::fabs(e2x) + std::fabs(e2y) + std::fabs(e2z));
     for (int j = 0; j < 3; ++j) out.a[j] = p[0][j];
     // orient3d(a, b, c, light) = N . (a - light), a - light being corner 0's offset from the light.
-    out.dq = out.plane[0] * u[0][0] + out.plane[1] * u[0][1] + out.plane[2] * u[0][2], out.bq = out.plane_bound * u1[0];
+    out.dq = out.plane[0] * u[0][0] + out.plane[1] * u[0][1] + out.plane[2] * u[0][2];
+    out.bq = out.plane_bound * (std::fabs(u[0][0]) + std::fabs(u[0][1]) + std::fabs(u[0][2]));
+}
+
+// Triangle t's edge terms, from its corners.
+inline void edge_terms(const LitTriangles& lit, uint32_t t, const double* light, TriangleTerms& out) {
+    double p[3][3], u[3][3], u1[3];
+    triangle_corners(lit, t, light, p, u);
+    for (int k = 0; k < 3; ++k) u1[k] = std::fabs(u[k][0]) + std::fabs(u[k][1]) + std::fabs(u[k][2]);
+    for (int k = 0; k < 3; ++k) {
+        const int j = (k + 1) % 3;
+        out.n[k][0] = u[k][1] * u[j][2] - u[k][2] * u[j][1], out.n[k][1] = u[k][2] * u[j][0] - u[k][0] * u[j][2],
+        out.n[k][2] = u[k][0] * u[j][1] - u[k][1] * u[j][0];
+        out.scale[k] = u1[k] * u1[j];
+    }
 }
 
 // Asks for the memory light_triangles reads for fine cluster c, in two steps a few cluster tests apart
@@ -442,7 +455,7 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     for (uint32_t half = lit_capacity / 2; half > 0; half /= 2)
         for (uint32_t t = 0; t < half; ++t) widest[t] = std::max(widest[t], widest[t + half]);
     out.max_scale = widest[0];
-    out.has_terms = 0;
+    out.has_plane = out.has_edges = 0;
 }
 
 // orient3d(a, b, c, x) for a triangle with `terms`, in double, and a bound on its error in `bound`.
@@ -490,9 +503,10 @@ inline bool lit_triangles_block(LitTriangles& lit, const double* p, const double
     if (stats) stats->triangles_tested += lit.count;
     for (; may_meet; may_meet &= may_meet - 1) {
         const uint32_t t = lowest_bit(may_meet);
-        if (!(lit.has_terms >> t & 1)) triangle_terms(lit, t, light, lit.terms[t]), lit.has_terms |= 1u << t;
         const TriangleTerms& terms = lit.terms[t];
         bool settled = through >> t & 1;
+        if (!(lit.has_plane >> t & 1)) plane_terms(lit, t, light, lit.terms[t]), lit.has_plane |= 1u << t;
+        if (!settled && !(lit.has_edges >> t & 1)) edge_terms(lit, t, light, lit.terms[t]), lit.has_edges |= 1u << t;
         if (!settled) {  // the signs in double
             double o[3];
             settled = true;

@@ -723,7 +723,7 @@ TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
                 for (int k = 0; k < 3; ++k)
                     for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
                 cb::shadow_detail::TriangleTerms terms;
-                cb::shadow_detail::triangle_terms(lit, t, light, terms);
+                cb::shadow_detail::plane_terms(lit, t, light, terms);
                 within(corner[0], corner[1], corner[2], light, terms.dq, terms.bq);
                 for (int k = 0; k < 4; ++k) {
                     // On the plane (to rounding), barely off it, and off it: the bound is needed most near zero.
