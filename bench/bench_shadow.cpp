@@ -165,17 +165,25 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         std::vector<uint8_t> ours(n), embree1(n), embree16(n);
         cb::QueryStats stats;
         std::vector<std::vector<uint32_t>> query_scratch(2);  // per query thread, kept between frames like the build's
-        std::vector<uint32_t> order(n), order_scratch(cb::batch_order_scratch_size(n));
+        std::vector<uint32_t> order(n), keys(n), order_scratch(cb::batch_order_scratch_size(n));
         // Both sides' threads take the points in contiguous chunks (interleaved points would have them write
         // neighbouring bytes), 8 per thread, handed out as they finish: halves of the view can differ in cost.
-        // Ours are chunks of the points' order by direction from the light (cb::batch_order, made once per
-        // pass on the first thread and timed with it), so that each chunk's tiles are as close as one batch's.
+        // Ours are chunks of the points' order by direction from the light (keys made on every thread, sorted
+        // on the first, timed with the pass), so that each chunk's tiles are as close as one batch's.
         auto chunk_for = [n](unsigned threads) {
             return threads == 1 ? std::max<size_t>(n, 1) : std::max<size_t>(4096, (n / (8 * threads) + 63) / 64 * 64);
         };
         auto ours_pass = [&](unsigned threads) {
             auto s = std::chrono::steady_clock::now();
-            cb::batch_order(light, pts.data(), n, order.data(), order_scratch.data());
+            auto key_part = [&](unsigned th) {
+                const size_t first = n * th / threads, last = n * (th + 1) / threads;
+                cb::batch_keys(light, pts.data(), first, last, &keys[first]);
+            };
+            std::vector<std::thread> key_pool;
+            for (unsigned th = 1; th < threads; ++th) key_pool.emplace_back(key_part, th);
+            key_part(0);
+            for (auto& p : key_pool) p.join();
+            cb::batch_order_from_keys(keys.data(), n, order.data(), order_scratch.data());
             std::vector<std::thread> pool;
             std::vector<cb::QueryStats> st(threads);
             std::atomic<size_t> next{0};
@@ -282,7 +290,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         size_t scratch_bytes = 0;
         for (const cb::ClusterShadowTree::BuildScratch& b : build_scratch) scratch_bytes += b.memory_bytes();
         for (const std::vector<uint32_t>& q : query_scratch) scratch_bytes += q.capacity() * sizeof(uint32_t);
-        scratch_bytes += (order.capacity() + order_scratch.capacity()) * sizeof(uint32_t);
+        scratch_bytes += (order.capacity() + keys.capacity() + order_scratch.capacity()) * sizeof(uint32_t);
         std::printf("| %-16s | %s | %zu | %.0f%% | %.1f / %.1f ms | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %.0f / %.1f ms | %.2f / %.2f | %.1f | %.1f | %.1f | %.1f | %zu | %.1f + %.1f / %.1f | %zu (%.3f%%) |\n",
                     in.name.c_str(), light_names[li], n, 100.0 * double(shadowed) / double(n), build * 1e3,
                     build2 * 1e3, mq / ours1, mq / ours2, mq / e1, mq / e2, mq / p1, mq / p2, embree_build * 1e3, scan_bounds_time * 1e3, ratio1, ratio2, double(stats.nodes_visited) / double(n), double(stats.clusters_tested) / double(n),

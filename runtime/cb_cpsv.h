@@ -1406,18 +1406,23 @@ inline uint32_t direction_key(const double* e) {
 
 }  // namespace cpsv_detail
 
-// Words of scratch batch_order needs for n points.
+// Words of scratch batch_order (and batch_order_from_keys) needs for n points.
 inline size_t batch_order_scratch_size(size_t n) { return 3 * n + 4097; }
 
-// order[0, n): the indices of the n points (xyz doubles) sorted by direction from `light`, the order
-// occluded_batch takes them in. `scratch` holds batch_order_scratch_size(n) words.
-inline void batch_order(const double* light, const double* points, size_t n, uint32_t* order, uint32_t* scratch) {
-    uint32_t *key = scratch, *key2 = scratch + n, *index2 = scratch + 2 * n, *start = scratch + 3 * n, *index = order;
-    for (size_t i = 0; i < n; ++i) {
+// keys[i - first] for the points [first, last) (xyz doubles): what batch_order sorts them by, their direction
+// from `light`. Threads may each take a part of a batch's points.
+inline void batch_keys(const double* light, const double* points, size_t first, size_t last, uint32_t* keys) {
+    for (size_t i = first; i < last; ++i) {
         double e[3] = {points[i * 3] - light[0], points[i * 3 + 1] - light[1], points[i * 3 + 2] - light[2]};
-        key[i] = cpsv_detail::direction_key(e);
-        index[i] = uint32_t(i);
+        keys[i - first] = cpsv_detail::direction_key(e);
     }
+}
+
+// order[0, n): the indices 0..n-1 sorted by keys[0, n) (batch_keys), stably; the keys are left permuted.
+// `scratch` holds batch_order_scratch_size(n) words.
+inline void batch_order_from_keys(uint32_t* keys, size_t n, uint32_t* order, uint32_t* scratch) {
+    uint32_t *key = keys, *key2 = scratch, *index2 = scratch + n, *start = scratch + 2 * n, *index = order;
+    for (size_t i = 0; i < n; ++i) index[i] = uint32_t(i);
     for (int shift = 0; shift < 24; shift += 12) {  // radix sort, 12 bits a pass, stable (two passes: back in `order`)
         std::fill(start, start + 4097, 0u);
         for (size_t i = 0; i < n; ++i) ++start[(key[i] >> shift & 4095) + 1];
@@ -1428,6 +1433,15 @@ inline void batch_order(const double* light, const double* points, size_t n, uin
         }
         std::swap(key, key2), std::swap(index, index2);
     }
+}
+
+// order[0, n): the indices of the n points (xyz doubles) sorted by direction from `light`, the order
+// occluded_batch takes them in: batch_keys then batch_order_from_keys. `scratch` holds
+// batch_order_scratch_size(n) words.
+inline void batch_order(const double* light, const double* points, size_t n, uint32_t* order, uint32_t* scratch) {
+    uint32_t* keys = scratch + 2 * n + 4097;  // past what batch_order_from_keys uses
+    batch_keys(light, points, 0, n, keys);
+    batch_order_from_keys(keys, n, order, scratch);
 }
 
 // Words of scratch occluded_ordered needs: the stack and the tables kept from tile to tile.

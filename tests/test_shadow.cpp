@@ -312,6 +312,12 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
             std::vector<uint32_t> sorted(order);
             std::sort(sorted.begin(), sorted.end());
             for (size_t k = 0; k < n; ++k) ordered_disagreements += sorted[k] != k;  // a permutation
+            // The keys made in two parts (as two threads would), then sorted: the same order.
+            std::vector<uint32_t> keys(n), from_keys(n);
+            cb::batch_keys(light, points.data(), 0, n / 3, keys.data());
+            cb::batch_keys(light, points.data(), n / 3, n, keys.data() + n / 3);
+            cb::batch_order_from_keys(keys.data(), n, from_keys.data(), order_scratch.data());
+            ordered_disagreements += from_keys != order;
             std::vector<uint32_t> ordered_scratch(cb::ordered_scratch_size(trees.data(), trees.size()));
             std::vector<uint8_t> ordered(n, 2);
             for (size_t end = n; end > 0;) {
