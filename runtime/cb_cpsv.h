@@ -1391,16 +1391,17 @@ inline uint32_t direction_key(const double* e) {
     const double major = on_x ? ax : on_y ? ay : az, sign = on_x ? x : on_y ? y : z;
     const double a = on_x ? y : on_y ? z : x, b = on_x ? z : on_y ? x : y;  // axes m + 1 and m + 2 (mod 3)
     const double scale = 511.5 / major;
-    // Each in [0, 1023] to rounding (|a|, |b| <= major); NaN goes to 0.
-    const double ca = std::min(a * scale + 511.5 > 0 ? a * scale + 511.5 : 0.0, 1023.0);
-    const double cb = std::min(b * scale + 511.5 > 0 ? b * scale + 511.5 : 0.0, 1023.0);
+    auto cell = [scale](double v) {  // in [0, 1023] to rounding (|v| <= major), clamped; NaN goes to 0
+        const double c = v * scale + 511.5;
+        return uint32_t(int32_t(std::min(c > 0 ? c : 0.0, 1023.0)));
+    };
     auto spread = [](uint32_t v) {  // bit i of v to bit 2i
         v = (v | v << 8) & 0x00ff00ffu, v = (v | v << 4) & 0x0f0f0f0fu;
         v = (v | v << 2) & 0x33333333u, v = (v | v << 1) & 0x55555555u;
         return v;
     };
     const uint32_t face = uint32_t(on_x ? 0 : on_y ? 2 : 4) + uint32_t(sign < 0);
-    const uint32_t key = face << 20 | spread(uint32_t(int32_t(ca))) | spread(uint32_t(int32_t(cb))) << 1;
+    const uint32_t key = face << 20 | spread(cell(a)) | spread(cell(b)) << 1;
     return (major > 0) & (major < INFINITY) ? key : 0x7fffffu;
 }
 
