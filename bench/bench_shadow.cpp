@@ -165,40 +165,47 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         std::vector<uint8_t> ours(n), embree1(n), embree16(n);
         cb::QueryStats stats;
         std::vector<std::vector<uint32_t>> query_scratch(2);  // per query thread, kept between frames like the build's
-        std::vector<uint32_t> order(n), keys(n), order_scratch(cb::batch_order_scratch_size(n));
+        std::vector<uint32_t> order(n), keys(n), order_scratch(cb::batch_order_scratch_size(n) - n);
         // Both sides' threads take the points in contiguous chunks (interleaved points would have them write
-        // neighbouring bytes), 8 per thread, handed out as they finish: halves of the view can differ in cost.
-        // Ours are chunks of the points' order by direction from the light (keys made on every thread, sorted
-        // on the first, timed with the pass), so that each chunk's tiles are as close as one batch's.
-        auto chunk_for = [n](unsigned threads) {
-            return threads == 1 ? std::max<size_t>(n, 1) : std::max<size_t>(4096, (n / (8 * threads) + 63) / 64 * 64);
+        // neighbouring bytes), handed out as they finish, smaller towards the end (an eighth of what is left per
+        // thread, 1,024 to 4,096 points, whole tiles): parts of the view differ in cost, and the last chunk
+        // should not leave a thread idle. Ours are chunks of the points' order by direction from the light, so
+        // that each chunk's tiles are as close as one batch's. Both sides start their threads once per pass,
+        // and the main thread only waits (when it worked too, the new thread often shared its core for the
+        // whole pass: two threads ran no faster than one, on both sides). Ours each make the keys of a part of
+        // the points; the last to finish sorts them while the others wait; then all answer chunks of the order.
+        auto take_chunk = [n](std::atomic<size_t>& next, unsigned threads, size_t& begin, size_t& end) {
+            size_t at = next.load();
+            do {
+                if (at >= n) return false;
+                const size_t size = std::clamp<size_t>((n - at) / (8 * threads), 1024, 4096) / 64 * 64;
+                begin = at, end = std::min(n, at + (threads == 1 ? n : size));
+            } while (!next.compare_exchange_weak(at, end));
+            return true;
         };
         auto ours_pass = [&](unsigned threads) {
             auto s = std::chrono::steady_clock::now();
-            auto key_part = [&](unsigned th) {
-                const size_t first = n * th / threads, last = n * (th + 1) / threads;
-                cb::batch_keys(light, pts.data(), first, last, &keys[first]);
-            };
-            std::vector<std::thread> key_pool;
-            for (unsigned th = 1; th < threads; ++th) key_pool.emplace_back(key_part, th);
-            key_part(0);
-            for (auto& p : key_pool) p.join();
-            cb::batch_order_from_keys(keys.data(), n, order.data(), order_scratch.data());
-            std::vector<std::thread> pool;
             std::vector<cb::QueryStats> st(threads);
+            std::atomic<unsigned> keyed{0};
+            std::atomic<bool> sorted{false};
             std::atomic<size_t> next{0};
-            const size_t chunk = chunk_for(threads);
-            for (unsigned th = 0; th < threads; ++th)
-                pool.emplace_back([&, th] {
-                    std::vector<uint32_t>& scratch = query_scratch[th];
-                    scratch.resize(std::max(scratch.size(), cb::ordered_scratch_size(trees.data(), trees.size())));
-                    cb::QueryStats local;  // per thread, copied out once: counters in one shared array would false-share
-                    for (size_t begin = next.fetch_add(chunk); begin < n; begin = next.fetch_add(chunk)) {
-                        const size_t end = std::min(n, begin + chunk);
-                        cb::occluded_ordered(trees.data(), trees.size(), pts.data(), &order[begin], end - begin, ours.data(), scratch.data(), &local);
-                    }
-                    st[th] = local;
-                });
+            auto work = [&](unsigned th) {
+                cb::batch_keys(light, pts.data(), n * th / threads, n * (th + 1) / threads, &keys[n * th / threads]);
+                if (keyed.fetch_add(1) + 1 == threads) {
+                    cb::batch_order_from_keys(keys.data(), n, order.data(), order_scratch.data());
+                    sorted.store(true);
+                } else {
+                    while (!sorted.load()) std::this_thread::yield();
+                }
+                std::vector<uint32_t>& scratch = query_scratch[th];
+                scratch.resize(std::max(scratch.size(), cb::ordered_scratch_size(trees.data(), trees.size())));
+                cb::QueryStats local;  // per thread, copied out once: counters in one shared array would false-share
+                for (size_t begin, end; take_chunk(next, threads, begin, end);)
+                    cb::occluded_ordered(trees.data(), trees.size(), pts.data(), &order[begin], end - begin, ours.data(), scratch.data(), &local);
+                st[th] = local;
+            };
+            std::vector<std::thread> pool;
+            for (unsigned th = 0; th < threads; ++th) pool.emplace_back(work, th);
             for (auto& p : pool) p.join();
             stats = {};
             for (auto& s2 : st)
@@ -208,41 +215,39 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         };
         auto embree_pass = [&](unsigned threads, bool packets) {
             auto s = std::chrono::steady_clock::now();
-            std::vector<std::thread> pool;
             std::atomic<size_t> next{0};
-            const size_t chunk = chunk_for(threads);
-            for (unsigned th = 0; th < threads; ++th)
-                pool.emplace_back([&] {
-                    RTCIntersectContext c;
-                    rtcInitIntersectContext(&c);
-                    for (size_t begin = next.fetch_add(chunk); begin < n; begin = next.fetch_add(chunk)) {
-                        const size_t end = std::min(n, begin + chunk);
-                        if (!packets) {
-                            for (size_t i = begin; i < end; ++i) {
-                                RTCRay r{};
-                                r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
-                                r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]), r.dir_z = float(light[2] - pts[i * 3 + 2]);
-                                r.tnear = float(cb::self_shadow_fraction), r.tfar = 1.0f, r.mask = 0xffffffff;
-                                rtcOccluded1(scene, &c, &r);
-                                embree1[i] = r.tfar < 0;
-                            }
-                            continue;
+            auto work = [&] {
+                RTCIntersectContext c;
+                rtcInitIntersectContext(&c);
+                for (size_t begin, end; take_chunk(next, threads, begin, end);) {
+                    if (!packets) {
+                        for (size_t i = begin; i < end; ++i) {
+                            RTCRay r{};
+                            r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
+                            r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]), r.dir_z = float(light[2] - pts[i * 3 + 2]);
+                            r.tnear = float(cb::self_shadow_fraction), r.tfar = 1.0f, r.mask = 0xffffffff;
+                            rtcOccluded1(scene, &c, &r);
+                            embree1[i] = r.tfar < 0;
                         }
-                        for (size_t i = begin; i < end; i += 16) {
-                            RTCRay16 r{};
-                            alignas(64) int valid[16];
-                            for (int k = 0; k < 16; ++k) {
-                                size_t j = std::min(i + k, end - 1);
-                                valid[k] = i + k < end ? -1 : 0;
-                                r.org_x[k] = float(pts[j * 3]), r.org_y[k] = float(pts[j * 3 + 1]), r.org_z[k] = float(pts[j * 3 + 2]);
-                                r.dir_x[k] = float(light[0] - pts[j * 3]), r.dir_y[k] = float(light[1] - pts[j * 3 + 1]), r.dir_z[k] = float(light[2] - pts[j * 3 + 2]);
-                                r.tnear[k] = float(cb::self_shadow_fraction), r.tfar[k] = 1.0f, r.mask[k] = 0xffffffff;
-                            }
-                            rtcOccluded16(valid, scene, &c, &r);
-                            for (int k = 0; k < 16 && i + k < end; ++k) embree16[i + k] = r.tfar[k] < 0;
-                        }
+                        continue;
                     }
-                });
+                    for (size_t i = begin; i < end; i += 16) {
+                        RTCRay16 r{};
+                        alignas(64) int valid[16];
+                        for (int k = 0; k < 16; ++k) {
+                            size_t j = std::min(i + k, end - 1);
+                            valid[k] = i + k < end ? -1 : 0;
+                            r.org_x[k] = float(pts[j * 3]), r.org_y[k] = float(pts[j * 3 + 1]), r.org_z[k] = float(pts[j * 3 + 2]);
+                            r.dir_x[k] = float(light[0] - pts[j * 3]), r.dir_y[k] = float(light[1] - pts[j * 3 + 1]), r.dir_z[k] = float(light[2] - pts[j * 3 + 2]);
+                            r.tnear[k] = float(cb::self_shadow_fraction), r.tfar[k] = 1.0f, r.mask[k] = 0xffffffff;
+                        }
+                        rtcOccluded16(valid, scene, &c, &r);
+                        for (int k = 0; k < 16 && i + k < end; ++k) embree16[i + k] = r.tfar[k] < 0;
+                    }
+                }
+            };
+            std::vector<std::thread> pool;
+            for (unsigned th = 0; th < threads; ++th) pool.emplace_back(work);
             for (auto& p : pool) p.join();
             return seconds_of(s);
         };

@@ -1381,66 +1381,66 @@ inline size_t batch_stack_size(const ClusterShadowTree* trees, size_t tree_count
     return stack;
 }
 
-// 23 bits: the cube face of direction e (3 bits), then its two face coordinates' bits interleaved (10 each).
-// Directions that are zero or not finite get the largest key. Selects rather than branches: directions are
-// as good as random to a branch predictor (the keys of 71,553 points took 0.61 ms with branches, 0.40-0.47
-// ms without).
-inline uint32_t direction_key(const double* e) {
-    const double x = e[0], y = e[1], z = e[2], ax = std::fabs(x), ay = std::fabs(y), az = std::fabs(z);
-    const bool on_x = (ax >= ay) & (ax >= az), on_y = !on_x & (ay >= az);  // the major axis m (else z)
-    const double major = on_x ? ax : on_y ? ay : az, sign = on_x ? x : on_y ? y : z;
-    const double a = on_x ? y : on_y ? z : x, b = on_x ? z : on_y ? x : y;  // axes m + 1 and m + 2 (mod 3)
-    const double scale = 511.5 / major;
-    auto cell = [scale](double v) {  // in [0, 1023] to rounding (|v| <= major), clamped; NaN goes to 0
-        const double c = v * scale + 511.5;
-        return uint32_t(int32_t(std::min(c > 0 ? c : 0.0, 1023.0)));
-    };
+}  // namespace cpsv_detail
+
+// Words of scratch batch_order needs for n points (batch_order_from_keys: n fewer).
+inline size_t batch_order_scratch_size(size_t n) { return 3 * n + 6144; }
+
+// keys[i - first] for the points [first, last) (xyz doubles): what batch_order sorts them by, their direction
+// from `light`, 23 bits: the cube face (3 bits), then the two face coordinates' bits interleaved (10 each), a
+// Z-order curve on the face; zero or non-finite directions get the largest key. Threads may each take a part
+// of a batch's points. The order only groups points into tiles, never decides an answer, so the keys are made
+// in float (a difference beyond float's range rounds to infinity, IEEE 754, and so gets the largest key), with
+// selects and a sign bit rather than a comparison that could trap in a branch: GCC then makes 16 keys an
+// instruction (65,553 points: 0.09 ms, against 0.34 ms for the scalar loop in double it kept before).
+inline void batch_keys(const double* light, const double* points, size_t first, size_t last, uint32_t* keys) {
+    const double lx = light[0], ly = light[1], lz = light[2];
     auto spread = [](uint32_t v) {  // bit i of v to bit 2i
         v = (v | v << 8) & 0x00ff00ffu, v = (v | v << 4) & 0x0f0f0f0fu;
         v = (v | v << 2) & 0x33333333u, v = (v | v << 1) & 0x55555555u;
         return v;
     };
-    const uint32_t face = uint32_t(on_x ? 0 : on_y ? 2 : 4) + uint32_t(sign < 0);
-    const uint32_t key = face << 20 | spread(cell(a)) | spread(cell(b)) << 1;
-    return (major > 0) & (major < INFINITY) ? key : 0x7fffffu;
-}
-
-}  // namespace cpsv_detail
-
-// Words of scratch batch_order (and batch_order_from_keys) needs for n points.
-inline size_t batch_order_scratch_size(size_t n) { return 3 * n + 4097; }
-
-// keys[i - first] for the points [first, last) (xyz doubles): what batch_order sorts them by, their direction
-// from `light`. Threads may each take a part of a batch's points.
-inline void batch_keys(const double* light, const double* points, size_t first, size_t last, uint32_t* keys) {
     for (size_t i = first; i < last; ++i) {
-        double e[3] = {points[i * 3] - light[0], points[i * 3 + 1] - light[1], points[i * 3 + 2] - light[2]};
-        keys[i - first] = cpsv_detail::direction_key(e);
+        const float x = float(points[i * 3] - lx), y = float(points[i * 3 + 1] - ly), z = float(points[i * 3 + 2] - lz);
+        const float ax = std::fabs(x), ay = std::fabs(y), az = std::fabs(z);
+        const bool on_x = (ax >= ay) & (ax >= az), on_y = !on_x & (ay >= az);  // the major axis m (else z)
+        const float major = on_x ? ax : on_y ? ay : az, sign = on_x ? x : on_y ? y : z;
+        const float a = on_x ? y : on_y ? z : x, b = on_x ? z : on_y ? x : y;  // axes m + 1 and m + 2 (mod 3)
+        const float scale = 511.5f / major;
+        float ca = a * scale + 511.5f, cb = b * scale + 511.5f;  // in [0, 1023] to rounding; NaN goes to 0
+        ca = ca > 0 ? ca : 0.0f, cb = cb > 0 ? cb : 0.0f;
+        ca = ca < 1023.0f ? ca : 1023.0f, cb = cb < 1023.0f ? cb : 1023.0f;
+        const uint32_t face = uint32_t(on_x ? 0 : on_y ? 2 : 4) + uint32_t(std::signbit(sign));
+        const uint32_t key = face << 20 | spread(uint32_t(int32_t(ca))) | spread(uint32_t(int32_t(cb))) << 1;
+        keys[i - first] = (major > 0) & (major < INFINITY) ? key : 0x7fffffu;  // zero or not finite: last
     }
 }
 
-// order[0, n): the indices 0..n-1 sorted by keys[0, n) (batch_keys), stably; the keys are left permuted.
-// `scratch` holds batch_order_scratch_size(n) words.
-inline void batch_order_from_keys(uint32_t* keys, size_t n, uint32_t* order, uint32_t* scratch) {
-    uint32_t *key = keys, *key2 = scratch, *index2 = scratch + n, *start = scratch + 2 * n, *index = order;
-    for (size_t i = 0; i < n; ++i) index[i] = uint32_t(i);
-    for (int shift = 0; shift < 24; shift += 12) {  // radix sort, 12 bits a pass, stable (two passes: back in `order`)
-        std::fill(start, start + 4097, 0u);
-        for (size_t i = 0; i < n; ++i) ++start[(key[i] >> shift & 4095) + 1];
-        for (int b = 0; b < 4096; ++b) start[b + 1] += start[b];
-        for (size_t i = 0; i < n; ++i) {
-            uint32_t at = start[key[i] >> shift & 4095]++;
-            key2[at] = key[i], index2[at] = index[i];
-        }
-        std::swap(key, key2), std::swap(index, index2);
+// order[0, n): the indices 0..n-1 sorted by keys[0, n) (batch_keys), stably. `scratch` holds
+// batch_order_scratch_size(n) - n words.
+inline void batch_order_from_keys(const uint32_t* keys, size_t n, uint32_t* order, uint32_t* scratch) {
+    // Radix sort, 12 then 11 bits, both counts in one pass. The first pass writes key and index side by side
+    // (one stream of writes per bucket, not two); the second writes only the index.
+    uint32_t *pairs = scratch, *low = scratch + 2 * n, *high = low + 4096;
+    std::fill(low, low + 4096 + 2048, 0u);
+    for (size_t i = 0; i < n; ++i) ++low[keys[i] & 4095], ++high[keys[i] >> 12 & 2047];
+    auto starts = [](uint32_t* count, int buckets) {
+        uint32_t sum = 0;
+        for (int b = 0; b < buckets; ++b) sum += count[b], count[b] = sum - count[b];
+    };
+    starts(low, 4096), starts(high, 2048);
+    for (size_t i = 0; i < n; ++i) {
+        const uint32_t at = low[keys[i] & 4095]++;
+        pairs[2 * at] = keys[i], pairs[2 * at + 1] = uint32_t(i);
     }
+    for (size_t i = 0; i < n; ++i) order[high[pairs[2 * i] >> 12 & 2047]++] = pairs[2 * i + 1];
 }
 
 // order[0, n): the indices of the n points (xyz doubles) sorted by direction from `light`, the order
 // occluded_batch takes them in: batch_keys then batch_order_from_keys. `scratch` holds
 // batch_order_scratch_size(n) words.
 inline void batch_order(const double* light, const double* points, size_t n, uint32_t* order, uint32_t* scratch) {
-    uint32_t* keys = scratch + 2 * n + 4097;  // past what batch_order_from_keys uses
+    uint32_t* keys = scratch + 2 * n + 6144;  // past what batch_order_from_keys uses
     batch_keys(light, points, 0, n, keys);
     batch_order_from_keys(keys, n, order, scratch);
 }
