@@ -465,26 +465,26 @@ inline double plane_side(const TriangleTerms& terms, const double* x, double& bo
     return terms.plane[0] * d0 + terms.plane[1] * d1 + terms.plane[2] * d2;
 }
 
-// True when segment p -> light meets a triangle of `lit` that blocks; the same answers as
-// cb::segment_triangle on each. Every sign it needs is first settled in double against its error bound:
-// the line through p and the light first, for all triangles at once (it misses most of them, and then
-// nothing else matters), then the two ends' sides of the plane; a triangle the bounds cannot settle (a
-// segment within rounding of its plane or of an edge line) goes to the exact test. Sets *touched when an
-// exactly tested triangle was touched. Makes the double terms of the triangles it needs that `lit` lacks.
-inline bool lit_triangles_block(LitTriangles& lit, const double* p, const double* light, QueryStats* stats, bool* touched) {
-    const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
-    const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2), edge_scale = det_error * e_l1;
-    // Bit t set where the line may meet triangle t: not every edge sign settled (|o| beyond its bound), or
-    // all alike. First in float, a vector of triangles an instruction, then the others in double; only when nothing
-    // can overflow and e is far above float's subnormals (products that fall there are covered by the 1e-30
-    // absolute term); otherwise every triangle goes to the careful loop below.
-    uint32_t may_meet = (1u << lit.count) - 1;  // (lit_capacity < 32)
-    uint32_t through = 0;  // bit t: every edge sign settled and alike, so the line passes through the interior
-    if (e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20 && e_l1 > 1e-30) {
-        const float f0 = float(e0), f1 = float(e1), f2 = float(e2), fl1 = float(e_l1 * 1.000001);
-        uint32_t missed = 0;
-        const simd::Floats v0 = simd::splat(f0), v1 = simd::splat(f1), v2 = simd::splat(f2), vl = simd::splat(fl1);
-        const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f);
+// The first step of lit_triangles_block, for the points p[i], i in `which` (bits of a mask): in may_meet[i],
+// the triangles of `lit` whose line through p[i] and the light it cannot rule out (bit t: not every edge
+// sign settled beyond its bound, or all alike); in through[i], those the line surely passes through the
+// interior of (every edge sign settled and alike). In float, a vector of triangles an instruction, and only
+// when nothing can overflow and e = p - light is far above float's subnormals (products that fall there are
+// covered by the 1e-30 absolute term); otherwise every triangle may meet the line, and the double loop
+// decides. One pass over all the points, apart from the double work: its loads stay in registers.
+inline void lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64_t which, const double* light, uint32_t* may_meet,
+                           uint32_t* through) {
+    const uint32_t all = (1u << lit.count) - 1;  // (lit_capacity < 32)
+    const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f);
+    for (; which; which &= which - 1) {
+        const uint32_t i = lowest_bit(which);
+        const double e0 = p[i][0] - light[0], e1 = p[i][1] - light[1], e2 = p[i][2] - light[2];
+        const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2);
+        may_meet[i] = all, through[i] = 0;
+        if (!(e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20 && e_l1 > 1e-30)) continue;
+        const simd::Floats v0 = simd::splat(float(e0)), v1 = simd::splat(float(e1)), v2 = simd::splat(float(e2));
+        const simd::Floats vl = simd::splat(float(e_l1 * 1.000001));
+        uint32_t missed = 0, inside = 0;
         for (uint32_t t = 0; t < lit.count; t += simd::width) {  // the last group padded (light_triangles)
             simd::Floats lo = simd::splat(INFINITY), hi = simd::splat(-INFINITY);
             simd::Mask settled = simd::all_lanes();
@@ -495,12 +495,23 @@ inline bool lit_triangles_block(LitTriangles& lit, const double* p, const double
             }
             simd::Mask mixed = (lo < zero) & (hi > zero);
             missed |= simd::bits(settled & mixed) << t;
-            through |= simd::bits(simd::and_not(settled, mixed)) << t;
+            inside |= simd::bits(simd::and_not(settled, mixed)) << t;
         }
-        may_meet &= ~missed;
-        through &= may_meet;  // not the padding
+        may_meet[i] = all & ~missed, through[i] = inside & all & ~missed;  // not the padding
     }
-    if (stats) stats->triangles_tested += lit.count;
+}
+
+// True when segment p -> light meets a triangle of `lit` that blocks; the same answers as
+// cb::segment_triangle on each. Every sign it needs is first settled against its error bound: the line
+// through p and the light first, for all triangles at once (lit_line_tests: may_meet and through; the line
+// misses most triangles, and then nothing else matters), then in double the edge signs float left
+// unsettled, then the two ends' sides of the plane; a triangle the bounds cannot settle (a segment within
+// rounding of its plane or of an edge line) goes to the exact test. Sets *touched when an exactly tested
+// triangle was touched. Makes the double terms of the triangles it needs that `lit` lacks.
+inline bool lit_triangles_block(LitTriangles& lit, const double* p, const double* light, uint32_t may_meet, uint32_t through,
+                                bool* touched) {
+    const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
+    const double edge_scale = det_error * (std::fabs(e0) + std::fabs(e1) + std::fabs(e2));
     for (; may_meet; may_meet &= may_meet - 1) {
         const uint32_t t = lowest_bit(may_meet);
         const TriangleTerms& terms = lit.terms[t];
@@ -588,9 +599,13 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         } else {
             light_triangles(v, mesh, c, first, count, light, one_sided, own);
         }
+        uint32_t may_meet[64], through[64];
+        lit_line_tests(*lit, p, which, light, may_meet, through);
+        if (stats) stats->triangles_tested += uint64_t(lit->count) * (bit_count(uint32_t(which)) + bit_count(uint32_t(which >> 32)));
         for (uint64_t w = which; w; w &= w - 1) {
-            uint32_t i = lowest_bit(w);
-            if (lit_triangles_block(*lit, p[i], light, stats, touched)) blocked |= uint64_t(1) << i, which &= ~(uint64_t(1) << i);
+            const uint32_t i = lowest_bit(w);
+            if (may_meet[i] && lit_triangles_block(*lit, p[i], light, may_meet[i], through[i], touched))
+                blocked |= uint64_t(1) << i, which &= ~(uint64_t(1) << i);
         }
     }
     return blocked;
