@@ -343,6 +343,12 @@ struct LitTriangles {
     alignas(64) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
     double max_scale = 0;  // the largest max(A) of the usable edges (light_triangles): |e|_1 times it bounds
                            // their float dot products
+    // The triangle planes in float, for a first test of the segment's crossing a vector of triangles an
+    // instruction (light_triangles): the normal N, the light's side dq = N . (a - light), and bounds (infinite:
+    // never settled in float): dq is within qbound of the exact value, and the crossing test's value within
+    // qbound + |e|_1 pbound. plane_scale: the largest max(A) of the usable planes.
+    alignas(64) float nx[lit_capacity], ny[lit_capacity], nz[lit_capacity], dq[lit_capacity], qbound[lit_capacity], pbound[lit_capacity];
+    double plane_scale = 0;
     // A triangle's double terms, made when a point first needs them: most points' lines miss every triangle in
     // float, and on large meshes a group is often set up for one or two points. The plane's (plane_terms)
     // whenever the line may meet it; the edges' (edge_terms) only when the float test left an edge's sign
@@ -451,10 +457,33 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
             widest[t] = std::max(widest[t], usable ? amax : 0.0f);
         }
     }
-    // The largest, halving the array each step (a loop carrying one maximum would not run as vectors).
+    // The plane about corner a, N = (b - a) x (c - a), in float from float differences of the float corners:
+    // with A = |b - a| x |c - a|, each component of N is within 4 2^-24 A of the exact normal's (two rounded
+    // differences, two rounded products and a rounded difference), as for the edges above. So dq = N . u
+    // (u = a - light rounded from double) is within 8 2^-24 |u|_1 max(A) of the exact value, and a point's
+    // N . e within 8 2^-24 |e|_1 max(A); the crossing test's value dq - (1 - f) N . e (f the self-shadowing
+    // fraction, 1 - f exact in float) adds two roundings, under 2 2^-24 max(A) (|u|_1 + |e|_1). In all
+    // under 6e-7 max(A) (|u|_1 + |e|_1): the bounds take 9e-7, plus 1e-30 for products that fall to
+    // float's subnormals. Usable as the edges are, and when qbound <= 1e30 (nothing overflows).
+    alignas(64) float flat[lit_capacity] = {};  // per triangle, its plane's max(A) if usable
+    for (uint32_t t = 0; t < lit_capacity; ++t) {
+        const float ux = float(double(px[0][t]) - light[0]), uy = float(double(py[0][t]) - light[1]), uz = float(double(pz[0][t]) - light[2]);
+        const float bx = px[1][t] - px[0][t], by = py[1][t] - py[0][t], bz = pz[1][t] - pz[0][t];
+        const float cx = px[2][t] - px[0][t], cy = py[2][t] - py[0][t], cz = pz[2][t] - pz[0][t];
+        const float ax = std::fabs(by * cz) + std::fabs(bz * cy), ay = std::fabs(bz * cx) + std::fabs(bx * cz),
+                    az = std::fabs(bx * cy) + std::fabs(by * cx);
+        const float amax = std::max(std::max(ax, ay), az), u_l1 = std::fabs(ux) + std::fabs(uy) + std::fabs(uz);
+        const float qbound = 9e-7f * amax * (u_l1 * 1.000001f) + 1e-30f, pbound = 9e-7f * amax;
+        const bool usable = (amax >= 1e-18f) & (amax <= 1e30f) & (u_l1 <= 1e20f) & (qbound <= 1e30f);
+        const float nx = by * cz - bz * cy, ny = bz * cx - bx * cz, nz = bx * cy - by * cx;
+        out.nx[t] = nx, out.ny[t] = ny, out.nz[t] = nz, out.dq[t] = nx * ux + ny * uy + nz * uz;
+        out.qbound[t] = usable ? qbound : INFINITY, out.pbound[t] = usable ? pbound : INFINITY;
+        flat[t] = usable ? amax : 0.0f;
+    }
+    // The largest, halving the arrays each step (a loop carrying one maximum would not run as vectors).
     for (uint32_t half = lit_capacity / 2; half > 0; half /= 2)
-        for (uint32_t t = 0; t < half; ++t) widest[t] = std::max(widest[t], widest[t + half]);
-    out.max_scale = widest[0];
+        for (uint32_t t = 0; t < half; ++t) widest[t] = std::max(widest[t], widest[t + half]), flat[t] = std::max(flat[t], flat[t + half]);
+    out.max_scale = widest[0], out.plane_scale = flat[0];
     out.has_plane = out.has_edges = 0;
 }
 
@@ -475,7 +504,8 @@ inline double plane_side(const TriangleTerms& terms, const double* x, double& bo
 inline void lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64_t which, const double* light, uint32_t* may_meet,
                            uint32_t* through) {
     const uint32_t all = (1u << lit.count) - 1;  // (lit_capacity < 32)
-    const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f);
+    const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f), omf = simd::splat(float(1 - self_shadow_fraction));
+    static_assert(float(1 - self_shadow_fraction) == 1 - self_shadow_fraction, "1 - f exact in float");
     for (; which; which &= which - 1) {
         const uint32_t i = lowest_bit(which);
         const double e0 = p[i][0] - light[0], e1 = p[i][1] - light[1], e2 = p[i][2] - light[2];
@@ -484,6 +514,7 @@ inline void lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64
         if (!(e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20 && e_l1 > 1e-30)) continue;
         const simd::Floats v0 = simd::splat(float(e0)), v1 = simd::splat(float(e1)), v2 = simd::splat(float(e2));
         const simd::Floats vl = simd::splat(float(e_l1 * 1.000001));
+        const bool planes = e_l1 * lit.plane_scale < 1e30 && e_l1 * lit.plane_scale > 1e-20;
         uint32_t missed = 0, inside = 0;
         for (uint32_t t = 0; t < lit.count; t += simd::width) {  // the last group padded (light_triangles)
             simd::Floats lo = simd::splat(INFINITY), hi = simd::splat(-INFINITY);
@@ -496,6 +527,15 @@ inline void lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64
             simd::Mask mixed = (lo < zero) & (hi > zero);
             missed |= simd::bits(settled & mixed) << t;
             inside |= simd::bits(simd::and_not(settled, mixed)) << t;
+            if (!planes) continue;
+            // The segment crosses the plane at a fraction dp / (dp - dq) of the way from p (dp = dq - N . e,
+            // p's side); it can block only from f on, where mix = (1 - f) dp + f dq = dq - (1 - f) N . e is
+            // zero or of dp's sign. A mix settled with dq's sign, dq's sign settled too, rules it out.
+            const simd::Floats dq = simd::load(lit.dq + t), qb = simd::load(lit.qbound + t);
+            const simd::Floats mix = dq - omf * (v0 * simd::load(lit.nx + t) + v1 * simd::load(lit.ny + t) + v2 * simd::load(lit.nz + t));
+            const simd::Floats mb = qb + vl * simd::load(lit.pbound + t);
+            const simd::Mask above = (dq > qb) & (mix > mb), below = (-dq > qb) & (-mix > mb);
+            missed |= (simd::bits(above) | simd::bits(below)) << t;
         }
         may_meet[i] = all & ~missed, through[i] = inside & all & ~missed;  // not the padding
     }
