@@ -3,7 +3,8 @@
 // segment to the light. Prints build time, queries per second on 1 and 2 threads, traversal counts, memory,
 // and how often the two disagree (Embree is not exact: grazing contacts, and its near bound differs from
 // our self-shadowing policy). Times are medians of --runs rounds; each round builds our trees, then runs our
-// passes and Embree's one after the other, so noise hits both alike. Asserts nothing.
+// passes and Embree's one after the other, so noise hits both alike. Both sides' passes run on the same two
+// worker threads, kept for the whole run, with the same chunking. Asserts nothing.
 //
 //   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--runs 3] [--only NAME] [--one-sided 1] [--level L]
 //                [--frames N]
