@@ -695,23 +695,13 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
     EXPECT_GT(blocked, tests / 20);
 }
 
-TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
-    // The cluster test decides a segment end's side of a triangle's plane in double whenever the value clears
-    // its error bound (plane_side for points, dq and bq for the light): the bound must hold the exact
-    // orient3d, checked here with exact expansions, for points on, near and off the planes, at large offsets.
-    std::mt19937 rng(11);
+// Groups of triangles of bumpy grids at offsets up to 3e7, lit from random lights, and per triangle 4
+// points: on its plane (to rounding), barely off it, and off it (error bounds are needed most near zero).
+// visit(lit, t, corner, light, points) for each triangle t of each group.
+template <class Visit>
+void for_each_lit_plane_sample(uint32_t seed, Visit visit) {
+    std::mt19937 rng(seed);
     std::uniform_real_distribution<double> u(0, 1);
-    size_t checked = 0, outside = 0, inexact = 0;
-    auto within = [&](const double* a, const double* b, const double* c, const double* x, double value, double bound) {
-        cb::exact::Expansion low = cb::exact::orient3d_exact(a, b, c, x), high = low;
-        cb::exact::grow(low, -value), cb::exact::grow(low, bound);    // exact - value + bound >= 0
-        cb::exact::grow(high, -value), cb::exact::grow(high, -bound); // exact - value - bound <= 0
-        cb::exact::Expansion error = cb::exact::orient3d_exact(a, b, c, x);
-        cb::exact::grow(error, -value);
-        inexact += cb::exact::sign(error) != 0;
-        ++checked;
-        outside += cb::exact::sign(low) < 0 || cb::exact::sign(high) > 0;
-    };
     for (double offset : {0.0, 1e3, 1e6, 3e7}) {
         Baked b = bumpy_grid(offset, 0.7, 1.3, 0.4, 1.9);
         const cb::AssetView& v = b.view;
@@ -725,26 +715,47 @@ TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
             const uint32_t count = std::min<uint32_t>(cb::shadow_detail::lit_capacity, c.triangle_count);
             cb::shadow_detail::light_triangles(v, m, c, 0, count, light, false, lit);
             for (uint32_t t = 0; t < count; ++t) {
-                double corner[3][3];
+                double corner[3][3], e1[3], e2[3], n[3], points[4][3];
                 for (int k = 0; k < 3; ++k)
                     for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
-                cb::shadow_detail::TriangleTerms terms;
-                cb::shadow_detail::plane_terms(lit, t, light, terms);
-                within(corner[0], corner[1], corner[2], light, terms.dq, terms.bq);
+                for (int j = 0; j < 3; ++j) e1[j] = corner[1][j] - corner[0][j], e2[j] = corner[2][j] - corner[0][j];
+                cb::shadow_detail::cross3(e1, e2, n);
                 for (int k = 0; k < 4; ++k) {
-                    // On the plane (to rounding), barely off it, and off it: the bound is needed most near zero.
                     const double s = u(rng), w = u(rng) * (1 - s), lift[4] = {0, 1e-12, 1e-6, 0.3};
-                    double x[3], n[3], e1[3], e2[3];
-                    for (int j = 0; j < 3; ++j) e1[j] = corner[1][j] - corner[0][j], e2[j] = corner[2][j] - corner[0][j];
-                    cb::shadow_detail::cross3(e1, e2, n);
-                    for (int j = 0; j < 3; ++j) x[j] = corner[0][j] + s * e1[j] + w * e2[j] + lift[k] * n[j];
-                    double bound;
-                    const double value = cb::shadow_detail::plane_side(terms, x, bound);
-                    within(corner[0], corner[1], corner[2], x, value, bound);
+                    for (int j = 0; j < 3; ++j) points[k][j] = corner[0][j] + s * e1[j] + w * e2[j] + lift[k] * n[j];
                 }
+                visit(lit, t, corner, light, points);
             }
         }
     }
+}
+
+TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
+    // The cluster test decides a segment end's side of a triangle's plane in double whenever the value clears
+    // its error bound (plane_side for points, dq and bq for the light): the bound must hold the exact
+    // orient3d, checked here with exact expansions, for points on, near and off the planes, at large offsets.
+    size_t checked = 0, outside = 0, inexact = 0;
+    auto within = [&](const double* a, const double* b, const double* c, const double* x, double value, double bound) {
+        cb::exact::Expansion low = cb::exact::orient3d_exact(a, b, c, x), high = low;
+        cb::exact::grow(low, -value), cb::exact::grow(low, bound);    // exact - value + bound >= 0
+        cb::exact::grow(high, -value), cb::exact::grow(high, -bound); // exact - value - bound <= 0
+        cb::exact::Expansion error = cb::exact::orient3d_exact(a, b, c, x);
+        cb::exact::grow(error, -value);
+        inexact += cb::exact::sign(error) != 0;
+        ++checked;
+        outside += cb::exact::sign(low) < 0 || cb::exact::sign(high) > 0;
+    };
+    for_each_lit_plane_sample(11, [&](const cb::shadow_detail::LitTriangles& lit, uint32_t t, const double (&corner)[3][3],
+                                      const double* light, const double (&points)[4][3]) {
+        cb::shadow_detail::TriangleTerms terms;
+        cb::shadow_detail::plane_terms(lit, t, light, terms);
+        within(corner[0], corner[1], corner[2], light, terms.dq, terms.bq);
+        for (const double* x : points) {
+            double bound;
+            const double value = cb::shadow_detail::plane_side(terms, x, bound);
+            within(corner[0], corner[1], corner[2], x, value, bound);
+        }
+    });
     EXPECT_EQ(outside, 0u) << "of " << checked;
     EXPECT_GT(inexact, checked / 10) << "the double values were exact too often for the bound to be tested";
 }
@@ -755,8 +766,6 @@ TEST(Shadow, LitTriangleFloatPlaneTestsStayWithinTheirBounds) {
     // orient3d(a, b, c, x)) clears qbound + |e|_1 pbound with dq's sign, and dq clears qbound: both bounds must
     // hold the exact values, checked here with exact expansions (times 8192 = 1 / f, to stay exact), for
     // points on, near and off the planes, at large offsets. The float values are computed as the lanes do.
-    std::mt19937 rng(12);
-    std::uniform_real_distribution<double> u(0, 1);
     size_t checked = 0, outside = 0, usable = 0;
     double worst = 0;  // the largest |error| / bound seen
     auto within = [&](cb::exact::Expansion exact, double value, double bound) {  // |exact - value| <= bound
@@ -772,48 +781,27 @@ TEST(Shadow, LitTriangleFloatPlaneTestsStayWithinTheirBounds) {
         worst = std::max(worst, std::fabs(e) / bound);
     };
     static_assert(cb::self_shadow_fraction == 1.0 / 8192, "the scaling below");
-    for (double offset : {0.0, 1e3, 1e6, 3e7}) {
-        Baked b = bumpy_grid(offset, 0.7, 1.3, 0.4, 1.9);
-        const cb::AssetView& v = b.view;
-        ASSERT_GT(v.mesh_count, 0u);
-        const cb::MeshRecord& m = v.meshes[0];
-        for (int trial = 0; trial < 300; ++trial) {
-            const uint32_t f = uint32_t(rng() % m.fine_count);
-            const cb::FineCluster& c = v.fine[m.first_fine + f];
-            const double light[3] = {offset + 10 * u(rng) - 3, offset + 10 * u(rng) - 3, offset + (trial % 2 ? 0.2 : 6) * u(rng)};
-            cb::shadow_detail::LitTriangles lit;
-            const uint32_t count = std::min<uint32_t>(cb::shadow_detail::lit_capacity, c.triangle_count);
-            cb::shadow_detail::light_triangles(v, m, c, 0, count, light, false, lit);
-            for (uint32_t t = 0; t < count; ++t) {
-                if (!(lit.qbound[t] < INFINITY)) continue;
-                ++usable;
-                double corner[3][3];
-                for (int k = 0; k < 3; ++k)
-                    for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
-                const cb::exact::Expansion q = cb::exact::orient3d_exact(corner[0], corner[1], corner[2], light);
-                within(q, lit.dq[t], lit.qbound[t]);
-                for (int k = 0; k < 4; ++k) {
-                    const double s = u(rng), w = u(rng) * (1 - s), lift[4] = {0, 1e-12, 1e-6, 0.3};
-                    double x[3], n[3], e1[3], e2[3];
-                    for (int j = 0; j < 3; ++j) e1[j] = corner[1][j] - corner[0][j], e2[j] = corner[2][j] - corner[0][j];
-                    cb::shadow_detail::cross3(e1, e2, n);
-                    for (int j = 0; j < 3; ++j) x[j] = corner[0][j] + s * e1[j] + w * e2[j] + lift[k] * n[j];
-                    const double e[3] = {x[0] - light[0], x[1] - light[1], x[2] - light[2]};
-                    const double e_l1 = std::fabs(e[0]) + std::fabs(e[1]) + std::fabs(e[2]);
-                    if (!(e_l1 * lit.plane_scale < 1e30 && e_l1 * lit.plane_scale > 1e-20)) continue;  // as the lanes skip
-                    const float v0 = float(e[0]), v1 = float(e[1]), v2 = float(e[2]), vl = float(e_l1 * 1.000001);
-                    const float mix = lit.dq[t] - float(1 - cb::self_shadow_fraction) * (v0 * lit.nx[t] + v1 * lit.ny[t] + v2 * lit.nz[t]);
-                    const float bound = lit.qbound[t] + vl * lit.pbound[t];
-                    // 8192 mix = q + 8191 orient3d(a, b, c, x) = q + 8192 p - p
-                    const cb::exact::Expansion side = cb::exact::orient3d_exact(corner[0], corner[1], corner[2], x);
-                    cb::exact::Expansion scaled = q;
-                    cb::exact::add(scaled, cb::exact::scaled_by_power_of_two(side, 8192));
-                    cb::exact::add(scaled, cb::exact::negated(side));
-                    within(scaled, 8192.0 * double(mix), 8192.0 * double(bound));
-                }
-            }
+    for_each_lit_plane_sample(12, [&](const cb::shadow_detail::LitTriangles& lit, uint32_t t, const double (&corner)[3][3],
+                                      const double* light, const double (&points)[4][3]) {
+        if (!(lit.qbound[t] < INFINITY)) return;
+        ++usable;
+        const cb::exact::Expansion q = cb::exact::orient3d_exact(corner[0], corner[1], corner[2], light);
+        within(q, lit.dq[t], lit.qbound[t]);
+        for (const double* x : points) {
+            const double e[3] = {x[0] - light[0], x[1] - light[1], x[2] - light[2]};
+            const double e_l1 = std::fabs(e[0]) + std::fabs(e[1]) + std::fabs(e[2]);
+            if (!(e_l1 * lit.plane_scale < 1e30 && e_l1 * lit.plane_scale > 1e-20)) continue;  // as the lanes skip
+            const float v0 = float(e[0]), v1 = float(e[1]), v2 = float(e[2]), vl = float(e_l1 * 1.000001);
+            const float mix = lit.dq[t] - float(1 - cb::self_shadow_fraction) * (v0 * lit.nx[t] + v1 * lit.ny[t] + v2 * lit.nz[t]);
+            const float bound = lit.qbound[t] + vl * lit.pbound[t];
+            // 8192 mix = q + 8191 orient3d(a, b, c, x) = q + 8192 p - p
+            const cb::exact::Expansion side = cb::exact::orient3d_exact(corner[0], corner[1], corner[2], x);
+            cb::exact::Expansion scaled = q;
+            cb::exact::add(scaled, cb::exact::scaled_by_power_of_two(side, 8192));
+            cb::exact::add(scaled, cb::exact::negated(side));
+            within(scaled, 8192.0 * double(mix), 8192.0 * double(bound));
         }
-    }
+    });
     std::printf("%zu values checked (%zu usable planes); largest error: %.3f of its bound\n", checked, usable, worst);
     EXPECT_EQ(outside, 0u) << "of " << checked;
     EXPECT_GT(usable, 3000u);
