@@ -594,7 +594,7 @@ inline bool lit_triangles_block(LitTriangles& lit, const double* p, const double
 
 }  // namespace shadow_detail
 
-// Triangle groups already lit, kept for later tests from the same light: a direct-mapped table, about 250 KB.
+// Triangle groups already lit, kept for later tests from the same light: a direct-mapped table, about 280 KB.
 // An entry is named by its owner (a token for one mesh, light and mode: cb::occluded_batch uses the tree),
 // its fine cluster and its first triangle. clear() before the owners' lights or meshes change.
 struct LitCache {
