@@ -1384,7 +1384,7 @@ inline size_t batch_stack_size(const ClusterShadowTree* trees, size_t tree_count
 }  // namespace cpsv_detail
 
 // Words of scratch batch_order needs for n points (batch_order_from_keys: n fewer).
-inline size_t batch_order_scratch_size(size_t n) { return 3 * n + 6144; }
+inline size_t batch_order_scratch_size(size_t n) { return 2 * n + 6144; }
 
 // keys[i - first] for the points [first, last) (xyz doubles): what batch_order sorts them by, their direction
 // from `light`, 23 bits: the cube face (3 bits), then the two face coordinates' bits interleaved (10 each), a
@@ -1419,9 +1419,10 @@ inline void batch_keys(const double* light, const double* points, size_t first, 
 // order[0, n): the indices 0..n-1 sorted by keys[0, n) (batch_keys), stably. `scratch` holds
 // batch_order_scratch_size(n) - n words.
 inline void batch_order_from_keys(const uint32_t* keys, size_t n, uint32_t* order, uint32_t* scratch) {
-    // Radix sort, 12 then 11 bits, both counts in one pass. The first pass writes key and index side by side
-    // (one stream of writes per bucket, not two); the second writes only the index.
-    uint32_t *pairs = scratch, *low = scratch + 2 * n, *high = low + 4096;
+    // Radix sort, 12 then 11 bits, both counts in one pass. The passes move indices only, the second reading
+    // each key through its index: half the bytes written of moving key and index together, and 2-4% off the
+    // horse's frames (the keys, just read by the first pass, are mostly still in cache).
+    uint32_t *moved = scratch, *low = scratch + n, *high = low + 4096;
     std::fill(low, low + 4096 + 2048, 0u);
     for (size_t i = 0; i < n; ++i) ++low[keys[i] & 4095], ++high[keys[i] >> 12 & 2047];
     auto starts = [](uint32_t* count, int buckets) {
@@ -1429,18 +1430,15 @@ inline void batch_order_from_keys(const uint32_t* keys, size_t n, uint32_t* orde
         for (int b = 0; b < buckets; ++b) sum += count[b], count[b] = sum - count[b];
     };
     starts(low, 4096), starts(high, 2048);
-    for (size_t i = 0; i < n; ++i) {
-        const uint32_t at = low[keys[i] & 4095]++;
-        pairs[2 * at] = keys[i], pairs[2 * at + 1] = uint32_t(i);
-    }
-    for (size_t i = 0; i < n; ++i) order[high[pairs[2 * i] >> 12 & 2047]++] = pairs[2 * i + 1];
+    for (size_t i = 0; i < n; ++i) moved[low[keys[i] & 4095]++] = uint32_t(i);
+    for (size_t i = 0; i < n; ++i) order[high[keys[moved[i]] >> 12 & 2047]++] = moved[i];
 }
 
 // order[0, n): the indices of the n points (xyz doubles) sorted by direction from `light`, the order
 // occluded_batch takes them in: batch_keys then batch_order_from_keys. `scratch` holds
 // batch_order_scratch_size(n) words.
 inline void batch_order(const double* light, const double* points, size_t n, uint32_t* order, uint32_t* scratch) {
-    uint32_t* keys = scratch + 2 * n + 6144;  // past what batch_order_from_keys uses
+    uint32_t* keys = scratch + n + 6144;  // past what batch_order_from_keys uses
     batch_keys(light, points, 0, n, keys);
     batch_order_from_keys(keys, n, order, scratch);
 }
