@@ -442,11 +442,16 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     // bound: never settled in float) unless 1e-18 <= max(A) <= 1e30 and |edge|_1 <= 1e20: then products and
     // results that fall to float's subnormals (each off by at most 2^-150) stay far within the bound, and
     // nothing overflows.
+    // Each corner's offset from the light, rounded from its double value (the edges' u, and the plane's below).
+    alignas(64) float ox[3][lit_capacity], oy[3][lit_capacity], oz[3][lit_capacity];
+    for (int k = 0; k < 3; ++k)
+        for (uint32_t t = 0; t < lit_capacity; ++t)
+            ox[k][t] = float(double(px[k][t]) - light[0]), oy[k][t] = float(double(py[k][t]) - light[1]), oz[k][t] = float(double(pz[k][t]) - light[2]);
     alignas(64) float widest[lit_capacity] = {};  // per triangle, its usable edges' largest max(A)
     for (int k = 0; k < 3; ++k) {
         const int j = (k + 1) % 3;
         for (uint32_t t = 0; t < lit_capacity; ++t) {
-            const float ux = float(double(px[k][t]) - light[0]), uy = float(double(py[k][t]) - light[1]), uz = float(double(pz[k][t]) - light[2]);
+            const float ux = ox[k][t], uy = oy[k][t], uz = oz[k][t];
             const float ex = px[j][t] - px[k][t], ey = py[j][t] - py[k][t], ez = pz[j][t] - pz[k][t];
             const float ax = std::fabs(uy * ez) + std::fabs(uz * ey), ay = std::fabs(uz * ex) + std::fabs(ux * ez),
                         az = std::fabs(ux * ey) + std::fabs(uy * ex);
@@ -467,7 +472,7 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     // float's subnormals. Usable as the edges are, and when qbound <= 1e30 (nothing overflows).
     alignas(64) float flat[lit_capacity] = {};  // per triangle, its plane's max(A) if usable
     for (uint32_t t = 0; t < lit_capacity; ++t) {
-        const float ux = float(double(px[0][t]) - light[0]), uy = float(double(py[0][t]) - light[1]), uz = float(double(pz[0][t]) - light[2]);
+        const float ux = ox[0][t], uy = oy[0][t], uz = oz[0][t];
         const float bx = px[1][t] - px[0][t], by = py[1][t] - py[0][t], bz = pz[1][t] - pz[0][t];
         const float cx = px[2][t] - px[0][t], cy = py[2][t] - py[0][t], cz = pz[2][t] - pz[0][t];
         const float ax = std::fabs(by * cz) + std::fabs(bz * cy), ay = std::fabs(bz * cx) + std::fabs(bx * cz),
