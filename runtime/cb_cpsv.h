@@ -654,7 +654,7 @@ private:
             if (!simd::group(subset, i)) continue;
             const simd::Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i), slack = simd::load(t.slack + i);
             simd::Floats margin = simd::load(t.fd + i) - near;  // >= 0: inside everything checked (a float difference has the exact sign)
-            for (int k = 0; k < planes; ++k) margin = simd::min(margin, simd::dot(ex, ey, ez, n[k][0], n[k][1], n[k][2]) + slack);
+            for (int k = 0; k < planes; ++k) margin = simd::min(margin, simd::dot_plus(ex, ey, ez, n[k][0], n[k][1], n[k][2], slack));
             in |= uint64_t(simd::bits(margin >= zero)) << i;
         }
         return in & subset;
@@ -727,7 +727,7 @@ private:
             const Floats td = vtol * d;
             for (int k = 0; k < 3; ++k) {
                 const int j = (k + 1) % 3, n = (k + 2) % 3;
-                const Floats support = simd::splat(hf[j]) * a[n] + simd::splat(hf[n]) * a[j] + td;
+                const Floats support = simd::fma(simd::splat(hf[j]), a[n], simd::fma(simd::splat(hf[n]), a[j], td));
                 m = simd::min(m, support - simd::abs(simd::dot(ex, ey, ez, w[k][0], w[k][1], w[k][2])));
             }
             keep |= uint64_t(simd::bits(m >= zero)) << i;
@@ -971,11 +971,11 @@ private:
         for (uint32_t i = begin; i < end; i += simd::width) {
             if (!simd::group(subset, i)) continue;
             const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i), d = simd::load(t.fd + i);
-            const Floats a = y * ez - z * ey, b = z * ex - x * ez, c = x * ey - y * ex;
-            const Floats along = x * ex + y * ey + z * ez, cross2 = a * a + b * b + c * c;
-            Floats m = r2 * d * d - cross2;
-            m = simd::min(m, along + r * d);
-            m = simd::min(m, (d + r) * d - along);
+            const Floats a = simd::fms(y, ez, z * ey), b = simd::fms(z, ex, x * ez), c = simd::fms(x, ey, y * ex);
+            const Floats along = simd::dot(ex, ey, ez, x, y, z), cross2 = simd::dot(a, b, c, a, b, c);
+            Floats m = simd::fms(r2 * d, d, cross2);
+            m = simd::min(m, simd::fma(r, d, along));
+            m = simd::min(m, simd::fms(d + r, d, along));
             keep |= uint64_t(simd::bits(m >= zero)) << i;
         }
         return keep & subset;
@@ -1043,8 +1043,8 @@ private:
             uint64_t keep = 0;  // bit j: sphere first + j may meet the pyramid
             for (uint32_t j = 0; j < n; j += simd::width) {  // the arrays are padded past each level's last group
                 const simd::Floats cx = simd::loadu(x + j), cy = simd::loadu(y + j), cz = simd::loadu(z + j), r = simd::loadu(rr + j);
-                simd::Mask k = simd::dot(cx, cy, cz, nx[4], ny[4], nz[4]) + r >= simd::splat(side[4]);
-                for (int q = 0; q < 4; ++q) k = k & (simd::dot(cx, cy, cz, nx[q], ny[q], nz[q]) + r >= simd::splat(side[q]));
+                simd::Mask k = simd::dot_plus(cx, cy, cz, nx[4], ny[4], nz[4], r) >= simd::splat(side[4]);
+                for (int q = 0; q < 4; ++q) k = k & (simd::dot_plus(cx, cy, cz, nx[q], ny[q], nz[q], r) >= simd::splat(side[q]));
                 keep |= uint64_t(simd::bits(k)) << j;
             }
             if (n < 64) keep &= (uint64_t(1) << n) - 1;

@@ -509,7 +509,7 @@ inline double plane_side(const TriangleTerms& terms, const double* x, double& bo
 inline void lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64_t which, const double* light, uint32_t* may_meet,
                            uint32_t* through) {
     const uint32_t all = (1u << lit.count) - 1;  // (lit_capacity < 32)
-    const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f), omf = simd::splat(float(1 - self_shadow_fraction));
+    const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f), minus_omf = simd::splat(-float(1 - self_shadow_fraction));
     static_assert(float(1 - self_shadow_fraction) == 1 - self_shadow_fraction, "1 - f exact in float");
     for (; which; which &= which - 1) {
         const uint32_t i = lowest_bit(which);
@@ -525,8 +525,8 @@ inline void lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64
             simd::Floats lo = simd::splat(INFINITY), hi = simd::splat(-INFINITY);
             simd::Mask settled = simd::all_lanes();
             for (int k = 0; k < 3; ++k) {
-                simd::Floats o = v0 * simd::load(lit.fx[k] + t) + v1 * simd::load(lit.fy[k] + t) + v2 * simd::load(lit.fz[k] + t);
-                settled = settled & (simd::abs(o) > vl * simd::load(lit.fbound[k] + t) + tiny);
+                simd::Floats o = simd::dot(v0, v1, v2, simd::load(lit.fx[k] + t), simd::load(lit.fy[k] + t), simd::load(lit.fz[k] + t));
+                settled = settled & (simd::abs(o) > simd::fma(vl, simd::load(lit.fbound[k] + t), tiny));
                 lo = simd::min(lo, o), hi = simd::max(hi, o);
             }
             simd::Mask mixed = (lo < zero) & (hi > zero);
@@ -537,8 +537,8 @@ inline void lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64
             // p's side); it can block only from f on, where mix = (1 - f) dp + f dq = dq - (1 - f) N . e is
             // zero or of dp's sign. A mix settled with dq's sign, dq's sign settled too, rules it out.
             const simd::Floats dq = simd::load(lit.dq + t), qb = simd::load(lit.qbound + t);
-            const simd::Floats mix = dq - omf * (v0 * simd::load(lit.nx + t) + v1 * simd::load(lit.ny + t) + v2 * simd::load(lit.nz + t));
-            const simd::Floats mb = qb + vl * simd::load(lit.pbound + t);
+            const simd::Floats mix = simd::fma(minus_omf, simd::dot(v0, v1, v2, simd::load(lit.nx + t), simd::load(lit.ny + t), simd::load(lit.nz + t)), dq);
+            const simd::Floats mb = simd::fma(vl, simd::load(lit.pbound + t), qb);
             const simd::Mask above = (dq > qb) & (mix > mb), below = (-dq > qb) & (-mix > mb);
             missed |= (simd::bits(above) | simd::bits(below)) << t;
         }

@@ -1,8 +1,11 @@
 // The float lanes the runtime's filters run on: 16 with AVX-512, 8 with AVX, 4 with SSE2, and 4 portable
 // ones (CB_NO_SIMD, or a target without SSE2). Each filter is written once over cb::simd::Floats; every
-// build gives the same answers, since each lane computes the same IEEE operations in the same order. Every
-// translation unit that includes the runtime must see the same choice (compile them all with the same
-// target flags). Header-only C++17, no dependencies. MIT licensed.
+// build gives the same answers. Each lane computes the same IEEE operations in the same order, except that
+// fma(a, b, c) rounds a * b + c once where the target has fused multiply-adds (AVX-512, or FMA) and twice
+// elsewhere: the filters' error bounds hold for both (a fused result's error is at most the unfused one's
+// bound), and every answer a filter leaves open is decided exactly. Every translation unit that includes
+// the runtime must see the same choice (compile them all with the same target flags). Header-only C++17,
+// no dependencies. MIT licensed.
 #pragma once
 
 #include <cmath>
@@ -47,6 +50,8 @@ inline Floats splat(float x) { return {_mm512_set1_ps(x)}; }
 inline Floats operator+(Floats a, Floats b) { return {_mm512_add_ps(a.v, b.v)}; }
 inline Floats operator-(Floats a, Floats b) { return {_mm512_sub_ps(a.v, b.v)}; }
 inline Floats operator*(Floats a, Floats b) { return {_mm512_mul_ps(a.v, b.v)}; }
+inline Floats fma(Floats a, Floats b, Floats c) { return {_mm512_fmadd_ps(a.v, b.v, c.v)}; }
+inline Floats fms(Floats a, Floats b, Floats c) { return {_mm512_fmsub_ps(a.v, b.v, c.v)}; }
 // (The masked forms: GCC 12 warns that the plain ones read an undefined register.)
 inline Floats min(Floats a, Floats b) { return {_mm512_mask_min_ps(a.v, 0xffff, a.v, b.v)}; }
 inline Floats max(Floats a, Floats b) { return {_mm512_mask_max_ps(a.v, 0xffff, a.v, b.v)}; }
@@ -71,6 +76,13 @@ inline Floats splat(float x) { return {_mm256_set1_ps(x)}; }
 inline Floats operator+(Floats a, Floats b) { return {_mm256_add_ps(a.v, b.v)}; }
 inline Floats operator-(Floats a, Floats b) { return {_mm256_sub_ps(a.v, b.v)}; }
 inline Floats operator*(Floats a, Floats b) { return {_mm256_mul_ps(a.v, b.v)}; }
+#if defined(__FMA__)
+inline Floats fma(Floats a, Floats b, Floats c) { return {_mm256_fmadd_ps(a.v, b.v, c.v)}; }
+inline Floats fms(Floats a, Floats b, Floats c) { return {_mm256_fmsub_ps(a.v, b.v, c.v)}; }
+#else
+inline Floats fma(Floats a, Floats b, Floats c) { return a * b + c; }
+inline Floats fms(Floats a, Floats b, Floats c) { return a * b - c; }
+#endif
 inline Floats min(Floats a, Floats b) { return {_mm256_min_ps(a.v, b.v)}; }
 inline Floats max(Floats a, Floats b) { return {_mm256_max_ps(a.v, b.v)}; }
 inline Floats abs(Floats a) { return {_mm256_andnot_ps(_mm256_set1_ps(-0.0f), a.v)}; }
@@ -94,6 +106,8 @@ inline Floats splat(float x) { return {_mm_set1_ps(x)}; }
 inline Floats operator+(Floats a, Floats b) { return {_mm_add_ps(a.v, b.v)}; }
 inline Floats operator-(Floats a, Floats b) { return {_mm_sub_ps(a.v, b.v)}; }
 inline Floats operator*(Floats a, Floats b) { return {_mm_mul_ps(a.v, b.v)}; }
+inline Floats fma(Floats a, Floats b, Floats c) { return a * b + c; }  // (SSE2 has no fused form)
+inline Floats fms(Floats a, Floats b, Floats c) { return a * b - c; }
 inline Floats min(Floats a, Floats b) { return {_mm_min_ps(a.v, b.v)}; }
 inline Floats max(Floats a, Floats b) { return {_mm_max_ps(a.v, b.v)}; }
 inline Floats abs(Floats a) { return {_mm_andnot_ps(_mm_set1_ps(-0.0f), a.v)}; }
@@ -129,6 +143,8 @@ inline Floats splat(float x) { return each([&](uint32_t) { return x; }); }
 inline Floats operator+(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] + b.v[i]; }); }
 inline Floats operator-(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] - b.v[i]; }); }
 inline Floats operator*(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] * b.v[i]; }); }
+inline Floats fma(Floats a, Floats b, Floats c) { return a * b + c; }
+inline Floats fms(Floats a, Floats b, Floats c) { return a * b - c; }
 inline Floats min(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] < b.v[i] ? a.v[i] : b.v[i]; }); }
 inline Floats max(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] > b.v[i] ? a.v[i] : b.v[i]; }); }
 inline Floats abs(Floats a) { return each([&](uint32_t i) { return std::fabs(a.v[i]); }); }
@@ -147,7 +163,12 @@ inline uint32_t bits(Mask m) { return m.b; }
 #endif
 
 inline Floats operator-(Floats a) { return splat(0.0f) - a; }
-inline Floats dot(Floats x, Floats y, Floats z, float a, float b, float c) { return x * splat(a) + y * splat(b) + z * splat(c); }
+// x a + y b + z c (+ w), the products fused into the sums where the target allows (fma).
+inline Floats dot(Floats x, Floats y, Floats z, Floats a, Floats b, Floats c) { return fma(z, c, fma(y, b, x * a)); }
+inline Floats dot(Floats x, Floats y, Floats z, float a, float b, float c) { return dot(x, y, z, splat(a), splat(b), splat(c)); }
+inline Floats dot_plus(Floats x, Floats y, Floats z, float a, float b, float c, Floats w) {
+    return fma(z, splat(c), fma(y, splat(b), fma(x, splat(a), w)));
+}
 
 // The lanes, in whole groups of `width`, that nonzero mask `subset` spans: [begin, end).
 inline void lane_span(uint64_t subset, uint32_t& begin, uint32_t& end) {
