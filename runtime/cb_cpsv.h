@@ -44,6 +44,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <new>
 #include <thread>
 #include <vector>
@@ -1028,7 +1029,8 @@ private:
                 nx[r] = ny[r] = nz[r] = 0, side[r] = -INFINITY;
                 continue;
             }
-            nx[r] = float(n[0] / len), ny[r] = float(n[1] / len), nz[r] = float(n[2] / len);
+            const double inv = 1 / len;
+            nx[r] = float(n[0] * inv), ny[r] = float(n[1] * inv), nz[r] = float(n[2] * inv);
             side[r] = round_down(nx[r] * l[0] + ny[r] * l[1] + nz[r] * l[2] - slack);
         }
         const double* axis = t.frame[0];
@@ -1087,13 +1089,14 @@ private:
         });
     }
 
+    // The float nearest x on one side (x not NaN).
     static float round_down(double x) {
-        float f = float(x);
-        return double(f) > x ? std::nextafter(f, -INFINITY) : f;
+        const float f = float(x);
+        return double(f) > x ? shadow_detail::next_float(f, false) : f;
     }
     static float round_up(double x) {
-        float f = float(x);
-        return double(f) < x ? std::nextafter(f, INFINITY) : f;
+        const float f = float(x);
+        return double(f) < x ? shadow_detail::next_float(f, true) : f;
     }
 
     static uint32_t add_leaf(Nodes& nodes, const Leaf& leaf) {
