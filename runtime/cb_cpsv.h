@@ -385,6 +385,11 @@ public:
                 t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
                 t.slack[i] = 2e-6f * t.fd[i];
             }
+            for (uint64_t w = t.alive; w; w &= w - 1) {
+                const uint32_t i = shadow_detail::lowest_bit(w);
+                t.l1[i] = std::fabs(t.e[i][0]) + std::fabs(t.e[i][1]) + std::fabs(t.e[i][2]);
+                t.vl[i] = float(t.l1[i] * 1.000001);
+            }
             for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count && t.alive; ++i)
                 test_points(always_fine_[i], t.alive, t);
             for (uint32_t node : always_coarse_)
@@ -529,6 +534,8 @@ private:
         double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
         alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
         alignas(64) float slack[tile_capacity];  // the plane checks' tolerance, 2e-6 of the distance
+        alignas(64) float vl[tile_capacity];  // |e|_1 (l1) and a float just above it, for the triangle tests (TileView)
+        double l1[tile_capacity];
         double frame[3][3];        // the mean direction from the light and two axes across it (make_frame)
         double across[tile_capacity][2];  // each point's central projection in that frame
         Pyramid pyramid;          // holds the points walking now
@@ -757,7 +764,8 @@ private:
     void test_triangles(uint32_t f, uint64_t subset, Tile& t) const {
         const uint64_t todo = subset & t.alive;
         if (!todo) return;
-        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr, t.cache ? &t.cache->lit : nullptr, this);
+        const shadow_detail::TileView tile{t.ex, t.ey, t.ez, t.vl, t.l1, t.pyramid.rx, t.pyramid.ry, t.pyramid.rz};  // the pyramid holds `todo`
+        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr, t.cache ? &t.cache->lit : nullptr, this, &tile);
         t.alive &= ~hit, t.shadowed |= hit;
     }
 
