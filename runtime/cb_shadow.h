@@ -350,6 +350,7 @@ struct LitTriangles {
     uint32_t count = 0;
     const float* corner[lit_capacity][3];
     bool two_sided[lit_capacity];
+    uint32_t two_sided_bits;  // bit t: two_sided[t]
     // The edge plane normals in float, for a first line test a vector of triangles an instruction; times |e|_1,
     // fbound bounds the float dot product's distance from the exact value (infinite: never settled in float).
     alignas(64) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
@@ -435,6 +436,7 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     for (uint32_t r = 0; r < c.ref_count; ++r) list[c.vertex_count + r] = v.position(mesh, c.first_vertex - back[r]);
     // Corner k of each triangle (zero past `count`: such edges are unusable, below).
     alignas(64) float px[3][lit_capacity] = {}, py[3][lit_capacity] = {}, pz[3][lit_capacity] = {};
+    out.two_sided_bits = 0;
     for (uint32_t t = 0; t < count; ++t) {
         for (int k = 0; k < 3; ++k) {
             const float* at = list[local[t * 3 + k]];
@@ -442,6 +444,7 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
             px[k][t] = at[0], py[k][t] = at[1], pz[k][t] = at[2];
         }
         out.two_sided[t] = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t);
+        out.two_sided_bits |= uint32_t(out.two_sided[t]) << t;
     }
     // Edge k runs from corner k to corner j = k + 1; with u = corner k - light, the plane through the light and
     // the edge has normal u x (corner j - corner k), equal to u x v. In float, a vector of triangles an
@@ -517,12 +520,15 @@ inline double plane_side(const TriangleTerms& terms, const double* x, double& bo
 // interior of (every edge sign settled and alike). In float, a vector of triangles an instruction, and only
 // when nothing can overflow and e = p - light is far above float's subnormals (products that fall there are
 // covered by the 1e-30 absolute term); otherwise every triangle may meet the line, and the double loop
-// decides. One pass over all the points, apart from the double work: its loads stay in registers.
-inline void lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64_t which, const double* light, uint32_t* may_meet,
-                           uint32_t* through) {
+// decides. One pass over all the points, apart from the double work: its loads stay in registers. Returns
+// the points whose segment surely crosses a triangle that blocks (the line through its interior, the plane
+// crossed from f on, and the triangle two-sided or the light behind it): their answer is known.
+inline uint64_t lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64_t which, const double* light, uint32_t* may_meet,
+                               uint32_t* through) {
     const uint32_t all = (1u << lit.count) - 1;  // (lit_capacity < 32)
     const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f), minus_omf = simd::splat(-float(1 - self_shadow_fraction));
     static_assert(float(1 - self_shadow_fraction) == 1 - self_shadow_fraction, "1 - f exact in float");
+    uint64_t blocked = 0;
     for (; which; which &= which - 1) {
         const uint32_t i = lowest_bit(which);
         const double e0 = p[i][0] - light[0], e1 = p[i][1] - light[1], e2 = p[i][2] - light[2];
@@ -532,7 +538,7 @@ inline void lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64
         const simd::Floats v0 = simd::splat(float(e0)), v1 = simd::splat(float(e1)), v2 = simd::splat(float(e2));
         const simd::Floats vl = simd::splat(float(e_l1 * 1.000001));
         const bool planes = e_l1 * lit.plane_scale < 1e30 && e_l1 * lit.plane_scale > 1e-20;
-        uint32_t missed = 0, inside = 0;
+        uint32_t missed = 0, inside = 0, crossed = 0;
         for (uint32_t t = 0; t < lit.count; t += simd::width) {  // the last group padded (light_triangles)
             simd::Floats lo = simd::splat(INFINITY), hi = simd::splat(-INFINITY);
             simd::Mask settled = simd::all_lanes();
@@ -547,15 +553,19 @@ inline void lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64
             if (!planes) continue;
             // The segment crosses the plane at a fraction dp / (dp - dq) of the way from p (dp = dq - N . e,
             // p's side); it can block only from f on, where mix = (1 - f) dp + f dq = dq - (1 - f) N . e is
-            // zero or of dp's sign. A mix settled with dq's sign, dq's sign settled too, rules it out.
+            // zero or of dp's sign. A mix settled with dq's sign, dq's sign settled too, rules it out; settled
+            // against dq's sign, dp has that sign too ((1 - f) dp = mix - f dq): the plane is crossed from f on.
             const simd::Floats dq = simd::load(lit.dq + t), qb = simd::load(lit.qbound + t);
             const simd::Floats mix = simd::fma(minus_omf, simd::dot(v0, v1, v2, simd::load(lit.nx + t), simd::load(lit.ny + t), simd::load(lit.nz + t)), dq);
             const simd::Floats mb = simd::fma(vl, simd::load(lit.pbound + t), qb);
-            const simd::Mask above = (dq > qb) & (mix > mb), below = (-dq > qb) & (-mix > mb);
-            missed |= (simd::bits(above) | simd::bits(below)) << t;
+            const simd::Mask light_up = dq > qb, light_down = -dq > qb, mix_up = mix > mb, mix_down = -mix > mb;
+            missed |= (simd::bits(light_up & mix_up) | simd::bits(light_down & mix_down)) << t;
+            crossed |= (simd::bits(light_up & mix_down) | (simd::bits(light_down & mix_up) & (lit.two_sided_bits >> t))) << t;
         }
         may_meet[i] = all & ~missed, through[i] = inside & all & ~missed;  // not the padding
+        blocked |= uint64_t((crossed & inside & all) != 0) << i;
     }
+    return blocked;
 }
 
 // A tile of points as the clustered structure holds them (cb_cpsv.h), for tile_line_tests: for point i,
@@ -574,11 +584,13 @@ struct TileView {
 // 3.1e-7 max(A) of their exact values, f's components within 2.4e-7 max(A) of the exact normal's and
 // |e|_1 <= sqrt(3) sum of l_j, in all under 7.2e-7 max(A) sum of l_j, a third of the 2.4e-6 max(A) cleared
 // (fbound = 6e-7 max(A), light_triangles). False when some triangle is left undecided; otherwise may_meet
-// and through of the points `which`, as lit_line_tests gives them, with the plane test in float run for the
-// triangles every line goes through, a vector of points an instruction. Near the light a cluster spans a
+// and through of the points `which`, and in *blocked the points surely blocked, as lit_line_tests gives
+// them, with the plane test in float run for the triangles every line goes through, a vector of points an
+// instruction. Near the light a cluster spans a
 // wide angle and every tile's rays fall inside one of its triangles or outside all: the horse's light
 // inside its bounds lies within 0.0012 of one cluster, tested by every point.
-inline bool tile_line_tests(const LitTriangles& lit, const TileView& tile, uint64_t which, uint32_t* may_meet, uint32_t* through) {
+inline bool tile_line_tests(const LitTriangles& lit, const TileView& tile, uint64_t which, uint32_t* may_meet, uint32_t* through,
+                            uint64_t* blocked) {
     const uint32_t all = (1u << lit.count) - 1;
     uint32_t inside = 0;
     for (uint32_t t = 0; t < lit.count; t += simd::width) {
@@ -611,20 +623,25 @@ inline bool tile_line_tests(const LitTriangles& lit, const TileView& tile, uint6
     uint32_t begin, end;
     simd::lane_span(which, begin, end);
     const simd::Floats minus_omf = simd::splat(-float(1 - self_shadow_fraction));
+    uint64_t crossed = 0;
     for (uint32_t m = inside; m; m &= m - 1) {
         const uint32_t t = lowest_bit(m);
         const float dq = lit.dq[t], qb = lit.qbound[t];
         if (!(std::fabs(dq) > qb)) continue;  // the light's side unsettled (or the plane unusable)
         const simd::Floats sdq = simd::splat(dq), sqb = simd::splat(qb), spb = simd::splat(lit.pbound[t]);
-        uint64_t ruled = 0;
+        const bool blocks = dq > 0 || (lit.two_sided_bits >> t & 1);  // one-sided: only with the light behind
+        uint64_t ruled = 0, across = 0;
         for (uint32_t i = begin; i < end; i += simd::width) {
             if (!simd::group(which, i)) continue;
             const simd::Floats mix = simd::fma(minus_omf, simd::dot(simd::load(tile.ex + i), simd::load(tile.ey + i), simd::load(tile.ez + i), lit.nx[t], lit.ny[t], lit.nz[t]), sdq);
             const simd::Floats mb = simd::fma(simd::load(tile.vl + i), spb, sqb);
-            ruled |= uint64_t(simd::bits(dq > 0 ? mix > mb : -mix > mb)) << i;
+            const simd::Mask up = mix > mb, down = -mix > mb;
+            ruled |= uint64_t(simd::bits(dq > 0 ? up : down)) << i, across |= uint64_t(simd::bits(dq > 0 ? down : up)) << i;
         }
         for (uint64_t w = ruled & planes & which; w; w &= w - 1) may_meet[lowest_bit(w)] &= ~(1u << t);
+        if (blocks) crossed |= across & planes & which;
     }
+    *blocked = crossed;
     for (uint64_t w = which; w; w &= w - 1) {
         const uint32_t i = lowest_bit(w);
         through[i] = may_meet[i];
@@ -734,9 +751,11 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         // A tile's line tests at once where half its points or more reach the group: the groups it decides
         // are those near the light, which nearly every point reaches (with 8 points or more, 5-8 times as
         // many tries, the same pairs decided).
-        const bool whole = tile && bit_count(uint32_t(which)) + bit_count(uint32_t(which >> 32)) >= 32 && tile_line_tests(*lit, *tile, which, may_meet, through);
-        if (!whole) lit_line_tests(*lit, p, which, light, may_meet, through);
+        uint64_t sure = 0;  // points surely blocked: no double work
+        const bool whole = tile && bit_count(uint32_t(which)) + bit_count(uint32_t(which >> 32)) >= 32 && tile_line_tests(*lit, *tile, which, may_meet, through, &sure);
+        if (!whole) sure = lit_line_tests(*lit, p, which, light, may_meet, through);
         if (stats) stats->triangles_tested += uint64_t(lit->count) * (bit_count(uint32_t(which)) + bit_count(uint32_t(which >> 32)));
+        blocked |= sure, which &= ~sure;
         for (uint64_t w = which; w; w &= w - 1) {
             const uint32_t i = lowest_bit(w);
             if (may_meet[i] && lit_triangles_block(*lit, p[i], light, may_meet[i], through[i], touched))

@@ -672,7 +672,7 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
 TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
     std::mt19937 rng(17);
     std::uniform_real_distribution<double> u(0, 1);
-    size_t tiles = 0, decided = 0, pairs_left_out = 0, wrong = 0, answers = 0, blocked = 0;
+    size_t tiles = 0, decided = 0, pairs_left_out = 0, surely_blocked = 0, wrong = 0, answers = 0, blocked = 0;
     for (double offset : {0.0, 1e6, 3e7}) {
         Baked b = bumpy_grid(offset, 1, 1, 0.3, 1.7);
         const cb::AssetView& v = b.view;
@@ -736,10 +736,12 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
                     cb::shadow_detail::LitTriangles lit;
                     cb::shadow_detail::light_triangles(v, m, c, first, count, light, one_sided, lit);
                     uint32_t may_meet[64], through[64];
+                    uint64_t sure = 0;
                     ++tiles;
-                    if (!cb::shadow_detail::tile_line_tests(lit, tile, which, may_meet, through)) continue;
+                    if (!cb::shadow_detail::tile_line_tests(lit, tile, which, may_meet, through, &sure)) continue;
                     ++decided;
-                    for (int i = 0; i < 64; ++i)
+                    for (int i = 0; i < 64; ++i) {
+                        bool blocks = false;  // exactly, by a triangle of this group
                         for (uint32_t k = 0; k < count; ++k) {
                             double q[3][3];
                             uint32_t corner[3];
@@ -755,7 +757,11 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
                                           o2 = cb::exact::orient3d(p[i], light, q[2], q[0]);
                                 wrong += !(o0 != 0 && o0 == o1 && o1 == o2);
                             }
+                            blocks = blocks || cb::segment_triangle(p[i], light, q[0], q[1], q[2], lit.two_sided[k]).blocks;
                         }
+                        surely_blocked += sure >> i & 1;
+                        wrong += (sure >> i & 1) && !blocks;  // said blocked for sure, and is not
+                    }
                 }
                 // Whole answers, with and without the tile, against the exact test of every triangle.
                 const uint64_t with = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr, nullptr, nullptr, nullptr, &tile);
@@ -776,10 +782,11 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
             }
         }
     }
-    std::printf("%zu groups, %zu decided for the whole tile (%zu point and triangle pairs left out), %zu answers (%zu blocked)\n", tiles, decided,
-                pairs_left_out, answers, blocked);
+    std::printf("%zu groups, %zu decided for the whole tile (%zu point and triangle pairs left out, %zu points surely blocked), %zu answers (%zu blocked)\n",
+                tiles, decided, pairs_left_out, surely_blocked, answers, blocked);
     EXPECT_EQ(wrong, 0u);
     EXPECT_GT(decided, tiles / 10);
+    EXPECT_GT(surely_blocked, 0u);
     EXPECT_GT(blocked, answers / 50);
     EXPECT_LT(blocked, answers - answers / 50);
 }
