@@ -385,10 +385,12 @@ public:
                 t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
                 t.slack[i] = 2e-6f * t.fd[i];
             }
+            t.l1_lo = INFINITY, t.l1_hi = 0;
             for (uint64_t w = t.alive; w; w &= w - 1) {
                 const uint32_t i = shadow_detail::lowest_bit(w);
                 t.l1[i] = std::fabs(t.e[i][0]) + std::fabs(t.e[i][1]) + std::fabs(t.e[i][2]);
                 t.vl[i] = float(t.l1[i] * 1.000001);
+                t.l1_lo = std::min(t.l1_lo, t.l1[i]), t.l1_hi = std::max(t.l1_hi, t.l1[i]);
             }
             for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count && t.alive; ++i)
                 test_points(always_fine_[i], t.alive, t);
@@ -535,7 +537,7 @@ private:
         alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
         alignas(64) float slack[tile_capacity];  // the plane checks' tolerance, 2e-6 of the distance
         alignas(64) float vl[tile_capacity];  // |e|_1 (l1) and a float just above it, for the triangle tests (TileView)
-        double l1[tile_capacity];
+        double l1[tile_capacity], l1_lo, l1_hi;
         double frame[3][3];        // the mean direction from the light and two axes across it (make_frame)
         double across[tile_capacity][2];  // each point's central projection in that frame
         Pyramid pyramid;          // holds the points walking now
@@ -764,7 +766,7 @@ private:
     void test_triangles(uint32_t f, uint64_t subset, Tile& t) const {
         const uint64_t todo = subset & t.alive;
         if (!todo) return;
-        const shadow_detail::TileView tile{t.ex, t.ey, t.ez, t.vl, t.l1, t.pyramid.rx, t.pyramid.ry, t.pyramid.rz};  // the pyramid holds `todo`
+        const shadow_detail::TileView tile{t.ex, t.ey, t.ez, t.vl, t.l1, t.l1_lo, t.l1_hi, t.pyramid.rx, t.pyramid.ry, t.pyramid.rz};  // the pyramid holds `todo`
         uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr, t.cache ? &t.cache->lit : nullptr, this, &tile);
         t.alive &= ~hit, t.shadowed |= hit;
     }

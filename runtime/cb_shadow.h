@@ -522,19 +522,23 @@ inline double plane_side(const TriangleTerms& terms, const double* x, double& bo
 // covered by the 1e-30 absolute term); otherwise every triangle may meet the line, and the double loop
 // decides. One pass over all the points, apart from the double work: its loads stay in registers. Returns
 // the points whose segment surely crosses a triangle that blocks (the line through its interior, the plane
-// crossed from f on, and the triangle two-sided or the light behind it): their answer is known.
+// crossed from f on, and the triangle two-sided or the light behind it): their answer is known. The others
+// with some triangle left in may_meet go in *candidates.
 inline uint64_t lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64_t which, const double* light, uint32_t* may_meet,
-                               uint32_t* through) {
+                               uint32_t* through, uint64_t* candidates) {
     const uint32_t all = (1u << lit.count) - 1;  // (lit_capacity < 32)
     const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f), minus_omf = simd::splat(-float(1 - self_shadow_fraction));
     static_assert(float(1 - self_shadow_fraction) == 1 - self_shadow_fraction, "1 - f exact in float");
-    uint64_t blocked = 0;
+    uint64_t blocked = 0, left = 0;
     for (; which; which &= which - 1) {
         const uint32_t i = lowest_bit(which);
         const double e0 = p[i][0] - light[0], e1 = p[i][1] - light[1], e2 = p[i][2] - light[2];
         const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2);
         may_meet[i] = all, through[i] = 0;
-        if (!(e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20 && e_l1 > 1e-30)) continue;
+        if (!(e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20 && e_l1 > 1e-30)) {
+            left |= uint64_t(1) << i;
+            continue;
+        }
         const simd::Floats v0 = simd::splat(float(e0)), v1 = simd::splat(float(e1)), v2 = simd::splat(float(e2));
         const simd::Floats vl = simd::splat(float(e_l1 * 1.000001));
         const bool planes = e_l1 * lit.plane_scale < 1e30 && e_l1 * lit.plane_scale > 1e-20;
@@ -563,8 +567,10 @@ inline uint64_t lit_line_tests(const LitTriangles& lit, const double (*p)[3], ui
             crossed |= (simd::bits(light_up & mix_down) | (simd::bits(light_down & mix_up) & (lit.two_sided_bits >> t))) << t;
         }
         may_meet[i] = all & ~missed, through[i] = inside & all & ~missed;  // not the padding
-        blocked |= uint64_t((crossed & inside & all) != 0) << i;
+        const bool sure = (crossed & inside & all) != 0;
+        blocked |= uint64_t(sure) << i, left |= uint64_t(!sure && may_meet[i] != 0) << i;
     }
+    *candidates = left;
     return blocked;
 }
 
@@ -574,6 +580,7 @@ inline uint64_t lit_line_tests(const LitTriangles& lit, const double (*p)[3], ui
 struct TileView {
     const float *ex, *ey, *ez, *vl;
     const double* l1;
+    double l1_lo, l1_hi;  // the smallest and largest l1 of the tile's points
     const float *rx, *ry, *rz;
 };
 
@@ -583,14 +590,14 @@ struct TileView {
 // float dot product that sign, and the exact orientation too: the rays' float dot products are within
 // 3.1e-7 max(A) of their exact values, f's components within 2.4e-7 max(A) of the exact normal's and
 // |e|_1 <= sqrt(3) sum of l_j, in all under 7.2e-7 max(A) sum of l_j, a third of the 2.4e-6 max(A) cleared
-// (fbound = 6e-7 max(A), light_triangles). False when some triangle is left undecided; otherwise may_meet
-// and through of the points `which`, and in *blocked the points surely blocked, as lit_line_tests gives
-// them, with the plane test in float run for the triangles every line goes through, a vector of points an
-// instruction. Near the light a cluster spans a
+// (fbound = 6e-7 max(A), light_triangles). False when some triangle is left undecided; otherwise, as
+// lit_line_tests gives them, the points surely blocked (*blocked) and those left to test (*candidates, with
+// their may_meet and through), the plane test in float run for the triangles every line goes through, a
+// vector of points an instruction. Near the light a cluster spans a
 // wide angle and every tile's rays fall inside one of its triangles or outside all: the horse's light
 // inside its bounds lies within 0.0012 of one cluster, tested by every point.
 inline bool tile_line_tests(const LitTriangles& lit, const TileView& tile, uint64_t which, uint32_t* may_meet, uint32_t* through,
-                            uint64_t* blocked) {
+                            uint64_t* blocked, uint64_t* candidates) {
     const uint32_t all = (1u << lit.count) - 1;
     uint32_t inside = 0;
     for (uint32_t t = 0; t < lit.count; t += simd::width) {
@@ -610,41 +617,49 @@ inline bool tile_line_tests(const LitTriangles& lit, const TileView& tile, uint6
         inside |= (positive | negative) << t;
     }
     inside &= all;
-    for (uint64_t w = which; w; w &= w - 1) may_meet[lowest_bit(w)] = inside;
-    // The plane test (lit_line_tests') for the triangles every line goes through, where the point's |e|_1
-    // keeps the float products in range.
+    // The plane test (lit_line_tests') for the triangles every line goes through, where the points' |e|_1
+    // keeps the float products in range (all of them, when the tile's extremes do).
     uint64_t planes = 0;
-    for (uint64_t w = which; w; w &= w - 1) {
-        const uint32_t i = lowest_bit(w);
-        const double l1 = tile.l1[i];
-        const bool ok = l1 > 1e-30 && l1 * lit.plane_scale < 1e30 && l1 * lit.plane_scale > 1e-20;
-        planes |= uint64_t(ok) << i;
+    const double scale = lit.plane_scale;
+    if (tile.l1_lo > 1e-30 && tile.l1_lo * scale > 1e-20 && tile.l1_hi * scale < 1e30) {
+        planes = which;
+    } else {
+        for (uint64_t w = which; w; w &= w - 1) {
+            const uint32_t i = lowest_bit(w);
+            const double l1 = tile.l1[i];
+            planes |= uint64_t(l1 > 1e-30 && l1 * scale < 1e30 && l1 * scale > 1e-20) << i;
+        }
     }
     uint32_t begin, end;
     simd::lane_span(which, begin, end);
     const simd::Floats minus_omf = simd::splat(-float(1 - self_shadow_fraction));
-    uint64_t crossed = 0;
+    uint64_t crossed = 0, left = 0, kept[lit_capacity];  // kept[t]: the points whose segment may still meet triangle t
     for (uint32_t m = inside; m; m &= m - 1) {
         const uint32_t t = lowest_bit(m);
         const float dq = lit.dq[t], qb = lit.qbound[t];
-        if (!(std::fabs(dq) > qb)) continue;  // the light's side unsettled (or the plane unusable)
-        const simd::Floats sdq = simd::splat(dq), sqb = simd::splat(qb), spb = simd::splat(lit.pbound[t]);
-        const bool blocks = dq > 0 || (lit.two_sided_bits >> t & 1);  // one-sided: only with the light behind
-        uint64_t ruled = 0, across = 0;
-        for (uint32_t i = begin; i < end; i += simd::width) {
-            if (!simd::group(which, i)) continue;
-            const simd::Floats mix = simd::fma(minus_omf, simd::dot(simd::load(tile.ex + i), simd::load(tile.ey + i), simd::load(tile.ez + i), lit.nx[t], lit.ny[t], lit.nz[t]), sdq);
-            const simd::Floats mb = simd::fma(simd::load(tile.vl + i), spb, sqb);
-            const simd::Mask up = mix > mb, down = -mix > mb;
-            ruled |= uint64_t(simd::bits(dq > 0 ? up : down)) << i, across |= uint64_t(simd::bits(dq > 0 ? down : up)) << i;
+        kept[t] = which;
+        if (std::fabs(dq) > qb) {  // the light's side settled (and the plane usable)
+            const simd::Floats sdq = simd::splat(dq), sqb = simd::splat(qb), spb = simd::splat(lit.pbound[t]);
+            const bool blocks = dq > 0 || (lit.two_sided_bits >> t & 1);  // one-sided: only with the light behind
+            uint64_t ruled = 0, across = 0;
+            for (uint32_t i = begin; i < end; i += simd::width) {
+                if (!simd::group(which, i)) continue;
+                const simd::Floats mix = simd::fma(minus_omf, simd::dot(simd::load(tile.ex + i), simd::load(tile.ey + i), simd::load(tile.ez + i), lit.nx[t], lit.ny[t], lit.nz[t]), sdq);
+                const simd::Floats mb = simd::fma(simd::load(tile.vl + i), spb, sqb);
+                const simd::Mask up = mix > mb, down = -mix > mb;
+                ruled |= uint64_t(simd::bits(dq > 0 ? up : down)) << i, across |= uint64_t(simd::bits(dq > 0 ? down : up)) << i;
+            }
+            kept[t] &= ~(ruled & planes);
+            if (blocks) crossed |= across & planes & which;
         }
-        for (uint64_t w = ruled & planes & which; w; w &= w - 1) may_meet[lowest_bit(w)] &= ~(1u << t);
-        if (blocks) crossed |= across & planes & which;
+        left |= kept[t];
     }
-    *blocked = crossed;
-    for (uint64_t w = which; w; w &= w - 1) {
+    *blocked = crossed, *candidates = left & ~crossed;
+    for (uint64_t w = *candidates; w; w &= w - 1) {
         const uint32_t i = lowest_bit(w);
-        through[i] = may_meet[i];
+        uint32_t meet = 0;
+        for (uint32_t m = inside; m; m &= m - 1) meet |= uint32_t(kept[lowest_bit(m)] >> i & 1) << lowest_bit(m);
+        may_meet[i] = through[i] = meet;
     }
     return true;
 }
@@ -751,14 +766,15 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         // A tile's line tests at once where half its points or more reach the group: the groups it decides
         // are those near the light, which nearly every point reaches (with 8 points or more, 5-8 times as
         // many tries, the same pairs decided).
-        uint64_t sure = 0;  // points surely blocked: no double work
-        const bool whole = tile && bit_count(uint32_t(which)) + bit_count(uint32_t(which >> 32)) >= 32 && tile_line_tests(*lit, *tile, which, may_meet, through, &sure);
-        if (!whole) sure = lit_line_tests(*lit, p, which, light, may_meet, through);
+        uint64_t sure = 0, left = 0;  // points surely blocked (no double work), points with triangles left
+        const bool whole = tile && bit_count(uint32_t(which)) + bit_count(uint32_t(which >> 32)) >= 32 &&
+                           tile_line_tests(*lit, *tile, which, may_meet, through, &sure, &left);
+        if (!whole) sure = lit_line_tests(*lit, p, which, light, may_meet, through, &left);
         if (stats) stats->triangles_tested += uint64_t(lit->count) * (bit_count(uint32_t(which)) + bit_count(uint32_t(which >> 32)));
         blocked |= sure, which &= ~sure;
-        for (uint64_t w = which; w; w &= w - 1) {
+        for (uint64_t w = left; w; w &= w - 1) {
             const uint32_t i = lowest_bit(w);
-            if (may_meet[i] && lit_triangles_block(*lit, p[i], light, may_meet[i], through[i], touched))
+            if (lit_triangles_block(*lit, p[i], light, may_meet[i], through[i], touched))
                 blocked |= uint64_t(1) << i, which &= ~(uint64_t(1) << i);
         }
     }

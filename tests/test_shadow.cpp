@@ -728,7 +728,7 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
                 ex[i] = float(f0), ey[i] = float(f1), ez[i] = float(f2);
                 l1[i] = std::fabs(f0) + std::fabs(f1) + std::fabs(f2), vl[i] = float(l1[i] * 1.000001);
             }
-            const cb::shadow_detail::TileView tile{ex, ey, ez, vl, l1, rx, ry, rz};
+            const cb::shadow_detail::TileView tile{ex, ey, ez, vl, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64), rx, ry, rz};
             const uint64_t which = ~uint64_t(0);
             for (bool one_sided : {false, true}) {
                 for (uint32_t first = 0; first < c.triangle_count; first += cb::shadow_detail::lit_capacity) {
@@ -736,9 +736,9 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
                     cb::shadow_detail::LitTriangles lit;
                     cb::shadow_detail::light_triangles(v, m, c, first, count, light, one_sided, lit);
                     uint32_t may_meet[64], through[64];
-                    uint64_t sure = 0;
+                    uint64_t sure = 0, left = 0;
                     ++tiles;
-                    if (!cb::shadow_detail::tile_line_tests(lit, tile, which, may_meet, through, &sure)) continue;
+                    if (!cb::shadow_detail::tile_line_tests(lit, tile, which, may_meet, through, &sure, &left)) continue;
                     ++decided;
                     for (int i = 0; i < 64; ++i) {
                         bool blocks = false;  // exactly, by a triangle of this group
@@ -748,11 +748,12 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
                             v.triangle(m, f, c.first_triangle + first + k, corner);
                             for (int z = 0; z < 3; ++z)
                                 for (int j = 0; j < 3; ++j) q[z][j] = v.position(m, corner[z])[j];
-                            if (!(may_meet[i] >> k & 1)) {
+                            const bool meets = (left >> i & 1) && (may_meet[i] >> k & 1);
+                            if (!(sure >> i & 1) && !meets) {
                                 ++pairs_left_out;
                                 wrong += cb::segment_triangle(p[i], light, q[0], q[1], q[2], true).blocks;  // two-sided: the strictest
                             }
-                            if (through[i] >> k & 1) {
+                            if (meets && (through[i] >> k & 1)) {
                                 const int o0 = cb::exact::orient3d(p[i], light, q[0], q[1]), o1 = cb::exact::orient3d(p[i], light, q[1], q[2]),
                                           o2 = cb::exact::orient3d(p[i], light, q[2], q[0]);
                                 wrong += !(o0 != 0 && o0 == o1 && o1 == o2);
