@@ -593,9 +593,9 @@ struct TileView {
 // (fbound = 6e-7 max(A), light_triangles). False when some triangle is left undecided; otherwise, as
 // lit_line_tests gives them, the points surely blocked (*blocked) and those left to test (*candidates, with
 // their may_meet and through), the plane test in float run for the triangles every line goes through, a
-// vector of points an instruction. Near the light a cluster spans a
-// wide angle and every tile's rays fall inside one of its triangles or outside all: the horse's light
-// inside its bounds lies within 0.0012 of one cluster, tested by every point.
+// vector of points an instruction. Near the light a cluster spans a wide angle and most tiles' rays fall
+// inside one of its triangles or outside all (the benchmark's horse light inside its bounds lies by one
+// cluster that every point reaches).
 inline bool tile_line_tests(const LitTriangles& lit, const TileView& tile, uint64_t which, uint32_t* may_meet, uint32_t* through,
                             uint64_t* blocked, uint64_t* candidates) {
     const uint32_t all = (1u << lit.count) - 1;
