@@ -662,6 +662,30 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
     EXPECT_GT(touching, 100u);
 }
 
+namespace {
+// Triangle `triangle` of fine cluster f (mesh-local indices), its corners in double.
+void triangle_corners(const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, uint32_t triangle, double (&q)[3][3]) {
+    uint32_t corner[3];
+    v.triangle(m, f, triangle, corner);
+    for (int z = 0; z < 3; ++z)
+        for (int j = 0; j < 3; ++j) q[z][j] = v.position(m, corner[z])[j];
+}
+
+// visit(offset, v, m, f, trial) for `trials` fine clusters f drawn from rng, of a bumpy grid (bumpy_grid's
+// parameters) at each offset.
+template <class Visit>
+void for_each_grid_cluster(std::initializer_list<double> offsets, double dx, double dy, double height, double wave, int trials, std::mt19937& rng,
+                           Visit visit) {
+    for (double offset : offsets) {
+        Baked b = bumpy_grid(offset, dx, dy, height, wave);
+        const cb::AssetView& v = b.view;
+        ASSERT_GT(v.mesh_count, 0u);
+        const cb::MeshRecord& m = v.meshes[0];
+        for (int trial = 0; trial < trials; ++trial) visit(offset, v, m, uint32_t(rng() % m.fine_count), trial);
+    }
+}
+}  // namespace
+
 // tile_line_tests decides a tile's line tests from the 4 rays that hold its points' directions: every
 // triangle it leaves out of a point's may_meet must not block that point exactly, every one it says the line
 // goes through must have the three exact edge orientations of one sign, and cluster_blocks_points must give
@@ -673,116 +697,103 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
     std::mt19937 rng(17);
     std::uniform_real_distribution<double> u(0, 1);
     size_t tiles = 0, decided = 0, pairs_left_out = 0, surely_blocked = 0, wrong = 0, answers = 0, blocked = 0;
-    for (double offset : {0.0, 1e6, 3e7}) {
-        Baked b = bumpy_grid(offset, 1, 1, 0.3, 1.7);
-        const cb::AssetView& v = b.view;
-        ASSERT_GT(v.mesh_count, 0u);
-        const cb::MeshRecord& m = v.meshes[0];
-        for (int trial = 0; trial < 90; ++trial) {
-            const uint32_t f = uint32_t(rng() % m.fine_count);
-            const cb::FineCluster& c = v.fine[m.first_fine + f];
-            uint32_t id[3];
-            v.triangle(m, f, c.first_triangle + uint32_t(rng() % c.triangle_count), id);
-            double a[3], bb[3], cc[3], normal[3], light[3];
-            for (int k = 0; k < 3; ++k) a[k] = v.position(m, id[0])[k], bb[k] = v.position(m, id[1])[k], cc[k] = v.position(m, id[2])[k];
-            const double e1[3] = {bb[0] - a[0], bb[1] - a[1], bb[2] - a[2]}, e2[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]};
-            normal[0] = e1[1] * e2[2] - e1[2] * e2[1], normal[1] = e1[2] * e2[0] - e1[0] * e2[2], normal[2] = e1[0] * e2[1] - e1[1] * e2[0];
-            const double nl = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
-            const double s = u(rng), t = u(rng) * (1 - s);
-            const double lift = trial % 3 == 0 ? 0.0 : (trial % 3 == 1 ? 1e-3 : 0.3) * (u(rng) < 0.5 ? -1 : 1);  // on the plane, near it, off it
-            for (int k = 0; k < 3; ++k) light[k] = a[k] + s * e1[k] + t * e2[k] + lift * normal[k] / nl;
-            // The rays: a small square cone about a random direction, or (one trial in four) a very thin one
-            // aimed at a point of the triangle's edge a-b, so that every ray lies within rounding of that
-            // edge's plane through the light.
-            double d[3] = {u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5}, x[3], y[3];
-            const bool at_edge = trial % 4 == 3;
-            if (at_edge)
-                for (int k = 0; k < 3; ++k) d[k] = a[k] + s * e1[k] - light[k];
-            const double dl = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-            for (double& q : d) q /= dl;
-            const double pick[3] = {std::fabs(d[0]) < 0.5 ? 1.0 : 0.0, std::fabs(d[0]) < 0.5 ? 0.0 : 1.0, 0.0};
-            x[0] = d[1] * pick[2] - d[2] * pick[1], x[1] = d[2] * pick[0] - d[0] * pick[2], x[2] = d[0] * pick[1] - d[1] * pick[0];
-            const double xl = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
-            for (double& q : x) q /= xl;
-            y[0] = d[1] * x[2] - d[2] * x[1], y[1] = d[2] * x[0] - d[0] * x[2], y[2] = d[0] * x[1] - d[1] * x[0];
-            const double spread = at_edge ? 1e-9 : std::pow(10.0, -4 + 3 * u(rng));
-            alignas(64) float rx[4], ry[4], rz[4];
-            for (int j = 0; j < 4; ++j) {
-                const double sx = (j == 0 || j == 3) ? -spread : spread, sy = j < 2 ? -spread : spread;
-                double r[3], rl = 0;
-                for (int k = 0; k < 3; ++k) r[k] = d[k] + sx * x[k] + sy * y[k], rl += r[k] * r[k];
-                rl = std::sqrt(rl);
-                rx[j] = float(r[0] / rl), ry[j] = float(r[1] / rl), rz[j] = float(r[2] / rl);
-            }
-            // 64 points, each a positive mix of the float rays (each weight at least 1/100 of the largest).
-            double p[64][3];
-            alignas(64) float ex[64], ey[64], ez[64], vl[64];
-            double l1[64];
-            const double reach = std::pow(10.0, -2 + 3 * u(rng));
-            for (int i = 0; i < 64; ++i) {
-                double w[4], e[3] = {0, 0, 0};
-                for (double& q : w) q = (0.01 + u(rng)) * reach;
-                for (int j = 0; j < 4; ++j) e[0] += w[j] * rx[j], e[1] += w[j] * ry[j], e[2] += w[j] * rz[j];
-                for (int k = 0; k < 3; ++k) p[i][k] = light[k] + e[k];
-                const double f0 = p[i][0] - light[0], f1 = p[i][1] - light[1], f2 = p[i][2] - light[2];
-                ex[i] = float(f0), ey[i] = float(f1), ez[i] = float(f2);
-                l1[i] = std::fabs(f0) + std::fabs(f1) + std::fabs(f2), vl[i] = float(l1[i] * 1.000001);
-            }
-            const cb::shadow_detail::TileView tile{ex, ey, ez, vl, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64), rx, ry, rz};
-            const uint64_t which = ~uint64_t(0);
-            for (bool one_sided : {false, true}) {
-                for (uint32_t first = 0; first < c.triangle_count; first += cb::shadow_detail::lit_capacity) {
-                    const uint32_t count = std::min<uint32_t>(cb::shadow_detail::lit_capacity, c.triangle_count - first);
-                    cb::shadow_detail::LitTriangles lit;
-                    cb::shadow_detail::light_triangles(v, m, c, first, count, light, one_sided, lit);
-                    uint32_t may_meet[64], through[64];
-                    uint64_t sure = 0, left = 0;
-                    ++tiles;
-                    if (!cb::shadow_detail::tile_line_tests(lit, tile, which, may_meet, through, &sure, &left)) continue;
-                    ++decided;
-                    for (int i = 0; i < 64; ++i) {
-                        bool blocks = false;  // exactly, by a triangle of this group
-                        for (uint32_t k = 0; k < count; ++k) {
-                            double q[3][3];
-                            uint32_t corner[3];
-                            v.triangle(m, f, c.first_triangle + first + k, corner);
-                            for (int z = 0; z < 3; ++z)
-                                for (int j = 0; j < 3; ++j) q[z][j] = v.position(m, corner[z])[j];
-                            const bool meets = (left >> i & 1) && (may_meet[i] >> k & 1);
-                            if (!(sure >> i & 1) && !meets) {
-                                ++pairs_left_out;
-                                wrong += cb::segment_triangle(p[i], light, q[0], q[1], q[2], true).blocks;  // two-sided: the strictest
-                            }
-                            if (meets && (through[i] >> k & 1)) {
-                                const int o0 = cb::exact::orient3d(p[i], light, q[0], q[1]), o1 = cb::exact::orient3d(p[i], light, q[1], q[2]),
-                                          o2 = cb::exact::orient3d(p[i], light, q[2], q[0]);
-                                wrong += !(o0 != 0 && o0 == o1 && o1 == o2);
-                            }
-                            blocks = blocks || cb::segment_triangle(p[i], light, q[0], q[1], q[2], lit.two_sided[k]).blocks;
-                        }
-                        surely_blocked += sure >> i & 1;
-                        wrong += (sure >> i & 1) && !blocks;  // said blocked for sure, and is not
-                    }
-                }
-                // Whole answers, with and without the tile, against the exact test of every triangle.
-                const uint64_t with = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr, nullptr, nullptr, nullptr, &tile);
-                const uint64_t without = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr);
+    for_each_grid_cluster({0.0, 1e6, 3e7}, 1, 1, 0.3, 1.7, 90, rng, [&](double, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
+        const cb::FineCluster& c = v.fine[m.first_fine + f];
+        uint32_t id[3];
+        v.triangle(m, f, c.first_triangle + uint32_t(rng() % c.triangle_count), id);
+        double a[3], bb[3], cc[3], normal[3], light[3];
+        for (int k = 0; k < 3; ++k) a[k] = v.position(m, id[0])[k], bb[k] = v.position(m, id[1])[k], cc[k] = v.position(m, id[2])[k];
+        const double e1[3] = {bb[0] - a[0], bb[1] - a[1], bb[2] - a[2]}, e2[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]};
+        normal[0] = e1[1] * e2[2] - e1[2] * e2[1], normal[1] = e1[2] * e2[0] - e1[0] * e2[2], normal[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        const double nl = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
+        const double s = u(rng), t = u(rng) * (1 - s);
+        const double lift = trial % 3 == 0 ? 0.0 : (trial % 3 == 1 ? 1e-3 : 0.3) * (u(rng) < 0.5 ? -1 : 1);  // on the plane, near it, off it
+        for (int k = 0; k < 3; ++k) light[k] = a[k] + s * e1[k] + t * e2[k] + lift * normal[k] / nl;
+        // The rays: a small square cone about a random direction, or (one trial in four) a very thin one
+        // aimed at a point of the triangle's edge a-b, so that every ray lies within rounding of that
+        // edge's plane through the light.
+        double d[3] = {u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5}, x[3], y[3];
+        const bool at_edge = trial % 4 == 3;
+        if (at_edge)
+            for (int k = 0; k < 3; ++k) d[k] = a[k] + s * e1[k] - light[k];
+        const double dl = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        for (double& q : d) q /= dl;
+        const double pick[3] = {std::fabs(d[0]) < 0.5 ? 1.0 : 0.0, std::fabs(d[0]) < 0.5 ? 0.0 : 1.0, 0.0};
+        x[0] = d[1] * pick[2] - d[2] * pick[1], x[1] = d[2] * pick[0] - d[0] * pick[2], x[2] = d[0] * pick[1] - d[1] * pick[0];
+        const double xl = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+        for (double& q : x) q /= xl;
+        y[0] = d[1] * x[2] - d[2] * x[1], y[1] = d[2] * x[0] - d[0] * x[2], y[2] = d[0] * x[1] - d[1] * x[0];
+        const double spread = at_edge ? 1e-9 : std::pow(10.0, -4 + 3 * u(rng));
+        alignas(64) float rx[4], ry[4], rz[4];
+        for (int j = 0; j < 4; ++j) {
+            const double sx = (j == 0 || j == 3) ? -spread : spread, sy = j < 2 ? -spread : spread;
+            double r[3], rl = 0;
+            for (int k = 0; k < 3; ++k) r[k] = d[k] + sx * x[k] + sy * y[k], rl += r[k] * r[k];
+            rl = std::sqrt(rl);
+            rx[j] = float(r[0] / rl), ry[j] = float(r[1] / rl), rz[j] = float(r[2] / rl);
+        }
+        // 64 points, each a positive mix of the float rays (each weight at least 1/100 of the largest).
+        double p[64][3];
+        alignas(64) float ex[64], ey[64], ez[64], vl[64];
+        double l1[64];
+        const double reach = std::pow(10.0, -2 + 3 * u(rng));
+        for (int i = 0; i < 64; ++i) {
+            double w[4], e[3] = {0, 0, 0};
+            for (double& q : w) q = (0.01 + u(rng)) * reach;
+            for (int j = 0; j < 4; ++j) e[0] += w[j] * rx[j], e[1] += w[j] * ry[j], e[2] += w[j] * rz[j];
+            for (int k = 0; k < 3; ++k) p[i][k] = light[k] + e[k];
+            const double f0 = p[i][0] - light[0], f1 = p[i][1] - light[1], f2 = p[i][2] - light[2];
+            ex[i] = float(f0), ey[i] = float(f1), ez[i] = float(f2);
+            l1[i] = std::fabs(f0) + std::fabs(f1) + std::fabs(f2), vl[i] = float(l1[i] * 1.000001);
+        }
+        const cb::shadow_detail::TileView tile{ex, ey, ez, vl, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64), rx, ry, rz};
+        const uint64_t which = ~uint64_t(0);
+        for (bool one_sided : {false, true}) {
+            for (uint32_t first = 0; first < c.triangle_count; first += cb::shadow_detail::lit_capacity) {
+                const uint32_t count = std::min<uint32_t>(cb::shadow_detail::lit_capacity, c.triangle_count - first);
+                cb::shadow_detail::LitTriangles lit;
+                cb::shadow_detail::light_triangles(v, m, c, first, count, light, one_sided, lit);
+                uint32_t may_meet[64], through[64];
+                uint64_t sure = 0, left = 0;
+                ++tiles;
+                if (!cb::shadow_detail::tile_line_tests(lit, tile, which, may_meet, through, &sure, &left)) continue;
+                ++decided;
                 for (int i = 0; i < 64; ++i) {
-                    bool exact = false;
-                    for (uint32_t k = c.first_triangle; k < c.first_triangle + c.triangle_count && !exact; ++k) {
-                        uint32_t corner[3];
-                        v.triangle(m, f, k, corner);
+                    bool blocks = false;  // exactly, by a triangle of this group
+                    for (uint32_t k = 0; k < count; ++k) {
                         double q[3][3];
-                        for (int z = 0; z < 3; ++z)
-                            for (int j = 0; j < 3; ++j) q[z][j] = v.position(m, corner[z])[j];
-                        exact = cb::segment_triangle(p[i], light, q[0], q[1], q[2], !one_sided).blocks;
+                        triangle_corners(v, m, f, c.first_triangle + first + k, q);
+                        const bool meets = (left >> i & 1) && (may_meet[i] >> k & 1);
+                        if (!(sure >> i & 1) && !meets) {
+                            ++pairs_left_out;
+                            wrong += cb::segment_triangle(p[i], light, q[0], q[1], q[2], true).blocks;  // two-sided: the strictest
+                        }
+                        if (meets && (through[i] >> k & 1)) {
+                            const int o0 = cb::exact::orient3d(p[i], light, q[0], q[1]), o1 = cb::exact::orient3d(p[i], light, q[1], q[2]),
+                                      o2 = cb::exact::orient3d(p[i], light, q[2], q[0]);
+                            wrong += !(o0 != 0 && o0 == o1 && o1 == o2);
+                        }
+                        blocks = blocks || cb::segment_triangle(p[i], light, q[0], q[1], q[2], lit.two_sided[k]).blocks;
                     }
-                    ++answers, blocked += exact;
-                    wrong += bool(with >> i & 1) != exact || bool(without >> i & 1) != exact;
+                    surely_blocked += sure >> i & 1;
+                    wrong += (sure >> i & 1) && !blocks;  // said blocked for sure, and is not
                 }
+            }
+            // Whole answers, with and without the tile, against the exact test of every triangle.
+            const uint64_t with = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr, nullptr, nullptr, nullptr, &tile);
+            const uint64_t without = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr);
+            for (int i = 0; i < 64; ++i) {
+                bool exact = false;
+                for (uint32_t k = c.first_triangle; k < c.first_triangle + c.triangle_count && !exact; ++k) {
+                    double q[3][3];
+                    triangle_corners(v, m, f, k, q);
+                    exact = cb::segment_triangle(p[i], light, q[0], q[1], q[2], !one_sided).blocks;
+                }
+                ++answers, blocked += exact;
+                wrong += bool(with >> i & 1) != exact || bool(without >> i & 1) != exact;
             }
         }
-    }
+    });
     std::printf("%zu groups, %zu decided for the whole tile (%zu point and triangle pairs left out, %zu points surely blocked), %zu answers (%zu blocked)\n",
                 tiles, decided, pairs_left_out, surely_blocked, answers, blocked);
     EXPECT_EQ(wrong, 0u);
@@ -836,11 +847,8 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
                 bool fast = cb::cluster_blocks(v, m, f, p, light, one_sided, nullptr);
                 bool exact = false;
                 for (uint32_t tt = c.first_triangle; tt < c.first_triangle + c.triangle_count && !exact; ++tt) {
-                    uint32_t q[3];
-                    v.triangle(m, f, tt, q);
                     double x[3][3];
-                    for (int k = 0; k < 3; ++k)
-                        for (int j = 0; j < 3; ++j) x[k][j] = v.position(m, q[k])[j];
+                    triangle_corners(v, m, f, tt, x);
                     exact = cb::segment_triangle(p, light, x[0], x[1], x[2], !one_sided).blocks;
                 }
                 ++tests;
@@ -860,32 +868,25 @@ template <class Visit>
 void for_each_lit_plane_sample(uint32_t seed, Visit visit) {
     std::mt19937 rng(seed);
     std::uniform_real_distribution<double> u(0, 1);
-    for (double offset : {0.0, 1e3, 1e6, 3e7}) {
-        Baked b = bumpy_grid(offset, 0.7, 1.3, 0.4, 1.9);
-        const cb::AssetView& v = b.view;
-        ASSERT_GT(v.mesh_count, 0u);
-        const cb::MeshRecord& m = v.meshes[0];
-        for (int trial = 0; trial < 300; ++trial) {
-            const uint32_t f = uint32_t(rng() % m.fine_count);
-            const cb::FineCluster& c = v.fine[m.first_fine + f];
-            const double light[3] = {offset + 10 * u(rng) - 3, offset + 10 * u(rng) - 3, offset + (trial % 2 ? 0.2 : 6) * u(rng)};
-            cb::shadow_detail::LitTriangles lit;
-            const uint32_t count = std::min<uint32_t>(cb::shadow_detail::lit_capacity, c.triangle_count);
-            cb::shadow_detail::light_triangles(v, m, c, 0, count, light, false, lit);
-            for (uint32_t t = 0; t < count; ++t) {
-                double corner[3][3], e1[3], e2[3], n[3], points[4][3];
-                for (int k = 0; k < 3; ++k)
-                    for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
-                for (int j = 0; j < 3; ++j) e1[j] = corner[1][j] - corner[0][j], e2[j] = corner[2][j] - corner[0][j];
-                cb::shadow_detail::cross3(e1, e2, n);
-                for (int k = 0; k < 4; ++k) {
-                    const double s = u(rng), w = u(rng) * (1 - s), lift[4] = {0, 1e-12, 1e-6, 0.3};
-                    for (int j = 0; j < 3; ++j) points[k][j] = corner[0][j] + s * e1[j] + w * e2[j] + lift[k] * n[j];
-                }
-                visit(lit, t, corner, light, points);
+    for_each_grid_cluster({0.0, 1e3, 1e6, 3e7}, 0.7, 1.3, 0.4, 1.9, 300, rng, [&](double offset, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
+        const cb::FineCluster& c = v.fine[m.first_fine + f];
+        const double light[3] = {offset + 10 * u(rng) - 3, offset + 10 * u(rng) - 3, offset + (trial % 2 ? 0.2 : 6) * u(rng)};
+        cb::shadow_detail::LitTriangles lit;
+        const uint32_t count = std::min<uint32_t>(cb::shadow_detail::lit_capacity, c.triangle_count);
+        cb::shadow_detail::light_triangles(v, m, c, 0, count, light, false, lit);
+        for (uint32_t t = 0; t < count; ++t) {
+            double corner[3][3], e1[3], e2[3], n[3], points[4][3];
+            for (int k = 0; k < 3; ++k)
+                for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
+            for (int j = 0; j < 3; ++j) e1[j] = corner[1][j] - corner[0][j], e2[j] = corner[2][j] - corner[0][j];
+            cb::shadow_detail::cross3(e1, e2, n);
+            for (int k = 0; k < 4; ++k) {
+                const double s = u(rng), w = u(rng) * (1 - s), lift[4] = {0, 1e-12, 1e-6, 0.3};
+                for (int j = 0; j < 3; ++j) points[k][j] = corner[0][j] + s * e1[j] + w * e2[j] + lift[k] * n[j];
             }
+            visit(lit, t, corner, light, points);
         }
-    }
+    });
 }
 
 TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
