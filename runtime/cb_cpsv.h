@@ -766,7 +766,9 @@ private:
     void test_triangles(uint32_t f, uint64_t subset, Tile& t) const {
         const uint64_t todo = subset & t.alive;
         if (!todo) return;
-        const shadow_detail::TileView tile{t.ex, t.ey, t.ez, t.vl, t.l1, t.l1_lo, t.l1_hi, t.pyramid.rx, t.pyramid.ry, t.pyramid.rz};  // the pyramid holds `todo`
+        // The tile's pyramid holds every point of `todo`: it is narrowed only while a scan or a fine walk works
+        // for some points, and the clusters tested then are those that scan or walk found for them.
+        const shadow_detail::TileView tile{t.ex, t.ey, t.ez, t.vl, t.l1, t.l1_lo, t.l1_hi, t.pyramid.rx, t.pyramid.ry, t.pyramid.rz};
         uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr, t.cache ? &t.cache->lit : nullptr, this, &tile);
         t.alive &= ~hit, t.shadowed |= hit;
     }
