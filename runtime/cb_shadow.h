@@ -349,8 +349,7 @@ struct TriangleTerms {
 struct LitTriangles {
     uint32_t count = 0;
     const float* corner[lit_capacity][3];
-    bool two_sided[lit_capacity];
-    uint32_t two_sided_bits;  // bit t: two_sided[t]
+    uint32_t two_sided;  // bit t: triangle t blocks from both sides (always, unless one-sided and not double-sided)
     // The edge plane normals in float, for a first line test a vector of triangles an instruction; times |e|_1,
     // fbound bounds the float dot product's distance from the exact value (infinite: never settled in float).
     alignas(64) float fx[3][lit_capacity], fy[3][lit_capacity], fz[3][lit_capacity], fbound[3][lit_capacity];
@@ -436,15 +435,14 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     for (uint32_t r = 0; r < c.ref_count; ++r) list[c.vertex_count + r] = v.position(mesh, c.first_vertex - back[r]);
     // Corner k of each triangle (zero past `count`: such edges are unusable, below).
     alignas(64) float px[3][lit_capacity] = {}, py[3][lit_capacity] = {}, pz[3][lit_capacity] = {};
-    out.two_sided_bits = 0;
+    out.two_sided = 0;
     for (uint32_t t = 0; t < count; ++t) {
         for (int k = 0; k < 3; ++k) {
             const float* at = list[local[t * 3 + k]];
             out.corner[t][k] = at;
             px[k][t] = at[0], py[k][t] = at[1], pz[k][t] = at[2];
         }
-        out.two_sided[t] = !one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t);
-        out.two_sided_bits |= uint32_t(out.two_sided[t]) << t;
+        out.two_sided |= uint32_t(!one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t)) << t;
     }
     // Edge k runs from corner k to corner j = k + 1; with u = corner k - light, the plane through the light and
     // the edge has normal u x (corner j - corner k), equal to u x v. In float, a vector of triangles an
@@ -514,6 +512,18 @@ inline double plane_side(const TriangleTerms& terms, const double* x, double& bo
     return terms.plane[0] * d0 + terms.plane[1] * d1 + terms.plane[2] * d2;
 }
 
+// The float plane test (light_triangles' bounds): whether a point with |e|_1 = l1 keeps its products in
+// range, and its crossing value mix = dq - (1 - f) N . e settled above (up) or below (down) its bound
+// qbound + |e|_1 pbound, a vector an instruction (of triangles, or of points).
+inline bool plane_test_usable(double l1, double plane_scale) { return l1 > 1e-30 && l1 * plane_scale < 1e30 && l1 * plane_scale > 1e-20; }
+inline void crossing_signs(simd::Floats ex, simd::Floats ey, simd::Floats ez, simd::Floats vl, simd::Floats nx, simd::Floats ny, simd::Floats nz,
+                           simd::Floats dq, simd::Floats qbound, simd::Floats pbound, simd::Mask& up, simd::Mask& down) {
+    static_assert(float(1 - self_shadow_fraction) == 1 - self_shadow_fraction, "1 - f exact in float");
+    const simd::Floats mix = simd::fma(simd::splat(-float(1 - self_shadow_fraction)), simd::dot(ex, ey, ez, nx, ny, nz), dq);
+    const simd::Floats bound = simd::fma(vl, pbound, qbound);
+    up = mix > bound, down = -mix > bound;
+}
+
 // The first step of lit_triangles_block, for the points p[i], i in `which` (bits of a mask): in may_meet[i],
 // the triangles of `lit` whose line through p[i] and the light it cannot rule out (bit t: not every edge
 // sign settled beyond its bound, or all alike); in through[i], those the line surely passes through the
@@ -527,8 +537,7 @@ inline double plane_side(const TriangleTerms& terms, const double* x, double& bo
 inline uint64_t lit_line_tests(const LitTriangles& lit, const double (*p)[3], uint64_t which, const double* light, uint32_t* may_meet,
                                uint32_t* through, uint64_t* candidates) {
     const uint32_t all = (1u << lit.count) - 1;  // (lit_capacity < 32)
-    const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f), minus_omf = simd::splat(-float(1 - self_shadow_fraction));
-    static_assert(float(1 - self_shadow_fraction) == 1 - self_shadow_fraction, "1 - f exact in float");
+    const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f);
     uint64_t blocked = 0, left = 0;
     for (; which; which &= which - 1) {
         const uint32_t i = lowest_bit(which);
@@ -541,7 +550,7 @@ inline uint64_t lit_line_tests(const LitTriangles& lit, const double (*p)[3], ui
         }
         const simd::Floats v0 = simd::splat(float(e0)), v1 = simd::splat(float(e1)), v2 = simd::splat(float(e2));
         const simd::Floats vl = simd::splat(float(e_l1 * 1.000001));
-        const bool planes = e_l1 * lit.plane_scale < 1e30 && e_l1 * lit.plane_scale > 1e-20;
+        const bool planes = plane_test_usable(e_l1, lit.plane_scale);
         uint32_t missed = 0, inside = 0, crossed = 0;
         for (uint32_t t = 0; t < lit.count; t += simd::width) {  // the last group padded (light_triangles)
             simd::Floats lo = simd::splat(INFINITY), hi = simd::splat(-INFINITY);
@@ -560,11 +569,12 @@ inline uint64_t lit_line_tests(const LitTriangles& lit, const double (*p)[3], ui
             // zero or of dp's sign. A mix settled with dq's sign, dq's sign settled too, rules it out; settled
             // against dq's sign, dp has that sign too ((1 - f) dp = mix - f dq): the plane is crossed from f on.
             const simd::Floats dq = simd::load(lit.dq + t), qb = simd::load(lit.qbound + t);
-            const simd::Floats mix = simd::fma(minus_omf, simd::dot(v0, v1, v2, simd::load(lit.nx + t), simd::load(lit.ny + t), simd::load(lit.nz + t)), dq);
-            const simd::Floats mb = simd::fma(vl, simd::load(lit.pbound + t), qb);
-            const simd::Mask light_up = dq > qb, light_down = -dq > qb, mix_up = mix > mb, mix_down = -mix > mb;
+            simd::Mask mix_up, mix_down;
+            crossing_signs(v0, v1, v2, vl, simd::load(lit.nx + t), simd::load(lit.ny + t), simd::load(lit.nz + t), dq, qb, simd::load(lit.pbound + t), mix_up,
+                           mix_down);
+            const simd::Mask light_up = dq > qb, light_down = -dq > qb;
             missed |= (simd::bits(light_up & mix_up) | simd::bits(light_down & mix_down)) << t;
-            crossed |= (simd::bits(light_up & mix_down) | (simd::bits(light_down & mix_up) & (lit.two_sided_bits >> t))) << t;
+            crossed |= (simd::bits(light_up & mix_down) | (simd::bits(light_down & mix_up) & (lit.two_sided >> t))) << t;
         }
         may_meet[i] = all & ~missed, through[i] = inside & all & ~missed;  // not the padding
         const bool sure = (crossed & inside & all) != 0;
@@ -620,33 +630,28 @@ inline bool tile_line_tests(const LitTriangles& lit, const TileView& tile, uint6
     // The plane test (lit_line_tests') for the triangles every line goes through, where the points' |e|_1
     // keeps the float products in range (all of them, when the tile's extremes do).
     uint64_t planes = 0;
-    const double scale = lit.plane_scale;
-    if (tile.l1_lo > 1e-30 && tile.l1_lo * scale > 1e-20 && tile.l1_hi * scale < 1e30) {
+    if (plane_test_usable(tile.l1_lo, lit.plane_scale) && plane_test_usable(tile.l1_hi, lit.plane_scale)) {
         planes = which;
     } else {
-        for (uint64_t w = which; w; w &= w - 1) {
-            const uint32_t i = lowest_bit(w);
-            const double l1 = tile.l1[i];
-            planes |= uint64_t(l1 > 1e-30 && l1 * scale < 1e30 && l1 * scale > 1e-20) << i;
-        }
+        for (uint64_t w = which; w; w &= w - 1) planes |= uint64_t(plane_test_usable(tile.l1[lowest_bit(w)], lit.plane_scale)) << lowest_bit(w);
     }
     uint32_t begin, end;
     simd::lane_span(which, begin, end);
-    const simd::Floats minus_omf = simd::splat(-float(1 - self_shadow_fraction));
     uint64_t crossed = 0, left = 0, kept[lit_capacity];  // kept[t]: the points whose segment may still meet triangle t
     for (uint32_t m = inside; m; m &= m - 1) {
         const uint32_t t = lowest_bit(m);
         const float dq = lit.dq[t], qb = lit.qbound[t];
         kept[t] = which;
         if (std::fabs(dq) > qb) {  // the light's side settled (and the plane usable)
+            const simd::Floats nx = simd::splat(lit.nx[t]), ny = simd::splat(lit.ny[t]), nz = simd::splat(lit.nz[t]);
             const simd::Floats sdq = simd::splat(dq), sqb = simd::splat(qb), spb = simd::splat(lit.pbound[t]);
-            const bool blocks = dq > 0 || (lit.two_sided_bits >> t & 1);  // one-sided: only with the light behind
+            const bool blocks = dq > 0 || (lit.two_sided >> t & 1);  // one-sided: only with the light behind
             uint64_t ruled = 0, across = 0;
             for (uint32_t i = begin; i < end; i += simd::width) {
                 if (!simd::group(which, i)) continue;
-                const simd::Floats mix = simd::fma(minus_omf, simd::dot(simd::load(tile.ex + i), simd::load(tile.ey + i), simd::load(tile.ez + i), lit.nx[t], lit.ny[t], lit.nz[t]), sdq);
-                const simd::Floats mb = simd::fma(simd::load(tile.vl + i), spb, sqb);
-                const simd::Mask up = mix > mb, down = -mix > mb;
+                simd::Mask up, down;
+                crossing_signs(simd::load(tile.ex + i), simd::load(tile.ey + i), simd::load(tile.ez + i), simd::load(tile.vl + i), nx, ny, nz, sdq, sqb, spb,
+                               up, down);
                 ruled |= uint64_t(simd::bits(dq > 0 ? up : down)) << i, across |= uint64_t(simd::bits(dq > 0 ? down : up)) << i;
             }
             kept[t] &= ~(ruled & planes);
@@ -697,7 +702,7 @@ inline bool lit_triangles_block(LitTriangles& lit, const double* p, const double
             const double dp = plane_side(terms, p, bp), dq = terms.dq;
             if (std::fabs(dp) > bp) {
                 decided = true;
-                if ((dq > 0) == (dp > 0) || (!lit.two_sided[t] && dq < 0)) continue;  // no crossing, or front-facing
+                if ((dq > 0) == (dp > 0) || (!(lit.two_sided >> t & 1) && dq < 0)) continue;  // no crossing, or front-facing
                 // The crossing counts when it is at t >= f (see segment_triangle).
                 double mix = (1 - self_shadow_fraction) * dp + self_shadow_fraction * dq;
                 double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * terms.bq + 4e-16 * (std::fabs(dp) + std::fabs(dq));
@@ -706,7 +711,7 @@ inline bool lit_triangles_block(LitTriangles& lit, const double* p, const double
             }
         }
         if (!decided) {
-            SegmentTest s = exact_triangle(p, light, lit.corner[t], lit.two_sided[t]);
+            SegmentTest s = exact_triangle(p, light, lit.corner[t], lit.two_sided >> t & 1);
             if (touched) *touched |= s.touching;
             blocks = s.blocks;
         }

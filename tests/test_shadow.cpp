@@ -773,7 +773,7 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
                                       o2 = cb::exact::orient3d(p[i], light, q[2], q[0]);
                             wrong += !(o0 != 0 && o0 == o1 && o1 == o2);
                         }
-                        blocks = blocks || cb::segment_triangle(p[i], light, q[0], q[1], q[2], lit.two_sided[k]).blocks;
+                        blocks = blocks || cb::segment_triangle(p[i], light, q[0], q[1], q[2], lit.two_sided >> k & 1).blocks;
                     }
                     surely_blocked += sure >> i & 1;
                     wrong += (sure >> i & 1) && !blocks;  // said blocked for sure, and is not
