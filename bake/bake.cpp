@@ -5,6 +5,7 @@
 #include <numeric>
 
 #include "parallel.h"
+#include "timing.h"
 
 namespace cb {
 
@@ -86,7 +87,7 @@ std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& o
         stats.acmr_before = acmr_before / double(stats.triangles);
         stats.acmr_after = acmr_after / double(stats.triangles);
     }
-    stats.cluster_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    stats.cluster_seconds = seconds_since(start);
     return meshes;
 }
 
@@ -127,7 +128,7 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
         stats.valid_cones += b.cone.valid;
         stats.capsules += b.has_capsule;
     }
-    stats.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    stats.fit_seconds = seconds_since(start);
 }
 
 }  // namespace cb

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "scene.h"
+#include "timing.h"
 
 namespace cb::bench {
 
@@ -88,10 +89,9 @@ double median_seconds(int runs, F&& f) {
     for (int r = 0; r < std::max(1, runs); ++r) {
         auto start = std::chrono::steady_clock::now();
         f();
-        t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        t.push_back(seconds_since(start));
     }
-    std::sort(t.begin(), t.end());
-    return t[t.size() / 2];
+    return median(t);
 }
 
 }  // namespace cb::bench

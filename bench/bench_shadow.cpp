@@ -35,14 +35,11 @@
 #include "bake.h"
 #include "bench_common.h"
 #include "load.h"
+#include "timing.h"
 
 namespace fs = std::filesystem;
 
 namespace {
-
-double seconds_of(std::chrono::steady_clock::time_point t) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
 
 // Worker threads kept for the whole run, as an engine's job system would keep them: each pass hands them a
 // job and waits. Starting threads for each pass took 0.1-0.3 ms here before the first point was answered,
@@ -136,7 +133,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
     // The scan's bounds (decoded boxes and bounding spheres): light-independent, made once, like Embree's BVH.
     auto s0 = std::chrono::steady_clock::now();
     const std::vector<cb::ScanBounds> scan_bounds = cb::make_scan_bounds(asset);
-    const double scan_bounds_time = seconds_of(s0);
+    const double scan_bounds_time = cb::seconds_since(s0);
     size_t scan_bounds_bytes = 0;
     for (const cb::ScanBounds& s : scan_bounds) scan_bounds_bytes += s.memory_bytes();
 
@@ -160,7 +157,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
     rtcAttachGeometry(scene, g);
     rtcReleaseGeometry(g);
     rtcCommitScene(scene);
-    double embree_build = seconds_of(t0);
+    double embree_build = cb::seconds_since(t0);
 
     // Camera: looking at the centre from a diagonal; the points are the first hits.
     double eye[3] = {centre[0] + 1.2 * size, centre[1] + 0.8 * size, centre[2] + 1.5 * size};
@@ -214,7 +211,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
                 trees[i].build(asset, i, light, one_sided, level, threads, &build_scratch[i], scan_bounds.data());
                 always += trees[i].always_tested();
             }
-            return seconds_of(b0);
+            return cb::seconds_since(b0);
         };
         std::vector<uint8_t> ours(n), embree1(n), embree16(n);
         cb::QueryStats stats;
@@ -263,7 +260,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
             for (auto& s2 : st)
                 stats.nodes_visited += s2.nodes_visited, stats.clusters_tested += s2.clusters_tested,
                     stats.triangles_tested += s2.triangles_tested;
-            return seconds_of(s);
+            return cb::seconds_since(s);
         };
         auto embree_pass = [&](unsigned threads, bool packets) {
             auto s = std::chrono::steady_clock::now();
@@ -299,7 +296,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
                 }
             };
             workers.run(threads, work);
-            return seconds_of(s);
+            return cb::seconds_since(s);
         };
         // build on 1 thread, ours 1 thread, build on 2, ours 2 threads, Embree occluded1 1 and 2, occluded16 1 and 2
         std::vector<double> t[8];
@@ -325,10 +322,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
             t[3].push_back(settled([&] { return embree_pass(1, false); })), t[4].push_back(settled([&] { return embree_pass(2, false); }));
             t[5].push_back(settled([&] { return embree_pass(1, true); })), t[6].push_back(settled([&] { return embree_pass(2, true); }));
         }
-        auto median = [](std::vector<double> v) {
-            std::sort(v.begin(), v.end());
-            return v[v.size() / 2];
-        };
+        using cb::median;
         double build = median(t[0]), build2 = median(t[7]), ours1 = median(t[1]), ours2 = median(t[2]), e1 = median(t[3]),
                e2 = median(t[4]), p1 = median(t[5]), p2 = median(t[6]);
         // The ratios per round, then their median: this VM's speed drifts between rounds, and both sides of a

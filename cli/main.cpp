@@ -20,6 +20,7 @@
 #include "load.h"
 #include "scene_info.h"
 #include "stats_input.h"
+#include "timing.h"
 
 namespace {
 
@@ -70,10 +71,6 @@ int run_info(const std::vector<std::string>& files, bool json) {
     return status;
 }
 
-double seconds_since(std::chrono::steady_clock::time_point t) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
 struct ClusterArgs {
     std::string file, out, method = "kmeans";
     cb::ClusterOptions options;
@@ -121,7 +118,7 @@ int run_bake(const ClusterArgs& a) {
         std::fprintf(stderr, "%s\n", e.what());
         return exit_bad_input;
     }
-    double load_s = seconds_since(t0);
+    double load_s = cb::seconds_since(t0);
 
     // Progress for long runs only, on stderr, overwritten in place.
     uint64_t total = 0;
@@ -137,7 +134,7 @@ int run_bake(const ClusterArgs& a) {
     auto t1 = std::chrono::steady_clock::now();
     std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
     cb::write_file_atomic(a.out, bytes);
-    double write_s = seconds_since(t1);
+    double write_s = cb::seconds_since(t1);
 
     double tps = stats.cluster_seconds > 0 ? double(stats.triangles) / stats.cluster_seconds : 0;
     if (a.json) {
@@ -334,7 +331,7 @@ int run_query(const QueryArgs& a) {
         nodes += trees[i].node_count();
         always += trees[i].always_tested();
     }
-    double build_seconds = seconds_since(build_start);
+    double build_seconds = cb::seconds_since(build_start);
 
     // The trees are const: threads take contiguous slices of the points' order by direction from the light
     // (the order a batch takes them in, so that each slice's tiles are as close as one batch's), each with
@@ -369,7 +366,7 @@ int run_query(const QueryArgs& a) {
         stats.nodes_visited += c.nodes_visited, stats.clusters_tested += c.clusters_tested;
         stats.triangles_tested += c.triangles_tested, stats.touching += c.touching;
     }
-    double seconds = seconds_since(start);
+    double seconds = cb::seconds_since(start);
     std::string answers;
     answers.reserve(n * 2);
     size_t shadowed = 0;

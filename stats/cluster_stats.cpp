@@ -12,6 +12,7 @@
 #include "cluster.h"
 #include "parallel.h"
 #include "random.h"
+#include "timing.h"
 
 namespace cb {
 namespace {
@@ -241,13 +242,9 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
         s.obb_volume_sum = volume, s.obb_area_sum = area;
         s.obb_volume_mean = volume / double(items.size()), s.obb_area_mean = area / double(items.size());
         s.fill = ratio(triangle_area, area), s.fill_mean = fill_sum / double(items.size());
-        auto median = [](std::vector<double> v) {
-            if (v.empty()) return double(NAN);
-            std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-            return v[v.size() / 2];
-        };
-        if (spheres) s.sphere_over_obb = ratio(sphere, volume), s.sphere_over_obb_median = median(sphere_ratio);
-        if (capsules) s.capsule_over_obb = ratio(capsule, volume), s.capsule_over_obb_median = median(capsule_ratio);
+        auto median_or_nan = [](const std::vector<double>& v) { return v.empty() ? double(NAN) : median(v); };
+        if (spheres) s.sphere_over_obb = ratio(sphere, volume), s.sphere_over_obb_median = median_or_nan(sphere_ratio);
+        if (capsules) s.capsule_over_obb = ratio(capsule, volume), s.capsule_over_obb_median = median_or_nan(capsule_ratio);
         // World space: each instance's linear part scales volumes by |det| and maps box faces to parallelograms.
         double world_volume = 0, world_area = 0;
         std::vector<std::vector<uint32_t>> items_of_mesh(contexts.size());

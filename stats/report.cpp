@@ -16,6 +16,7 @@
 #include "runtime_cost.h"
 #include "stats_input.h"
 #include "svg_plot.h"
+#include "timing.h"
 
 namespace cb {
 
@@ -62,15 +63,6 @@ std::string cpu_model() {
 }
 
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.empty() ? 0 : v[v.size() / 2];
-}
 
 double frame_of(const SceneReport&, const ConfigResult& c) { return c.frame_seconds; }
 

@@ -8,6 +8,7 @@
 #include <cstring>
 
 #include "parallel.h"
+#include "timing.h"
 
 namespace cb {
 
@@ -151,19 +152,6 @@ std::vector<double> hit_points(const std::vector<double>& hits) {
         if (!std::isnan(hits[i])) out.insert(out.end(), {hits[i], hits[i + 1], hits[i + 2]});
     return out;
 }
-
-namespace {
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.empty() ? 0 : v[v.size() / 2];
-}
-
-double seconds_since(std::chrono::steady_clock::time_point t) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
-}  // namespace
 
 RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& lights, const std::vector<double>& points,
                             int runs, bool one_sided) {
