@@ -32,6 +32,7 @@
 #include <thread>
 #include <vector>
 
+#include "asset_file.h"
 #include "bake.h"
 #include "bench_common.h"
 #include "load.h"
@@ -126,10 +127,9 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
     bo.mask = cb::bounds_auto;
     cb::fit_scene_bounds(meshes, bo, 0, bs);
     std::vector<uint8_t> bytes = cb::encode_asset(meshes, in.scene.instances);
-    std::vector<uint64_t> storage((bytes.size() + 7) / 8);
-    std::memcpy(storage.data(), bytes.data(), bytes.size());
-    cb::AssetView asset;
-    if (cb::open_asset(storage.data(), bytes.size(), &asset) != cb::AssetError::ok) return;
+    cb::LoadedAsset loaded;
+    if (cb::open_asset_copy(bytes, loaded) != cb::AssetError::ok) return;
+    const cb::AssetView& asset = loaded.view;
     // The scan's bounds (decoded boxes and bounding spheres): light-independent, made once, like Embree's BVH.
     auto s0 = std::chrono::steady_clock::now();
     const std::vector<cb::ScanBounds> scan_bounds = cb::make_scan_bounds(asset);

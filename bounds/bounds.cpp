@@ -641,6 +641,22 @@ Slab fit_slab(const float axis_f[3], const double* world, size_t n) {
 
 double obb_volume(const Obb& b) { return 8.0 * double(b.half[0]) * b.half[1] * b.half[2]; }
 
+const char* obb_method_name(ObbMethod m) {
+    switch (m) {
+        case ObbMethod::pca: return "pca";
+        case ObbMethod::pca_area: return "pca-area";
+        case ObbMethod::refined: return "refined";
+        case ObbMethod::cgal_optimal: return "cgal";
+    }
+    return "?";
+}
+
+bool parse_obb_method(const std::string& name, ObbMethod& out) {
+    for (ObbMethod m : {ObbMethod::refined, ObbMethod::pca, ObbMethod::pca_area, ObbMethod::cgal_optimal})
+        if (name == obb_method_name(m)) return out = m, true;
+    return false;
+}
+
 bool parse_bounds_mask(const std::string& text, uint32_t& mask) {
     if (text == "auto") return mask = bounds_auto, true;
     if (text == "all") return mask = bounds_all, true;

@@ -48,6 +48,11 @@ enum class ObbMethod {
     cgal_optimal  // CGAL::oriented_bounding_box (slow reference; boxes from 4 points up)
 };
 
+// The fitter's name on the command line and in reports: "refined", "pca", "pca-area", "cgal".
+const char* obb_method_name(ObbMethod m);
+// False on an unknown name.
+bool parse_obb_method(const std::string& name, ObbMethod& out);
+
 struct BoundsOptions {
     uint32_t mask = bounds_obb | bounds_sphere | bounds_capsule | bounds_cone | bounds_slab;
     ObbMethod obb = ObbMethod::refined;

@@ -10,16 +10,15 @@
 #include <iostream>
 #include <thread>
 
-#include <cb_cpsv.h>
-#include <cb_shadow.h>
-
+#include "asset_file.h"
 #include "bake.h"
+#include "baked_scene.h"
 #include "cluster_stats.h"
 #include "heatmap.h"
 #include "report.h"
 #include "load.h"
 #include "scene_info.h"
-#include "stats_input.h"
+#include "scene_query.h"
 #include "timing.h"
 
 namespace {
@@ -81,10 +80,7 @@ struct ClusterArgs {
 };
 
 bool parse_obb(const std::string& text, cb::ObbMethod& out) {
-    const std::pair<const char*, cb::ObbMethod> obb_methods[] = {{"refined", cb::ObbMethod::refined}, {"pca", cb::ObbMethod::pca},
-                                                                 {"pca-area", cb::ObbMethod::pca_area}, {"cgal", cb::ObbMethod::cgal_optimal}};
-    for (const auto& [name, m] : obb_methods)
-        if (text == name) return out = m, true;
+    if (cb::parse_obb_method(text, out)) return true;
     std::fprintf(stderr, "clusterbake: --obb takes refined, pca, pca-area or cgal (got '%s')\n", text.c_str());
     return false;
 }
@@ -197,33 +193,16 @@ int run_bake(const ClusterArgs& a) {
     return 0;
 }
 
-// An asset file read into 8-byte aligned storage (the view's instance doubles need it) and opened.
-struct LoadedAsset {
-    std::vector<uint64_t> storage;
-    size_t size = 0;
-    cb::AssetView view;
-};
-
-bool load_asset(const std::string& file, LoadedAsset& out) {
-    std::ifstream in(file, std::ios::binary);
-    if (!in) {
-        std::fprintf(stderr, "%s: cannot open\n", file.c_str());
-        return false;
-    }
-    std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    out.size = raw.size();
-    out.storage.assign((raw.size() + 7) / 8, 0);
-    std::memcpy(out.storage.data(), raw.data(), raw.size());
-    cb::AssetError e = cb::open_asset(out.storage.data(), out.size, &out.view);
-    if (e != cb::AssetError::ok) {
-        std::fprintf(stderr, "%s: %s\n", file.c_str(), cb::asset_error_text(e));
-        return false;
-    }
-    return true;
+// The asset file read and opened; otherwise its one-line error on stderr.
+bool load_asset(const std::string& file, cb::LoadedAsset& out) {
+    std::string error;
+    if (cb::read_asset_file(file, out, error)) return true;
+    std::fprintf(stderr, "%s\n", error.c_str());
+    return false;
 }
 
 int run_validate(const std::string& file) {
-    LoadedAsset asset;
+    cb::LoadedAsset asset;
     if (!load_asset(file, asset)) return exit_bad_input;
     const cb::AssetView& view = asset.view;
     std::printf("%s: valid clusterbake asset v%u, %zu bytes\n", file.c_str(), cb::asset_version, asset.size);
@@ -310,79 +289,32 @@ bool read_points(const QueryArgs& a, std::vector<double>& pts) {
 int run_query(const QueryArgs& a) {
     double light[3];
     if (!parse_light(a.light, light)) return 1;
-    LoadedAsset asset;
+    cb::LoadedAsset asset;
     if (!load_asset(a.asset, asset)) return exit_bad_input;
     std::vector<double> pts;
     if (!read_points(a, pts)) return exit_bad_input;
 
-    // One clustered shadow tree per instance for this light (unless --reference).
-    auto build_start = std::chrono::steady_clock::now();
-    std::vector<cb::ClusterShadowTree> trees(a.reference ? 0 : asset.view.instance_count);
-    size_t nodes = 0, always = 0, skipped = 0;
-    unsigned thread_count = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
-    using Level = cb::ClusterShadowTree::FineLevel;
-    Level level = a.fine == "trees" ? Level::trees : a.fine == "one-tree" ? Level::one_tree : Level::scan;
-    // The scan's bounds, once per mesh however many instances it has.
-    const std::vector<cb::ScanBounds> bounds = level == Level::scan && !trees.empty() ? cb::make_scan_bounds(asset.view)
-                                                                                       : std::vector<cb::ScanBounds>{};
-    for (uint32_t i = 0; i < trees.size(); ++i) {
-        trees[i].build(asset.view, i, light, a.one_sided, level, thread_count, nullptr, bounds.empty() ? nullptr : bounds.data());
-        skipped += trees[i].skipped_clusters();
-        nodes += trees[i].node_count();
-        always += trees[i].always_tested();
-    }
-    double build_seconds = cb::seconds_since(build_start);
-
-    // The trees are const: threads take contiguous slices of the points' order by direction from the light
-    // (the order a batch takes them in, so that each slice's tiles are as close as one batch's), each with
-    // its own scratch and counts; the reference takes slices of the points as given.
-    auto start = std::chrono::steady_clock::now();
+    cb::SceneQueryOptions options;
+    cb::parse_traversal(a.fine, options.traversal);  // CLI11 checked the name
+    options.one_sided = a.one_sided, options.threads = a.threads, options.reference = a.reference;
     size_t n = pts.size() / 3;
-    std::vector<uint8_t> shadow(n);
-    std::vector<cb::QueryStats> counts(thread_count);
-    std::vector<uint32_t> order;
-    if (!a.reference) {
-        order.resize(n);
-        std::vector<uint32_t> sort_scratch(cb::batch_order_scratch_size(n));
-        cb::batch_order(light, pts.data(), n, order.data(), sort_scratch.data());
-    }
-    auto slice = [&](unsigned t) {
-        size_t first = n * t / thread_count, last = n * (t + 1) / thread_count;
-        if (a.reference) {
-            for (size_t i = first; i < last; ++i)
-                shadow[i] = cb::occluded_reference(asset.view, &pts[i * 3], light, &counts[t], a.one_sided);
-        } else {
-            std::vector<uint32_t> own(cb::ordered_scratch_size(trees.data(), trees.size()));
-            cb::occluded_ordered(trees.data(), trees.size(), pts.data(), order.data() + first, last - first, shadow.data(), own.data(),
-                                 &counts[t]);
-        }
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < thread_count; ++t) pool.emplace_back(slice, t);
-    slice(0);
-    for (std::thread& t : pool) t.join();
-    cb::QueryStats stats;
-    for (const cb::QueryStats& c : counts) {
-        stats.nodes_visited += c.nodes_visited, stats.clusters_tested += c.clusters_tested;
-        stats.triangles_tested += c.triangles_tested, stats.touching += c.touching;
-    }
-    double seconds = cb::seconds_since(start);
+    cb::SceneQueryResult q = cb::query_scene(asset.view, light, pts.data(), n, options);
     std::string answers;
     answers.reserve(n * 2);
     size_t shadowed = 0;
-    for (uint8_t s : shadow) answers += s ? "1\n" : "0\n", shadowed += s;
+    for (uint8_t s : q.shadowed) answers += s ? "1\n" : "0\n", shadowed += s;
     std::fwrite(answers.data(), 1, answers.size(), stdout);
     if (a.stats) {
         if (!a.reference)
             std::fprintf(stderr, "build %.3f s: %zu trees, %zu nodes, %zu clusters tested for every point (light inside or level "
                          "with their box), %zu skipped (one-sided, light in their front cone)\n",
-                         build_seconds, trees.size(), nodes, always, skipped);
+                         q.build_seconds, q.trees, q.nodes, q.always_tested, q.skipped);
         std::fprintf(stderr, "%zu queries, %zu in shadow, %.3f s (%.0f queries/s); per query %.1f clusters and %.1f triangles "
                      "tested\n",
-                     n, shadowed, seconds, n / std::max(seconds, 1e-9), n ? double(stats.clusters_tested) / double(n) : 0.0,
-                     n ? double(stats.triangles_tested) / double(n) : 0.0);
+                     n, shadowed, q.query_seconds, n / std::max(q.query_seconds, 1e-9),
+                     n ? double(q.stats.clusters_tested) / double(n) : 0.0, n ? double(q.stats.triangles_tested) / double(n) : 0.0);
         if (a.reference)
-            std::fprintf(stderr, "%llu queries with a touching contact\n", (unsigned long long)stats.touching);
+            std::fprintf(stderr, "%llu queries with a touching contact\n", (unsigned long long)q.stats.touching);
     }
     return 0;
 }

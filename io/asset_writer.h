@@ -32,6 +32,13 @@ struct AssetMesh {
     uint32_t flags = 0;                 // MeshFlags
 };
 
+// A whole asset before encoding: what a bake makes (bake/), and what an opened asset decodes back to
+// (asset_decode.h).
+struct BakedScene {
+    std::vector<AssetMesh> meshes;
+    std::vector<Instance> instances;
+};
+
 // Bounds sections are written for the volumes every mesh has (each mesh one record per cluster). Throws
 // std::invalid_argument when a fine cluster has more than 255 triangles or its corners more than
 // max_cluster_vertices distinct vertices.

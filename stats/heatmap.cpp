@@ -4,10 +4,11 @@
 #include <cmath>
 #include <cstdio>
 
+#include "asset_file.h"
+#include "baked_scene.h"
 #include "png_writer.h"
 #include "report.h"
 #include "runtime_cost.h"
-#include "stats_input.h"
 
 namespace cb {
 namespace {
@@ -62,7 +63,8 @@ Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options) {
                 std::copy(l.begin(), l.end(), h.light);
             }
         }
-        EncodedAsset asset = encode_in_memory(baked);
+        LoadedAsset asset;
+        open_asset_copy(encode_asset(baked.meshes, baked.instances), asset);
         counts[panel] = useless_tests(asset.view, h.light, hit_points(hits), options.one_sided);
     }
     h.pixels = counts[0].size();

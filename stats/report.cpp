@@ -9,32 +9,17 @@
 #include <map>
 #include <thread>
 
+#include "asset_file.h"
 #include "asset_writer.h"
 #include "bake.h"
+#include "baked_scene.h"
 #include "heatmap.h"
 #include "load.h"
 #include "runtime_cost.h"
-#include "stats_input.h"
 #include "svg_plot.h"
 #include "timing.h"
 
 namespace cb {
-
-const char* obb_method_name(ObbMethod m) {
-    switch (m) {
-        case ObbMethod::pca: return "pca";
-        case ObbMethod::pca_area: return "pca-area";
-        case ObbMethod::refined: return "refined";
-        case ObbMethod::cgal_optimal: return "cgal";
-    }
-    return "?";
-}
-
-bool parse_obb_method(const std::string& name, ObbMethod& out) {
-    for (ObbMethod m : {ObbMethod::refined, ObbMethod::pca, ObbMethod::pca_area, ObbMethod::cgal_optimal})
-        if (name == obb_method_name(m)) return out = m, true;
-    return false;
-}
 
 std::vector<double> report_lights(const double* lo, const double* hi, uint32_t count) {
     // Directions from the centre, in units of the box's largest side: all outside the box.
@@ -155,7 +140,7 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
         // Runtime cost in rounds, every configuration once per round, so that a burst of load on a shared
         // machine hits them all alike; medians over the rounds. The counts are the same every round. That
         // needs every configuration's asset at once: past a memory budget, each is measured alone instead.
-        std::vector<EncodedAsset> assets;
+        std::vector<LoadedAsset> assets;
         std::vector<std::vector<double>> build_t(total), query_t(total);
         bool interleave = true;
         auto measure_round = [&](size_t i, const AssetView& view) {
@@ -199,12 +184,13 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                     c.fine_clusters = st.fine.clusters, c.coarse_clusters = st.coarse.clusters;
                     c.obb_volume_relative = st.fine.obb_volume_relative;
                     c.useless_share = st.fine.useless_share;
-                    EncodedAsset asset = encode_in_memory(baked);
+                    LoadedAsset asset;
+                    open_asset_copy(encode_asset(baked.meshes, baked.instances), asset);
                     uint64_t stored = 0;
                     for (const AssetMesh& m : baked.meshes) stored += m.triangles.size() / 3;
-                    c.bytes_per_triangle = stored ? double(asset.bytes) / double(stored) : 0;
+                    c.bytes_per_triangle = stored ? double(asset.size) / double(stored) : 0;
                     s.configs.push_back(c);
-                    if (s.configs.size() == 1) interleave = double(asset.bytes) * double(total) <= o.memory_budget;
+                    if (s.configs.size() == 1) interleave = double(asset.size) * double(total) <= o.memory_budget;
                     if (interleave) {
                         assets.push_back(std::move(asset));
                     } else {

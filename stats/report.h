@@ -17,9 +17,6 @@
 
 namespace cb {
 
-const char* obb_method_name(ObbMethod m);
-bool parse_obb_method(const std::string& name, ObbMethod& out);
-
 struct ReportOptions {
     std::vector<ClusterMethod> methods = {ClusterMethod::kmeans, ClusterMethod::vco, ClusterMethod::morton};
     std::vector<uint32_t> fine_sizes = {8, 16, 24, 32};

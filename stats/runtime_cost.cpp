@@ -1,26 +1,13 @@
 #include "runtime_cost.h"
 
-#include <cb_cpsv.h>
-
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <cstring>
 
 #include "parallel.h"
+#include "scene_query.h"
 #include "timing.h"
 
 namespace cb {
-
-EncodedAsset encode_in_memory(const BakedScene& baked) {
-    std::vector<uint8_t> bytes = encode_asset(baked.meshes, baked.instances);
-    EncodedAsset out;
-    out.bytes = bytes.size();
-    out.storage.resize((bytes.size() + 7) / 8);
-    std::memcpy(out.storage.data(), bytes.data(), bytes.size());
-    if (open_asset(out.storage.data(), bytes.size(), &out.view) != AssetError::ok) out.view = AssetView{};
-    return out;
-}
 
 namespace {
 
@@ -158,26 +145,17 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
     RuntimeCost cost;
     size_t n = points.size() / 3;
     cost.lights = uint32_t(lights.size() / 3);
+    SceneQueryOptions options;
+    options.one_sided = one_sided;
     for (uint32_t l = 0; l < cost.lights; ++l) {
-        const double* light = &lights[size_t(l) * 3];
-        std::vector<ClusterShadowTree> trees(view.instance_count);
         std::vector<double> build_times, query_times;
         for (int r = 0; r < std::max(1, runs); ++r) {
-            auto t0 = std::chrono::steady_clock::now();
-            for (uint32_t i = 0; i < view.instance_count; ++i) trees[i].build(view, i, light, one_sided);
-            build_times.push_back(seconds_since(t0));
-        }
-        std::vector<uint32_t> scratch(batch_scratch_size(trees.data(), trees.size(), n));
-        std::vector<uint8_t> shadow(n);
-        for (int r = 0; r < std::max(1, runs); ++r) {
-            QueryStats stats;
-            auto t0 = std::chrono::steady_clock::now();
-            occluded_batch(trees.data(), trees.size(), points.data(), n, shadow.data(), scratch.data(), r == 0 ? &stats : nullptr);
-            query_times.push_back(seconds_since(t0));
-            if (r == 0) {  // counts once; the other runs time the queries without the counters
-                cost.stats.nodes_visited += stats.nodes_visited, cost.stats.clusters_tested += stats.clusters_tested;
-                cost.stats.triangles_tested += stats.triangles_tested, cost.stats.touching += stats.touching;
-                for (uint8_t s : shadow) cost.shadowed += s;
+            SceneQueryResult q = query_scene(view, &lights[size_t(l) * 3], points.data(), n, options);
+            build_times.push_back(q.build_seconds), query_times.push_back(q.query_seconds);
+            if (r == 0) {  // the counts are the same every run
+                cost.stats.nodes_visited += q.stats.nodes_visited, cost.stats.clusters_tested += q.stats.clusters_tested;
+                cost.stats.triangles_tested += q.stats.triangles_tested, cost.stats.touching += q.stats.touching;
+                for (uint8_t s : q.shadowed) cost.shadowed += s;
             }
         }
         cost.build_seconds += median(build_times) / cost.lights;
@@ -188,20 +166,12 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
 }
 
 std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, const std::vector<double>& points, bool one_sided) {
-    std::vector<ClusterShadowTree> trees(view.instance_count);
-    size_t stack_size = 0;
-    for (uint32_t i = 0; i < view.instance_count; ++i) {
-        trees[i].build(view, i, light, one_sided);
-        stack_size = std::max(stack_size, trees[i].stack_size());
-    }
-    std::vector<uint32_t> stack(stack_size), out(points.size() / 3);
-    for (size_t p = 0; p < out.size(); ++p) {  // point by point: the counts are per point
-        QueryStats s;
-        uint8_t shadowed = 0;
-        for (const ClusterShadowTree& tree : trees)
-            if (!shadowed) shadowed = tree.occluded(&points[p * 3], stack.data(), &s);
-        out[p] = uint32_t(s.clusters_tested - shadowed);
-    }
+    SceneQueryOptions options;
+    options.one_sided = one_sided;
+    options.per_point = true;  // the counts are per point
+    SceneQueryResult q = query_scene(view, light, points.data(), points.size() / 3, options);
+    std::vector<uint32_t> out(q.shadowed.size());
+    for (size_t p = 0; p < out.size(); ++p) out[p] = uint32_t(q.point_stats[p].clusters_tested - q.shadowed[p]);
     return out;
 }
 

@@ -1,5 +1,5 @@
-// What a bake costs at run time, measured through the runtime's own query API (cb_cpsv.h) on an asset
-// encoded in memory: per-light tree build time, queries per second and traversal counts; and the points
+// What a bake costs at run time, measured through the runtime's own query API (query/scene_query.h) on an
+// asset encoded in memory: per-light build time, queries per second and traversal counts; and the points
 // those queries use, the first hits of a camera's pixel rays.
 #pragma once
 
@@ -9,17 +9,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "asset_input.h"
+#include "asset_writer.h"
 
 namespace cb {
-
-// The bake encoded (io/asset_writer.h) and opened as the runtime opens a file.
-struct EncodedAsset {
-    std::vector<uint64_t> storage;  // 8-byte aligned bytes
-    AssetView view;                 // mesh_count 0 when the bytes did not open
-    size_t bytes = 0;               // the encoded size
-};
-EncodedAsset encode_in_memory(const BakedScene& baked);
 
 // A pinhole camera; pixel (x, y), y down, looks along forward + half_extent * (sx * aspect * right + sy * up).
 struct Camera {

@@ -3,19 +3,18 @@
 
 #include <cb_asset.h>
 
-#include <cstring>
 #include <string>
 #include <vector>
 
+#include "asset_file.h"
 #include "bake.h"
 #include "load.h"
 
 namespace cb::test {
 
-struct Baked {
-    std::vector<uint64_t> storage;  // 8-byte aligned, as the view's instance doubles need
-    cb::AssetView view;             // empty when the bytes did not open (tests check mesh_count)
-    cb::Scene scene;                // what was baked: oracles built from it do not depend on the encoding
+// The bytes and their view (empty when the bytes did not open: tests check mesh_count), and the scene.
+struct Baked : cb::LoadedAsset {
+    cb::Scene scene;  // what was baked: oracles built from it do not depend on the encoding
 };
 
 // `fine_bounds` false drops the fine level's volumes before encoding, leaving the coarse ones: an asset the
@@ -31,9 +30,7 @@ inline Baked bake_scene(const cb::Scene& scene, const cb::ClusterOptions& cluste
         for (cb::AssetMesh& m : meshes) m.fine_volumes = {};
     std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
     Baked out;
-    out.storage.resize((bytes.size() + 7) / 8);
-    std::memcpy(out.storage.data(), bytes.data(), bytes.size());
-    if (cb::open_asset(out.storage.data(), bytes.size(), &out.view) != cb::AssetError::ok) out.view = cb::AssetView{};
+    cb::open_asset_copy(bytes, out);
     out.scene = scene;
     return out;
 }

@@ -432,10 +432,14 @@ TEST(Cluster, AssetReaderRefusesMalformedClustersAndPackedBounds) {
     size_t size = 0;
     {
         cb::AssetHeader h;
-        std::memcpy(&h, good.storage.data(), sizeof h);
+        std::memcpy(&h, good.data(), sizeof h);
         size = h.file_size;
     }
-    auto fresh = [&] { return Sections{good.storage, size}; };
+    auto fresh = [&] {
+        Sections s{std::vector<uint64_t>((size + 7) / 8), size};
+        std::memcpy(s.bytes(), good.data(), size);
+        return s;
+    };
     using T = cb::SectionType;
     ASSERT_EQ(fresh().open(), cb::AssetError::ok);
     Sections s = fresh();

@@ -9,7 +9,7 @@
 #include "cluster_stats.h"
 #include "load.h"
 #include "stats_helpers.h"
-#include "stats_input.h"
+#include "baked_scene.h"
 
 namespace fs = std::filesystem;
 using namespace cb::test;

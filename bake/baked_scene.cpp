@@ -1,19 +1,12 @@
-#include "stats_input.h"
+#include "baked_scene.h"
 
-#include <cstring>
-#include <fstream>
-#include <iterator>
 #include <stdexcept>
 
+#include "asset_decode.h"
+#include "asset_file.h"
 #include "load.h"
 
 namespace cb {
-
-bool is_asset_file(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    char magic[8] = {};
-    return in.read(magic, 8) && std::memcmp(magic, asset_magic, 8) == 0;
-}
 
 BakedScene bake_in_memory(const Scene& scene, const ClusterOptions& clustering, const BoundsOptions& bounds, BakeStats* stats) {
     BakeStats local;
@@ -58,14 +51,10 @@ BakedScene load_baked(const std::string& path, const ClusterOptions& clustering,
         Scene scene = load_scene(path);  // LoadError is a runtime_error naming the file
         return bake_in_memory(scene, clustering, bounds);
     }
-    std::ifstream in(path, std::ios::binary);
-    std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    std::vector<uint64_t> storage((raw.size() + 7) / 8);
-    std::memcpy(storage.data(), raw.data(), raw.size());
-    AssetView view;
-    AssetError e = open_asset(storage.data(), raw.size(), &view);
-    if (e != AssetError::ok) throw std::runtime_error(path + ": " + asset_error_text(e));
-    BakedScene baked = baked_scene_from_asset(view);
+    LoadedAsset asset;
+    std::string error;
+    if (!read_asset_file(path, asset, error)) throw std::runtime_error(error);
+    BakedScene baked = baked_scene_from_asset(asset.view);
     uint32_t missing = bounds.mask & ~kinds_present(baked.meshes);
     if (missing) {
         // Fit the missing kinds on a copy (fitting replaces every volume) and take only those.

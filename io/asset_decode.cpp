@@ -1,4 +1,4 @@
-#include "asset_input.h"
+#include "asset_decode.h"
 
 #include <string>
 

@@ -1,16 +1,14 @@
-// What `stats`, `report` and `heatmap` start from: a scene file baked in memory, or an asset file read back
-// (asset_input.h), with any bounding volume the statistics need and the asset lacks fitted here.
+// A bake held in memory rather than written: a scene file clustered and fitted here, or an asset file
+// decoded back (io/asset_decode.h) with any bounding volume asked for and not stored fitted here. What the
+// statistics, the report and the heat map start from.
 #pragma once
 
 #include <string>
 
-#include "asset_input.h"
+#include "asset_writer.h"
 #include "bake.h"
 
 namespace cb {
-
-// True when the file starts with the asset magic.
-bool is_asset_file(const std::string& path);
 
 // Clusters and fits the scene in memory (the same calls as `clusterbake bake`).
 BakedScene bake_in_memory(const Scene& scene, const ClusterOptions& clustering, const BoundsOptions& bounds,

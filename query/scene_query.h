@@ -1,0 +1,49 @@
+// Point-light shadow queries over every instance of an asset, as the tools ask them: the per-light
+// structures of one light built for each instance, the points answered on threads, the traversal counts
+// summed. `clusterbake query`, the report's runtime cost and the heat map all ask through here; no other
+// code above the runtime calls its query API.
+#pragma once
+
+#include <cb_asset.h>
+#include <cb_cpsv.h>
+#include <cb_shadow.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace cb {
+
+// How queries find the clusters that may shadow a point: the coarse and fine clusters' spheres scanned
+// (no per-light tree), per-light trees over the coarse clusters and in each over its fine ones, or one tree
+// over all fine clusters. The same answers.
+using Traversal = ClusterShadowTree::FineLevel;
+
+// "scan", "trees" or "one-tree"; false on another name.
+bool parse_traversal(const std::string& name, Traversal& out);
+
+struct SceneQueryOptions {
+    Traversal traversal = Traversal::scan;
+    bool one_sided = false;  // a triangle blocks only when the light is behind it (double-sided ones always)
+    unsigned threads = 1;    // build and query threads, 0 = all; the answers do not depend on it
+    bool reference = false;  // occluded_reference instead: every cluster box the segment may touch, no build
+    bool per_point = false;  // each point asks alone and keeps its own counts (a batch's tiles share theirs)
+};
+
+struct SceneQueryResult {
+    std::vector<uint8_t> shadowed;        // per point, 1 when its segment to the light is blocked
+    QueryStats stats;                     // summed over the points
+    std::vector<QueryStats> point_stats;  // per point, with per_point
+    double build_seconds = 0;             // every instance's structure for the light, the scan's bounds included
+    double query_seconds = 0;
+    size_t trees = 0, nodes = 0;          // one structure per instance (none for the reference)
+    size_t always_tested = 0;             // clusters tested for every point (light inside or level with their box)
+    size_t skipped = 0;                   // one-sided: clusters the light sees from their front
+};
+
+// The `count` points (xyz, world) against the light (xyz, world).
+SceneQueryResult query_scene(const AssetView& view, const double* light, const double* points, size_t count,
+                             const SceneQueryOptions& options = {});
+
+}  // namespace cb
