@@ -1,0 +1,112 @@
+// clusterbake report: the sweep of clustering method x fine size x box fitter, as a table and report files.
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <stdexcept>
+
+#include "args.h"
+#include "cluster.h"
+#include "commands.h"
+#include "report.h"
+
+namespace cb::cli {
+namespace {
+
+std::vector<std::string> split_commas(const std::string& text) {
+    std::vector<std::string> out;
+    size_t start = 0;
+    while (start <= text.size()) {
+        size_t comma = text.find(',', start);
+        if (comma == std::string::npos) comma = text.size();
+        out.push_back(text.substr(start, comma - start));
+        start = comma + 1;
+    }
+    return out;
+}
+
+struct ReportArgs {
+    std::vector<std::string> files;
+    std::string out, methods = "kmeans,vco,morton", fine = "8,16,24,32", obbs = "refined,pca";
+    cb::ReportOptions options;
+    bool quiet = false;
+};
+
+// Each comma-separated item of `text` through parse(item, value) into `out`; at the first bad item, a
+// one-line error that starts with `what` and names it, and false.
+template <class T, class Parse>
+bool parse_list(const std::string& text, const char* what, Parse parse, std::vector<T>& out) {
+    for (const std::string& item : split_commas(text)) {
+        T value{};
+        if (!parse(item, value)) {
+            std::fprintf(stderr, "clusterbake: %s (got '%s')\n", what, item.c_str());
+            return false;
+        }
+        out.push_back(value);
+    }
+    return true;
+}
+
+int run_report(ReportArgs a) {
+    cb::ReportOptions& o = a.options;
+    o.methods.clear(), o.fine_sizes.clear(), o.obbs.clear();
+    auto fine_size = [](const std::string& f, uint32_t& v) {  // the asset's 8-bit local indices, as for bake
+        char* end = nullptr;
+        unsigned long n = std::strtoul(f.c_str(), &end, 10);
+        v = uint32_t(n);
+        return !f.empty() && !*end && n >= 1 && n <= 85;
+    };
+    if (!parse_list(a.methods, "--methods takes a list of kmeans, vco, morton", cb::parse_method, o.methods) ||
+        !parse_list(a.fine, "--fine takes a list of sizes from 1 to 85", fine_size, o.fine_sizes) ||
+        !parse_list(a.obbs, "--obb takes a list of refined, pca, pca-area, cgal", cb::parse_obb_method, o.obbs))
+        return 1;
+    if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.frame_view < 1 || o.lights < 1) {
+        std::fprintf(stderr, "clusterbake: --runs, --query-runs, --view, --frame-view and --lights must be at least 1\n");
+        return 1;
+    }
+    cb::Report r;
+    try {
+        r = cb::run_report(a.files, o, [&](const std::string& msg) {
+            if (!a.quiet) std::fprintf(stderr, "\r%-70s", msg.c_str());
+        });
+        if (!a.quiet) std::fprintf(stderr, "\n");
+        cb::write_report(r, a.out);
+    } catch (const std::runtime_error& e) {
+        if (!a.quiet) std::fprintf(stderr, "\n");
+        std::fprintf(stderr, "%s\n", e.what());
+        return exit_bad_input;
+    }
+    std::fputs(cb::report_table(r).c_str(), stdout);
+    std::printf("wrote %s/report.html, report.json, report.csv\n", a.out.c_str());
+    return 0;
+}
+
+}  // namespace
+
+Command add_report(CLI::App& app) {
+    auto a = std::make_shared<ReportArgs>();
+    CLI::App* c = app.add_subcommand(
+        "report", "Sweep clustering method x fine size x box fitter: bake time, tightness and runtime cost; writes DIR/report.html, .json, .csv");
+    c->add_option("files", a->files, "Scene files")->required();
+    c->add_option("-o,--output", a->out, "Output folder (created)")->required();
+    c->add_option("--methods", a->methods, "Comma list of kmeans, vco, morton (default all three)");
+    c->add_option("--fine", a->fine, "Comma list of fine sizes (default 8,16,24,32)");
+    c->add_option("--obb", a->obbs, "Comma list of box fitters: refined, pca, pca-area, cgal (default refined,pca)");
+    c->add_option("--coarse", a->options.coarse_size, "Triangles per coarse cluster (default 2048)");
+    c->add_option("--runs", a->options.runs, "Bake timings are the median of this many runs (default 3)");
+    c->add_option("--query-runs", a->options.query_runs,
+                       "Runtime timings are the median of this many rounds, each measuring every configuration once (default 7)");
+    c->add_option("--view", a->options.view, "Camera resolution; its visible points are the queries (default 128)");
+    c->add_option("--frame-view", a->options.frame_view,
+                       "Frame time is for a view of this resolution: build + its visible points' queries (default 1024)");
+    c->add_option("--lights", a->options.lights, "Lights around each scene (default 2)");
+    c->add_flag("--one-sided", a->options.one_sided, "Query with one-sided occluders");
+    c->add_option("--samples", a->options.stats.samples, "Shadow-volume samples per cluster and light (default 8)");
+    c->add_option("--sample-lights", a->options.stats.lights, "Random lights for the shadow-volume samples (default 4)");
+    c->add_option("--threads", a->options.threads, "Bake threads, 0 = all (queries run on one thread)");
+    c->add_flag("--heatmap", a->options.heatmap, "Also draw each scene's heat map of useless cluster tests (k-means beside VCO)");
+    c->add_option("--heatmap-size", a->options.heatmap_size, "Heat map panel size in pixels (default 256)");
+    c->add_flag("-q,--quiet", a->quiet, "No progress on stderr");
+    return {c, [a] { return run_report(*a); }};
+}
+
+}  // namespace cb::cli
