@@ -43,8 +43,8 @@ namespace fs = std::filesystem;
 namespace {
 
 // Worker threads kept for the whole run, as an engine's job system would keep them: each pass hands them a
-// job and waits. Starting threads for each pass took 0.1-0.3 ms here before the first point was answered,
-// the same for both sides, up to a twentieth of a two-thread pass.
+// job and waits. Threads started for each pass would add their start-up, the same for both sides, to a
+// short pass (docs/PERFORMANCE.md).
 class Workers {
   public:
     explicit Workers(unsigned count) {

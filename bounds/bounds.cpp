@@ -201,8 +201,8 @@ Frame frame_around(const Vec& n) {
 
 // Box cost: volume, with every side padded by a tiny fraction of the diagonal so flat and needle sets still
 // compare by area and length instead of all tying at zero. Coordinates come as three arrays (x, y, z), the
-// form the refinement's hundred-odd evaluations per cluster run fastest on (measured 10.5 -> 9.2 us per
-// cluster on the dragon): independent accumulators, no gathers.
+// form the refinement's hundred-odd evaluations per cluster run fastest on (docs/PERFORMANCE.md):
+// independent accumulators, no gathers.
 double soa_cost(const double* x, const double* y, const double* z, size_t n, const Frame& f, double pad) {
     double cost = 1;
     for (int i = 0; i < 3; ++i) {

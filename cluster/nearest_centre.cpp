@@ -7,11 +7,8 @@
 
 namespace cb {
 
-// Measured with bench_nearest_centre (2048 triangle boxes of the dragon, median of 9, microseconds per pass):
-//   centres        8     16     32     48     64    128    256
-//   brute force   31     63    126    186    249    502    993
-//   FLANN        136    138    152    158    168    193    223
-// The tree wins from about 40 centres. The default k0 = 8 never gets there; larger --k0 does.
+// The tree wins from about 40 centres (bench_nearest_centre; figures in docs/PERFORMANCE.md). The default
+// k0 = 8 never gets there; larger --k0 does.
 const size_t flann_crossover = 40;
 
 size_t assign_nearest_brute(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,

@@ -15,11 +15,10 @@
 namespace cb {
 namespace {
 
-// Forsyth's published constants are 1.5, 0.75, 2.0 and 0.5. These were chosen by a grid search for the
-// FIFO-32 cache the benchmark measures, on 8 of the shared meshes (horse, teapot, homer, dragon res3,
-// bun_zipper, fandisk, beetle, kitten) and checked on 7 others (dragon res2 and res4, bunny_npm, spot,
-// bunny.stl, chair, 3dfier): ACMR lower than with the published constants and 0.2% to 3% lower than
-// meshopt_optimizeVertexCache's on all 15 (bench_cluster prints the comparison).
+// Forsyth's published constants are 1.5, 0.75, 2.0 and 0.5. These come from a grid search for the FIFO-32
+// cache the benchmark measures, on some of the shared meshes, checked on others: a lower ACMR than the
+// published constants and than meshopt_optimizeVertexCache on all of them (bench_cluster prints the
+// comparison; the meshes and figures are in docs/PERFORMANCE.md).
 constexpr float decay_power = 0.5f;
 constexpr float last_triangle_score = 0.3f;
 constexpr float valence_scale = 3.0f;

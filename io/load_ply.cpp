@@ -2,9 +2,9 @@
 // tristrips (-1 restarts). Every count is checked against the bytes that remain before anything is
 // allocated, every index against the vertex count.
 //
-// OpenMesh's PLY reader was the first choice and failed the fuzzer within seconds: it loops forever on a
-// header without end_header, writes out of bounds on a property that precedes every element, and grows
-// without bound on a malformed ASCII list. Hence this reader.
+// Not OpenMesh's PLY reader, which the fuzzer breaks: it loops forever on a header without end_header,
+// writes out of bounds on a property that precedes every element, and grows without bound on a malformed
+// ASCII list.
 #include <cmath>
 #include <cstring>
 #include <limits>
