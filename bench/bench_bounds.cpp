@@ -6,7 +6,6 @@
 #include <meshoptimizer.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -32,14 +31,7 @@ struct Cluster {
 
 template <class F>
 double median_us_per(size_t items, int runs, F&& f) {
-    std::vector<double> t;
-    for (int r = 0; r < runs; ++r) {
-        auto s = std::chrono::steady_clock::now();
-        f();
-        t.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - s).count() / double(items));
-    }
-    std::sort(t.begin(), t.end());
-    return t[t.size() / 2];
+    return cb::bench::median_seconds(runs, f) * 1e6 / double(items);
 }
 
 std::vector<Cluster> make_clusters(const cb::Mesh& m, uint32_t fine) {
@@ -75,10 +67,8 @@ struct Ratio {
         sum += r, worst = std::max(worst, r), all.push_back(r);
     }
     double mean() const { return all.empty() ? NAN : sum / double(all.size()); }
-    double median() {  // flat clusters make volume ratios heavy-tailed: the median says more
-        if (all.empty()) return NAN;
-        std::nth_element(all.begin(), all.begin() + std::ptrdiff_t(all.size() / 2), all.end());
-        return all[all.size() / 2];
+    double median() const {  // flat clusters make volume ratios heavy-tailed: the median says more
+        return all.empty() ? NAN : cb::median(all);
     }
 };
 
