@@ -45,7 +45,8 @@ struct RuntimeCost {
     uint32_t lights = 0;
 };
 
-// Builds the two-level trees for each light (xyz triples, world) and queries every point (xyz, world).
+// For each light (xyz triples, world), builds every instance's structure and queries every point (xyz,
+// world) on one thread, `runs` times: query_scene with its default traversal, the scan.
 RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& lights, const std::vector<double>& points,
                             int runs, bool one_sided = false);
 
