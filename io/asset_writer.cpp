@@ -1,6 +1,7 @@
 #include "asset_writer.h"
 
 #include <cerrno>
+#include <cstddef>
 #include <cstdio>
 #include <cstring>
 #include <algorithm>
@@ -184,8 +185,9 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
     h.header_size = sizeof(AssetHeader);
     h.section_count = uint32_t(sections.size());
     h.file_size = out.size();
-    h.checksum = fnv1a64(out.data() + sizeof(AssetHeader), out.size() - sizeof(AssetHeader));
     std::memcpy(out.data(), &h, sizeof h);
+    h.checksum = asset_checksum(out.data(), out.size());
+    std::memcpy(out.data() + offsetof(AssetHeader, checksum), &h.checksum, sizeof h.checksum);
     return out;
 }
 
