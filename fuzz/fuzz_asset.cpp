@@ -86,7 +86,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     // Again with the checksum made right, so mutations reach the structural checks behind it.
     if (size >= sizeof(cb::AssetHeader)) {
         uint8_t* bytes = reinterpret_cast<uint8_t*>(storage.data());
-        uint64_t sum = cb::fnv1a64(bytes + sizeof(cb::AssetHeader), size - sizeof(cb::AssetHeader));
+        uint64_t sum = cb::asset_checksum(bytes, size);
         std::memcpy(bytes + offsetof(cb::AssetHeader, checksum), &sum, 8);
         if (cb::open_asset(storage.data(), size, &view) == cb::AssetError::ok) walk(view), query(view);
     }

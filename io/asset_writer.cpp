@@ -1,12 +1,16 @@
 #include "asset_writer.h"
 
 #include <cerrno>
+#include <cstddef>
 #include <cstdio>
 #include <cstring>
 #include <algorithm>
 #include <filesystem>
 #include <stdexcept>
 #include <type_traits>
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 namespace cb {
@@ -184,22 +188,82 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
     h.header_size = sizeof(AssetHeader);
     h.section_count = uint32_t(sections.size());
     h.file_size = out.size();
-    h.checksum = fnv1a64(out.data() + sizeof(AssetHeader), out.size() - sizeof(AssetHeader));
     std::memcpy(out.data(), &h, sizeof h);
+    h.checksum = asset_checksum(out.data(), out.size());
+    std::memcpy(out.data() + offsetof(AssetHeader, checksum), &h.checksum, sizeof h.checksum);
     return out;
 }
 
+namespace {
+
+[[noreturn]] void write_error(const std::string& path, const std::string& why) {
+    throw std::runtime_error(path + ": cannot write (" + why + ")");
+}
+
+bool write_all(int fd, const std::vector<uint8_t>& bytes) {
+    for (size_t done = 0; done < bytes.size();) {
+        const ssize_t n = ::write(fd, bytes.data() + done, std::min<size_t>(bytes.size() - done, size_t(1) << 30));
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) return false;
+        done += size_t(n);
+    }
+    return true;
+}
+
+// The name of this process's temporary for `path`: `path` + ".tmp" + the process id.
+std::string temporary_name(const std::string& path) { return path + ".tmp" + std::to_string(getpid()); }
+
+// Removes temporaries of `path` left by processes that no longer run (killed between naming their file
+// and renaming it over `path`).
+void remove_stale_temporaries(const std::string& path) {
+    namespace fs = std::filesystem;
+    const fs::path target(path);
+    const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+    const std::string prefix = target.filename().string() + ".tmp";
+    std::error_code ec;
+    for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+        const std::string digits = name.substr(prefix.size());
+        if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+        const pid_t pid = pid_t(std::stol(digits));
+        if (pid > 0 && ::kill(pid, 0) != 0 && errno == ESRCH) fs::remove(it->path(), ec);
+    }
+}
+
+}  // namespace
+
 void write_file_atomic(const std::string& path, const std::vector<uint8_t>& bytes) {
-    std::string tmp = path + ".tmp" + std::to_string(getpid());
-    FILE* f = std::fopen(tmp.c_str(), "wb");
-    if (!f) throw std::runtime_error(path + ": cannot write (" + std::strerror(errno) + ")");
-    bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-    ok = (std::fflush(f) == 0) && ok;
-    ok = (std::fclose(f) == 0) && ok;
-    if (!ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
-        int err = errno;
-        std::remove(tmp.c_str());
-        throw std::runtime_error(path + ": cannot write (" + std::strerror(err) + ")");
+    // Only a regular file (or nothing) is replaced: renaming over a device node, a FIFO or a directory
+    // would destroy it.
+    struct stat st;
+    if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+        throw std::runtime_error(path + ": not a regular file (a device, FIFO or directory); refusing to replace it");
+    remove_stale_temporaries(path);
+    const std::filesystem::path target(path);
+    const std::string dir = target.has_parent_path() ? target.parent_path().string() : std::string(".");
+    const std::string tmp = temporary_name(path);
+    // An unnamed file in the output's folder first (O_TMPFILE): killed while writing, the process leaves
+    // nothing behind. It gets the temporary's name only for the instant before the rename; a process
+    // killed in that instant leaves a temporary that the next write of the same output removes.
+    int fd = ::open(dir.c_str(), O_TMPFILE | O_WRONLY | O_CLOEXEC, 0666);
+    const bool unnamed = fd >= 0;
+    if (!unnamed) {  // a filesystem without O_TMPFILE: a named temporary from the start
+        fd = ::open(tmp.c_str(), O_CREAT | O_TRUNC | O_WRONLY | O_CLOEXEC, 0666);
+        if (fd < 0) write_error(path, std::strerror(errno));
+    }
+    bool ok = write_all(fd, bytes);
+    int err = ok ? 0 : errno;
+    if (ok && unnamed) {
+        const std::string self = "/proc/self/fd/" + std::to_string(fd);
+        ok = ::linkat(AT_FDCWD, self.c_str(), AT_FDCWD, tmp.c_str(), AT_SYMLINK_FOLLOW) == 0;
+        if (!ok) err = errno;
+    }
+    if (::close(fd) != 0 && ok) ok = false, err = errno;
+    if (ok && std::rename(tmp.c_str(), path.c_str()) != 0) ok = false, err = errno;
+    if (!ok) {
+        ::unlink(tmp.c_str());
+        write_error(path, std::strerror(err ? err : EIO));
     }
 }
 

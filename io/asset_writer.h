@@ -45,7 +45,9 @@ struct BakedScene {
 std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances);
 
 // Writes to a temporary file beside `path` and renames it over `path`, so a failure leaves any existing
-// file untouched. Throws std::runtime_error naming the path.
+// file untouched: an unnamed file (O_TMPFILE) where the filesystem has them, so that a process killed
+// while writing leaves nothing; temporaries of `path` left by dead processes are removed first. Refuses a
+// `path` that exists and is not a regular file. Throws std::runtime_error naming the path.
 void write_file_atomic(const std::string& path, const std::vector<uint8_t>& bytes);
 
 }  // namespace cb

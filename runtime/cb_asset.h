@@ -17,7 +17,7 @@
 namespace cb {
 
 constexpr char asset_magic[8] = {'C', 'L', 'B', 'A', 'K', 'E', '\r', '\n'};
-constexpr uint32_t asset_version = 2;
+constexpr uint32_t asset_version = 3;
 constexpr uint32_t asset_alignment = 16;
 constexpr uint32_t max_cluster_vertices = 256;  // a fine cluster's vertex list, addressed by 8-bit local indices
 
@@ -105,12 +105,12 @@ struct Slab {              // 20 bytes. Inside: low <= dot(p, axis) <= high
 struct AssetHeader {          // 64 bytes at offset 0
     char magic[8];
     uint32_t version;
-    uint32_t flags;           // none defined in version 2: must be 0
+    uint32_t flags;           // none defined: must be 0
     uint32_t header_size;     // sizeof(AssetHeader)
     uint32_t section_count;
     uint64_t file_size;
-    uint64_t checksum;        // FNV-1a 64 of every byte after the header
-    uint8_t reserved[24];
+    uint64_t checksum;        // asset_checksum: every byte of the file but these 8
+    uint8_t reserved[24];     // zero
 };
 
 struct SectionEntry {         // 32 bytes each, right after the header
@@ -292,6 +292,13 @@ inline uint64_t fnv1a64(const uint8_t* p, size_t n, uint64_t h = 0xcbf29ce484222
     return h;
 }
 
+// The asset's checksum: FNV-1a 64 of every byte of the file but the checksum field's own 8, so that the
+// header and the section table are covered as well as the sections.
+inline uint64_t asset_checksum(const uint8_t* bytes, size_t size) {
+    const size_t at = offsetof(AssetHeader, checksum);
+    return fnv1a64(bytes + at + 8, size - at - 8, fnv1a64(bytes, at));
+}
+
 // Arrays point into the caller's bytes (which must stay alive and be 8-byte aligned for the doubles of
 // InstanceRecord; a memory-mapped file or a new[]-ed buffer is).
 struct AssetView {
@@ -385,10 +392,12 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
     if (std::memcmp(h.magic, asset_magic, 8) != 0) return AssetError::bad_magic;
     if (h.version != asset_version) return AssetError::bad_version;
     if (h.header_size != sizeof(AssetHeader) || h.flags != 0) return AssetError::bad_header;
+    for (uint8_t r : h.reserved)
+        if (r != 0) return AssetError::bad_header;
     if (h.file_size != size) return AssetError::size_mismatch;
     if (h.section_count > 64 || sizeof(AssetHeader) + uint64_t(h.section_count) * sizeof(SectionEntry) > size)
         return AssetError::bad_section_table;
-    if (fnv1a64(base + sizeof(AssetHeader), size - sizeof(AssetHeader)) != h.checksum) return AssetError::bad_checksum;
+    if (asset_checksum(base, size) != h.checksum) return AssetError::bad_checksum;
 
     struct Known { SectionType type; uint32_t element_size; bool required; const void** data; uint32_t* count; };
     AssetView v;

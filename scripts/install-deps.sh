@@ -9,6 +9,7 @@ packages=(
   zlib1g-dev                 # PNG heat maps (clusterbake heatmap, report --heatmap)
   libpng-dev chromium chromium-driver   # the report's browser test: headless Chromium renders report.html
   clang libclang-rt-14-dev   # libFuzzer + AddressSanitizer for the fuzz targets
+  clang-format               # the format test (scripts/check-format.sh)
   assimp-testmodels          # real broken and Draco glTF files the tests read in place
 )
 missing=()

@@ -419,7 +419,7 @@ struct Sections {
     template <class T>
     T* data(cb::SectionType type) { return reinterpret_cast<T*>(bytes() + entry(type)->offset); }
     cb::AssetError open() {
-        uint64_t sum = cb::fnv1a64(bytes() + sizeof(cb::AssetHeader), size - sizeof(cb::AssetHeader));
+        uint64_t sum = cb::asset_checksum(bytes(), size);
         std::memcpy(bytes() + offsetof(cb::AssetHeader, checksum), &sum, 8);
         cb::AssetView view;
         return cb::open_asset(storage.data(), size, &view);

@@ -1,0 +1,109 @@
+// cb::write_file_atomic: an output is either the old file or the whole new one, whenever the writer dies,
+// and nothing else is left beside it.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "asset_writer.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path fresh_dir(const std::string& name) {
+    fs::path d = fs::temp_directory_path() / ("cb_atomic_" + name + "_" + std::to_string(getpid()));
+    fs::remove_all(d);
+    fs::create_directories(d);
+    return d;
+}
+
+std::vector<uint8_t> read_all(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+size_t entries(const fs::path& d) { return size_t(std::distance(fs::directory_iterator(d), fs::directory_iterator())); }
+
+}  // namespace
+
+TEST(AtomicWrite, KilledWritersLeaveTheOldFileAndNoTemporary) {
+    const fs::path d = fresh_dir("kill");
+    const fs::path out = d / "scene.cbk";
+    const std::vector<uint8_t> old_bytes(1000, 7), new_bytes(size_t(256) << 20, 9);  // 256 MB: seconds to write
+    cb::write_file_atomic(out.string(), old_bytes);
+    int old_seen = 0, new_seen = 0;
+    for (int delay_ms : {5, 20, 60, 150}) {
+        const pid_t child = fork();
+        ASSERT_GE(child, 0);
+        if (child == 0) {
+            try {
+                cb::write_file_atomic(out.string(), new_bytes);
+            } catch (...) {
+                _exit(3);
+            }
+            _exit(0);
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
+        kill(child, SIGKILL);
+        int status = 0;
+        waitpid(child, &status, 0);
+        const std::vector<uint8_t> now = read_all(out);
+        EXPECT_TRUE(now == old_bytes || now == new_bytes) << "a partial output of " << now.size() << " bytes";
+        old_seen += now == old_bytes, new_seen += now == new_bytes;
+        // Nothing beside the output, or at most the one temporary of a writer killed between naming its
+        // file and the rename, which the next write removes.
+        EXPECT_LE(entries(d), 2u);
+        if (now == new_bytes) cb::write_file_atomic(out.string(), old_bytes);
+    }
+    EXPECT_GT(old_seen, 0) << "no writer was killed before it finished: the test proves nothing";
+    cb::write_file_atomic(out.string(), old_bytes);
+    EXPECT_EQ(entries(d), 1u);
+    fs::remove_all(d);
+}
+
+TEST(AtomicWrite, StaleTemporariesOfDeadWritersAreRemoved) {
+    const fs::path d = fresh_dir("stale");
+    const fs::path out = d / "scene.cbk";
+    // pid_max is at most 2^22: no process has the first id; the second is this process, which is alive.
+    const fs::path dead = d / "scene.cbk.tmp4194305", alive = d / ("scene.cbk.tmp" + std::to_string(getpid() + 0));
+    const fs::path other = d / "other.cbk.tmp4194305";
+    for (const fs::path& p : {dead, other}) std::ofstream(p) << "left over";
+    cb::write_file_atomic(out.string(), std::vector<uint8_t>(10, 1));
+    EXPECT_FALSE(fs::exists(dead));
+    EXPECT_TRUE(fs::exists(other));  // another output's: not ours to remove
+    EXPECT_FALSE(fs::exists(alive));  // our own temporary never outlives the call
+    EXPECT_EQ(read_all(out), std::vector<uint8_t>(10, 1));
+    fs::remove_all(d);
+}
+
+TEST(AtomicWrite, RefusesToReplaceWhatIsNotARegularFile) {
+    const fs::path d = fresh_dir("special");
+    const fs::path fifo = d / "pipe", folder = d / "folder";
+    ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+    fs::create_directories(folder);
+    for (const fs::path& p : {fifo, folder, fs::path("/dev/null")}) {
+        try {
+            cb::write_file_atomic(p.string(), std::vector<uint8_t>(4, 0));
+            ADD_FAILURE() << p << " was replaced";
+        } catch (const std::runtime_error& e) {
+            EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+        }
+    }
+    struct stat st;
+    ASSERT_EQ(stat("/dev/null", &st), 0);
+    EXPECT_TRUE(S_ISCHR(st.st_mode));
+    EXPECT_TRUE(fs::is_fifo(fifo));
+    EXPECT_TRUE(fs::is_directory(folder));
+    fs::remove_all(d);
+}
