@@ -13,12 +13,13 @@
 
 namespace {
 
+// The default scene's asset bytes, in storage the view may read in place.
 std::vector<uint64_t> default_asset(size_t& size) {
     cb::test::Baked b = cb::test::bake(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
-    cb::AssetHeader h;
-    std::memcpy(&h, b.storage.data(), sizeof h);
-    size = size_t(h.file_size);
-    return b.storage;
+    size = b.size;
+    std::vector<uint64_t> storage((size + 7) / 8);
+    std::memcpy(storage.data(), b.data(), size);
+    return storage;
 }
 
 }  // namespace
