@@ -323,13 +323,17 @@ int run_query(const QueryArgs& a) {
     std::vector<cb::ClusterShadowTree> trees(a.reference ? 0 : asset.view.instance_count);
     size_t nodes = 0, always = 0, skipped = 0;
     unsigned thread_count = a.threads ? a.threads : std::max(1u, std::thread::hardware_concurrency());
-    using Level = cb::ClusterShadowTree::FineLevel;
-    Level level = a.fine == "trees" ? Level::trees : a.fine == "one-tree" ? Level::one_tree : Level::scan;
+    using cb::Traversal;
+    cb::ShadowBuildOptions options;
+    options.traversal = a.fine == "trees" ? Traversal::trees : a.fine == "one-tree" ? Traversal::one_tree : Traversal::scan;
+    options.one_sided = a.one_sided;
+    options.threads = thread_count;
     // The scan's bounds, once per mesh however many instances it has.
-    const std::vector<cb::ScanBounds> bounds = level == Level::scan && !trees.empty() ? cb::make_scan_bounds(asset.view)
-                                                                                       : std::vector<cb::ScanBounds>{};
+    const std::vector<cb::ScanBounds> bounds = options.traversal == Traversal::scan && !trees.empty() ? cb::make_scan_bounds(asset.view)
+                                                                                                     : std::vector<cb::ScanBounds>{};
+    options.bounds = bounds.empty() ? nullptr : bounds.data();
     for (uint32_t i = 0; i < trees.size(); ++i) {
-        trees[i].build(asset.view, i, light, a.one_sided, level, thread_count, nullptr, bounds.empty() ? nullptr : bounds.data());
+        trees[i].build(asset.view, i, light, options);
         skipped += trees[i].skipped_clusters();
         nodes += trees[i].node_count();
         always += trees[i].always_tested();
@@ -353,7 +357,7 @@ int run_query(const QueryArgs& a) {
         size_t first = n * t / thread_count, last = n * (t + 1) / thread_count;
         if (a.reference) {
             for (size_t i = first; i < last; ++i)
-                shadow[i] = cb::occluded_reference(asset.view, &pts[i * 3], light, &counts[t], a.one_sided);
+                shadow[i] = cb::occluded_reference(asset.view, &pts[i * 3], light, a.one_sided, &counts[t]);
         } else {
             std::vector<uint32_t> own(cb::ordered_scratch_size(trees.data(), trees.size()));
             cb::occluded_ordered(trees.data(), trees.size(), pts.data(), order.data() + first, last - first, shadow.data(), own.data(),

@@ -174,9 +174,11 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
         const double* light = &lights[size_t(l) * 3];
         std::vector<ClusterShadowTree> trees(view.instance_count);
         std::vector<double> build_times, query_times;
+        ShadowBuildOptions options;
+        options.one_sided = one_sided;
         for (int r = 0; r < std::max(1, runs); ++r) {
             auto t0 = std::chrono::steady_clock::now();
-            for (uint32_t i = 0; i < view.instance_count; ++i) trees[i].build(view, i, light, one_sided);
+            for (uint32_t i = 0; i < view.instance_count; ++i) trees[i].build(view, i, light, options);
             build_times.push_back(seconds_since(t0));
         }
         std::vector<uint32_t> scratch(batch_scratch_size(trees.data(), trees.size(), n));
@@ -202,8 +204,10 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
 std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, const std::vector<double>& points, bool one_sided) {
     std::vector<ClusterShadowTree> trees(view.instance_count);
     size_t stack_size = 0;
+    ShadowBuildOptions options;
+    options.one_sided = one_sided;
     for (uint32_t i = 0; i < view.instance_count; ++i) {
-        trees[i].build(view, i, light, one_sided);
+        trees[i].build(view, i, light, options);
         stack_size = std::max(stack_size, trees[i].stack_size());
     }
     std::vector<uint32_t> stack(stack_size), out(points.size() / 3);
