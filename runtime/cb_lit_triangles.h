@@ -310,8 +310,8 @@ struct TileView {
 // line_tests gives them, the points surely blocked (*blocked) and those left to test (*candidates, with
 // their may_meet and through), the plane test in float run for the triangles every line goes through, a
 // vector of points an instruction. Near the light a cluster spans a wide angle and most tiles' rays fall
-// inside one of its triangles or outside all (the benchmark's horse light inside its bounds lies by one
-// cluster that every point reaches).
+// inside one of its triangles or outside all (a light inside a mesh's bounds often lies by a cluster that
+// every point reaches).
 inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t which, uint32_t* may_meet, uint32_t* through,
                             uint64_t* blocked, uint64_t* candidates) {
     const uint32_t all = (1u << lit.count) - 1;
@@ -475,8 +475,7 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         }
         uint32_t may_meet[64], through[64];
         // A tile's line tests at once where half its points or more reach the group: the groups it decides
-        // are those near the light, which nearly every point reaches (with 8 points or more, 5-8 times as
-        // many tries, the same pairs decided).
+        // are those near the light, which nearly every point reaches (docs/PERFORMANCE.md).
         uint64_t sure = 0, left = 0;  // points surely blocked (no double work), points with triangles left
         const bool whole = tile && math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32)) >= 32 &&
                            tile_line_tests(*lit, *tile, which, may_meet, through, &sure, &left);

@@ -1,6 +1,7 @@
 // Small numeric helpers the runtime's filters share: bits of a mask, the float next to a value, and 3-vector
 // products in double. Each does exactly what its comment says for every input it allows, so tests may check
-// them against the standard library. Header-only C++17, no dependencies, no exceptions, no allocation. MIT licensed (runtime/LICENSE).
+// them against the standard library. Header-only C++17, no dependencies, no exceptions, no allocation. MIT
+// licensed (runtime/LICENSE).
 #pragma once
 
 #include <cmath>
@@ -31,8 +32,8 @@ inline uint32_t bit_count(uint32_t x) {
     return n;
 #endif
 }
-// std::nextafter(f, up ? INFINITY : -INFINITY) for f not NaN, inlined (the library call was 0.4% of a
-// frame): the next float is one step of the bit pattern, away from zero or towards it.
+// std::nextafter(f, up ? INFINITY : -INFINITY) for f not NaN, inlined (the library call is not): the next
+// float is one step of the bit pattern, away from zero or towards it.
 inline float next_float(float f, bool up) {
     if (f == 0) return up ? std::numeric_limits<float>::denorm_min() : -std::numeric_limits<float>::denorm_min();
     uint32_t bits;

@@ -14,11 +14,11 @@
 namespace cb {
 
 // What the scan traversal (ScanTraversal) reads of one mesh's clusters that does not depend on the light:
-// their boxes, decoded, and the bounding spheres about them. Make them once per asset
-// (make_scan_bounds) and pass them to every build (ShadowBuildOptions::bounds). The spheres' centres are stored in float from `origin`,
-// the middle of the mesh's coarse box centres, so that their precision follows the mesh's size rather than
-// its distance from the frame's origin; each radius holds the box's corners (to 1e-6 of itself, more than
-// the axes' departure from orthonormal) and its centre's rounding, rounded up.
+// their boxes, decoded, and the bounding spheres about them. Make them once per asset (make_scan_bounds)
+// and pass them to every build (ShadowBuildOptions::bounds). The spheres' centres are stored in float from
+// `origin`, the middle of the mesh's coarse box centres, so that their precision follows the mesh's size
+// rather than its distance from the frame's origin; each radius holds the box's corners (to 1e-6 of itself,
+// more than the axes' departure from orthonormal) and its centre's rounding, rounded up.
 struct ScanBounds {
     const PackedObb* source_fine = nullptr;  // the packed boxes they were made from (build() checks them)
     const PackedObb* source_coarse = nullptr;

@@ -1,5 +1,6 @@
 // The exact test of a segment from a point to a point light against one triangle, the instance transforms
-// queries apply, and what a query counts. Header-only C++17, no dependencies, no exceptions, no allocation. MIT licensed (runtime/LICENSE).
+// queries apply, and what a query counts. Header-only C++17, no dependencies, no exceptions, no
+// allocation. MIT licensed (runtime/LICENSE).
 //
 // Semantics, exact for every input (all predicates are exact, cb_exact.h):
 // - Two-sided occluders (the default): every triangle with an area blocks, whichever way it faces.
@@ -121,6 +122,7 @@ inline bool segment_may_touch_box(const Obb& box, const double* p, const double*
     }
     return true;
 }
+
 // True only when the light is clearly inside the cluster's front cone (the stored cone's cosine rounded up,
 // plus a margin): then it sees every triangle of the cluster from the front.
 inline bool light_in_front_cone(const Cone& c, const double* light) {
@@ -133,9 +135,10 @@ inline bool light_in_front_cone(const Cone& c, const double* light) {
 }
 
 struct QueryStats {
-    uint64_t nodes_visited = 0;     // tree nodes (ClusterShadowTree only)
+    uint64_t nodes_visited = 0;     // tree nodes (TopTreeTraversal only)
     uint64_t clusters_tested = 0;   // fine clusters whose triangles were tested
     uint64_t triangles_tested = 0;
     uint64_t touching = 0;          // queries whose answer involved a touching contact
 };
+
 }  // namespace cb

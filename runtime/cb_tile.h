@@ -129,9 +129,8 @@ protected:
         Pyramid pyramid;          // holds the points walking now
         // Fine clusters met by the walk and the points inside their volumes, tested nearest to the light
         // first once the whole walk is done (or the list is full): a point in shadow then usually meets
-        // its blocker before the cluster it lies on, and is not tested against that one. (Testing at the
-        // end of each coarse cluster instead, so the walk could drop shadowed points sooner, measured
-        // slower: blockers often lie in another coarse cluster.)
+        // its blocker before the cluster it lies on, and is not tested against that one (blockers often lie
+        // in another coarse cluster, so the list waits for the whole walk).
         struct Pending {
             float near;
             uint32_t cluster;
