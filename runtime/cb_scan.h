@@ -181,7 +181,7 @@ private:
         return keep & subset;
     }
 
-    // Asks for fine cluster f's decoded box (scan mode) and record ahead of its test (pending clusters are
+    // Asks for fine cluster f's decoded box and record ahead of its test (pending clusters are
     // tested once the whole coarse cluster is scanned): on large meshes these reads otherwise miss the cache.
     void prefetch(uint32_t f) const {
         const std::vector<Obb>& boxes = scan_bounds().fine_obbs;

@@ -65,8 +65,8 @@ struct BoxFilter {
 };
 
 // What one thread's batch keeps from tile to tile (neighbouring tiles meet many of the same fine
-// clusters): lit triangle groups and box filters, each under its tree's name. clear() before the trees
-// change.
+// clusters): lit triangle groups and box filters, each under its traversal's name. clear() before the
+// traversals change.
 struct TileCache {
     lit::Cache lit;
     static constexpr uint32_t box_slots = 256;
@@ -139,8 +139,8 @@ protected:
         static constexpr uint32_t pending_capacity = 128;
         Pending pending[pending_capacity];
         uint32_t pending_count;
-        // Coarse clusters entered, likewise: their fine trees are walked nearest first, each one's clusters
-        // tested before the next, so that farther ones leave out the points already found in shadow.
+        // Coarse clusters entered, likewise: their fine clusters are found nearest first, each one's tested
+        // before the next, so that farther ones leave out the points already found in shadow.
         struct Entered {
             float near;
             uint32_t id;  // its cluster node (trees), or the coarse cluster (scan)

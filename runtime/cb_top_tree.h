@@ -241,7 +241,8 @@ public:
         if (!usable_ || alive == 0) return 0;
         Tile t;
         uint64_t alone;
-        alone |= start_tile(t, points, index, count, alive, stats, cache, nullptr, alone);
+        const uint64_t off = start_tile(t, points, index, count, alive, stats, cache, nullptr, alone);
+        alone |= off;  // over 60 degrees off the tile's mean direction: walk alone too
         if (t.alive) {
             for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count && t.alive; ++i)
                 test_points(always_fine_[i], t.alive, t);
