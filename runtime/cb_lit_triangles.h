@@ -427,7 +427,7 @@ inline bool triangles_block(Triangles& lit, const double* p, const double* light
 }
 
 // Triangle groups already lit, kept for later tests from the same light: a direct-mapped table, about 280 KB.
-// An entry is named by its owner (a token for one mesh, light and mode: cb::occluded_batch uses the tree),
+// An entry is named by its owner (a token for one mesh, light and mode: cb::occluded_batch uses the traversal),
 // its fine cluster and its first triangle. clear() before the owners' lights or meshes change.
 struct Cache {
     static constexpr uint32_t size = 64;
