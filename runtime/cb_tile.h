@@ -276,19 +276,25 @@ protected:
         t.fine_obbs = fine_obbs;
         t.alive = t.shadowed = 0;
         t.pending_count = t.entered_count = 0;
-        alone = 0;
+        // Each point worked out in locals, then stored: read back from the tile (written through a reference),
+        // it would wait on the stores just made.
+        uint64_t taken = 0, lone = 0;
         for (uint32_t i = 0; i < count; ++i) {
             if (!(alive >> i & 1)) continue;
-            const double* w = points + size_t(index[i]) * 3;
-            apply_instance(inverse_, w, t.p[i]);
-            for (int k = 0; k < 3; ++k) t.e[i][k] = t.p[i][k] - light_[k];
-            t.dist[i] = std::sqrt(t.e[i][0] * t.e[i][0] + t.e[i][1] * t.e[i][1] + t.e[i][2] * t.e[i][2]);
-            if (!(t.dist[i] > float_tiny) || !(t.dist[i] < 1e30)) {  // at or by the light, not finite, or beyond float's range
-                alone |= uint64_t(1) << i;
+            double p[3], e[3];
+            apply_instance(inverse_, points + size_t(index[i]) * 3, p);
+            for (int k = 0; k < 3; ++k) e[k] = p[k] - light_[k];
+            const double dist = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+            for (int k = 0; k < 3; ++k) t.p[i][k] = p[k], t.e[i][k] = e[k];
+            t.dist[i] = dist;
+            if (!(dist > float_tiny) || !(dist < 1e30)) {  // at or by the light, not finite, or beyond float's range
+                lone |= uint64_t(1) << i;
                 continue;
             }
-            t.alive |= uint64_t(1) << i;
+            taken |= uint64_t(1) << i;
         }
+        alone = lone;
+        t.alive = taken;
         uint64_t held = t.alive ? make_frame(t, t.alive) : 0;
         const uint64_t off = t.alive & ~held;
         t.alive &= held;
