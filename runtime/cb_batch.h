@@ -63,7 +63,7 @@ inline void batch_keys(const double* light, const double* points, size_t first, 
         ca = ca < 1023.0f ? ca : 1023.0f, cb = cb < 1023.0f ? cb : 1023.0f;
         const uint32_t face = uint32_t(on_x ? 0 : on_y ? 2 : 4) + uint32_t(std::signbit(sign));
         const uint32_t key = face << 20 | spread(uint32_t(int32_t(ca))) | spread(uint32_t(int32_t(cb))) << 1;
-        keys[i - first] = (major > 0) & (major < INFINITY) ? key : 0x7fffffu;  // zero or not finite: last
+        keys[i - first] = ((major > 0) & (major < INFINITY)) ? key : 0x7fffffu;  // zero or not finite: last
     }
 }
 
