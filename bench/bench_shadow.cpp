@@ -10,7 +10,7 @@
 //                [--frames N]
 //   (NAME "big": only the big scene; --one-sided 1: our trees in one-sided mode, whose answers equal
 //   two-sided ones outside closed meshes; Embree stays two-sided; L: scan (default), trees or one-tree, how
-//   our trees reach the fine clusters, ClusterShadowTree::FineLevel; --frames N: no Embree passes, only N of
+//   our trees reach the fine clusters, cb::Traversal; --frames N: no Embree passes, only N of
 //   our frames per light on one thread, their shortest and median time: on a noisy machine the shortest of
 //   many is the steadier figure for comparing two builds of the runtime, run alternately)
 #include <embree3/rtcore.h>
@@ -118,7 +118,7 @@ void flatten(const cb::Scene& s, std::vector<float>& v, std::vector<unsigned>& t
     }
 }
 
-void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowTree::FineLevel level, int frames) {
+void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal level, int frames) {
     Workers workers(2);
     // Bake with the default options and open the asset as the runtime would.
     cb::BakeStats bs;
@@ -202,13 +202,16 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         const double* light = lights[li];
         // Ours: build the trees (one per instance), then query, on 1 and 2 threads.
         std::vector<cb::ClusterShadowTree> trees(asset.instance_count);
-        std::vector<cb::ClusterShadowTree::BuildScratch> build_scratch(asset.instance_count);  // kept between builds
+        std::vector<cb::BuildScratch> build_scratch(asset.instance_count);  // kept between builds
         size_t always = 0;
         auto build_trees = [&](unsigned threads) {
             auto b0 = std::chrono::steady_clock::now();
             always = 0;
+            cb::ShadowBuildOptions options;
+            options.traversal = level, options.one_sided = one_sided, options.threads = threads, options.bounds = scan_bounds.data();
             for (uint32_t i = 0; i < asset.instance_count; ++i) {
-                trees[i].build(asset, i, light, one_sided, level, threads, &build_scratch[i], scan_bounds.data());
+                options.scratch = &build_scratch[i];
+                trees[i].build(asset, i, light, options);
                 always += trees[i].always_tested();
             }
             return cb::seconds_since(b0);
@@ -336,10 +339,10 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::ClusterShadowT
         size_t shadowed = 0, differ = 0;
         for (size_t i = 0; i < n; ++i) shadowed += ours[i], differ += ours[i] != embree1[i];
         double mq = double(n) / 1e6;
-        size_t ours_bytes = bytes.size() + (level == cb::ClusterShadowTree::FineLevel::scan ? scan_bounds_bytes : 0);
+        size_t ours_bytes = bytes.size() + (level == cb::Traversal::scan ? scan_bounds_bytes : 0);
         for (const cb::ClusterShadowTree& tr : trees) ours_bytes += tr.memory_bytes();
         size_t scratch_bytes = 0;
-        for (const cb::ClusterShadowTree::BuildScratch& b : build_scratch) scratch_bytes += b.memory_bytes();
+        for (const cb::BuildScratch& b : build_scratch) scratch_bytes += b.memory_bytes();
         for (const std::vector<uint32_t>& q : query_scratch) scratch_bytes += q.capacity() * sizeof(uint32_t);
         scratch_bytes += (order.capacity() + keys.capacity() + order_scratch.capacity()) * sizeof(uint32_t);
         std::printf("| %-16s | %s | %zu | %.0f%% | %.1f / %.1f ms | %.2f / %.2f | %.2f / %.2f | %.2f / %.2f | %.0f / %.1f ms | %.2f / %.2f | %.2f / %.2f | %.1f | %.1f | %.1f | %.1f | %zu | %.1f + %.1f / %.1f | %zu (%.3f%%) |\n",
@@ -358,15 +361,15 @@ int main(int argc, char** argv) {
     cb::bench::Options defaults;
     defaults.runs = 3;
     cb::bench::Options o = cb::bench::parse_options(argc, argv, defaults);
-    using Level = cb::ClusterShadowTree::FineLevel;
+    using Level = cb::Traversal;
     Level level = o.level == "trees" ? Level::trees : o.level == "one-tree" ? Level::one_tree : Level::scan;
     if (o.frames > 0) {
-        std::printf("%s, fine level '%s'; %dx%d view; our frames alone (build and queries, one thread), %d per light\n\n",
+        std::printf("%s, traversal '%s'; %dx%d view; our frames alone (build and queries, one thread), %d per light\n\n",
                     o.one_sided ? "one-sided trees" : "two-sided trees",
                     level == Level::trees ? "trees" : level == Level::one_tree ? "one-tree" : "scan", o.view, o.view, o.frames);
         std::printf("| scene | light | points | shortest frame | median frame |\n|---|---|---|---|---|\n");
     } else {
-        std::printf("%s, fine level '%s'; %dx%d view; medians of %d rounds; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = "
+        std::printf("%s, traversal '%s'; %dx%d view; medians of %d rounds; M q/s = million queries per second on 1 / 2 threads; 'ours vs Embree' = "
                     "(our build + our queries) / Embree's queries alone, 1 / 2 threads, the median of the rounds' ratios (below 1: we "
                     "are faster), against occluded1, then occluded16 (packets of 16 consecutive pixels); memory: our asset, scan bounds and "
                     "trees + scratch kept between frames (the build's and the two query threads') / Embree's peak\n\n", o.one_sided ? "one-sided trees" : "two-sided trees",

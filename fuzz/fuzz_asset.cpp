@@ -52,12 +52,14 @@ void query(const cb::AssetView& v) {
     batch.insert(batch.end(), {light[0], light[1], light[2], NAN, 0.0, 1.0, INFINITY, 1.0, 0.0});
     const size_t n = batch.size() / 3;
     std::vector<uint8_t> shadow(n);
-    using Level = cb::ClusterShadowTree::FineLevel;
     for (int variant = 0; variant < 3; ++variant) {  // scan two-sided, fine trees one-sided on 2 threads, one tree
-        bool one_sided = variant == 1;
+        cb::ShadowBuildOptions options;
+        options.traversal = cb::Traversal(variant);
+        options.one_sided = variant == 1;
+        options.threads = variant == 1 ? 2 : 1;
         std::vector<cb::ClusterShadowTree> trees(std::min<uint32_t>(v.instance_count, 4));
         for (uint32_t i = 0; i < trees.size(); ++i) {
-            trees[i].build(v, i, light, one_sided, Level(variant), variant == 1 ? 2 : 1);
+            trees[i].build(v, i, light, options);
             std::vector<uint32_t> stack(trees[i].stack_size());
             for (const double* p : points) sink = sink + float(trees[i].occluded(p, stack.data()));
         }

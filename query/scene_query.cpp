@@ -27,8 +27,13 @@ SceneQueryResult query_scene(const AssetView& view, const double* light, const d
     // The scan's bounds, once per mesh however many instances it has.
     const std::vector<ScanBounds> bounds =
         o.traversal == Traversal::scan && !trees.empty() ? make_scan_bounds(view) : std::vector<ScanBounds>{};
+    ShadowBuildOptions build;
+    build.traversal = o.traversal;
+    build.one_sided = o.one_sided;
+    build.threads = thread_count;
+    build.bounds = bounds.empty() ? nullptr : bounds.data();
     for (uint32_t i = 0; i < trees.size(); ++i) {
-        trees[i].build(view, i, light, o.one_sided, o.traversal, thread_count, nullptr, bounds.empty() ? nullptr : bounds.data());
+        trees[i].build(view, i, light, build);
         r.skipped += trees[i].skipped_clusters();
         r.nodes += trees[i].node_count();
         r.always_tested += trees[i].always_tested();
@@ -65,7 +70,7 @@ SceneQueryResult query_scene(const AssetView& view, const double* light, const d
             QueryStats* s = o.per_point ? &r.point_stats[i] : &counts[t];
             const double* p = &points[i * 3];
             if (o.reference) {
-                r.shadowed[i] = occluded_reference(view, p, light, s, o.one_sided);
+                r.shadowed[i] = occluded_reference(view, p, light, o.one_sided, s);
             } else {
                 for (const ClusterShadowTree& tree : trees)
                     if (!r.shadowed[i]) r.shadowed[i] = tree.occluded(p, stack.data(), s);

@@ -15,12 +15,8 @@
 
 namespace cb {
 
-// How queries find the clusters that may shadow a point: the coarse and fine clusters' spheres scanned
-// (no per-light tree), per-light trees over the coarse clusters and in each over its fine ones, or one tree
-// over all fine clusters. The same answers.
-using Traversal = ClusterShadowTree::FineLevel;
-
-// "scan", "trees" or "one-tree"; false on another name.
+// The traversal (cb::Traversal, runtime/cb_tile.h) named "scan", "trees" or "one-tree"; false on another
+// name. Every traversal gives the same answers.
 bool parse_traversal(const std::string& name, Traversal& out);
 
 struct SceneQueryOptions {

@@ -1,5 +1,5 @@
 // A long correctness run, outside ctest: shadow queries on every scene of ../shared/data (or on the given
-// files), answered by the runtime's shadow trees (each FineLevel) and by its reference walk, each
+// files), answered by the runtime's shadow trees (each Traversal) and by its reference walk, each
 // compared with the fast exact oracle (scene_oracle.h), in two-sided and one-sided mode.
 // Lights per scene: outside the bounds, grazing their top, beside them exactly level with the topmost
 // vertex, inside them, exactly on a vertex, and exactly on a triangle's plane beside the triangle. Points: surface points seen from cameras outside the bounds,
@@ -180,16 +180,16 @@ void parallel(size_t n, unsigned threads, F&& f) {
     for (std::thread& t : pool) t.join();
 }
 
-// Every point against one light in one mode: the runtime's trees (each FineLevel) and reference walk, and
+// Every point against one light in one mode: the runtime's trees (each Traversal) and reference walk, and
 // the oracle.
 std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle, const Light& light, bool one_sided,
                                const std::vector<Point>& points, unsigned threads, size_t brute_every) {
-    using Level = cb::ClusterShadowTree::FineLevel;
+    using cb::Traversal;
     std::vector<cb::ClusterShadowTree> scan(v.instance_count), two(v.instance_count), one(v.instance_count);
     for (uint32_t i = 0; i < v.instance_count; ++i) {
-        scan[i].build(v, i, light.at.data(), one_sided, Level::scan);
-        two[i].build(v, i, light.at.data(), one_sided, Level::trees);
-        one[i].build(v, i, light.at.data(), one_sided, Level::one_tree);
+        scan[i].build(v, i, light.at.data(), {.traversal = Traversal::scan, .one_sided = one_sided});
+        two[i].build(v, i, light.at.data(), {.traversal = Traversal::trees, .one_sided = one_sided});
+        one[i].build(v, i, light.at.data(), {.traversal = Traversal::one_tree, .one_sided = one_sided});
     }
     std::vector<Answer> answers(points.size());
     parallel(points.size(), threads, [&](size_t begin, size_t end) {
@@ -207,7 +207,7 @@ std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle
             answers[k].scan = ts[k - begin], answers[k].tree2 = t2[k - begin], answers[k].tree1 = t1[k - begin];
             for (const cb::ClusterShadowTree& tree : scan) answers[k].walk = answers[k].walk || tree.occluded(p, scratch.data());
             for (const cb::ClusterShadowTree& tree : two) answers[k].walk2 = answers[k].walk2 || tree.occluded(p, scratch.data());
-            answers[k].reference = cb::occluded_reference(v, p, light.at.data(), nullptr, one_sided);
+            answers[k].reference = cb::occluded_reference(v, p, light.at.data(), one_sided);
             answers[k].exact = oracle.occluded(p, light.at.data(), one_sided);
             if (brute_every && k % brute_every == 0) {
                 cb::test::OracleAnswer b = oracle.occluded_brute_force(p, light.at.data(), one_sided);

@@ -195,7 +195,7 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     EXPECT_EQ(one.out.size(), 1600u * 2);
     EXPECT_EQ(three.out, one.out);
     EXPECT_EQ(three_ref.out, one.out);
-    for (const char* fine : {"trees", "one-tree"})  // the other fine levels: the same answers
+    for (const char* fine : {"trees", "one-tree"})  // the other traversals: the same answers
         EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --fine " + fine).out, one.out) << fine;
     EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --fine leaves").code, 1);
     EXPECT_NE(one.out.find('1'), std::string::npos);

@@ -124,13 +124,13 @@ static void expect_blocked_by_a_crossing(const cb::test::Baked& b, const double*
     cb::test::OracleAnswer exact = SceneOracle(b.scene).occluded(p, light, false);
     EXPECT_TRUE(exact.blocked);
     EXPECT_FALSE(exact.touching);
-    EXPECT_TRUE(cb::occluded_reference(b.view, p, light, nullptr, false));
-    using Level = cb::ClusterShadowTree::FineLevel;
-    for (Level level : {Level::scan, Level::trees, Level::one_tree}) {
+    EXPECT_TRUE(cb::occluded_reference(b.view, p, light, false));
+    using cb::Traversal;
+    for (Traversal traversal : {Traversal::scan, Traversal::trees, Traversal::one_tree}) {
         cb::ClusterShadowTree tree;
-        tree.build(b.view, 0, light, false, level);
+        tree.build(b.view, 0, light, {.traversal = traversal});
         std::vector<uint32_t> stack(tree.stack_size());
-        EXPECT_EQ(tree.occluded(p, stack.data()), exact.blocked) << "fine level " << int(level);
+        EXPECT_EQ(tree.occluded(p, stack.data()), exact.blocked) << "traversal " << int(traversal);
     }
 }
 

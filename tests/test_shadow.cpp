@@ -73,7 +73,7 @@ TEST(Exact, NextFloatMatchesNextafter) {
         for (bool up : {false, true}) {
             if (up && f == INFINITY) continue;  // nothing beyond: not asked of it (round_up never is)
             if (!up && f == -INFINITY) continue;
-            wrong += bits_of(cb::shadow_detail::next_float(f, up)) != bits_of(std::nextafter(f, up ? INFINITY : -INFINITY));
+            wrong += bits_of(cb::math::next_float(f, up)) != bits_of(std::nextafter(f, up ? INFINITY : -INFINITY));
         }
     EXPECT_EQ(wrong, 0u);
 }
@@ -178,13 +178,13 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
                 }
                 for (bool one_sided : {false, true}) {
                     cb::QueryStats stats;
-                    bool ours = cb::occluded_reference(v, p, light, &stats, one_sided);
+                    bool ours = cb::occluded_reference(v, p, light, one_sided, &stats);
                     cb::test::OracleAnswer exact_answer = exact_oracle.occluded(p, light, one_sided);
                     bool exact = exact_answer.blocked;
                     disagreements += ours != exact;
                     touching += exact_answer.touching;
                     shadowed += exact;
-                    one_sided_differs += one_sided && ours != cb::occluded_reference(v, p, light, nullptr, false);
+                    one_sided_differs += one_sided && ours != cb::occluded_reference(v, p, light, false);
                     ++queries;
                 }
             }
@@ -293,11 +293,11 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
         for (int variant = 0; variant < 24; ++variant) {
             const double* light = lights[variant % 4];
             bool one_sided = variant / 4 % 2 == 1;
-            auto level = cb::ClusterShadowTree::FineLevel(variant / 8);
+            auto level = cb::Traversal(variant / 8);
             std::vector<cb::ClusterShadowTree> trees(v.instance_count);
             size_t stack = 0;
             for (uint32_t i = 0; i < v.instance_count; ++i) {  // half the scans share the bounds, half make their own
-                trees[i].build(v, i, light, one_sided, level, 1, nullptr, variant % 2 == 0 ? bounds.data() : nullptr);
+                trees[i].build(v, i, light, {.traversal = level, .one_sided = one_sided, .bounds = variant % 2 == 0 ? bounds.data() : nullptr});
                 stack = std::max(stack, trees[i].stack_size());
                 skipped += trees[i].skipped_clusters();
             }
@@ -319,7 +319,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
                         tree = true;
                         break;
                     }
-                bool reference = cb::occluded_reference(v, p, light, &r, one_sided);
+                bool reference = cb::occluded_reference(v, p, light, one_sided, &r);
                 disagreements += tree != reference;
                 shadowed += reference;
                 tested_tree += a.triangles_tested, tested_reference += r.triangles_tested;
@@ -425,8 +425,8 @@ TEST(Shadow, ParallelBuildGivesTheSameTree) {
         for (bool one_sided : {false, true}) {
             std::vector<cb::ClusterShadowTree> one(v.instance_count), three(v.instance_count);
             for (uint32_t i = 0; i < v.instance_count; ++i) {
-                one[i].build(v, i, light, one_sided, cb::ClusterShadowTree::FineLevel::trees, 1);
-                three[i].build(v, i, light, one_sided, cb::ClusterShadowTree::FineLevel::trees, 3);
+                one[i].build(v, i, light, {.traversal = cb::Traversal::trees, .one_sided = one_sided, .threads = 1});
+                three[i].build(v, i, light, {.traversal = cb::Traversal::trees, .one_sided = one_sided, .threads = 3});
                 EXPECT_EQ(one[i].node_count(), three[i].node_count());
                 EXPECT_EQ(one[i].memory_bytes(), three[i].memory_bytes());
                 EXPECT_EQ(one[i].stack_size(), three[i].stack_size());
@@ -477,10 +477,10 @@ TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
     size_t shadowed = 0;
     for (size_t k = 0; k < n; ++k) shadowed += reference[k] = cb::occluded_reference(v, &points[k * 3], light);
     EXPECT_GT(shadowed, 50u);
-    using Level = cb::ClusterShadowTree::FineLevel;
+    using Level = cb::Traversal;
     for (Level level : {Level::scan, Level::trees, Level::one_tree}) {
         std::vector<cb::ClusterShadowTree> trees(v.instance_count);
-        for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light, false, level);
+        for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light, {.traversal = level});
         std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
         std::vector<uint8_t> batch(n);
         cb::occluded_batch(trees.data(), trees.size(), points.data(), n, batch.data(), scratch.data());
@@ -490,8 +490,8 @@ TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
             for (const cb::ClusterShadowTree& t : trees) walk = walk || t.occluded(&points[k * 3], scratch.data());
             bad += batch[k] != reference[k], bad_walk += walk != bool(reference[k]);
         }
-        EXPECT_EQ(bad, 0u) << "fine level " << int(level);
-        EXPECT_EQ(bad_walk, 0u) << "fine level " << int(level);
+        EXPECT_EQ(bad, 0u) << "traversal " << int(level);
+        EXPECT_EQ(bad_walk, 0u) << "traversal " << int(level);
     }
 }
 
@@ -613,7 +613,7 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
             for (int variant = 0; variant < 6; ++variant) {
                 bool one_sided = variant % 2 == 1;
                 cb::ClusterShadowTree tree;
-                tree.build(v, 0, light.data(), one_sided, cb::ClusterShadowTree::FineLevel(variant / 2));
+                tree.build(v, 0, light.data(), {.traversal = cb::Traversal(variant / 2), .one_sided = one_sided});
                 std::vector<uint32_t> stack(tree.stack_size());
                 std::vector<double> points;
                 std::vector<bool> exact_answers;
@@ -638,7 +638,7 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                     }
                     cb::test::OracleAnswer exact_answer = exact_oracle.occluded(p, light.data(), one_sided);
                     bool exact = exact_answer.blocked;
-                    bool ref = cb::occluded_reference(v, p, light.data(), nullptr, one_sided);
+                    bool ref = cb::occluded_reference(v, p, light.data(), one_sided);
                     bool fast = tree.occluded(p, stack.data());
                     disagreements += ref != exact;
                     tree_disagreements += fast != exact;
@@ -746,17 +746,17 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
             ex[i] = float(f0), ey[i] = float(f1), ez[i] = float(f2);
             l1[i] = std::fabs(f0) + std::fabs(f1) + std::fabs(f2), vl[i] = float(l1[i] * 1.000001);
         }
-        const cb::shadow_detail::TileView tile{ex, ey, ez, vl, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64), rx, ry, rz};
+        const cb::lit::TileView tile{ex, ey, ez, vl, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64), rx, ry, rz};
         const uint64_t which = ~uint64_t(0);
         for (bool one_sided : {false, true}) {
-            for (uint32_t first = 0; first < c.triangle_count; first += cb::shadow_detail::lit_capacity) {
-                const uint32_t count = std::min<uint32_t>(cb::shadow_detail::lit_capacity, c.triangle_count - first);
-                cb::shadow_detail::LitTriangles lit;
-                cb::shadow_detail::light_triangles(v, m, c, first, count, light, one_sided, lit);
+            for (uint32_t first = 0; first < c.triangle_count; first += cb::lit::capacity) {
+                const uint32_t count = std::min<uint32_t>(cb::lit::capacity, c.triangle_count - first);
+                cb::lit::Triangles lit;
+                cb::lit::light_triangles(v, m, c, first, count, light, one_sided, lit);
                 uint32_t may_meet[64], through[64];
                 uint64_t sure = 0, left = 0;
                 ++tiles;
-                if (!cb::shadow_detail::tile_line_tests(lit, tile, which, may_meet, through, &sure, &left)) continue;
+                if (!cb::lit::tile_line_tests(lit, tile, which, may_meet, through, &sure, &left)) continue;
                 ++decided;
                 for (int i = 0; i < 64; ++i) {
                     bool blocks = false;  // exactly, by a triangle of this group
@@ -871,15 +871,15 @@ void for_each_lit_plane_sample(uint32_t seed, Visit visit) {
     for_each_grid_cluster({0.0, 1e3, 1e6, 3e7}, 0.7, 1.3, 0.4, 1.9, 300, rng, [&](double offset, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
         const cb::FineCluster& c = v.fine[m.first_fine + f];
         const double light[3] = {offset + 10 * u(rng) - 3, offset + 10 * u(rng) - 3, offset + (trial % 2 ? 0.2 : 6) * u(rng)};
-        cb::shadow_detail::LitTriangles lit;
-        const uint32_t count = std::min<uint32_t>(cb::shadow_detail::lit_capacity, c.triangle_count);
-        cb::shadow_detail::light_triangles(v, m, c, 0, count, light, false, lit);
+        cb::lit::Triangles lit;
+        const uint32_t count = std::min<uint32_t>(cb::lit::capacity, c.triangle_count);
+        cb::lit::light_triangles(v, m, c, 0, count, light, false, lit);
         for (uint32_t t = 0; t < count; ++t) {
             double corner[3][3], e1[3], e2[3], n[3], points[4][3];
             for (int k = 0; k < 3; ++k)
                 for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
             for (int j = 0; j < 3; ++j) e1[j] = corner[1][j] - corner[0][j], e2[j] = corner[2][j] - corner[0][j];
-            cb::shadow_detail::cross3(e1, e2, n);
+            cb::math::cross3(e1, e2, n);
             for (int k = 0; k < 4; ++k) {
                 const double s = u(rng), w = u(rng) * (1 - s), lift[4] = {0, 1e-12, 1e-6, 0.3};
                 for (int j = 0; j < 3; ++j) points[k][j] = corner[0][j] + s * e1[j] + w * e2[j] + lift[k] * n[j];
@@ -904,14 +904,14 @@ TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
         ++checked;
         outside += cb::exact::sign(low) < 0 || cb::exact::sign(high) > 0;
     };
-    for_each_lit_plane_sample(11, [&](const cb::shadow_detail::LitTriangles& lit, uint32_t t, const double (&corner)[3][3],
+    for_each_lit_plane_sample(11, [&](const cb::lit::Triangles& lit, uint32_t t, const double (&corner)[3][3],
                                       const double* light, const double (&points)[4][3]) {
-        cb::shadow_detail::TriangleTerms terms;
-        cb::shadow_detail::plane_terms(lit, t, light, terms);
+        cb::lit::TriangleTerms terms;
+        cb::lit::plane_terms(lit, t, light, terms);
         within(corner[0], corner[1], corner[2], light, terms.dq, terms.bq);
         for (const double* x : points) {
             double bound;
-            const double value = cb::shadow_detail::plane_side(terms, x, bound);
+            const double value = cb::lit::plane_side(terms, x, bound);
             within(corner[0], corner[1], corner[2], x, value, bound);
         }
     });
@@ -940,7 +940,7 @@ TEST(Shadow, LitTriangleFloatPlaneTestsStayWithinTheirBounds) {
         worst = std::max(worst, std::fabs(e) / bound);
     };
     static_assert(cb::self_shadow_fraction == 1.0 / 8192, "the scaling below");
-    for_each_lit_plane_sample(12, [&](const cb::shadow_detail::LitTriangles& lit, uint32_t t, const double (&corner)[3][3],
+    for_each_lit_plane_sample(12, [&](const cb::lit::Triangles& lit, uint32_t t, const double (&corner)[3][3],
                                       const double* light, const double (&points)[4][3]) {
         if (!(lit.qbound[t] < INFINITY)) return;
         ++usable;
@@ -1091,7 +1091,7 @@ TEST(Shadow, SharedScanBoundsGiveTheTreesOwnAnswers) {
     for (int k = 0; k < 3; ++k) {
         std::vector<cb::ClusterShadowTree> trees(v.instance_count);
         for (uint32_t i = 0; i < v.instance_count; ++i) {
-            trees[i].build(v, i, light, false, cb::ClusterShadowTree::FineLevel::scan, 1, nullptr, given[k]);
+            trees[i].build(v, i, light, {.traversal = cb::Traversal::scan, .bounds = given[k]});
             bytes[k] += trees[i].memory_bytes();
         }
         std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));

@@ -1,0 +1,498 @@
+// What every shadow traversal (cb_scan.h, cb_top_tree.h) shares: the build options, the instance's frame
+// (the mesh, the inverse of its transform, the light in the mesh's frame), the tile of points a batch query
+// takes at once (their directions from the light in float, and a pyramid from the light that holds them),
+// the float box filters, and the steps that test the clusters a traversal finds (pending clusters, nearest
+// first; a cluster's triangles, cb_lit_triangles.h). A traversal is one more class on TraversalBase with
+// the same small interface (build, occluded, occluded_tile, stack_size, node_count, memory_bytes,
+// always_tested); no call is virtual. Header-only C++17, no exceptions, no allocation in queries. MIT
+// licensed (runtime/LICENSE).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+#include "cb_asset.h"
+#include "cb_lit_triangles.h"
+#include "cb_math.h"
+#include "cb_segment.h"
+#include "cb_simd.h"
+
+namespace cb {
+
+struct ScanBounds;    // cb_scan_bounds.h
+struct BuildScratch;  // cb_top_tree.h
+
+// How a query finds the fine clusters whose triangles it tests: one traversal type each.
+enum class Traversal : uint8_t {
+    scan,      // no tree (ScanTraversal): the coarse clusters' bounding spheres are scanned against a tile's
+               // pyramid, then each entered one's fine spheres against the pyramid of its points (the default:
+               // the only per-light work is setting up the coarse boxes)
+    trees,     // TopTreeTraversal: a tree over the coarse clusters whose cluster nodes enter a tree over that
+               // coarse cluster's fine clusters (the thesis's two levels)
+    one_tree,  // TopTreeTraversal: one tree over all the fine clusters
+};
+
+// The settings of a traversal's build (ClusterShadowTree::build).
+struct ShadowBuildOptions {
+    // Without coarse boxes in the asset, every traversal is one tree.
+    Traversal traversal = Traversal::scan;
+    // One-sided occluders (cb_segment.h): clusters whose front cone holds the light, and that have no
+    // double-sided triangle, cannot block anything and are left out.
+    bool one_sided = false;
+    // Traversal::trees: up to this many threads (std::thread) build the coarse clusters' fine trees; the tree
+    // is the same for any thread count.
+    unsigned threads = 1;
+    // Traversal::scan: the asset's ScanBounds, indexed by mesh (make_scan_bounds), read by every query and so
+    // kept alive and unchanged while the traversal is used. Without them, or when they were made from
+    // another asset view, the scan makes its mesh's own at each build (a pass over its boxes).
+    const ScanBounds* bounds = nullptr;
+    // The trees' working arrays, kept between builds (one per concurrent build): a tree rebuilt every frame
+    // then reuses memory instead of asking the system for fresh pages. The traversal's own arrays are reused
+    // the same way when its object is.
+    BuildScratch* scratch = nullptr;
+};
+
+// Points a batch query walks together (cb::occluded_batch): with close directions from the light, one
+// walk with the pyramid that holds them all stands for a walk per point.
+constexpr uint32_t tile_capacity = 64;
+static_assert(tile_capacity == 64, "a tile's points are the bits of a uint64_t");
+
+// A box set up for one light's float separating-axis test (TraversalBase::box_filter).
+struct BoxFilter {
+    float lo[3], hi[3], hf[3], w[3][3], ax[3][3], tol;
+    bool usable;  // false where float could overflow: the points are then tested in double
+};
+
+// What one thread's batch keeps from tile to tile (neighbouring tiles meet many of the same fine
+// clusters): lit triangle groups and box filters, each under its traversal's name. clear() before the
+// traversals change.
+struct TileCache {
+    lit::Cache lit;
+    static constexpr uint32_t box_slots = 256;
+    const void* box_owner[box_slots];
+    uint32_t box_cluster[box_slots];
+    BoxFilter box[box_slots];
+    void clear() {
+        lit.clear();
+        for (const void*& o : box_owner) o = nullptr;
+    }
+};
+
+// Indices [first, first + count) of some list.
+struct IndexRange {
+    uint32_t first = 0, count = 0;
+};
+
+// The state and the steps every traversal shares, for one instance and one light.
+class TraversalBase {
+public:
+    static constexpr uint32_t none = 0xffffffffu;
+
+    const double* world_light() const { return world_light_; }
+    size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the light sees from the front
+
+protected:
+    // Sizes (distances, coordinates from the light) below which the float filters cannot overflow: their
+    // largest terms are products of four such sizes.
+    static constexpr double float_safe = 1e9;
+    // And sizes above which their margins stay far above the absolute rounding of results that fall to
+    // float's subnormals (1e-45): points nearer the light walk alone (in double), boxes and spheres that lie
+    // wholly within this of it are not filtered in float.
+    static constexpr double float_tiny = 1e-7;
+
+    struct Query {
+        double p[3], e[3], dist;
+        QueryStats* stats;
+        const Obb* fine_obbs;  // the fine boxes decoded (ScanBounds), or null: from the asset
+    };
+
+    // A pyramid from the light that holds the directions of some points, and their distances to the light.
+    struct Pyramid {
+        alignas(16) float rx[4], ry[4], rz[4];  // unit edge rays (in float): every direction is a positive mix of them
+        double dmax;
+    };
+
+    // A tile's points in the mesh's frame, and the pyramid from the light that holds their directions.
+    struct Tile {
+        uint32_t count;
+        uint64_t alive;           // in the pyramid and not yet found in shadow
+        uint64_t shadowed;
+        bool small;               // every live point within float_safe of the light: the float filters apply
+        double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
+        alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
+        alignas(64) float slack[tile_capacity];  // the plane checks' tolerance, 2e-6 of the distance
+        alignas(64) float vl[tile_capacity];  // |e|_1 (l1) and a float just above it, for the triangle tests (TileView)
+        double l1[tile_capacity], l1_lo, l1_hi;
+        double frame[3][3];        // the mean direction from the light and two axes across it (make_frame)
+        double across[tile_capacity][2];  // each point's central projection in that frame
+        Pyramid pyramid;          // holds the points walking now
+        // Fine clusters met by the walk and the points inside their volumes, tested nearest to the light
+        // first once the whole walk is done (or the list is full): a point in shadow then usually meets
+        // its blocker before the cluster it lies on, and is not tested against that one (blockers often lie
+        // in another coarse cluster, so the list waits for the whole walk).
+        struct Pending {
+            float near;
+            uint32_t cluster;
+            uint64_t points;
+        };
+        static constexpr uint32_t pending_capacity = 128;
+        Pending pending[pending_capacity];
+        uint32_t pending_count;
+        // Coarse clusters entered, likewise: their fine clusters are found nearest first, each one's tested
+        // before the next, so that farther ones leave out the points already found in shadow.
+        struct Entered {
+            float near;
+            uint32_t id;  // its cluster node (trees), or the coarse cluster (scan)
+            uint64_t points;
+        };
+        static constexpr uint32_t entered_capacity = 64;
+        Entered entered[entered_capacity];
+        uint32_t entered_count;
+        QueryStats* stats;
+        TileCache* cache;  // kept between tiles (may be null)
+        const Obb* fine_obbs;  // the fine boxes decoded (ScanBounds), or null: from the asset
+    };
+
+    // The tile's frame: the mean direction z from the light of the points `which` and two unit axes across
+    // it, and each point's central projection onto the plane across z at distance 1. Returns the points it
+    // holds: all but those over 60 degrees off the mean.
+    static uint64_t make_frame(Tile& t, uint64_t which) {
+        double m[3] = {0, 0, 0};
+        for (uint64_t w = which; w; w &= w - 1) {
+            uint32_t i = math::lowest_bit(w);
+            const double inv = 1 / t.dist[i];
+            for (int k = 0; k < 3; ++k) m[k] += t.e[i][k] * inv;
+        }
+        double ml = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+        if (!(ml > 0)) return 0;
+        double *z = t.frame[0], *a = t.frame[1], *b = t.frame[2];
+        for (int k = 0; k < 3; ++k) z[k] = m[k] / ml;
+        int k0 = std::fabs(z[0]) < std::fabs(z[1]) ? (std::fabs(z[0]) < std::fabs(z[2]) ? 0 : 2) : (std::fabs(z[1]) < std::fabs(z[2]) ? 1 : 2);
+        double axis[3] = {0, 0, 0};
+        axis[k0] = 1;
+        math::cross3(z, axis, a);
+        double al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        for (int k = 0; k < 3; ++k) a[k] /= al;
+        math::cross3(z, a, b);
+        uint64_t held = 0;
+        for (uint64_t w = which; w; w &= w - 1) {
+            uint32_t i = math::lowest_bit(w);
+            const double* e = t.e[i];
+            double depth = math::dot3(e, z);
+            if (!(depth > 0.5 * t.dist[i])) continue;  // over 60 degrees off: walks alone
+            double inv = 1 / depth;
+            t.across[i][0] = math::dot3(e, a) * inv, t.across[i][1] = math::dot3(e, b) * inv;
+            held |= uint64_t(1) << i;
+        }
+        return held;
+    }
+
+    // The pyramid from the light through the rectangle in the tile's frame that bounds the projections of
+    // the points `which` (held by the frame).
+    static void make_pyramid(const Tile& t, uint64_t which, Pyramid& out) {
+        double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+        out.dmax = 0;
+        for (uint64_t w = which; w; w &= w - 1) {
+            uint32_t i = math::lowest_bit(w);
+            const double x = t.across[i][0], y = t.across[i][1];
+            lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y), hi[1] = std::max(hi[1], y);
+            out.dmax = std::max(out.dmax, t.dist[i]);
+        }
+        // Widened far beyond the rounding of x and y (a few 1e-16 for |x|, |y| below 2) and of the rays to
+        // float (below 1e-7): the float rays still hold every point's direction.
+        for (int k = 0; k < 2; ++k) lo[k] -= 1e-6, hi[k] += 1e-6;
+        const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
+        const double *z = t.frame[0], *a = t.frame[1], *b = t.frame[2];
+        for (int r = 0; r < 4; ++r) {
+            double ray[3], l = 0;
+            for (int k = 0; k < 3; ++k) ray[k] = z[k] + corner[r][0] * a[k] + corner[r][1] * b[k], l += ray[k] * ray[k];
+            l = std::sqrt(l);
+            out.rx[r] = float(ray[0] / l), out.ry[r] = float(ray[1] / l), out.rz[r] = float(ray[2] / l);
+        }
+    }
+
+    // Refits the tile's pyramid to the points `in` when they are not all its live points (narrower, so fewer
+    // fine volumes or spheres meet it); returns the tile's pyramid, to be put back.
+    static Pyramid narrow_pyramid(Tile& t, uint64_t in) {
+        const Pyramid whole = t.pyramid;
+        if (in != t.alive) make_pyramid(t, in, t.pyramid);
+        return whole;
+    }
+
+    // Sorts by closing distance, ties in list order: each entry goes straight to its rank, the entries before it
+    // in that order, counted a vector of keys an instruction (no branch on the keys: an insertion sort
+    // mispredicted one per entry). NaN counts as infinity.
+    template <class T>
+    static void sort_by_near(T* a, uint32_t count) {
+        constexpr uint32_t most = 128;  // the longest list (Tile's capacities)
+        static_assert(Tile::pending_capacity <= most && Tile::entered_capacity <= most, "lists sort_by_near can sort");
+        if (count < 2 || count > most) return;
+        alignas(64) float key[most + simd::width];
+        for (uint32_t i = 0; i < count; ++i) key[i] = a[i].near == a[i].near ? a[i].near : INFINITY;
+        const uint32_t groups = (count + simd::width - 1) / simd::width * simd::width;
+        for (uint32_t i = count; i < groups; ++i) key[i] = INFINITY;  // past the end: never before anything
+        T sorted[most];
+        for (uint32_t i = 0; i < count; ++i) {
+            const simd::Floats k = simd::splat(key[i]);
+            uint32_t rank = 0;
+            for (uint32_t g = 0; g < groups; g += simd::width) {
+                const simd::Floats v = simd::load(key + g);
+                const uint32_t less = simd::bits(v < k), tied = simd::bits(v <= k) & ~less;
+                const uint32_t earlier = i >= g + simd::width ? ~0u : i > g ? (1u << (i - g)) - 1 : 0u;  // lanes before i
+                rank += math::bit_count(less) + math::bit_count(tied & earlier);
+            }
+            sorted[rank] = a[i];
+        }
+        std::copy(sorted, sorted + count, a);
+    }
+
+    // The instance's frame for a light in world space, and the build's common settings; false when the
+    // instance can block nothing: a singular transform flattens the mesh, and a light that is not finite
+    // lights nothing.
+    bool set_instance(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided) {
+        view_ = &view;
+        one_sided_ = one_sided;
+        skipped_ = 0;
+        for (int k = 0; k < 3; ++k) world_light_[k] = world_light[k];
+        usable_ = invert_instance(view.instances[instance].transform, inverse_) && finite3(world_light);
+        if (!usable_) return false;
+        apply_instance(inverse_, world_light, light_);
+        mesh_ = &view.meshes[view.instances[instance].mesh];
+        return true;
+    }
+
+    // Sets up tile t for the `count` world points points + 3 * index[i] (xyz doubles) set in `alive`: in the
+    // mesh's frame, from the light, in float, and the pyramid from the light that holds their directions.
+    // t.alive gets the points the tile takes; `alone` those that go alone, in double (at or by the light, not
+    // finite, or beyond float's range). Returns the points over 60 degrees off the tile's mean direction,
+    // which the tile does not take either (the traversal says where they go). `fine_obbs`: the fine boxes
+    // decoded (ScanBounds), or null to read them from the asset.
+    uint64_t start_tile(Tile& t, const double* points, const uint32_t* index, uint32_t count, uint64_t alive, QueryStats* stats,
+                        TileCache* cache, const Obb* fine_obbs, uint64_t& alone) const {
+        t.count = count;
+        t.stats = stats;
+        t.cache = cache;
+        t.fine_obbs = fine_obbs;
+        t.alive = t.shadowed = 0;
+        t.pending_count = t.entered_count = 0;
+        // Each point worked out in locals, then stored: read back from the tile (written through a reference),
+        // it would wait on the stores just made.
+        uint64_t taken = 0, lone = 0;
+        for (uint32_t i = 0; i < count; ++i) {
+            if (!(alive >> i & 1)) continue;
+            double p[3], e[3];
+            apply_instance(inverse_, points + size_t(index[i]) * 3, p);
+            for (int k = 0; k < 3; ++k) e[k] = p[k] - light_[k];
+            const double dist = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+            for (int k = 0; k < 3; ++k) t.p[i][k] = p[k], t.e[i][k] = e[k];
+            t.dist[i] = dist;
+            if (!(dist > float_tiny) || !(dist < 1e30)) {  // at or by the light, not finite, or beyond float's range
+                lone |= uint64_t(1) << i;
+                continue;
+            }
+            taken |= uint64_t(1) << i;
+        }
+        alone = lone;
+        t.alive = taken;
+        uint64_t held = t.alive ? make_frame(t, t.alive) : 0;
+        const uint64_t off = t.alive & ~held;
+        t.alive &= held;
+        if (t.alive) {
+            make_pyramid(t, t.alive, t.pyramid);
+            t.small = t.pyramid.dmax < float_safe;
+            for (uint32_t i = 0; i < tile_capacity; ++i) {
+                bool in = t.alive >> i & 1;
+                t.ex[i] = in ? float(t.e[i][0]) : 0.0f, t.ey[i] = in ? float(t.e[i][1]) : 0.0f, t.ez[i] = in ? float(t.e[i][2]) : 0.0f;
+                t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
+                t.slack[i] = 2e-6f * t.fd[i];
+            }
+            t.l1_lo = INFINITY, t.l1_hi = 0;
+            for (uint64_t w = t.alive; w; w &= w - 1) {
+                const uint32_t i = math::lowest_bit(w);
+                t.l1[i] = std::fabs(t.e[i][0]) + std::fabs(t.e[i][1]) + std::fabs(t.e[i][2]);
+                t.vl[i] = float(t.l1[i] * 1.000001);
+                t.l1_lo = std::min(t.l1_lo, t.l1[i]), t.l1_hi = std::max(t.l1_hi, t.l1[i]);
+            }
+        }
+        return off;
+    }
+
+    // The query of one point on its own, in double.
+    Query make_query(const double* world_p, QueryStats* stats, const Obb* fine_obbs) const {
+        Query q;
+        apply_instance(inverse_, world_p, q.p);
+        for (int k = 0; k < 3; ++k) q.e[k] = q.p[k] - light_[k];
+        q.dist = std::sqrt(q.e[0] * q.e[0] + q.e[1] * q.e[1] + q.e[2] * q.e[2]);
+        q.stats = stats;
+        q.fine_obbs = fine_obbs;
+        return q;
+    }
+
+    BoxFilter box_filter(const Obb& box) const {
+        BoxFilter b{};
+        double h[3], c[3], a[3][3];
+        padded_halves(box, h);
+        for (int k = 0; k < 3; ++k) {
+            c[k] = double(box.center[k]) - light_[k];
+            for (int j = 0; j < 3; ++j) a[k][j] = box.axis[k][j];
+        }
+        const double hs = h[0] + h[1] + h[2], c1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]);
+        b.usable = c1 + hs < float_safe && c1 + hs > float_tiny;
+        if (!b.usable) return b;
+        for (int k = 0; k < 3; ++k) {
+            double qk = math::dot3(c, a[k]), reach = h[k] + 1e-6 * (hs + c1);
+            b.lo[k] = float(qk - reach), b.hi[k] = float(qk + reach), b.hf[k] = float(h[k]);
+            double wk[3];
+            math::cross3(a[k], c, wk);
+            for (int j = 0; j < 3; ++j) b.w[k][j] = float(wk[j]), b.ax[k][j] = box.axis[k][j];
+        }
+        b.tol = float(2e-6 * (hs + c1));
+        return b;
+    }
+
+    // Fine cluster f's box filter.
+    BoxFilter fine_box_filter(uint32_t f, const Obb* fine_obbs) const { return box_filter(fine_obb(f, fine_obbs)); }
+
+    // Fine cluster f's box filter from the batch's cache, set up there when it is not yet.
+    const BoxFilter& cached_fine_box_filter(uint32_t f, const Obb* fine_obbs, TileCache& cache) const {
+        const uint32_t slot = f % TileCache::box_slots;
+        if (cache.box_owner[slot] != this || cache.box_cluster[slot] != f) {
+            cache.box[slot] = fine_box_filter(f, fine_obbs);
+            cache.box_owner[slot] = this, cache.box_cluster[slot] = f;
+        }
+        return cache.box[slot];
+    }
+
+    // The points of `subset` whose segment to the light may touch the box of `b` (usable, and the tile small):
+    // separating axis tests in float over the subset's lanes, on the box's 3 axes and on the segment's
+    // direction crossed with each.
+    static uint64_t box_points(const BoxFilter& b, uint64_t subset, const Tile& t) {
+        const float(&lo)[3] = b.lo, (&hi)[3] = b.hi, (&hf)[3] = b.hf, (&w)[3][3] = b.w, (&ax)[3][3] = b.ax;
+        const float tol = b.tol;
+        uint32_t begin, end;
+        simd::lane_span(subset, begin, end);
+        uint64_t keep = 0;
+        // Per lane, the smallest margin of the 9 checks (>= 0: no separating axis): on box axis k, the segment's
+        // shadow [min(0, g), max(0, g)] must meet [lo, hi]; on e x axis k, where the segment projects to 0, the
+        // box's centre projects to e . (axis k x c) = e . w[k], and its support is hf[j] |g[m]| + hf[m] |g[j]|.
+        using simd::Floats;
+        const Floats zero = simd::splat(0.0f), micro = simd::splat(1e-6f), vtol = simd::splat(tol);
+        for (uint32_t i = begin; i < end; i += simd::width) {
+            if (!simd::group(subset, i)) continue;  // no point in these lanes (the subset is often sparse)
+            const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i), d = simd::load(t.fd + i);
+            const Floats slack = micro * d;
+            const Floats g[3] = {simd::dot(ex, ey, ez, ax[0][0], ax[0][1], ax[0][2]), simd::dot(ex, ey, ez, ax[1][0], ax[1][1], ax[1][2]),
+                                 simd::dot(ex, ey, ez, ax[2][0], ax[2][1], ax[2][2])};
+            Floats m = simd::splat(INFINITY);
+            for (int k = 0; k < 3; ++k) {
+                m = simd::min(m, (simd::splat(hi[k]) + slack) - simd::min(g[k], zero));
+                m = simd::min(m, (simd::max(g[k], zero) + slack) - simd::splat(lo[k]));
+            }
+            const Floats a[3] = {simd::abs(g[0]), simd::abs(g[1]), simd::abs(g[2])};
+            const Floats td = vtol * d;
+            for (int k = 0; k < 3; ++k) {
+                const int j = (k + 1) % 3, n = (k + 2) % 3;
+                const Floats support = simd::fma(simd::splat(hf[j]), a[n], simd::fma(simd::splat(hf[n]), a[j], td));
+                m = simd::min(m, support - simd::abs(simd::dot(ex, ey, ez, w[k][0], w[k][1], w[k][2])));
+            }
+            keep |= uint64_t(simd::bits(m >= zero)) << i;
+        }
+        return subset & keep;
+    }
+
+    // Tests fine cluster f's triangles for the points of `subset` still alive whose segment may touch its box.
+    void test_points(uint32_t f, uint64_t subset, Tile& t) const { test_triangles(f, fine_box_points(f, subset & t.alive, t), t); }
+
+    // The points of `subset` whose segment may touch fine cluster f's box.
+    uint64_t fine_box_points(uint32_t f, uint64_t subset, Tile& t) const {
+        if (!view_->fine_bounds.obbs || !subset) return subset;
+        BoxFilter own;
+        const BoxFilter& b = t.cache ? cached_fine_box_filter(f, t.fine_obbs, *t.cache) : (own = fine_box_filter(f, t.fine_obbs));
+        if (b.usable && t.small) return box_points(b, subset, t);
+        const Obb box = fine_obb(f, t.fine_obbs);
+        for (uint64_t w = subset; w; w &= w - 1) {
+            uint32_t i = math::lowest_bit(w);
+            if (!segment_may_touch_box(box, t.p[i], light_)) subset &= ~(uint64_t(1) << i);
+        }
+        return subset;
+    }
+
+    // Tests fine cluster f's triangles for the points of `subset` still alive.
+    void test_triangles(uint32_t f, uint64_t subset, Tile& t) const {
+        const uint64_t todo = subset & t.alive;
+        if (!todo) return;
+        // The tile's pyramid holds every point of `todo`: it is narrowed only while a scan or a fine walk works
+        // for some points, and the clusters tested then are those that scan or walk found for them.
+        const lit::TileView tile{t.ex, t.ey, t.ez, t.vl, t.l1, t.l1_lo, t.l1_hi, t.pyramid.rx, t.pyramid.ry, t.pyramid.rz};
+        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr, t.cache ? &t.cache->lit : nullptr, this, &tile);
+        t.alive &= ~hit, t.shadowed |= hit;
+    }
+
+    // Tests the pending clusters, nearest closing distance first. A cluster's box is tested three clusters
+    // ahead of its triangles, and only when some point may touch it are its triangles and new vertices asked
+    // for then, its reused vertices one test ahead (unless its first group is lit already): on large meshes
+    // these reads otherwise miss the cache one after another.
+    void test_pending(Tile& t) const {
+        Tile::Pending* p = t.pending;
+        const uint32_t n = t.pending_count;
+        sort_by_near(p, n);
+        auto prefetch_triangles = [&](uint32_t i, int step) {  // lit::prefetch's step, unless lit already
+            if (t.cache && t.cache->lit.holds(this, p[i].cluster, 0)) return;
+            lit::prefetch(*view_, *mesh_, view_->fine[mesh_->first_fine + p[i].cluster], step);
+        };
+        auto test_box = [&](uint32_t i) {  // into the entry's points
+            if (i >= n) return;
+            p[i].points = fine_box_points(p[i].cluster, p[i].points & t.alive, t);
+            if (p[i].points) prefetch_triangles(i, 0);
+        };
+        test_box(0), test_box(1), test_box(2);
+        if (n && p[0].points) prefetch_triangles(0, 1);
+        for (uint32_t i = 0; i < n && t.alive; ++i) {
+            test_box(i + 3);
+            if (i + 1 < n && (p[i + 1].points & t.alive)) prefetch_triangles(i + 1, 1);
+            test_triangles(p[i].cluster, p[i].points, t);
+        }
+        t.pending_count = 0;
+    }
+
+    // Fine cluster f's box: decoded already (`fine_obbs`, ScanBounds) or from the asset.
+    Obb fine_obb(uint32_t f, const Obb* fine_obbs) const { return fine_obbs ? fine_obbs[f] : view_->fine_bounds.obb(mesh_->first_fine + f); }
+
+    IndexRange coarse_triangles(uint32_t c) const {
+        const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
+        const FineCluster& a = view_->fine[mesh_->first_fine + r.first];
+        const FineCluster& z = view_->fine[mesh_->first_fine + r.first + r.count - 1];
+        return {a.first_triangle, z.first_triangle + z.triangle_count - a.first_triangle};
+    }
+
+    // One-sided: a cluster the light sees entirely from the front, with no double-sided triangle.
+    bool skippable(const LevelBounds& bounds, uint32_t index, IndexRange triangles) const {
+        if (!bounds.cones || !light_in_front_cone(bounds.cone(index), light_)) return false;
+        for (uint32_t t = triangles.first; t < triangles.first + triangles.count; ++t)
+            if (view_->double_sided(size_t(mesh_->first_triangle) + t)) return false;
+        return true;
+    }
+
+    bool skippable_fine(uint32_t f) const {
+        if (!one_sided_) return false;
+        const FineCluster& r = view_->fine[mesh_->first_fine + f];
+        return skippable(view_->fine_bounds, mesh_->first_fine + f, {r.first_triangle, r.triangle_count});
+    }
+
+    // A cluster's triangles, unless the segment certainly misses its box (a volume only says the point
+    // is in the box's shadow cone, which a 4-plane outline makes wider than the box).
+    bool test_cluster(uint32_t f, const Query& q) const {
+        if (view_->fine_bounds.obbs && !segment_may_touch_box(fine_obb(f, q.fine_obbs), q.p, light_))
+            return false;
+        return cluster_blocks(*view_, *mesh_, f, q.p, light_, one_sided_, q.stats);
+    }
+
+    const AssetView* view_ = nullptr;
+    const MeshRecord* mesh_ = nullptr;
+    double inverse_[12] = {}, light_[3] = {}, world_light_[3] = {};
+    bool usable_ = false, one_sided_ = false;
+    size_t skipped_ = 0;
+};
+
+}  // namespace cb
