@@ -201,7 +201,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
     for (int li = 0; li < 4; ++li) {
         const double* light = lights[li];
         // Ours: build the trees (one per instance), then query, on 1 and 2 threads.
-        std::vector<cb::ClusterShadowTree> trees(asset.instance_count);
+        std::vector<cb::InstanceShadow> trees(asset.instance_count);
         std::vector<cb::BuildScratch> build_scratch(asset.instance_count);  // kept between builds
         size_t always = 0;
         auto build_trees = [&](unsigned threads) {
@@ -340,7 +340,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
         for (size_t i = 0; i < n; ++i) shadowed += ours[i], differ += ours[i] != embree1[i];
         double mq = double(n) / 1e6;
         size_t ours_bytes = bytes.size() + (level == cb::Traversal::scan ? scan_bounds_bytes : 0);
-        for (const cb::ClusterShadowTree& tr : trees) ours_bytes += tr.memory_bytes();
+        for (const cb::InstanceShadow& tr : trees) ours_bytes += tr.memory_bytes();
         size_t scratch_bytes = 0;
         for (const cb::BuildScratch& b : build_scratch) scratch_bytes += b.memory_bytes();
         for (const std::vector<uint32_t>& q : query_scratch) scratch_bytes += q.capacity() * sizeof(uint32_t);

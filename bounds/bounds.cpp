@@ -5,6 +5,8 @@
 // the fit went: it holds by construction for the stored numbers.
 #include "bounds.h"
 
+#include <cb_math.h>
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -24,9 +26,13 @@ namespace {
 using Vec = std::array<double, 3>;
 
 Vec sub(const double* a, const double* b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-double dot(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-Vec cross(const Vec& a, const Vec& b) { return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]}; }
-double norm(const Vec& a) { return std::sqrt(dot(a.data(), a.data())); }
+using math::dot3;
+Vec cross(const Vec& a, const Vec& b) {
+    Vec c;
+    math::cross3(a.data(), b.data(), c.data());
+    return c;
+}
+double norm(const Vec& a) { return std::sqrt(dot3(a.data(), a.data())); }
 
 float round_up(double x) {
     float f = float(x);
@@ -63,7 +69,7 @@ void extents(const double* pts, size_t n, const Frame& f, double lo[3], double h
     for (int i = 0; i < 3; ++i) lo[i] = INFINITY, hi[i] = -INFINITY;
     for (size_t v = 0; v < n; ++v)
         for (int i = 0; i < 3; ++i) {
-            double d = dot(pts + v * 3, f.axis[i]);
+            double d = dot3(pts + v * 3, f.axis[i]);
             lo[i] = std::min(lo[i], d), hi[i] = std::max(hi[i], d);
         }
 }
@@ -147,7 +153,7 @@ Frame min_area_rect_frame(const double* pts, size_t n, const Frame& f, int fixed
     int u = (fixed + 1) % 3, w = (fixed + 2) % 3;
     thread_local std::vector<std::array<double, 2>> proj, h;  // scratch: this runs a few dozen times per cluster
     proj.resize(n);
-    for (size_t v = 0; v < n; ++v) proj[v] = {dot(pts + v * 3, f.axis[u]), dot(pts + v * 3, f.axis[w])};
+    for (size_t v = 0; v < n; ++v) proj[v] = {dot3(pts + v * 3, f.axis[u]), dot3(pts + v * 3, f.axis[w])};
     hull2d(proj, h);
     double best = INFINITY, best_c = 1, best_s = 0;
     for (size_t e = 0; e < h.size() && h.size() >= 3; ++e) {
@@ -171,7 +177,7 @@ Frame min_area_rect_frame(const double* pts, size_t n, const Frame& f, int fixed
     // Keep the rows in the fixed/u/w roles, then restore handedness.
     Vec a{out.axis[0][0], out.axis[0][1], out.axis[0][2]}, b{out.axis[1][0], out.axis[1][1], out.axis[1][2]};
     Vec c = cross(a, b);
-    if (dot(c.data(), out.axis[2]) < 0)
+    if (dot3(c.data(), out.axis[2]) < 0)
         for (int k = 0; k < 3; ++k) out.axis[2][k] = -out.axis[2][k];
     return out;
 }
@@ -341,7 +347,7 @@ PackedObb store_obb(const Frame& f, const double* local, size_t n, const double*
         for (size_t v = 0; v < n; ++v) {
             Vec d = sub(world + v * 3, c);
             double l1 = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]);
-            h = std::max(h, std::fabs(dot(d.data(), a)) + axis_step * l1);
+            h = std::max(h, std::fabs(dot3(d.data(), a)) + axis_step * l1);
             scale = std::max(scale, std::fabs(d[0] * a[0]) + std::fabs(d[1] * a[1]) + std::fabs(d[2] * a[2]));
         }
         p.half[i] = round_up(h + measure_margin * scale);
@@ -376,20 +382,20 @@ Ball ball_of(const double* const* s, int k) {
     if (k == 2) {
         for (int i = 0; i < 3; ++i) b.c[i] = 0.5 * (s[0][i] + s[1][i]);
         Vec d = sub(s[0], s[1]);
-        b.r2 = 0.25 * dot(d.data(), d.data());
+        b.r2 = 0.25 * dot3(d.data(), d.data());
         return b;
     }
     Vec a = sub(s[1], s[0]), c = sub(s[2], s[0]);
     if (k == 3) {
         Vec n = cross(a, c);
-        double n2 = dot(n.data(), n.data());
-        double scale = dot(a.data(), a.data()) * dot(c.data(), c.data());
+        double n2 = dot3(n.data(), n.data());
+        double scale = dot3(a.data(), a.data()) * dot3(c.data(), c.data());
         if (!(n2 > 1e-24 * scale)) return farthest_pair_ball(s, 3);  // collinear
         Vec t1 = cross(n, a), t2 = cross(c, n);
-        double ca = dot(c.data(), c.data()), aa = dot(a.data(), a.data());
+        double ca = dot3(c.data(), c.data()), aa = dot3(a.data(), a.data());
         for (int i = 0; i < 3; ++i) b.c[i] = s[0][i] + (ca * t1[i] + aa * t2[i]) / (2 * n2);
         Vec r = sub(b.c, s[0]);
-        b.r2 = dot(r.data(), r.data());
+        b.r2 = dot3(r.data(), r.data());
         return b;
     }
     // k == 4: circumsphere, or (coplanar) the smallest 3-point ball that holds the fourth.
@@ -398,7 +404,7 @@ Ball ball_of(const double* const* s, int k) {
     m << a[0], a[1], a[2], c[0], c[1], c[2], d[0], d[1], d[2];
     double det = m.determinant(), scale = norm(a) * norm(c) * norm(d);
     if (std::fabs(det) > 1e-12 * scale) {
-        Eigen::Vector3d rhs(0.5 * dot(a.data(), a.data()), 0.5 * dot(c.data(), c.data()), 0.5 * dot(d.data(), d.data()));
+        Eigen::Vector3d rhs(0.5 * dot3(a.data(), a.data()), 0.5 * dot3(c.data(), c.data()), 0.5 * dot3(d.data(), d.data()));
         Eigen::Vector3d x = m.partialPivLu().solve(rhs);
         for (int i = 0; i < 3; ++i) b.c[i] = s[0][i] + x[i];
         b.r2 = x.squaredNorm();
@@ -412,14 +418,14 @@ Ball ball_of(const double* const* s, int k) {
             if (i != skip) t[j++] = s[i];
         Ball cand = ball_of(t, 3);
         Vec e = sub(s[skip], cand.c);
-        if (dot(e.data(), e.data()) <= cand.r2 * (1 + 1e-9) && cand.r2 < best.r2) best = cand;
+        if (dot3(e.data(), e.data()) <= cand.r2 * (1 + 1e-9) && cand.r2 < best.r2) best = cand;
     }
     return std::isfinite(best.r2) ? best : farthest_pair_ball(s, 4);
 }
 
 bool outside(const Ball& b, const double* p) {
     Vec d = sub(p, b.c);
-    return dot(d.data(), d.data()) > b.r2 * (1 + 1e-12) + 1e-300;
+    return dot3(d.data(), d.data()) > b.r2 * (1 + 1e-12) + 1e-300;
 }
 
 // Gärtner's move-to-front Welzl: `order` is permuted as points move to the front.
@@ -447,7 +453,7 @@ Ball min_ball(const double* pts, size_t n, int dims) {
         double d = -1;
         for (uint32_t v = 0; v < n; ++v) {
             Vec e = sub(pts + size_t(v) * 3, pts + size_t(from) * 3);
-            double dd = dot(e.data(), e.data());
+            double dd = dot3(e.data(), e.data());
             if (dd > d) d = dd, best = v;
         }
         return best;
@@ -478,8 +484,8 @@ Sphere store_sphere(const double* centre, const double* world, size_t n) {
 
 double segment_distance(const double* p, const double* a, const double* b) {
     Vec ab = sub(b, a), ap = sub(p, a);
-    double len2 = dot(ab.data(), ab.data());
-    double t = len2 > 0 ? std::clamp(dot(ap.data(), ab.data()) / len2, 0.0, 1.0) : 0.0;
+    double len2 = dot3(ab.data(), ab.data());
+    double t = len2 > 0 ? std::clamp(dot3(ap.data(), ab.data()) / len2, 0.0, 1.0) : 0.0;
     double q[3] = {a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
     return norm(sub(p, q));
 }
@@ -489,12 +495,12 @@ double segment_distance(const double* p, const double* a, const double* b) {
 Capsule fit_capsule(const Frame& f, int major, const double* local, size_t n, const double* origin, const double* world) {
     int u = (major + 1) % 3, w = (major + 2) % 3;
     std::vector<double> plane(n * 3, 0.0);
-    for (size_t v = 0; v < n; ++v) plane[v * 3] = dot(local + v * 3, f.axis[u]), plane[v * 3 + 1] = dot(local + v * 3, f.axis[w]);
+    for (size_t v = 0; v < n; ++v) plane[v * 3] = dot3(local + v * 3, f.axis[u]), plane[v * 3 + 1] = dot3(local + v * 3, f.axis[w]);
     Ball circle = min_ball(plane.data(), n, 2);
     double r = std::sqrt(std::max(0.0, circle.r2));
     double lo = INFINITY, hi = -INFINITY;  // t range the segment must cover
     for (size_t v = 0; v < n; ++v) {
-        double t = dot(local + v * 3, f.axis[major]);
+        double t = dot3(local + v * 3, f.axis[major]);
         double du = plane[v * 3] - circle.c[0], dw = plane[v * 3 + 1] - circle.c[1];
         double s = std::sqrt(std::max(0.0, r * r - du * du - dw * dw));
         lo = std::min(lo, t + s);  // the segment must start no later than t + s
@@ -534,12 +540,12 @@ struct Plane {
 // False if it cannot be made to (never guess).
 bool place_apex(const std::vector<Plane>& planes, const Vec& axis, const double* centre, double sign, double extent,
                 float& stored_s) {
-    // The lowest s with sign * dot(centre + s * axis - point, n) >= 0 for all planes (sign = -1 for the back).
+    // The lowest s with sign * dot3(centre + s * axis - point, n) >= 0 for all planes (sign = -1 for the back).
     double s = sign > 0 ? -INFINITY : INFINITY, min_cos = INFINITY;
     for (const Plane& pl : planes) {
-        double along = dot(axis.data(), pl.n.data());  // > 0: every normal is within 90 degrees of the axis
+        double along = dot3(axis.data(), pl.n.data());  // > 0: every normal is within 90 degrees of the axis
         Vec d = sub(pl.point.data(), centre);
-        double need = dot(d.data(), pl.n.data()) / along;
+        double need = dot3(d.data(), pl.n.data()) / along;
         s = sign > 0 ? std::max(s, need) : std::min(s, need);
         min_cos = std::min(min_cos, along);
     }
@@ -555,7 +561,7 @@ bool place_apex(const std::vector<Plane>& planes, const Vec& axis, const double*
         double d = INFINITY, scale = 0;
         for (const Plane& pl : planes) {
             Vec e = sub(stored, pl.point.data());
-            d = std::min(d, sign * dot(e.data(), pl.n.data()));
+            d = std::min(d, sign * dot3(e.data(), pl.n.data()));
             scale = std::max(scale, norm(e));
         }
         double needed = 1e-12 * (scale + extent) + 2 * axis_step * coord;
@@ -609,7 +615,7 @@ PackedCone fit_cone(const float* positions, const uint32_t* indices, const uint3
     double axis_len = norm(axis);
     for (double& a : axis) a /= axis_len;
     double min_cos = INFINITY;
-    for (const Plane& pl : planes) min_cos = std::min(min_cos, dot(axis.data(), pl.n.data()));
+    for (const Plane& pl : planes) min_cos = std::min(min_cos, dot3(axis.data(), pl.n.data()));
     // Half-angle = 90 degrees - widest normal, less a margin that dwarfs the normals' rounding.
     constexpr double angle_margin = 1e-6;
     double widest = std::acos(std::clamp(min_cos, -1.0, 1.0));
@@ -628,7 +634,7 @@ Slab fit_slab(const float axis_f[3], const double* world, size_t n) {
     for (int k = 0; k < 3; ++k) s.axis[k] = axis_f[k];
     double a[3] = {axis_f[0], axis_f[1], axis_f[2]}, lo = INFINITY, hi = -INFINITY, scale = 0;
     for (size_t v = 0; v < n; ++v) {
-        double d = dot(world + v * 3, a);
+        double d = dot3(world + v * 3, a);
         lo = std::min(lo, d), hi = std::max(hi, d);
         scale = std::max(scale, std::fabs(world[v * 3] * a[0]) + std::fabs(world[v * 3 + 1] * a[1]) + std::fabs(world[v * 3 + 2] * a[2]));
     }
@@ -699,7 +705,7 @@ Sphere ritter_sphere(const double* local, size_t n, const double* origin) {
         double d = -1;
         for (size_t v = 0; v < n; ++v) {
             Vec e = sub(local + v * 3, from);
-            double dd = dot(e.data(), e.data());
+            double dd = dot3(e.data(), e.data());
             if (dd > d) d = dd, best = v;
         }
         return local + best * 3;

@@ -57,7 +57,7 @@ void query(const cb::AssetView& v) {
         options.traversal = cb::Traversal(variant);
         options.one_sided = variant == 1;
         options.threads = variant == 1 ? 2 : 1;
-        std::vector<cb::ClusterShadowTree> trees(std::min<uint32_t>(v.instance_count, 4));
+        std::vector<cb::InstanceShadow> trees(std::min<uint32_t>(v.instance_count, 4));
         for (uint32_t i = 0; i < trees.size(); ++i) {
             trees[i].build(v, i, light, options);
             std::vector<uint32_t> stack(trees[i].stack_size());

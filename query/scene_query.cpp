@@ -23,7 +23,7 @@ SceneQueryResult query_scene(const AssetView& view, const double* light, const d
 
     // One structure per instance for this light (none for the reference).
     auto build_start = std::chrono::steady_clock::now();
-    std::vector<ClusterShadowTree> trees(o.reference ? 0 : view.instance_count);
+    std::vector<InstanceShadow> trees(o.reference ? 0 : view.instance_count);
     // The scan's bounds, once per mesh however many instances it has.
     const std::vector<ScanBounds> bounds =
         o.traversal == Traversal::scan && !trees.empty() ? make_scan_bounds(view) : std::vector<ScanBounds>{};
@@ -56,7 +56,7 @@ SceneQueryResult query_scene(const AssetView& view, const double* light, const d
         batch_order(light, points, n, order.data(), sort_scratch.data());
     }
     size_t stack_size = 0;
-    for (const ClusterShadowTree& tree : trees) stack_size = std::max(stack_size, tree.stack_size());
+    for (const InstanceShadow& tree : trees) stack_size = std::max(stack_size, tree.stack_size());
     parallel_for(thread_count, thread_count, [&](size_t t) {
         size_t first = n * t / thread_count, last = n * (t + 1) / thread_count;
         if (batch) {
@@ -72,7 +72,7 @@ SceneQueryResult query_scene(const AssetView& view, const double* light, const d
             if (o.reference) {
                 r.shadowed[i] = occluded_reference(view, p, light, o.one_sided, s);
             } else {
-                for (const ClusterShadowTree& tree : trees)
+                for (const InstanceShadow& tree : trees)
                     if (!r.shadowed[i]) r.shadowed[i] = tree.occluded(p, stack.data(), s);
             }
         }

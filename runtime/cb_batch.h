@@ -1,4 +1,4 @@
-// Batch queries: arrays of points against one light's traversals (ClusterShadowTree, or any traversal type
+// Batch queries: arrays of points against one light's traversals (InstanceShadow, or any traversal type
 // of cb_tile.h), one per instance, all built for the same light. The points are sorted by their direction
 // from the light (cube face, then a Z-order curve on it) and taken in tiles of tile_capacity, each with the
 // pyramid from the light that holds their directions (occluded_tile): one scan, or one walk of each tree,

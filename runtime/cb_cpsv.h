@@ -1,7 +1,7 @@
 // Point-light shadow queries over the asset's two-level cluster hierarchy, after the thesis's clustered
 // partitioned shadow volumes (CPSV, chapter 2): for one light, find the few clusters whose shadow volume
 // may hold a point and test only their triangles, exactly (cb_lit_triangles.h), so that the answers are
-// those of occluded_reference (cb_shadow.h), faster. ClusterShadowTree holds one traversal, chosen at build
+// those of occluded_reference (cb_shadow.h), faster. InstanceShadow holds one traversal, chosen at build
 // time by ShadowBuildOptions::traversal, and forwards the query interface to it:
 //
 // - cb_scan.h, Traversal::scan (the default): no tree; the clusters' bounding spheres (cb_scan_bounds.h,
@@ -12,7 +12,7 @@
 //   tests); cb_batch.h: batches of points, sorted by direction and taken in tiles.
 //
 // A new traversal is one more header with a class on TraversalBase, one more Traversal value and one more
-// case in ClusterShadowTree::build and visit. Building allocates (std::vector; a BuildScratch lets rebuilds
+// case in InstanceShadow::build and visit. Building allocates (std::vector; a BuildScratch lets rebuilds
 // reuse memory); queries do not: occluded() takes a stack of stack_size() entries, occluded_batch a scratch
 // of batch_scratch_size() words. Header-only C++17, no exceptions. MIT licensed (runtime/LICENSE).
 #pragma once
@@ -32,7 +32,7 @@
 
 namespace cb {
 
-class ClusterShadowTree {
+class InstanceShadow {
 public:
     static constexpr uint32_t none = TraversalBase::none;
 

@@ -33,7 +33,7 @@ enum class Traversal : uint8_t {
     one_tree,  // TopTreeTraversal: one tree over all the fine clusters
 };
 
-// The settings of a traversal's build (ClusterShadowTree::build).
+// The settings of a traversal's build (InstanceShadow::build).
 struct ShadowBuildOptions {
     // Without coarse boxes in the asset, every traversal is one tree.
     Traversal traversal = Traversal::scan;

@@ -1,6 +1,7 @@
 #include "cluster_stats.h"
 
 #include <cb_shadow.h>
+#include <cb_math.h>
 
 #include <algorithm>
 #include <cmath>
@@ -17,11 +18,9 @@
 namespace cb {
 namespace {
 
-void cross(const double* a, const double* b, double* out) {
-    out[0] = a[1] * b[2] - a[2] * b[1], out[1] = a[2] * b[0] - a[0] * b[2], out[2] = a[0] * b[1] - a[1] * b[0];
-}
-double dot(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-double length(const double* a) { return std::sqrt(dot(a, a)); }
+using math::cross3;
+using math::dot3;
+double length(const double* a) { return std::sqrt(dot3(a, a)); }
 
 double obb_area(const Obb& b) {
     double h0 = b.half[0], h1 = b.half[1], h2 = b.half[2];
@@ -95,7 +94,7 @@ void sample_shadow_volume(const MeshContext& ctx, const Obb& box, const double* 
     for (int c = 0; c < 8; ++c) {
         double corner[3] = {c & 1 ? ctx.hi[0] : ctx.lo[0], c & 2 ? ctx.hi[1] : ctx.lo[1], c & 4 ? ctx.hi[2] : ctx.lo[2]};
         double e[3] = {corner[0] - light[0], corner[1] - light[1], corner[2] - light[2]};
-        zmax = std::max(zmax, dot(e, d));
+        zmax = std::max(zmax, dot3(e, d));
     }
     if (!(zmax > zmin)) return;
     double z0 = zmin * zmin * zmin, z1 = zmax * zmax * zmax;
@@ -152,7 +151,7 @@ ClusterFigures cluster_figures(const MeshContext& ctx, const LevelVolumes& volum
         for (int k = 0; k < 3; ++k)
             for (int j = 0; j < 3; ++j) c[k][j] = m.positions[size_t(m.triangles[size_t(t) * 3 + k]) * 3 + j];
         for (int j = 0; j < 3; ++j) e1[j] = c[1][j] - c[0][j], e2[j] = c[2][j] - c[0][j];
-        cross(e1, e2, n);
+        cross3(e1, e2, n);
         f.area += 0.5 * length(n);
     }
     bool sided = has_double_sided(m, r);
@@ -252,8 +251,8 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
         for (const Instance& inst : instances) {
             const double* t = inst.world.data();
             double col[3][3] = {{t[0], t[1], t[2]}, {t[4], t[5], t[6]}, {t[8], t[9], t[10]}}, x[3];
-            cross(col[1], col[2], x);
-            double det = std::fabs(dot(col[0], x));
+            cross3(col[1], col[2], x);
+            double det = std::fabs(dot3(col[0], x));
             for (uint32_t i : items_of_mesh[inst.mesh]) {
                 const Obb b = unpack_obb(volumes_of(items[i]).obbs[items[i].cluster]);
                 double edge[3][3];
@@ -262,7 +261,7 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
                         edge[a][k] = 2 * double(b.half[a]) * (col[0][k] * b.axis[a][0] + col[1][k] * b.axis[a][1] + col[2][k] * b.axis[a][2]);
                 world_volume += det * obb_volume(b);
                 double c01[3], c12[3], c02[3];
-                cross(edge[0], edge[1], c01), cross(edge[1], edge[2], c12), cross(edge[0], edge[2], c02);
+                cross3(edge[0], edge[1], c01), cross3(edge[1], edge[2], c12), cross3(edge[0], edge[2], c02);
                 world_area += 2 * (length(c01) + length(c12) + length(c02));
             }
         }

@@ -411,7 +411,7 @@ std::string report_html(const Report& r) {
                     "figure{margin:8px 0}\nfigcaption{font-size:13px;color:#444;max-width:900px}\n"
                     "</style>\n</head>\n<body>\n<h1>clusterbake: speed against error</h1>\n";
     h += "<p>Each configuration (clustering method / fine size / box fitter) is baked in memory, timed (median of " +
-         std::to_string(o.runs) + " runs), and its shadow trees (runtime, <code>cb::ClusterShadowTree</code>) built and queried for every camera-visible "
+         std::to_string(o.runs) + " runs), and its shadow trees (runtime, <code>cb::InstanceShadow</code>) built and queried for every camera-visible "
          "point. <b>Useless cluster tests</b> per query are tests of a cluster whose triangles did not block the point's "
          "segment to the light: the cost of loose volumes. <b>Frame</b> time is one light's tree build plus one query per visible point of a " +
          std::to_string(o.frame_view) + " x " + std::to_string(o.frame_view) + " view (the sample's query time scaled by the pixel count), "

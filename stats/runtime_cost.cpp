@@ -1,5 +1,6 @@
 #include "runtime_cost.h"
 
+#include <cb_math.h>
 #include <algorithm>
 #include <cmath>
 
@@ -15,10 +16,8 @@ void normalise(double* v) {
     double l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
     for (int k = 0; k < 3; ++k) v[k] /= l;
 }
-void cross(const double* a, const double* b, double* out) {
-    out[0] = a[1] * b[2] - a[2] * b[1], out[1] = a[2] * b[0] - a[0] * b[2], out[2] = a[0] * b[1] - a[1] * b[0];
-}
-double dot(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+using math::cross3;
+using math::dot3;
 
 // Entry distance of the ray o + t v (t >= 0) into the box, or INFINITY when it misses. Boxes are already
 // conservative; the small widening keeps grazing rays from slipping between neighbours.
@@ -27,7 +26,7 @@ double ray_box(const Obb& b, const double* o, const double* v) {
     for (int i = 0; i < 3; ++i) {
         const double a[3] = {b.axis[i][0], b.axis[i][1], b.axis[i][2]};
         double oc = (o[0] - b.center[0]) * a[0] + (o[1] - b.center[1]) * a[1] + (o[2] - b.center[2]) * a[2];
-        double dv = dot(v, a), h = double(b.half[i]) * (1 + 1e-9) + 1e-12;
+        double dv = dot3(v, a), h = double(b.half[i]) * (1 + 1e-9) + 1e-12;
         if (std::fabs(dv) < 1e-300) {
             if (std::fabs(oc) > h) return INFINITY;
             continue;
@@ -44,15 +43,15 @@ double ray_box(const Obb& b, const double* o, const double* v) {
 double ray_triangle(const double* o, const double* v, const double* a, const double* b, const double* c) {
     double e1[3], e2[3], p[3], s[3], q[3];
     for (int k = 0; k < 3; ++k) e1[k] = b[k] - a[k], e2[k] = c[k] - a[k], s[k] = o[k] - a[k];
-    cross(v, e2, p);
-    double det = dot(e1, p);
+    cross3(v, e2, p);
+    double det = dot3(e1, p);
     if (!(std::fabs(det) > 0)) return INFINITY;
-    double inv = 1 / det, u = dot(s, p) * inv;
+    double inv = 1 / det, u = dot3(s, p) * inv;
     if (u < 0 || u > 1) return INFINITY;
-    cross(s, e1, q);
-    double w = dot(v, q) * inv;
+    cross3(s, e1, q);
+    double w = dot3(v, q) * inv;
     if (w < 0 || u + w > 1) return INFINITY;
-    double t = dot(e2, q) * inv;
+    double t = dot3(e2, q) * inv;
     return t > 0 ? t : INFINITY;
 }
 
@@ -73,16 +72,16 @@ Camera default_camera(const double* lo, const double* hi, uint32_t width, uint32
     double up[3] = {0, 1, 0};
     for (int k = 0; k < 3; ++k) c.eye[k] = centre[k] + from[k] * size, c.forward[k] = -from[k];
     normalise(c.forward);
-    cross(c.forward, up, c.right);
+    cross3(c.forward, up, c.right);
     normalise(c.right);
-    cross(c.right, c.forward, c.up);
+    cross3(c.right, c.forward, c.up);
     // Frame the box's corners tightly, so the scene fills the view whatever its proportions.
     double aspect = double(width) / double(std::max(1u, height)), extent = 1e-6;
     for (int i = 0; i < 8; ++i) {
         double e[3];
         for (int k = 0; k < 3; ++k) e[k] = ((i >> k & 1) ? hi[k] : lo[k]) - c.eye[k];
-        double depth = dot(e, c.forward);
-        if (depth > 0) extent = std::max({extent, std::fabs(dot(e, c.right)) / depth / aspect, std::fabs(dot(e, c.up)) / depth});
+        double depth = dot3(e, c.forward);
+        if (depth > 0) extent = std::max({extent, std::fabs(dot3(e, c.right)) / depth / aspect, std::fabs(dot3(e, c.up)) / depth});
     }
     c.half_extent = 1.04 * extent;
     return c;

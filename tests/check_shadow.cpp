@@ -11,6 +11,7 @@
 //     N queries in all, spread evenly over the scenes (default 1000000); T = 0: every core; with K, every K-th
 //     query also asks the oracle without its AABB trees (every triangle), which must give the same answer.
 #include <cb_cpsv.h>
+#include <cb_math.h>
 
 #include <algorithm>
 #include <chrono>
@@ -84,7 +85,9 @@ Point normalized(Point v) {
 }
 
 Point cross(const Point& a, const Point& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    Point c;
+    cb::math::cross3(a.data(), b.data(), c.data());
+    return c;
 }
 
 // Surface points seen from three cameras outside the bounds (one from below): rays through a grid x grid
@@ -185,7 +188,7 @@ void parallel(size_t n, unsigned threads, F&& f) {
 std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle, const Light& light, bool one_sided,
                                const std::vector<Point>& points, unsigned threads, size_t brute_every) {
     using cb::Traversal;
-    std::vector<cb::ClusterShadowTree> scan(v.instance_count), two(v.instance_count), one(v.instance_count);
+    std::vector<cb::InstanceShadow> scan(v.instance_count), two(v.instance_count), one(v.instance_count);
     for (uint32_t i = 0; i < v.instance_count; ++i) {
         scan[i].build(v, i, light.at.data(), {.traversal = Traversal::scan, .one_sided = one_sided});
         two[i].build(v, i, light.at.data(), {.traversal = Traversal::trees, .one_sided = one_sided});
@@ -205,8 +208,8 @@ std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle
         for (size_t k = begin; k < end; ++k) {
             const double* p = points[k].data();
             answers[k].scan = ts[k - begin], answers[k].tree2 = t2[k - begin], answers[k].tree1 = t1[k - begin];
-            for (const cb::ClusterShadowTree& tree : scan) answers[k].walk = answers[k].walk || tree.occluded(p, scratch.data());
-            for (const cb::ClusterShadowTree& tree : two) answers[k].walk2 = answers[k].walk2 || tree.occluded(p, scratch.data());
+            for (const cb::InstanceShadow& tree : scan) answers[k].walk = answers[k].walk || tree.occluded(p, scratch.data());
+            for (const cb::InstanceShadow& tree : two) answers[k].walk2 = answers[k].walk2 || tree.occluded(p, scratch.data());
             answers[k].reference = cb::occluded_reference(v, p, light.at.data(), one_sided);
             answers[k].exact = oracle.occluded(p, light.at.data(), one_sided);
             if (brute_every && k % brute_every == 0) {

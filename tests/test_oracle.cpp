@@ -127,7 +127,7 @@ static void expect_blocked_by_a_crossing(const cb::test::Baked& b, const double*
     EXPECT_TRUE(cb::occluded_reference(b.view, p, light, false));
     using cb::Traversal;
     for (Traversal traversal : {Traversal::scan, Traversal::trees, Traversal::one_tree}) {
-        cb::ClusterShadowTree tree;
+        cb::InstanceShadow tree;
         tree.build(b.view, 0, light, {.traversal = traversal});
         std::vector<uint32_t> stack(tree.stack_size());
         EXPECT_EQ(tree.occluded(p, stack.data()), exact.blocked) << "traversal " << int(traversal);

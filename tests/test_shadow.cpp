@@ -294,7 +294,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
             const double* light = lights[variant % 4];
             bool one_sided = variant / 4 % 2 == 1;
             auto level = cb::Traversal(variant / 8);
-            std::vector<cb::ClusterShadowTree> trees(v.instance_count);
+            std::vector<cb::InstanceShadow> trees(v.instance_count);
             size_t stack = 0;
             for (uint32_t i = 0; i < v.instance_count; ++i) {  // half the scans share the bounds, half make their own
                 trees[i].build(v, i, light, {.traversal = level, .one_sided = one_sided, .bounds = variant % 2 == 0 ? bounds.data() : nullptr});
@@ -314,7 +314,7 @@ TEST(Shadow, ClusterShadowTreeAnswersLikeTheReference) {
                 }
                 cb::QueryStats a, r;
                 bool tree = false;
-                for (const cb::ClusterShadowTree& t : trees)
+                for (const cb::InstanceShadow& t : trees)
                     if (t.occluded(p, scratch.data(), &a)) {
                         tree = true;
                         break;
@@ -381,7 +381,7 @@ TEST(Shadow, PointsAndLightsThatAreNotFiniteAreNeverInShadow) {
     const double bad[4][3] = {{NAN, 0, 0}, {0, INFINITY, 0}, {-INFINITY, 1, 2}, {1e308, -1e308, NAN}};
     for (const auto& p : bad) points.insert(points.end(), p, p + 3);
     const size_t n = points.size() / 3;
-    std::vector<cb::ClusterShadowTree> trees(v.instance_count);
+    std::vector<cb::InstanceShadow> trees(v.instance_count);
     for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light);
     std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
     std::vector<uint8_t> out(n);
@@ -392,10 +392,10 @@ TEST(Shadow, PointsAndLightsThatAreNotFiniteAreNeverInShadow) {
     for (size_t k = n - 4; k < n; ++k) {
         EXPECT_EQ(out[k], 0) << k;
         EXPECT_FALSE(cb::occluded_reference(v, &points[k * 3], light));
-        for (const cb::ClusterShadowTree& t : trees) EXPECT_FALSE(t.occluded(&points[k * 3], scratch.data()));
+        for (const cb::InstanceShadow& t : trees) EXPECT_FALSE(t.occluded(&points[k * 3], scratch.data()));
     }
     const double nan_light[3] = {0, NAN, 0};
-    cb::ClusterShadowTree dark;
+    cb::InstanceShadow dark;
     dark.build(v, 0, nan_light);
     EXPECT_EQ(dark.node_count(), 0u);
     EXPECT_FALSE(dark.occluded(&points[0], scratch.data()));
@@ -423,7 +423,7 @@ TEST(Shadow, ParallelBuildGivesTheSameTree) {
         for (size_t k = 0; k < world.surface.size(); k += 3) points.insert(points.end(), world.surface[k].begin(), world.surface[k].end());
         const double light[3] = {world.lo[0] - size, world.hi[1] + 2 * size, world.lo[2] - 0.5 * size};
         for (bool one_sided : {false, true}) {
-            std::vector<cb::ClusterShadowTree> one(v.instance_count), three(v.instance_count);
+            std::vector<cb::InstanceShadow> one(v.instance_count), three(v.instance_count);
             for (uint32_t i = 0; i < v.instance_count; ++i) {
                 one[i].build(v, i, light, {.traversal = cb::Traversal::trees, .one_sided = one_sided, .threads = 1});
                 three[i].build(v, i, light, {.traversal = cb::Traversal::trees, .one_sided = one_sided, .threads = 3});
@@ -479,7 +479,7 @@ TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
     EXPECT_GT(shadowed, 50u);
     using Level = cb::Traversal;
     for (Level level : {Level::scan, Level::trees, Level::one_tree}) {
-        std::vector<cb::ClusterShadowTree> trees(v.instance_count);
+        std::vector<cb::InstanceShadow> trees(v.instance_count);
         for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light, {.traversal = level});
         std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
         std::vector<uint8_t> batch(n);
@@ -487,7 +487,7 @@ TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
         size_t bad = 0, bad_walk = 0;
         for (size_t k = 0; k < n; ++k) {
             bool walk = false;
-            for (const cb::ClusterShadowTree& t : trees) walk = walk || t.occluded(&points[k * 3], scratch.data());
+            for (const cb::InstanceShadow& t : trees) walk = walk || t.occluded(&points[k * 3], scratch.data());
             bad += batch[k] != reference[k], bad_walk += walk != bool(reference[k]);
         }
         EXPECT_EQ(bad, 0u) << "traversal " << int(level);
@@ -612,7 +612,7 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
         for (const auto& light : c.lights)
             for (int variant = 0; variant < 6; ++variant) {
                 bool one_sided = variant % 2 == 1;
-                cb::ClusterShadowTree tree;
+                cb::InstanceShadow tree;
                 tree.build(v, 0, light.data(), {.traversal = cb::Traversal(variant / 2), .one_sided = one_sided});
                 std::vector<uint32_t> stack(tree.stack_size());
                 std::vector<double> points;
@@ -1089,7 +1089,7 @@ TEST(Shadow, SharedScanBoundsGiveTheTreesOwnAnswers) {
     size_t bytes[3] = {0, 0, 0};
     const cb::ScanBounds* given[3] = {shared.data(), nullptr, foreign.data()};
     for (int k = 0; k < 3; ++k) {
-        std::vector<cb::ClusterShadowTree> trees(v.instance_count);
+        std::vector<cb::InstanceShadow> trees(v.instance_count);
         for (uint32_t i = 0; i < v.instance_count; ++i) {
             trees[i].build(v, i, light, {.traversal = cb::Traversal::scan, .bounds = given[k]});
             bytes[k] += trees[i].memory_bytes();

@@ -85,7 +85,7 @@ int main(int argc, char** argv) {
     // Shadows: the light-independent bounds once per asset, then per light one structure per instance, and
     // one batch query over all the points (the default traversal: a scan of the clusters' spheres).
     const std::vector<cb::ScanBounds> bounds = cb::make_scan_bounds(view);
-    std::vector<cb::ClusterShadowTree> shadows(view.instance_count);
+    std::vector<cb::InstanceShadow> shadows(view.instance_count);
     cb::ShadowBuildOptions options;
     options.bounds = bounds.data();
     for (uint32_t i = 0; i < view.instance_count; ++i) shadows[i].build(view, i, light, options);
