@@ -183,7 +183,7 @@ void far_spheres(const std::string& name, cb::Mesh m, uint32_t fine, double offs
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int run(int argc, char** argv) {
     cb::bench::Options defaults;
     defaults.runs = 3;
     cb::bench::Options o = cb::bench::parse_options(argc, argv, defaults);
@@ -205,3 +205,5 @@ int main(int argc, char** argv) {
     for (auto& [name, mesh] : meshes) far_spheres(name, mesh, fine, 1e6);
     return 0;
 }
+
+int main(int argc, char** argv) { return cb::bench::guarded_main("bench_bounds", [&] { return run(argc, argv); }); }

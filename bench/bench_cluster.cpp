@@ -213,7 +213,7 @@ void run(const Input& in, uint32_t fine, int runs) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int run(int argc, char** argv) {
     cb::bench::Options o = cb::bench::parse_options(argc, argv, {});
     std::vector<fs::path> files = cb::bench::scanned_meshes(o, "bench_cluster");
     if (files.empty()) return 1;
@@ -234,3 +234,5 @@ int main(int argc, char** argv) {
     }
     return 0;
 }
+
+int main(int argc, char** argv) { return cb::bench::guarded_main("bench_cluster", [&] { return run(argc, argv); }); }

@@ -5,7 +5,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -15,6 +17,24 @@
 namespace cb::bench {
 
 namespace fs = std::filesystem;
+
+// A benchmark's main: runs `body`; an input that is missing or cannot be loaded ends the benchmark with
+// one line on stderr and exit code 2, never an uncaught exception.
+template <class Body>
+int guarded_main(const char* name, Body body) {
+    try {
+        return body();
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s: %s\n", name, e.what());
+        return 2;
+    }
+}
+
+// The scenes folder must exist (the benchmarks read ../shared/data in place, or --data DIR).
+inline void require_data(const fs::path& dir) {
+    if (!fs::is_directory(dir))
+        throw std::runtime_error(dir.string() + " is absent: the benchmarks read their scenes there (or give --data DIR)");
+}
 
 struct Options {
     fs::path data = fs::path(CB_SHARED_DATA);
@@ -44,6 +64,7 @@ inline Options parse_options(int argc, char** argv, Options o) {
         else if (a == "--frames") o.frames = std::stoi(argv[i + 1]);
         else std::fprintf(stderr, "ignoring unknown option %s\n", a.c_str());
     }
+    require_data(o.data);
     return o;
 }
 

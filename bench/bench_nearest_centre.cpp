@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <exception>
 #include <random>
 #include <string>
 #include <vector>
@@ -12,7 +13,7 @@
 #include "load.h"
 #include "nearest_centre.h"
 
-int main(int argc, char** argv) {
+static int run(int argc, char** argv) {
     std::string mesh = argc > 1 ? argv[1] : std::string(CB_SHARED_DATA) + "/scanned/dragon_vrip_res2_binary.ply";
     size_t n = argc > 2 ? std::stoul(argv[2]) : 2048;
     cb::Scene scene = cb::load_scene(mesh);
@@ -52,4 +53,13 @@ int main(int argc, char** argv) {
     }
     std::printf("\nflann_crossover in use: %zu centres\n", cb::flann_crossover);
     return 0;
+}
+
+int main(int argc, char** argv) {
+    try {
+        return run(argc, argv);
+    } catch (const std::exception& e) {  // a missing or unreadable mesh: one line, exit code 2
+        std::fprintf(stderr, "bench_nearest_centre: %s\n", e.what());
+        return 2;
+    }
 }

@@ -357,7 +357,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int run(int argc, char** argv) {
     cb::bench::Options defaults;
     defaults.runs = 3;
     cb::bench::Options o = cb::bench::parse_options(argc, argv, defaults);
@@ -391,3 +391,5 @@ int main(int argc, char** argv) {
     for (const Input& in : inputs) run(in, o.view, o.runs, o.one_sided != 0, level, o.frames);
     return 0;
 }
+
+int main(int argc, char** argv) { return cb::bench::guarded_main("bench_shadow", [&] { return run(argc, argv); }); }
