@@ -91,10 +91,13 @@ std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& o
     return meshes;
 }
 
-void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats) {
+void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads,
+                      BakeStats& stats) {
     auto start = std::chrono::steady_clock::now();
     // One work item per cluster: (mesh, level, index, first triangle, triangle count).
-    struct Item { uint32_t mesh, fine, index, first, count; };
+    struct Item {
+        uint32_t mesh, fine, index, first, count;
+    };
     std::vector<Item> items;
     std::vector<std::vector<uint32_t>> ids(meshes.size());
     for (uint32_t m = 0; m < meshes.size(); ++m) {
@@ -105,7 +108,8 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
         for (uint32_t f = 0; f < am.fine.size(); ++f) items.push_back({m, 1, f, am.fine[f].first, am.fine[f].count});
         for (uint32_t c = 0; c < am.coarse.size(); ++c) {
             const ClusterRange& r = am.coarse[c];
-            uint32_t first = am.fine[r.first].first, last = am.fine[r.first + r.count - 1].first + am.fine[r.first + r.count - 1].count;
+            uint32_t first = am.fine[r.first].first,
+                     last = am.fine[r.first + r.count - 1].first + am.fine[r.first + r.count - 1].count;
             items.push_back({m, 0, c, first, last - first});
         }
     }
@@ -113,14 +117,16 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
     parallel_for(items.size(), threads, [&](size_t i) {
         const Item& it = items[i];
         const AssetMesh& am = meshes[it.mesh];
-        fitted[i] = fit_bounds(am.positions.data(), am.triangles.data(), ids[it.mesh].data() + it.first, it.count, options);
+        fitted[i] =
+            fit_bounds(am.positions.data(), am.triangles.data(), ids[it.mesh].data() + it.first, it.count, options);
     });
 
     for (size_t i = 0; i < items.size(); ++i) {  // in item order: deterministic
         const Item& it = items[i];
         LevelVolumes& v = it.fine ? meshes[it.mesh].fine_volumes : meshes[it.mesh].coarse_volumes;
         const ClusterBounds& b = fitted[i];
-        if (options.mask & (bounds_obb | bounds_cone)) v.obbs.push_back(b.packed_obb);  // cones are stored relative to boxes
+        if (options.mask & (bounds_obb | bounds_cone))
+            v.obbs.push_back(b.packed_obb);  // cones are stored relative to boxes
         if (options.mask & bounds_sphere) v.spheres.push_back(b.sphere);
         if (options.mask & bounds_capsule) v.capsules.push_back(b.capsule);
         if (options.mask & bounds_cone) v.cones.push_back(b.packed_cone);

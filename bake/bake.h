@@ -16,9 +16,9 @@ namespace cb {
 
 struct BakeStats {
     uint64_t triangles = 0, fine_clusters = 0, coarse_clusters = 0, fine_below_half = 0;
-    uint32_t fine_min = 0, fine_max = 0;     // triangles per fine cluster
-    uint32_t coarse_min = 0, coarse_max = 0; // triangles per coarse cluster
-    double acmr_before = 0, acmr_after = 0;  // triangle-weighted over meshes (vco only)
+    uint32_t fine_min = 0, fine_max = 0;      // triangles per fine cluster
+    uint32_t coarse_min = 0, coarse_max = 0;  // triangles per coarse cluster
+    double acmr_before = 0, acmr_after = 0;   // triangle-weighted over meshes (vco only)
     double cluster_seconds = 0;
     double fit_seconds = 0;
     uint64_t valid_cones = 0, capsules = 0;  // fine and coarse clusters together

@@ -8,7 +8,8 @@
 
 namespace cb {
 
-BakedScene bake_in_memory(const Scene& scene, const ClusterOptions& clustering, const BoundsOptions& bounds, BakeStats* stats) {
+BakedScene bake_in_memory(const Scene& scene, const ClusterOptions& clustering, const BoundsOptions& bounds,
+                          BakeStats* stats) {
     BakeStats local;
     BakeStats& s = stats ? *stats : local;
     BakedScene out;

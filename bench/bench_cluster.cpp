@@ -68,7 +68,8 @@ struct Compactness {
 // `cluster_of_position` lists triangles cluster by cluster; `sizes` gives each cluster's count.
 Compactness compactness(const Input& in, const std::vector<uint32_t>& tris, const std::vector<uint32_t>& sizes) {
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t i = 0; i < in.positions.size(); ++i) lo[i % 3] = std::min(lo[i % 3], in.positions[i]), hi[i % 3] = std::max(hi[i % 3], in.positions[i]);
+    for (size_t i = 0; i < in.positions.size(); ++i)
+        lo[i % 3] = std::min(lo[i % 3], in.positions[i]), hi[i % 3] = std::max(hi[i % 3], in.positions[i]);
     double diagonal = std::sqrt(double(hi[0] - lo[0]) * (hi[0] - lo[0]) + double(hi[1] - lo[1]) * (hi[1] - lo[1]) +
                                 double(hi[2] - lo[2]) * (hi[2] - lo[2]));
     Compactness c;
@@ -80,8 +81,10 @@ Compactness compactness(const Input& in, const std::vector<uint32_t>& tris, cons
                 const float* p = &in.positions[size_t(in.indices[size_t(tris[i]) * 3 + k]) * 3];
                 for (int d = 0; d < 3; ++d) a[d] = std::min(a[d], p[d]), b[d] = std::max(b[d], p[d]);
             }
-        double r = 0.5 * std::sqrt(double(b[0] - a[0]) * (b[0] - a[0]) + double(b[1] - a[1]) * (b[1] - a[1]) +
-                                   double(b[2] - a[2]) * (b[2] - a[2])) / diagonal;
+        double r = 0.5 *
+            std::sqrt(double(b[0] - a[0]) * (b[0] - a[0]) + double(b[1] - a[1]) * (b[1] - a[1]) +
+                      double(b[2] - a[2]) * (b[2] - a[2])) /
+            diagonal;
         c.mean_radius += r;
         c.max_radius = std::max(c.max_radius, r);
         at += n;
@@ -186,7 +189,8 @@ void run(const Input& in, uint32_t fine, int runs) {
         for (size_t m = 0; m < count; ++m) {
             const meshopt_Meshlet& ml = meshlets[m];
             for (size_t t = 0; t < ml.triangle_count; ++t) {
-                for (int k = 0; k < 3; ++k) local.indices.push_back(mv[ml.vertex_offset + mt[ml.triangle_offset + t * 3 + k]]);
+                for (int k = 0; k < 3; ++k)
+                    local.indices.push_back(mv[ml.vertex_offset + mt[ml.triangle_offset + t * 3 + k]]);
                 tris.push_back(uint32_t(tris.size()));
             }
             sizes.push_back(ml.triangle_count);
@@ -199,16 +203,18 @@ void run(const Input& in, uint32_t fine, int runs) {
 
     // Vertex cache order alone, whole mesh: our Forsyth against meshopt_optimizeVertexCache.
     std::vector<uint32_t> ours, theirs(in.indices.size());
-    double t_ours = median_seconds(runs, [&] { ours = cb::forsyth_order(in.indices.data(), in.triangles(), in.vertices(), 32); });
-    double t_meshopt = median_seconds(runs, [&] {
-        meshopt_optimizeVertexCache(theirs.data(), in.indices.data(), in.indices.size(), in.vertices());
-    });
+    double t_ours =
+        median_seconds(runs, [&] { ours = cb::forsyth_order(in.indices.data(), in.triangles(), in.vertices(), 32); });
+    double t_meshopt = median_seconds(
+        runs, [&] { meshopt_optimizeVertexCache(theirs.data(), in.indices.data(), in.indices.size(), in.vertices()); });
     std::vector<uint32_t> ours_idx = permuted(in, ours);
     double acmr_in = cb::fifo_acmr(in.indices.data(), in.triangles(), in.vertices(), 32);
     double acmr_ours = cb::fifo_acmr(ours_idx.data(), in.triangles(), in.vertices(), 32);
     double acmr_theirs = cb::fifo_acmr(theirs.data(), in.triangles(), in.vertices(), 32);
-    std::printf("|   vertex cache, %-20s | input ACMR %.3f | ours %.3f in %.1f ms | meshopt %.3f in %.1f ms | time ours/meshopt %.2f |\n",
-                in.name.c_str(), acmr_in, acmr_ours, t_ours * 1e3, acmr_theirs, t_meshopt * 1e3, t_ours / t_meshopt);
+    std::printf(
+        "|   vertex cache, %-20s | input ACMR %.3f | ours %.3f in %.1f ms | meshopt %.3f in %.1f ms | time "
+        "ours/meshopt %.2f |\n",
+        in.name.c_str(), acmr_in, acmr_ours, t_ours * 1e3, acmr_theirs, t_meshopt * 1e3, t_ours / t_meshopt);
 }
 
 }  // namespace
@@ -217,10 +223,13 @@ static int run(int argc, char** argv) {
     cb::bench::Options o = cb::bench::parse_options(argc, argv, {});
     std::vector<fs::path> files = cb::bench::scanned_meshes(o, "bench_cluster");
     if (files.empty()) return 1;
-    std::printf("fine size %u, %d runs (median), %u hardware threads; M tri/s = million triangles per second; "
-                "radius = cluster AABB half-diagonal / mesh diagonal; ACMR = FIFO 32 misses per triangle\n\n",
-                o.fine, o.runs, std::max(1u, std::thread::hardware_concurrency()));
-    std::printf("| input | method | M tri/s 1 thread | M tri/s all | extra MB | ACMR | clusters | tri/cluster | mean radius | max radius |\n");
+    std::printf(
+        "fine size %u, %d runs (median), %u hardware threads; M tri/s = million triangles per second; "
+        "radius = cluster AABB half-diagonal / mesh diagonal; ACMR = FIFO 32 misses per triangle\n\n",
+        o.fine, o.runs, std::max(1u, std::thread::hardware_concurrency()));
+    std::printf(
+        "| input | method | M tri/s 1 thread | M tri/s all | extra MB | ACMR | clusters | tri/cluster | mean radius | "
+        "max radius |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
     Input dragon;
     for (const fs::path& f : files) {
@@ -235,4 +244,6 @@ static int run(int argc, char** argv) {
     return 0;
 }
 
-int main(int argc, char** argv) { return cb::bench::guarded_main("bench_cluster", [&] { return run(argc, argv); }); }
+int main(int argc, char** argv) {
+    return cb::bench::guarded_main("bench_cluster", [&] { return run(argc, argv); });
+}

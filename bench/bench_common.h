@@ -33,19 +33,20 @@ int guarded_main(const char* name, Body body) {
 // The scenes folder must exist (the benchmarks read ../shared/data in place, or --data DIR).
 inline void require_data(const fs::path& dir) {
     if (!fs::is_directory(dir))
-        throw std::runtime_error(dir.string() + " is absent: the benchmarks read their scenes there (or give --data DIR)");
+        throw std::runtime_error(dir.string() +
+                                 " is absent: the benchmarks read their scenes there (or give --data DIR)");
 }
 
 struct Options {
     fs::path data = fs::path(CB_SHARED_DATA);
     uint32_t fine = 16;
     int runs = 5;
-    int copies = 25;   // copies of the dragon in the big scene (0: none)
-    int view = 1024;   // bench_shadow: the camera's resolution
-    std::string only;  // run only inputs whose name contains this
-    int one_sided = 0; // bench_shadow: 1 builds one-sided trees (the thesis's mode for closed models)
+    int copies = 25;             // copies of the dragon in the big scene (0: none)
+    int view = 1024;             // bench_shadow: the camera's resolution
+    std::string only;            // run only inputs whose name contains this
+    int one_sided = 0;           // bench_shadow: 1 builds one-sided trees (the thesis's mode for closed models)
     std::string level = "scan";  // bench_shadow: how the trees reach fine clusters (scan, trees, one-tree)
-    int frames = 0;    // bench_shadow: N > 0 times only our frames (build and queries, one thread), N per light
+    int frames = 0;  // bench_shadow: N > 0 times only our frames (build and queries, one thread), N per light
 };
 
 // --data DIR --fine N --runs N --copies N --view N --only NAME --one-sided 0|1 --level scan|trees|one-tree
@@ -53,22 +54,34 @@ struct Options {
 inline Options parse_options(int argc, char** argv, Options o) {
     for (int i = 1; i + 1 < argc; i += 2) {
         std::string a = argv[i];
-        if (a == "--data") o.data = argv[i + 1];
-        else if (a == "--fine") o.fine = uint32_t(std::stoul(argv[i + 1]));
-        else if (a == "--runs") o.runs = std::stoi(argv[i + 1]);
-        else if (a == "--copies") o.copies = std::stoi(argv[i + 1]);
-        else if (a == "--view") o.view = std::stoi(argv[i + 1]);
-        else if (a == "--only") o.only = argv[i + 1];
-        else if (a == "--one-sided") o.one_sided = std::stoi(argv[i + 1]);
-        else if (a == "--level") o.level = argv[i + 1];
-        else if (a == "--frames") o.frames = std::stoi(argv[i + 1]);
-        else std::fprintf(stderr, "ignoring unknown option %s\n", a.c_str());
+        if (a == "--data")
+            o.data = argv[i + 1];
+        else if (a == "--fine")
+            o.fine = uint32_t(std::stoul(argv[i + 1]));
+        else if (a == "--runs")
+            o.runs = std::stoi(argv[i + 1]);
+        else if (a == "--copies")
+            o.copies = std::stoi(argv[i + 1]);
+        else if (a == "--view")
+            o.view = std::stoi(argv[i + 1]);
+        else if (a == "--only")
+            o.only = argv[i + 1];
+        else if (a == "--one-sided")
+            o.one_sided = std::stoi(argv[i + 1]);
+        else if (a == "--level")
+            o.level = argv[i + 1];
+        else if (a == "--frames")
+            o.frames = std::stoi(argv[i + 1]);
+        else
+            std::fprintf(stderr, "ignoring unknown option %s\n", a.c_str());
     }
     require_data(o.data);
     return o;
 }
 
-inline bool wanted(const Options& o, const std::string& name) { return o.only.empty() || name.find(o.only) != std::string::npos; }
+inline bool wanted(const Options& o, const std::string& name) {
+    return o.only.empty() || name.find(o.only) != std::string::npos;
+}
 
 // The scanned meshes of the shared data, sorted; empty (with a message) when the folder is missing.
 inline std::vector<fs::path> scanned_meshes(const Options& o, const char* program) {
@@ -95,8 +108,9 @@ inline Mesh merged_copies(const Mesh& base, int copies) {
         uint32_t offset = uint32_t(out.vertex_count());
         for (size_t k = 0; k < base.vertex_count(); ++k) {
             const float* p = &base.positions[k * 3];
-            out.positions.insert(out.positions.end(), {float(s * (ca * p[0] + sa * p[2]) + tx), float(s * p[1]),
-                                                       float(s * (-sa * p[0] + ca * p[2]) + tz)});
+            out.positions.insert(
+                out.positions.end(),
+                {float(s * (ca * p[0] + sa * p[2]) + tx), float(s * p[1]), float(s * (-sa * p[0] + ca * p[2]) + tz)});
         }
         for (uint32_t i : base.indices) out.indices.push_back(offset + i);
     }

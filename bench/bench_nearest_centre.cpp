@@ -36,7 +36,8 @@ static int run(int argc, char** argv) {
     for (size_t k : {4, 8, 16, 32, 48, 64, 96, 128, 256, 512}) {
         if (k > n) break;
         std::vector<float> centres;
-        for (size_t c = 0; c < k; ++c) centres.insert(centres.end(), &points[(c * n / k) * 6], &points[(c * n / k) * 6 + 6]);
+        for (size_t c = 0; c < k; ++c)
+            centres.insert(centres.end(), &points[(c * n / k) * 6], &points[(c * n / k) * 6 + 6]);
         auto time = [&](auto&& f) {
             std::vector<double> t;
             for (int r = 0; r < 9; ++r) {
@@ -47,8 +48,10 @@ static int run(int argc, char** argv) {
             std::sort(t.begin(), t.end());
             return t[4];
         };
-        double brute = time([&] { cb::assign_nearest_brute(points.data(), n, centres.data(), k, assignment.data(), d2.data()); });
-        double flann = time([&] { cb::assign_nearest_flann(points.data(), n, centres.data(), k, assignment.data(), d2.data()); });
+        double brute =
+            time([&] { cb::assign_nearest_brute(points.data(), n, centres.data(), k, assignment.data(), d2.data()); });
+        double flann =
+            time([&] { cb::assign_nearest_flann(points.data(), n, centres.data(), k, assignment.data(), d2.data()); });
         std::printf("| %zu | %.1f | %.1f | %.2f |\n", k, brute, flann, flann / brute);
     }
     std::printf("\nflann_crossover in use: %zu centres\n", cb::flann_crossover);

@@ -112,7 +112,8 @@ bool area_frame(const float* positions, const uint32_t* indices, const uint32_t*
         double area = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).norm();
         if (!(area > 0)) continue;
         Eigen::Vector3d m = (p[0] + p[1] + p[2]) / 3.0;
-        second += area / 12.0 * (9.0 * m * m.transpose() + p[0] * p[0].transpose() + p[1] * p[1].transpose() + p[2] * p[2].transpose());
+        second += area / 12.0 *
+            (9.0 * m * m.transpose() + p[0] * p[0].transpose() + p[1] * p[1].transpose() + p[2] * p[2].transpose());
         first += area * m;
         total += area;
     }
@@ -247,8 +248,10 @@ Frame best_frame(const double* pts, size_t n, ObbMethod method, const float* pos
     if (method == ObbMethod::pca || method == ObbMethod::refined) pca.push_back(pca_frame(pts, n));
     if (method == ObbMethod::pca_area || method == ObbMethod::refined) {
         Frame f;
-        if (positions && area_frame(positions, indices, tris, count, origin, f)) pca.push_back(f);
-        else if (method == ObbMethod::pca_area) pca.push_back(pca_frame(pts, n));
+        if (positions && area_frame(positions, indices, tris, count, origin, f))
+            pca.push_back(f);
+        else if (method == ObbMethod::pca_area)
+            pca.push_back(pca_frame(pts, n));
     }
     thread_local std::vector<double> soa;
     soa.resize(n * 3);
@@ -404,7 +407,8 @@ Ball ball_of(const double* const* s, int k) {
     m << a[0], a[1], a[2], c[0], c[1], c[2], d[0], d[1], d[2];
     double det = m.determinant(), scale = norm(a) * norm(c) * norm(d);
     if (std::fabs(det) > 1e-12 * scale) {
-        Eigen::Vector3d rhs(0.5 * dot3(a.data(), a.data()), 0.5 * dot3(c.data(), c.data()), 0.5 * dot3(d.data(), d.data()));
+        Eigen::Vector3d rhs(0.5 * dot3(a.data(), a.data()), 0.5 * dot3(c.data(), c.data()),
+                            0.5 * dot3(d.data(), d.data()));
         Eigen::Vector3d x = m.partialPivLu().solve(rhs);
         for (int i = 0; i < 3; ++i) b.c[i] = s[0][i] + x[i];
         b.r2 = x.squaredNorm();
@@ -429,7 +433,8 @@ bool outside(const Ball& b, const double* p) {
 }
 
 // Gärtner's move-to-front Welzl: `order` is permuted as points move to the front.
-Ball welzl(const double* pts, std::vector<uint32_t>& order, size_t end, const double** support, int k, int max_support) {
+Ball welzl(const double* pts, std::vector<uint32_t>& order, size_t end, const double** support, int k,
+           int max_support) {
     Ball b = ball_of(support, k);
     if (k == max_support) return b;
     for (size_t i = 0; i < end; ++i) {
@@ -492,10 +497,12 @@ double segment_distance(const double* p, const double* a, const double* b) {
 
 // Axis from the box; radius from the minimal circle of the points projected on the plane across it;
 // the segment as short as containment allows.
-Capsule fit_capsule(const Frame& f, int major, const double* local, size_t n, const double* origin, const double* world) {
+Capsule fit_capsule(const Frame& f, int major, const double* local, size_t n, const double* origin,
+                    const double* world) {
     int u = (major + 1) % 3, w = (major + 2) % 3;
     std::vector<double> plane(n * 3, 0.0);
-    for (size_t v = 0; v < n; ++v) plane[v * 3] = dot3(local + v * 3, f.axis[u]), plane[v * 3 + 1] = dot3(local + v * 3, f.axis[w]);
+    for (size_t v = 0; v < n; ++v)
+        plane[v * 3] = dot3(local + v * 3, f.axis[u]), plane[v * 3 + 1] = dot3(local + v * 3, f.axis[w]);
     Ball circle = min_ball(plane.data(), n, 2);
     double r = std::sqrt(std::max(0.0, circle.r2));
     double lo = INFINITY, hi = -INFINITY;  // t range the segment must cover
@@ -589,8 +596,8 @@ bool cone_axis(size_t planes, const Vec& sum, PackedCone& packed, Vec& axis) {
 
 // A packed cone for the triangles; `centre` is the decoded centre of the cluster's box. `normal` gets the
 // stored axis direction whenever the triangles have one (zero otherwise), valid cone or not.
-PackedCone fit_cone(const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count, const double* centre,
-                    double extent, float normal[3]) {
+PackedCone fit_cone(const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count,
+                    const double* centre, double extent, float normal[3]) {
     PackedCone none{};
     none.cos_half_angle = 2;  // no valid cone
     normal[0] = normal[1] = normal[2] = 0;
@@ -636,7 +643,9 @@ Slab fit_slab(const float axis_f[3], const double* world, size_t n) {
     for (size_t v = 0; v < n; ++v) {
         double d = dot3(world + v * 3, a);
         lo = std::min(lo, d), hi = std::max(hi, d);
-        scale = std::max(scale, std::fabs(world[v * 3] * a[0]) + std::fabs(world[v * 3 + 1] * a[1]) + std::fabs(world[v * 3 + 2] * a[2]));
+        scale = std::max(
+            scale,
+            std::fabs(world[v * 3] * a[0]) + std::fabs(world[v * 3 + 1] * a[1]) + std::fabs(world[v * 3 + 2] * a[2]));
     }
     s.low = round_down(lo - measure_margin * scale);
     s.high = round_up(hi + measure_margin * scale);
@@ -671,12 +680,18 @@ bool parse_bounds_mask(const std::string& text, uint32_t& mask) {
     while (at <= text.size()) {
         size_t end = std::min(text.find(',', at), text.size());
         std::string word = text.substr(at, end - at);
-        if (word == "obb") mask |= bounds_obb;
-        else if (word == "sphere") mask |= bounds_sphere;
-        else if (word == "capsule") mask |= bounds_capsule;
-        else if (word == "cone") mask |= bounds_cone;
-        else if (word == "slab") mask |= bounds_slab;
-        else return false;
+        if (word == "obb")
+            mask |= bounds_obb;
+        else if (word == "sphere")
+            mask |= bounds_sphere;
+        else if (word == "capsule")
+            mask |= bounds_capsule;
+        else if (word == "cone")
+            mask |= bounds_cone;
+        else if (word == "slab")
+            mask |= bounds_slab;
+        else
+            return false;
         at = end + 1;
     }
     return mask != 0;

@@ -32,12 +32,12 @@ bool parse_bounds_mask(const std::string& text, uint32_t& mask);
 // Boxes and cones come packed, as the asset stores them, and decoded, as the runtime reads them.
 struct ClusterBounds {
     PackedObb packed_obb;
-    Obb obb;           // unpack_obb(packed_obb)
+    Obb obb;  // unpack_obb(packed_obb)
     Sphere sphere;
     Capsule capsule;   // the sphere as a zero-length capsule unless has_capsule
     bool has_capsule;  // fitted only when the box's longest side is at least capsule_ratio times each other side
     PackedCone packed_cone;
-    Cone cone;         // unpack_cone(packed_cone, packed_obb)
+    Cone cone;  // unpack_cone(packed_cone, packed_obb)
     Slab slab;
 };
 
@@ -61,14 +61,13 @@ struct BoundsOptions {
 
 // The triangles are `count` indices into `triangle_ids`, each a triangle of `indices` (3 per triangle)
 // over `positions` (xyz floats). Pure: no state, safe to call from many threads.
-ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const uint32_t* triangle_ids,
-                         size_t count, const BoundsOptions& options);
+ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const uint32_t* triangle_ids, size_t count,
+                         const BoundsOptions& options);
 
 // ---- the pieces, for tests and benchmarks. Points are xyz doubles, already relative to a local origin.
 
-Obb fit_obb(const double* points, size_t n, const double* origin, ObbMethod method,
-            const float* positions = nullptr, const uint32_t* indices = nullptr, const uint32_t* triangle_ids = nullptr,
-            size_t triangle_count = 0);
+Obb fit_obb(const double* points, size_t n, const double* origin, ObbMethod method, const float* positions = nullptr,
+            const uint32_t* indices = nullptr, const uint32_t* triangle_ids = nullptr, size_t triangle_count = 0);
 Sphere fit_sphere(const double* points, size_t n, const double* origin);
 Sphere ritter_sphere(const double* points, size_t n, const double* origin);  // Ritter's approximation, a baseline
 

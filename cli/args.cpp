@@ -15,8 +15,9 @@ void add_clustering_flags(CLI::App* c, ClusterArgs& a) {
     c->add_option("--seed", a.options.seed, "Seed of k-means++ (default 1)");
     c->add_option("--k0", a.options.kmeans_branching, "k-means children per node (default 8)");
     c->add_option("--iterations", a.options.kmeans_max_iterations, "Cap on Lloyd iterations per node (default 16)");
-    c->add_flag_callback("--coarse-morton", [&a] { a.options.kmeans_coarse_from_tree = false; },
-                         "kmeans: Morton chunks as the coarse level instead of the top of the k-means trees");
+    c->add_flag_callback(
+        "--coarse-morton", [&a] { a.options.kmeans_coarse_from_tree = false; },
+        "kmeans: Morton chunks as the coarse level instead of the top of the k-means trees");
     c->add_option("--presplit", a.options.kmeans_presplit,
                   "kmeans: triangles per Morton chunk the trees grow in, in parallel (default 65536; 0: one tree)");
     c->add_option("--cache", a.options.vco_cache_size, "vco: vertex cache size (default 32)");
@@ -40,8 +41,8 @@ bool parse_clustering(const ClusterArgs& a, cb::ClusterOptions& clustering, cb::
 
 bool parse_light(const std::string& text, double* light) {
     char extra;
-    if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &light[0], &light[1], &light[2], &extra) == 3 && std::isfinite(light[0]) &&
-        std::isfinite(light[1]) && std::isfinite(light[2]))
+    if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &light[0], &light[1], &light[2], &extra) == 3 &&
+        std::isfinite(light[0]) && std::isfinite(light[1]) && std::isfinite(light[2]))
         return true;
     std::fprintf(stderr, "clusterbake: --light takes X,Y,Z (got '%s')\n", text.c_str());
     return false;

@@ -21,7 +21,8 @@ int run_bake(const ClusterArgs& a) {
     cb::BoundsOptions bounds;
     if (!parse_clustering(a, options, bounds)) return 1;
     if (a.fit && !cb::parse_bounds_mask(a.bounds, bounds.mask)) {
-        std::fprintf(stderr, "clusterbake: --bounds takes auto, all or a list of obb,sphere,capsule,cone,slab (got '%s')\n",
+        std::fprintf(stderr,
+                     "clusterbake: --bounds takes auto, all or a list of obb,sphere,capsule,cone,slab (got '%s')\n",
                      a.bounds.c_str());
         return 1;
     }
@@ -40,9 +41,10 @@ int run_bake(const ClusterArgs& a) {
     for (const cb::Mesh& m : scene.meshes) total += m.triangle_count();
     bool show = !a.quiet && total >= 1'000'000;
     cb::BakeStats stats;
-    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, options, stats, [&](size_t m, size_t mc, size_t c, size_t cc) {
-        if (show) std::fprintf(stderr, "\rclustering mesh %zu/%zu: chunk %zu/%zu   ", m + 1, mc, c, cc);
-    });
+    std::vector<cb::AssetMesh> meshes =
+        cb::cluster_scene(scene, options, stats, [&](size_t m, size_t mc, size_t c, size_t cc) {
+            if (show) std::fprintf(stderr, "\rclustering mesh %zu/%zu: chunk %zu/%zu   ", m + 1, mc, c, cc);
+        });
     if (show) std::fprintf(stderr, "\n");
     if (a.fit) cb::fit_scene_bounds(meshes, bounds, options.threads, stats);
 
@@ -53,27 +55,28 @@ int run_bake(const ClusterArgs& a) {
 
     double tps = stats.cluster_seconds > 0 ? double(stats.triangles) / stats.cluster_seconds : 0;
     if (a.json) {
-        nlohmann::json j = {{"file", a.file},
-                            {"output", a.out},
-                            {"method", cb::method_name(options.method)},
-                            {"coarse_size", options.coarse_size},
-                            {"fine_size", options.fine_size},
-                            {"meshes", scene.meshes.size()},
-                            {"instances", scene.instances.size()},
-                            {"triangles", stats.triangles},
-                            {"coarse_clusters", stats.coarse_clusters},
-                            {"fine_clusters", stats.fine_clusters},
-                            {"fine_min", stats.fine_min},
-                            {"fine_max", stats.fine_max},
-                            {"fine_below_half", stats.fine_below_half},
-                            {"coarse_min", stats.coarse_min},
-                            {"coarse_max", stats.coarse_max},
-                            {"load_seconds", load_s},
-                            {"cluster_seconds", stats.cluster_seconds},
-                            {"write_seconds", write_s},
-                            {"triangles_per_second", tps},
-                            {"asset_bytes", bytes.size()},
-                            {"bytes_per_triangle", stats.triangles ? double(bytes.size()) / double(stats.triangles) : 0.0}};
+        nlohmann::json j = {
+            {"file", a.file},
+            {"output", a.out},
+            {"method", cb::method_name(options.method)},
+            {"coarse_size", options.coarse_size},
+            {"fine_size", options.fine_size},
+            {"meshes", scene.meshes.size()},
+            {"instances", scene.instances.size()},
+            {"triangles", stats.triangles},
+            {"coarse_clusters", stats.coarse_clusters},
+            {"fine_clusters", stats.fine_clusters},
+            {"fine_min", stats.fine_min},
+            {"fine_max", stats.fine_max},
+            {"fine_below_half", stats.fine_below_half},
+            {"coarse_min", stats.coarse_min},
+            {"coarse_max", stats.coarse_max},
+            {"load_seconds", load_s},
+            {"cluster_seconds", stats.cluster_seconds},
+            {"write_seconds", write_s},
+            {"triangles_per_second", tps},
+            {"asset_bytes", bytes.size()},
+            {"bytes_per_triangle", stats.triangles ? double(bytes.size()) / double(stats.triangles) : 0.0}};
         if (a.fit) {
             j["bounds"] = a.bounds;
             j["fit_seconds"] = stats.fit_seconds;
@@ -106,9 +109,10 @@ int run_bake(const ClusterArgs& a) {
             std::printf("; %llu of %llu are capsules", (unsigned long long)stats.capsules, clusters);
         std::printf("\n");
     }
-    std::printf("  load %.3f s, cluster %.3f s (%.2f M triangles/s), write %.3f s, asset %zu bytes (%.1f per triangle)\n",
-                load_s, stats.cluster_seconds, tps / 1e6, write_s, bytes.size(),
-                stats.triangles ? double(bytes.size()) / double(stats.triangles) : 0.0);
+    std::printf(
+        "  load %.3f s, cluster %.3f s (%.2f M triangles/s), write %.3f s, asset %zu bytes (%.1f per triangle)\n",
+        load_s, stats.cluster_seconds, tps / 1e6, write_s, bytes.size(),
+        stats.triangles ? double(bytes.size()) / double(stats.triangles) : 0.0);
     return 0;
 }
 
@@ -125,7 +129,8 @@ void add_common(CLI::App* c, ClusterArgs& a) {
 
 Command add_cluster(CLI::App& app) {
     auto a = std::make_shared<ClusterArgs>();
-    CLI::App* c = app.add_subcommand("cluster", "Cluster every mesh into coarse and fine clusters and write an asset (no bounds)");
+    CLI::App* c = app.add_subcommand("cluster",
+                                     "Cluster every mesh into coarse and fine clusters and write an asset (no bounds)");
     add_common(c, *a);
     return {c, [a] { return run_bake(*a); }};
 }
@@ -138,7 +143,8 @@ Command add_bake(CLI::App& app) {
     c->add_option("--bounds", a->bounds,
                   "auto (what the shadow runtime reads: obb,cone), all, or a list of obb,sphere,capsule,cone,slab");
     c->add_option("--obb", a->obb, "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow)");
-    c->add_option("--capsule-ratio", a->capsule_ratio, "Fit a capsule when the box's longest side is this many times each other (default 2)");
+    c->add_option("--capsule-ratio", a->capsule_ratio,
+                  "Fit a capsule when the box's longest side is this many times each other (default 2)");
     return {c, [a] { return run_bake(*a); }};
 }
 

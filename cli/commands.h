@@ -13,8 +13,8 @@ struct Command {
     std::function<int()> run;
 };
 
-Command add_info(CLI::App& app);      // info.cpp
-Command add_cluster(CLI::App& app);   // bake.cpp: cluster and bake
+Command add_info(CLI::App& app);     // info.cpp
+Command add_cluster(CLI::App& app);  // bake.cpp: cluster and bake
 Command add_bake(CLI::App& app);
 Command add_stats(CLI::App& app);     // stats.cpp
 Command add_report(CLI::App& app);    // report.cpp

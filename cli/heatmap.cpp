@@ -45,7 +45,8 @@ int run_heatmap(HeatmapArgs a) {
 Command add_heatmap(CLI::App& app) {
     auto a = std::make_shared<HeatmapArgs>();
     CLI::App* c = app.add_subcommand(
-        "heatmap", "PNG heat map of useless cluster tests per pixel for a camera and a light: k-means (left) beside VCO (right)");
+        "heatmap",
+        "PNG heat map of useless cluster tests per pixel for a camera and a light: k-means (left) beside VCO (right)");
     c->add_option("file", a->file, "Scene file")->required();
     c->add_option("-o,--output", a->out, "Output PNG (written atomically)")->required();
     c->add_option("--size", a->options.size, "Panel size in pixels (default 256)");

@@ -29,7 +29,8 @@ bool read_points(const QueryArgs& a, std::vector<double>& pts) {
     if (a.binary) {
         std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
         if (raw.size() % 12 != 0) {
-            std::fprintf(stderr, "%s: %zu bytes is not a whole number of float32 triples\n", a.points.c_str(), raw.size());
+            std::fprintf(stderr, "%s: %zu bytes is not a whole number of float32 triples\n", a.points.c_str(),
+                         raw.size());
             return false;
         }
         for (size_t i = 0; i < raw.size(); i += 4) {
@@ -80,13 +81,17 @@ int run_query(const QueryArgs& a) {
     std::fwrite(answers.data(), 1, answers.size(), stdout);
     if (a.stats) {
         if (!a.reference)
-            std::fprintf(stderr, "build %.3f s: %zu trees, %zu nodes, %zu clusters tested for every point (light inside or level "
-                         "with their box), %zu skipped (one-sided, light in their front cone)\n",
-                         q.build_seconds, q.trees, q.nodes, q.always_tested, q.skipped);
-        std::fprintf(stderr, "%zu queries, %zu in shadow, %.3f s (%.0f queries/s); per query %.1f clusters and %.1f triangles "
+            std::fprintf(
+                stderr,
+                "build %.3f s: %zu trees, %zu nodes, %zu clusters tested for every point (light inside or level "
+                "with their box), %zu skipped (one-sided, light in their front cone)\n",
+                q.build_seconds, q.trees, q.nodes, q.always_tested, q.skipped);
+        std::fprintf(stderr,
+                     "%zu queries, %zu in shadow, %.3f s (%.0f queries/s); per query %.1f clusters and %.1f triangles "
                      "tested\n",
                      n, shadowed, q.query_seconds, n / std::max(q.query_seconds, 1e-9),
-                     n ? double(q.stats.clusters_tested) / double(n) : 0.0, n ? double(q.stats.triangles_tested) / double(n) : 0.0);
+                     n ? double(q.stats.clusters_tested) / double(n) : 0.0,
+                     n ? double(q.stats.triangles_tested) / double(n) : 0.0);
         if (a.reference)
             std::fprintf(stderr, "%llu queries with a touching contact\n", (unsigned long long)q.stats.touching);
     }
@@ -97,22 +102,27 @@ int run_query(const QueryArgs& a) {
 
 Command add_query(CLI::App& app) {
     auto a = std::make_shared<QueryArgs>();
-    CLI::App* c = app.add_subcommand(
-        "query", "Answer point-light shadow queries (exact; two-sided occluders unless --one-sided): one 0/1 line per point on stdout");
+    CLI::App* c = app.add_subcommand("query",
+                                     "Answer point-light shadow queries (exact; two-sided occluders unless "
+                                     "--one-sided): one 0/1 line per point on stdout");
     c->add_option("asset", a->asset, "Asset (.cbk)")->required();
     c->add_option("--light", a->light, "Light position X,Y,Z in world space")->required();
     c->add_option("--points", a->points, "Points: text lines 'x y z', or float32 triples with --binary")->required();
     c->add_flag("--binary", a->binary, "Points file holds raw little-endian float32 x, y, z triples");
-    c->add_flag("--one-sided", a->one_sided, "One-sided occluders: a triangle blocks only when the light is behind it "
-                                                  "(double-sided glTF primitives stay two-sided)");
+    c->add_flag("--one-sided", a->one_sided,
+                "One-sided occluders: a triangle blocks only when the light is behind it "
+                "(double-sided glTF primitives stay two-sided)");
     c->add_flag("--stats", a->stats, "Print build and query time and traversal counts on stderr");
-    c->add_flag("--reference", a->reference, "Use the reference traversal (every cluster box the segment may touch) "
-                                                  "instead of the clustered shadow volumes; same answers");
-    c->add_option("--threads", a->threads, "Build and query threads, 0 = all (default 1); the answers do not depend on it");
-    c->add_option("--fine", a->fine, "How queries find the clusters: 'scan' (default: no per-light tree; the coarse clusters' "
-                                         "spheres, then the entered ones' fine spheres), 'trees' (per light, a tree over the coarse "
-                                         "clusters and one per coarse cluster over its fine clusters) or 'one-tree' (one tree over "
-                                         "the fine clusters); same answers")
+    c->add_flag("--reference", a->reference,
+                "Use the reference traversal (every cluster box the segment may touch) "
+                "instead of the clustered shadow volumes; same answers");
+    c->add_option("--threads", a->threads,
+                  "Build and query threads, 0 = all (default 1); the answers do not depend on it");
+    c->add_option("--fine", a->fine,
+                  "How queries find the clusters: 'scan' (default: no per-light tree; the coarse clusters' "
+                  "spheres, then the entered ones' fine spheres), 'trees' (per light, a tree over the coarse "
+                  "clusters and one per coarse cluster over its fine clusters) or 'one-tree' (one tree over "
+                  "the fine clusters); same answers")
         ->check(CLI::IsMember({"scan", "trees", "one-tree"}));
     return {c, [a] { return run_query(*a); }};
 }

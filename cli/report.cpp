@@ -60,7 +60,8 @@ int run_report(ReportArgs a) {
         !parse_list(a.obbs, "--obb takes a list of refined, pca, pca-area, cgal", cb::parse_obb_method, o.obbs))
         return 1;
     if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.frame_view < 1 || o.lights < 1) {
-        std::fprintf(stderr, "clusterbake: --runs, --query-runs, --view, --frame-view and --lights must be at least 1\n");
+        std::fprintf(stderr,
+                     "clusterbake: --runs, --query-runs, --view, --frame-view and --lights must be at least 1\n");
         return 1;
     }
     cb::Report r;
@@ -84,8 +85,9 @@ int run_report(ReportArgs a) {
 
 Command add_report(CLI::App& app) {
     auto a = std::make_shared<ReportArgs>();
-    CLI::App* c = app.add_subcommand(
-        "report", "Sweep clustering method x fine size x box fitter: bake time, tightness and runtime cost; writes DIR/report.html, .json, .csv");
+    CLI::App* c = app.add_subcommand("report",
+                                     "Sweep clustering method x fine size x box fitter: bake time, tightness and "
+                                     "runtime cost; writes DIR/report.html, .json, .csv");
     c->add_option("files", a->files, "Scene files")->required();
     c->add_option("-o,--output", a->out, "Output folder (created)")->required();
     c->add_option("--methods", a->methods, "Comma list of kmeans, vco, morton (default all three)");
@@ -93,17 +95,20 @@ Command add_report(CLI::App& app) {
     c->add_option("--obb", a->obbs, "Comma list of box fitters: refined, pca, pca-area, cgal (default refined,pca)");
     c->add_option("--coarse", a->options.coarse_size, "Triangles per coarse cluster (default 2048)");
     c->add_option("--runs", a->options.runs, "Bake timings are the median of this many runs (default 3)");
-    c->add_option("--query-runs", a->options.query_runs,
-                       "Runtime timings are the median of this many rounds, each measuring every configuration once (default 7)");
+    c->add_option(
+        "--query-runs", a->options.query_runs,
+        "Runtime timings are the median of this many rounds, each measuring every configuration once (default 7)");
     c->add_option("--view", a->options.view, "Camera resolution; its visible points are the queries (default 128)");
     c->add_option("--frame-view", a->options.frame_view,
-                       "Frame time is for a view of this resolution: build + its visible points' queries (default 1024)");
+                  "Frame time is for a view of this resolution: build + its visible points' queries (default 1024)");
     c->add_option("--lights", a->options.lights, "Lights around each scene (default 2)");
     c->add_flag("--one-sided", a->options.one_sided, "Query with one-sided occluders");
     c->add_option("--samples", a->options.stats.samples, "Shadow-volume samples per cluster and light (default 8)");
-    c->add_option("--sample-lights", a->options.stats.lights, "Random lights for the shadow-volume samples (default 4)");
+    c->add_option("--sample-lights", a->options.stats.lights,
+                  "Random lights for the shadow-volume samples (default 4)");
     c->add_option("--threads", a->options.threads, "Bake threads, 0 = all (queries run on one thread)");
-    c->add_flag("--heatmap", a->options.heatmap, "Also draw each scene's heat map of useless cluster tests (k-means beside VCO)");
+    c->add_flag("--heatmap", a->options.heatmap,
+                "Also draw each scene's heat map of useless cluster tests (k-means beside VCO)");
     c->add_option("--heatmap-size", a->options.heatmap_size, "Heat map panel size in pixels (default 256)");
     c->add_flag("-q,--quiet", a->quiet, "No progress on stderr");
     return {c, [a] { return run_report(*a); }};

@@ -65,12 +65,16 @@ Command add_stats(CLI::App& app) {
     auto a = std::make_shared<Args>();
     CLI::App* c = app.add_subcommand(
         "stats", "Cluster-quality statistics per level (coarse, fine) of a scene baked in memory, or of an asset");
-    c->add_option("file", a->clustering.file, "Scene file, or an asset (.cbk): its clusters and stored volumes as they are")->required();
+    c->add_option("file", a->clustering.file,
+                  "Scene file, or an asset (.cbk): its clusters and stored volumes as they are")
+        ->required();
     add_clustering_flags(c, a->clustering);
     c->add_option("--obb", a->clustering.obb, "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow)");
-    c->add_option("--capsule-ratio", a->clustering.capsule_ratio, "Fit a capsule when the box's longest side is this many times each other (default 2)");
+    c->add_option("--capsule-ratio", a->clustering.capsule_ratio,
+                  "Fit a capsule when the box's longest side is this many times each other (default 2)");
     c->add_option("--lights", a->options.lights, "Random light positions per mesh (default 8)");
-    c->add_option("--samples", a->options.samples, "Points sampled in each cluster's shadow volume per light (default 32)");
+    c->add_option("--samples", a->options.samples,
+                  "Points sampled in each cluster's shadow volume per light (default 32)");
     c->add_option("--light-seed", a->options.seed, "Seed of the lights and samples (default 1)");
     c->add_option("--acmr-cache", a->options.acmr_cache, "FIFO cache size for the ACMR (default 32)");
     c->add_flag("--json", a->clustering.json, "Print the statistics as JSON");

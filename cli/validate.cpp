@@ -22,8 +22,10 @@ int run_validate(const std::string& file) {
         for (uint32_t m = 0; m < view.mesh_count; ++m) closed += view.mesh_flags[m] & cb::mesh_closed ? 1 : 0;
         size_t sided = 0;
         for (size_t t = 0; t < view.triangle_count; ++t) sided += view.double_sided(t);
-        std::printf("  closed meshes %u of %u (one-sided shadows equal two-sided ones outside them); double-sided triangles %zu\n",
-                    closed, view.mesh_count, sided);
+        std::printf(
+            "  closed meshes %u of %u (one-sided shadows equal two-sided ones outside them); double-sided triangles "
+            "%zu\n",
+            closed, view.mesh_count, sided);
     }
     for (auto [name, level] : {std::pair{"fine", &view.fine_bounds}, std::pair{"coarse", &view.coarse_bounds}}) {
         std::string kinds;

@@ -21,16 +21,16 @@ bool parse_method(const std::string& name, ClusterMethod& out);
 
 struct ClusterOptions {
     ClusterMethod method = ClusterMethod::kmeans;
-    uint32_t coarse_size = 2048;   // maximum triangles per coarse cluster (Morton chunks hold exactly this many)
-    uint32_t fine_size = 16;       // hard maximum triangles per fine cluster
-    uint32_t kmeans_branching = 8; // k0: children per k-means node
+    uint32_t coarse_size = 2048;    // maximum triangles per coarse cluster (Morton chunks hold exactly this many)
+    uint32_t fine_size = 16;        // hard maximum triangles per fine cluster
+    uint32_t kmeans_branching = 8;  // k0: children per k-means node
     uint32_t kmeans_max_iterations = 16;
     bool kmeans_coarse_from_tree = true;  // coarse level from the top of the k-means trees, not Morton chunks
     uint32_t kmeans_presplit = 65536;     // the trees grow in Morton chunks of this many triangles, in parallel
                                           // (0: one tree over the whole mesh, on one thread)
     uint32_t vco_cache_size = 32;
     uint64_t seed = 1;
-    unsigned threads = 0;          // 0: all hardware threads
+    unsigned threads = 0;  // 0: all hardware threads
 };
 
 // Ranges: fine cluster f holds triangles order[fine_offsets[f] .. fine_offsets[f+1]); coarse cluster c holds
@@ -45,9 +45,9 @@ struct Hierarchy {
 };
 
 struct ClusterStats {
-    uint64_t fine_below_half = 0;   // fine clusters with fewer than fine_size / 2 triangles
-    double acmr_before = 0;         // FIFO cache of vco_cache_size over the input order (vco only)
-    double acmr_after = 0;          // ... and over the clustered order
+    uint64_t fine_below_half = 0;  // fine clusters with fewer than fine_size / 2 triangles
+    double acmr_before = 0;        // FIFO cache of vco_cache_size over the input order (vco only)
+    double acmr_after = 0;         // ... and over the clustered order
 };
 
 // `progress`, when set, is called with (chunks done, chunk count) from the calling thread.

@@ -86,7 +86,8 @@ void vco_chunk(const uint32_t* indices, uint32_t* tris, size_t count, const Clus
     std::sort(unique_vertices.begin(), unique_vertices.end());
     unique_vertices.erase(std::unique(unique_vertices.begin(), unique_vertices.end()), unique_vertices.end());
     for (size_t i = 0; i < remap_keys.size(); ++i)
-        local[i] = uint32_t(std::lower_bound(unique_vertices.begin(), unique_vertices.end(), remap_keys[i]) - unique_vertices.begin());
+        local[i] = uint32_t(std::lower_bound(unique_vertices.begin(), unique_vertices.end(), remap_keys[i]) -
+                            unique_vertices.begin());
     std::vector<uint32_t> order = forsyth_order(local.data(), count, unique_vertices.size(), o.vco_cache_size);
     std::vector<uint32_t> reordered(count);
     for (size_t i = 0; i < count; ++i) reordered[i] = tris[order[i]];
@@ -104,7 +105,8 @@ void split_chunk(const float* boxes, const uint32_t* indices, uint32_t* tris, si
             break;
         case ClusterMethod::vco: vco_chunk(indices, tris, count, o, sizes); break;
         case ClusterMethod::morton:
-            for (size_t at = 0; at < count; at += o.fine_size) sizes.push_back(uint32_t(std::min<size_t>(o.fine_size, count - at)));
+            for (size_t at = 0; at < count; at += o.fine_size)
+                sizes.push_back(uint32_t(std::min<size_t>(o.fine_size, count - at)));
             break;
     }
 }
@@ -130,11 +132,13 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
                      o.kmeans_max_iterations, o.seed, chunk_sizes);
     } else if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree) {
         h.order = morton_order(positions, indices, triangle_count);
-        const size_t part = std::max<size_t>(o.kmeans_presplit, o.coarse_size), parts = (triangle_count + part - 1) / part;
+        const size_t part = std::max<size_t>(o.kmeans_presplit, o.coarse_size),
+                     parts = (triangle_count + part - 1) / part;
         std::vector<std::vector<uint32_t>> sizes(parts);
         parallel_for(parts, o.threads, [&](size_t p) {
-            kmeans_split(boxes.data(), h.order.data() + p * part, std::min(part, triangle_count - p * part), o.coarse_size,
-                         o.kmeans_branching, o.kmeans_max_iterations, splitmix(o.seed ^ (p + 1)), sizes[p]);
+            kmeans_split(boxes.data(), h.order.data() + p * part, std::min(part, triangle_count - p * part),
+                         o.coarse_size, o.kmeans_branching, o.kmeans_max_iterations, splitmix(o.seed ^ (p + 1)),
+                         sizes[p]);
         });
         for (const auto& s : sizes) chunk_sizes.insert(chunk_sizes.end(), s.begin(), s.end());
     } else {

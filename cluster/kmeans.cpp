@@ -24,7 +24,9 @@ inline float distance2(const float* a, const float* b) {
 class KMeans {
 public:
     KMeans(const float* boxes, uint32_t max_size, uint32_t branching, uint32_t max_iterations)
-        : boxes_(boxes), max_size_(max_size), branching_(std::max(2u, branching)),
+        : boxes_(boxes),
+          max_size_(max_size),
+          branching_(std::max(2u, branching)),
           max_iterations_(std::max(1u, max_iterations)) {}
 
     void split(uint32_t* tris, size_t n, uint64_t seed, std::vector<uint32_t>& leaves) {
@@ -53,7 +55,8 @@ public:
             std::copy(g.begin(), g.end(), tris + at);
             at += g.size();
         }
-        for (size_t g = 0; g < groups.size(); ++g) split(tris + starts[g], groups[g].size(), splitmix(seed ^ (g + 1)), leaves);
+        for (size_t g = 0; g < groups.size(); ++g)
+            split(tris + starts[g], groups[g].size(), splitmix(seed ^ (g + 1)), leaves);
     }
 
 private:
@@ -128,7 +131,8 @@ private:
     std::vector<std::vector<uint32_t>> group(const uint32_t* tris, size_t n, size_t k) {
         std::vector<std::vector<uint32_t>> groups(k);
         for (size_t i = 0; i < n; ++i) groups[assignment_[i]].push_back(tris[i]);
-        groups.erase(std::remove_if(groups.begin(), groups.end(), [](const auto& g) { return g.empty(); }), groups.end());
+        groups.erase(std::remove_if(groups.begin(), groups.end(), [](const auto& g) { return g.empty(); }),
+                     groups.end());
         return groups;
     }
 

@@ -45,8 +45,8 @@ std::vector<uint32_t> forsyth_order(const uint32_t* indices, size_t triangle_cou
     // Score tables.
     std::vector<float> position_score(cache_size);
     for (uint32_t p = 0; p < cache_size; ++p)
-        position_score[p] = p < 3 ? last_triangle_score
-                                  : std::pow(1.0f - float(p - 3) / float(cache_size - 3), decay_power);
+        position_score[p] =
+            p < 3 ? last_triangle_score : std::pow(1.0f - float(p - 3) / float(cache_size - 3), decay_power);
     float valence_score[valence_table_size];
     for (uint32_t n = 0; n < valence_table_size; ++n)
         valence_score[n] = n == 0 ? 0 : valence_scale * std::pow(float(n), -valence_power);
@@ -54,7 +54,8 @@ std::vector<uint32_t> forsyth_order(const uint32_t* indices, size_t triangle_cou
         uint32_t live = valence[v];
         if (live == 0) return -1.0f;  // no triangle left to emit: worthless
         float s = position >= 0 ? position_score[size_t(position)] : 0.0f;
-        return s + (live < valence_table_size ? valence_score[live] : valence_scale * std::pow(float(live), -valence_power));
+        return s +
+            (live < valence_table_size ? valence_score[live] : valence_scale * std::pow(float(live), -valence_power));
     };
 
     std::vector<float> score(vertex_count);
@@ -67,7 +68,7 @@ std::vector<uint32_t> forsyth_order(const uint32_t* indices, size_t triangle_cou
     std::vector<uint32_t> cache, next_cache;
     cache.reserve(cache_size + 3);
     next_cache.reserve(cache_size + 3);
-    size_t cursor = 0;  // every triangle before it is emitted
+    size_t cursor = 0;               // every triangle before it is emitted
     std::vector<uint32_t> dead_end;  // vertices of emitted triangles, most recent last
     uint32_t best = uint32_t(std::max_element(triangle_score.begin(), triangle_score.end()) - triangle_score.begin());
 
@@ -101,7 +102,8 @@ std::vector<uint32_t> forsyth_order(const uint32_t* indices, size_t triangle_cou
         // LRU update: the triangle's vertices to the front, the rest shift back; past cache_size they leave.
         next_cache.clear();
         for (int k = 0; k < 3; ++k)
-            if (std::find(next_cache.begin(), next_cache.end(), tri[k]) == next_cache.end()) next_cache.push_back(tri[k]);
+            if (std::find(next_cache.begin(), next_cache.end(), tri[k]) == next_cache.end())
+                next_cache.push_back(tri[k]);
         for (uint32_t v : cache)
             if (v != tri[0] && v != tri[1] && v != tri[2]) next_cache.push_back(v);
 

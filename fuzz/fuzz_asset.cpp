@@ -45,7 +45,8 @@ void walk(const cb::AssetView& v) {
 // the light, not finite, or in opposite directions), and culling; none may read outside what open_asset
 // vouched for.
 void query(const cb::AssetView& v) {
-    const double light[3] = {0.3, 2.5, -1.7}, points[4][3] = {{0, 0, 0}, {0.5, -0.25, 0.125}, {-3, 1, 2}, {0.3, 2.5, -1.7}};
+    const double light[3] = {0.3, 2.5, -1.7},
+                 points[4][3] = {{0, 0, 0}, {0.5, -0.25, 0.125}, {-3, 1, 2}, {0.3, 2.5, -1.7}};
     std::vector<double> batch;
     for (int k = 0; k < 70; ++k)
         batch.insert(batch.end(), {std::sin(k * 0.7) * (k % 5), std::cos(k * 0.3) * 2.0, 0.1 * k - 3.0});

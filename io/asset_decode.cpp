@@ -25,7 +25,8 @@ BakedScene baked_scene_from_asset(const AssetView& view) {
     for (uint32_t m = 0; m < view.mesh_count; ++m) {
         const MeshRecord& r = view.meshes[m];
         AssetMesh mesh;
-        mesh.positions.assign(view.positions + size_t(r.first_vertex) * 3, view.positions + size_t(r.first_vertex + r.vertex_count) * 3);
+        mesh.positions.assign(view.positions + size_t(r.first_vertex) * 3,
+                              view.positions + size_t(r.first_vertex + r.vertex_count) * 3);
         // Local indices back to mesh-wide ones, cluster by cluster.
         for (uint32_t f = 0; f < r.fine_count; ++f) {
             const FineCluster& c = view.fine[r.first_fine + f];
@@ -41,7 +42,8 @@ BakedScene baked_scene_from_asset(const AssetView& view) {
         copy_level(view.coarse_bounds, r.first_coarse, r.coarse_count, mesh.coarse_volumes);
         bool any_double = false;
         std::vector<uint8_t> sided(r.triangle_count);
-        for (uint32_t t = 0; t < r.triangle_count; ++t) any_double |= (sided[t] = view.double_sided(size_t(r.first_triangle) + t)) != 0;
+        for (uint32_t t = 0; t < r.triangle_count; ++t)
+            any_double |= (sided[t] = view.double_sided(size_t(r.first_triangle) + t)) != 0;
         if (any_double) mesh.double_sided = std::move(sided);
         mesh.flags = view.mesh_flags ? view.mesh_flags[m] : 0;
         out.meshes.push_back(std::move(mesh));
@@ -50,7 +52,8 @@ BakedScene baked_scene_from_asset(const AssetView& view) {
         Instance inst;
         inst.mesh = view.instances[i].mesh;
         for (int col = 0; col < 4; ++col)
-            for (int row = 0; row < 3; ++row) inst.world[size_t(col) * 4 + row] = view.instances[i].transform[col * 3 + row];
+            for (int row = 0; row < 3; ++row)
+                inst.world[size_t(col) * 4 + row] = view.instances[i].transform[col * 3 + row];
         inst.node_name = "instance " + std::to_string(i);
         out.instances.push_back(inst);
     }

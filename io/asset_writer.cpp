@@ -38,7 +38,9 @@ CompactMesh compact(const AssetMesh& m) {
     std::vector<uint32_t> list;  // the current cluster's vertex list, in renumbered indices
     uint32_t next = 0;
     for (const ClusterRange& r : m.fine) {
-        if (r.count == 0 || r.count > 255) throw std::invalid_argument("a fine cluster holds " + std::to_string(r.count) + " triangles (1 to 255 can be stored)");
+        if (r.count == 0 || r.count > 255)
+            throw std::invalid_argument("a fine cluster holds " + std::to_string(r.count) +
+                                        " triangles (1 to 255 can be stored)");
         FineCluster f{};
         f.first_triangle = r.first;
         f.first_vertex = next;
@@ -50,23 +52,28 @@ CompactMesh compact(const AssetMesh& m) {
         for (uint32_t t = r.first; t < r.first + r.count; ++t)
             for (int k = 0; k < 3; ++k) {
                 uint32_t v = m.triangles[size_t(t) * 3 + k];
-                if (renumbered[v] == unseen || (renumbered[v] < f.first_vertex && f.first_vertex - renumbered[v] > 65535)) {
+                if (renumbered[v] == unseen ||
+                    (renumbered[v] < f.first_vertex && f.first_vertex - renumbered[v] > 65535)) {
                     renumbered[v] = next++;
-                    out.positions.insert(out.positions.end(), &m.positions[size_t(v) * 3], &m.positions[size_t(v) * 3] + 3);
-                } else if (renumbered[v] < f.first_vertex && std::find(reused.begin(), reused.end(), renumbered[v]) == reused.end()) {
+                    out.positions.insert(out.positions.end(), &m.positions[size_t(v) * 3],
+                                         &m.positions[size_t(v) * 3] + 3);
+                } else if (renumbered[v] < f.first_vertex &&
+                           std::find(reused.begin(), reused.end(), renumbered[v]) == reused.end()) {
                     reused.push_back(renumbered[v]);
                 }
             }
         uint32_t fresh = next - f.first_vertex;
         if (fresh + reused.size() > max_cluster_vertices)
-            throw std::invalid_argument("a fine cluster uses more than " + std::to_string(max_cluster_vertices) + " vertices");
+            throw std::invalid_argument("a fine cluster uses more than " + std::to_string(max_cluster_vertices) +
+                                        " vertices");
         f.vertex_count = uint8_t(fresh);
         f.ref_count = uint8_t(reused.size());
         for (uint32_t t = r.first; t < r.first + r.count; ++t)
             for (int k = 0; k < 3; ++k) {
                 uint32_t v = renumbered[m.triangles[size_t(t) * 3 + k]];
-                uint32_t local = v >= f.first_vertex ? v - f.first_vertex
-                                                     : fresh + uint32_t(std::find(reused.begin(), reused.end(), v) - reused.begin());
+                uint32_t local = v >= f.first_vertex
+                    ? v - f.first_vertex
+                    : fresh + uint32_t(std::find(reused.begin(), reused.end(), v) - reused.begin());
                 out.local.push_back(uint8_t(local));
             }
         for (uint32_t v : reused) out.refs.push_back(uint16_t(f.first_vertex - v));
@@ -110,10 +117,16 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
         inst[i] = InstanceRecord{};
         inst[i].mesh = instances[i].mesh;
         for (int col = 0; col < 4; ++col)
-            for (int row = 0; row < 3; ++row) inst[i].transform[col * 3 + row] = instances[i].world[size_t(col) * 4 + row];
+            for (int row = 0; row < 3; ++row)
+                inst[i].transform[col * 3 + row] = instances[i].world[size_t(col) * 4 + row];
     }
 
-    struct Pending { SectionType type; uint32_t element_size; std::vector<uint8_t> bytes; uint64_t count; };
+    struct Pending {
+        SectionType type;
+        uint32_t element_size;
+        std::vector<uint8_t> bytes;
+        uint64_t count;
+    };
     std::vector<Pending> sections;
     auto add = [&](SectionType type, const auto& v, uint32_t element_size) {
         Pending p{type, element_size, {}, 0};

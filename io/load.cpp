@@ -62,7 +62,8 @@ void validate_scene(Scene& scene, const std::string& name) {
     for (size_t k = 0; k < scene.instances.size(); ++k) {
         const Instance& inst = scene.instances[k];
         if (inst.mesh >= scene.meshes.size())
-            throw LoadError(name + ": instance " + std::to_string(k) + ": mesh " + std::to_string(inst.mesh) + " does not exist");
+            throw LoadError(name + ": instance " + std::to_string(k) + ": mesh " + std::to_string(inst.mesh) +
+                            " does not exist");
         for (double v : inst.world)
             if (!std::isfinite(v)) throw LoadError(name + ": instance " + std::to_string(k) + ": non-finite transform");
     }

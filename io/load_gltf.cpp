@@ -19,9 +19,9 @@ namespace {
 // Extensions whose presence changes nothing about positions, indices or sidedness, so a file that
 // requires them is still loaded exactly.
 bool is_known_extension(const std::string& name) {
-    static const char* known[] = {"KHR_draco_mesh_compression", "KHR_mesh_quantization", "KHR_texture_transform",
-                                  "KHR_texture_basisu", "KHR_lights_punctual", "KHR_materials_common",
-                                  "EXT_texture_webp", "KHR_materials_variants", "KHR_animation_pointer"};
+    static const char* known[] = {"KHR_draco_mesh_compression", "KHR_mesh_quantization",  "KHR_texture_transform",
+                                  "KHR_texture_basisu",         "KHR_lights_punctual",    "KHR_materials_common",
+                                  "EXT_texture_webp",           "KHR_materials_variants", "KHR_animation_pointer"};
     for (const char* k : known)
         if (name == k) return true;
     return name.rfind("KHR_materials_", 0) == 0;  // every material extension: no geometry
@@ -35,7 +35,8 @@ using DetachedIndices = std::map<std::pair<size_t, size_t>, int>;
 
 bool detach_viewless_indices(nlohmann::json& doc, DetachedIndices& detached) {
     if (!doc.is_object() || !doc.contains("meshes") || !doc["meshes"].is_array()) return false;
-    const nlohmann::json* accessors = doc.contains("accessors") && doc["accessors"].is_array() ? &doc["accessors"] : nullptr;
+    const nlohmann::json* accessors =
+        doc.contains("accessors") && doc["accessors"].is_array() ? &doc["accessors"] : nullptr;
     bool changed = false;
     for (size_t m = 0; m < doc["meshes"].size(); ++m) {
         nlohmann::json& mesh = doc["meshes"][m];
@@ -55,7 +56,9 @@ bool detach_viewless_indices(nlohmann::json& doc, DetachedIndices& detached) {
     return changed;
 }
 
-uint32_t read_u32(const uint8_t* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
+uint32_t read_u32(const uint8_t* p) {
+    return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
+}
 void write_u32(std::vector<uint8_t>& out, size_t at, uint32_t v) {
     for (int i = 0; i < 4; ++i) out[at + i] = uint8_t(v >> (8 * i));
 }
@@ -67,7 +70,9 @@ std::string glb_layout_error(const uint8_t* data, size_t size) {
     if (size < 20) return "GLB shorter than its 20-byte header";
     if (read_u32(data + 4) != 2) return "GLB version " + std::to_string(read_u32(data + 4)) + " (only 2 is supported)";
     uint64_t length = read_u32(data + 8);
-    if (length > size) return "GLB header says " + std::to_string(length) + " bytes, file has " + std::to_string(size) + " (truncated?)";
+    if (length > size)
+        return "GLB header says " + std::to_string(length) + " bytes, file has " + std::to_string(size) +
+            " (truncated?)";
     uint64_t json_end = 20 + uint64_t(read_u32(data + 12));
     if (read_u32(data + 16) != 0x4E4F534Au) return "GLB first chunk is not JSON";
     if (json_end > length) return "GLB JSON chunk runs past the end of the file";
@@ -139,22 +144,37 @@ size_t component_size(int component_type) {
 // One component as double, with glTF's normalisation rules for integer types.
 double read_component(const uint8_t* p, int component_type, bool normalized) {
     switch (component_type) {
-        case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); return f; }
+        case TINYGLTF_COMPONENT_TYPE_FLOAT: {
+            float f;
+            std::memcpy(&f, p, 4);
+            return f;
+        }
         case TINYGLTF_COMPONENT_TYPE_BYTE: {
-            int8_t v; std::memcpy(&v, p, 1);
+            int8_t v;
+            std::memcpy(&v, p, 1);
             return normalized ? std::max(v / 127.0, -1.0) : v;
         }
         case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? p[0] / 255.0 : p[0];
         case TINYGLTF_COMPONENT_TYPE_SHORT: {
-            int16_t v; std::memcpy(&v, p, 2);
+            int16_t v;
+            std::memcpy(&v, p, 2);
             return normalized ? std::max(v / 32767.0, -1.0) : v;
         }
         case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
-            uint16_t v; std::memcpy(&v, p, 2);
+            uint16_t v;
+            std::memcpy(&v, p, 2);
             return normalized ? v / 65535.0 : v;
         }
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t v; std::memcpy(&v, p, 4); return v; }
-        case TINYGLTF_COMPONENT_TYPE_INT: { int32_t v; std::memcpy(&v, p, 4); return v; }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+            uint32_t v;
+            std::memcpy(&v, p, 4);
+            return v;
+        }
+        case TINYGLTF_COMPONENT_TYPE_INT: {
+            int32_t v;
+            std::memcpy(&v, p, 4);
+            return v;
+        }
         default: return 0;
     }
 }
@@ -185,7 +205,8 @@ StridedRange view_range(const Context& ctx, int view_index, size_t offset, size_
         ctx.fail("bufferView " + std::to_string(view_index) + ": byteStride " + std::to_string(stride) +
                  " smaller than an element (" + std::to_string(element_size) + " bytes)");
     // count <= 2^32 and stride <= 2^32 in practice; guard the product against overflow anyway.
-    unsigned __int128 needed = count == 0 ? 0 : (unsigned __int128)offset + (unsigned __int128)stride * (count - 1) + element_size;
+    unsigned __int128 needed =
+        count == 0 ? 0 : (unsigned __int128)offset + (unsigned __int128)stride * (count - 1) + element_size;
     if (needed > view.byteLength)
         ctx.fail("needs " + std::to_string((unsigned long long)needed) + " bytes of bufferView " +
                  std::to_string(view_index) + " which has " + std::to_string(view.byteLength));
@@ -216,12 +237,14 @@ std::vector<double> read_accessor(Context ctx, int accessor_index, int want_type
         StridedRange r = view_range(ctx, acc.bufferView, acc.byteOffset, acc.count, csize * ncomp, true);
         for (size_t i = 0; i < acc.count; ++i)
             for (size_t c = 0; c < ncomp; ++c)
-                out[i * ncomp + c] = read_component(r.base + i * r.stride + c * csize, acc.componentType, acc.normalized);
+                out[i * ncomp + c] =
+                    read_component(r.base + i * r.stride + c * csize, acc.componentType, acc.normalized);
     }
     if (acc.sparse.isSparse) {
         const auto& sp = acc.sparse;
         if (sp.count < 0 || size_t(sp.count) > acc.count)
-            ctx.fail("sparse count " + std::to_string(sp.count) + " exceeds accessor count " + std::to_string(acc.count));
+            ctx.fail("sparse count " + std::to_string(sp.count) + " exceeds accessor count " +
+                     std::to_string(acc.count));
         int itype = sp.indices.componentType;
         if (itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
             itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
@@ -229,8 +252,8 @@ std::vector<double> read_accessor(Context ctx, int accessor_index, int want_type
         if (sp.indices.byteOffset < 0 || sp.values.byteOffset < 0) ctx.fail("negative sparse byteOffset");
         StridedRange ir = view_range(ctx, sp.indices.bufferView, size_t(sp.indices.byteOffset), size_t(sp.count),
                                      component_size(itype), false);
-        StridedRange vr = view_range(ctx, sp.values.bufferView, size_t(sp.values.byteOffset), size_t(sp.count),
-                                     csize * ncomp, false);
+        StridedRange vr =
+            view_range(ctx, sp.values.bufferView, size_t(sp.values.byteOffset), size_t(sp.count), csize * ncomp, false);
         for (size_t s = 0; s < size_t(sp.count); ++s) {
             double target = read_component(ir.base + s * ir.stride, itype, false);
             if (target >= double(acc.count))
@@ -238,7 +261,8 @@ std::vector<double> read_accessor(Context ctx, int accessor_index, int want_type
                          std::to_string(acc.count) + " elements)");
             size_t t = size_t(target);
             for (size_t c = 0; c < ncomp; ++c)
-                out[t * ncomp + c] = read_component(vr.base + s * vr.stride + c * csize, acc.componentType, acc.normalized);
+                out[t * ncomp + c] =
+                    read_component(vr.base + s * vr.stride + c * csize, acc.componentType, acc.normalized);
         }
     }
     return out;
@@ -269,7 +293,8 @@ void decode_draco(const Context& ctx, const tinygltf::Value& ext, std::vector<do
 
     int view_index = view.Get<int>();
     size_t length = view_index >= 0 && size_t(view_index) < ctx.model.bufferViews.size()
-                        ? ctx.model.bufferViews[view_index].byteLength : 0;
+        ? ctx.model.bufferViews[view_index].byteLength
+        : 0;
     StridedRange r = view_range(ctx, view_index, 0, 1, length, false);
 
     draco::DecoderBuffer buffer;
@@ -282,7 +307,8 @@ void decode_draco(const Context& ctx, const tinygltf::Value& ext, std::vector<do
 
     const draco::PointAttribute* att = mesh->GetAttributeByUniqueId(uint32_t(pos_id.Get<int>()));
     if (!att) ctx.fail("Draco: POSITION attribute id " + std::to_string(pos_id.Get<int>()) + " not in the stream");
-    if (att->num_components() != 3) ctx.fail("Draco: POSITION has " + std::to_string(att->num_components()) + " components");
+    if (att->num_components() != 3)
+        ctx.fail("Draco: POSITION has " + std::to_string(att->num_components()) + " components");
 
     uint32_t n = mesh->num_points();
     positions.resize(size_t(n) * 3);
@@ -324,7 +350,8 @@ std::vector<uint32_t> triangulate(const Context& ctx, int mode, const std::vecto
 void load_primitive(Context ctx, size_t mesh_index, size_t prim_index, const tinygltf::Primitive& prim, Mesh& mesh,
                     LoadReport& report) {
     int indices_accessor = prim.indices;
-    if (auto it = ctx.detached->find({mesh_index, prim_index}); it != ctx.detached->end()) indices_accessor = it->second;
+    if (auto it = ctx.detached->find({mesh_index, prim_index}); it != ctx.detached->end())
+        indices_accessor = it->second;
     int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
     if (mode == TINYGLTF_MODE_POINTS || mode == TINYGLTF_MODE_LINE || mode == TINYGLTF_MODE_LINE_LOOP ||
         mode == TINYGLTF_MODE_LINE_STRIP) {
@@ -381,7 +408,7 @@ void load_primitive(Context ctx, size_t mesh_index, size_t prim_index, const tin
     p.first_triangle = uint32_t(mesh.triangle_count());
     p.triangle_count = uint32_t(indices.size() / 3);
     p.double_sided = prim.material >= 0 && size_t(prim.material) < ctx.model.materials.size() &&
-                     ctx.model.materials[prim.material].doubleSided;
+        ctx.model.materials[prim.material].doubleSided;
     mesh.positions.insert(mesh.positions.end(), positions.begin(), positions.end());
     for (uint32_t i : indices) mesh.indices.push_back(uint32_t(base + i));
     mesh.primitives.push_back(p);
@@ -435,7 +462,8 @@ public:
         on_path_.assign(model.nodes.size(), false);
         std::vector<int> roots;
         int scene_index = model.defaultScene;
-        if (scene_index >= int(model.scenes.size())) ctx_.fail("scene " + std::to_string(scene_index) + " does not exist");
+        if (scene_index >= int(model.scenes.size()))
+            ctx_.fail("scene " + std::to_string(scene_index) + " does not exist");
         if (scene_index >= 0) {
             roots = model.scenes[scene_index].nodes;
         } else {
@@ -460,12 +488,14 @@ private:
         const auto& nodes = ctx_.model.nodes;
         Context node_ctx = ctx_;
         node_ctx.where = "node " + std::to_string(node_index);
-        if (node_index < 0 || size_t(node_index) >= nodes.size()) ctx_.fail("node " + std::to_string(node_index) + " does not exist");
+        if (node_index < 0 || size_t(node_index) >= nodes.size())
+            ctx_.fail("node " + std::to_string(node_index) + " does not exist");
         if (on_path_[node_index]) node_ctx.fail("node cycle (the node is its own ancestor)");
         const tinygltf::Node& node = nodes[node_index];
         Transform world = multiply(parent, node_local(node_ctx, node));
         if (node.mesh >= 0) {
-            if (size_t(node.mesh) >= ctx_.model.meshes.size()) node_ctx.fail("mesh " + std::to_string(node.mesh) + " does not exist");
+            if (size_t(node.mesh) >= ctx_.model.meshes.size())
+                node_ctx.fail("mesh " + std::to_string(node.mesh) + " does not exist");
             if (scene_.instances.size() >= max_instances) node_ctx.fail("more than 4 million instances");
             scene_.instances.push_back({mesh_id(node.mesh), world, node.name});
         }
@@ -491,8 +521,8 @@ private:
 
     Context ctx_;
     Scene scene_;
-    std::vector<int> mesh_slot_;   // glTF mesh index -> Scene mesh index, -1 until first used
-    std::vector<bool> on_path_;    // nodes on the current root-to-node path, for cycle detection
+    std::vector<int> mesh_slot_;  // glTF mesh index -> Scene mesh index, -1 until first used
+    std::vector<bool> on_path_;   // nodes on the current root-to-node path, for cycle detection
 };
 
 }  // namespace
@@ -512,7 +542,8 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
     tinygltf::TinyGLTF loader;
     // Images are never decoded; a no-op loader keeps tinygltf from failing on embedded ones.
     loader.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*,
-                             int, void*) { return true; }, nullptr);
+                             int, void*) { return true; },
+                          nullptr);
     tinygltf::Model model;
     std::string err, warn;
     bool ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, data, unsigned(size), base_dir)

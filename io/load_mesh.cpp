@@ -24,9 +24,9 @@ using OpenMesh::IO::BaseImporter;
 
 class FlatImporter final : public BaseImporter {
 public:
-    std::vector<double> points;           // x, y, z per vertex, as read
-    std::vector<uint32_t> triangles;      // fan-triangulated polygons
-    std::string error;                    // first problem seen; the reader cannot be stopped mid-file
+    std::vector<double> points;       // x, y, z per vertex, as read
+    std::vector<uint32_t> triangles;  // fan-triangulated polygons
+    std::string error;                // first problem seen; the reader cannot be stopped mid-file
     size_t faces = 0;
 
     VertexHandle add_vertex(const Vec3f& p) override { return push(p[0], p[1], p[2]); }
@@ -103,7 +103,6 @@ private:
     }
 };
 
-
 // OpenMesh's STL reader tells ASCII from binary by the size a binary file of its facet count would have,
 // which holds only for a file on disk; from a stream it must be told. Same idea here.
 bool looks_like_binary_stl(const uint8_t* data, size_t size) {
@@ -153,7 +152,12 @@ Scene load_stl_memory(const uint8_t* data, size_t size, const std::string& name)
     // is a process-wide singleton, so reads are serialised.
     static std::mutex reader_mutex;
     std::lock_guard<std::mutex> lock(reader_mutex);
-    static bool quiet = [] { omerr().disable(); omlog().disable(); omout().disable(); return true; }();
+    static bool quiet = [] {
+        omerr().disable();
+        omlog().disable();
+        omout().disable();
+        return true;
+    }();
     (void)quiet;
 
     FlatImporter importer;

@@ -67,14 +67,42 @@ public:
         pos_ += n;
         if (enc_ == Encoding::big) std::reverse(b, b + n);
         switch (type) {
-            case -1: { int8_t v; std::memcpy(&v, b, 1); return v; }
+            case -1: {
+                int8_t v;
+                std::memcpy(&v, b, 1);
+                return v;
+            }
             case 1: return b[0];
-            case -2: { int16_t v; std::memcpy(&v, b, 2); return v; }
-            case 2: { uint16_t v; std::memcpy(&v, b, 2); return v; }
-            case -4: { int32_t v; std::memcpy(&v, b, 4); return v; }
-            case 4: { uint32_t v; std::memcpy(&v, b, 4); return v; }
-            case float_flag | 4: { float v; std::memcpy(&v, b, 4); return v; }
-            default: { double v; std::memcpy(&v, b, 8); return v; }
+            case -2: {
+                int16_t v;
+                std::memcpy(&v, b, 2);
+                return v;
+            }
+            case 2: {
+                uint16_t v;
+                std::memcpy(&v, b, 2);
+                return v;
+            }
+            case -4: {
+                int32_t v;
+                std::memcpy(&v, b, 4);
+                return v;
+            }
+            case 4: {
+                uint32_t v;
+                std::memcpy(&v, b, 4);
+                return v;
+            }
+            case float_flag | 4: {
+                float v;
+                std::memcpy(&v, b, 4);
+                return v;
+            }
+            default: {
+                double v;
+                std::memcpy(&v, b, 8);
+                return v;
+            }
         }
     }
 
@@ -129,10 +157,14 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
         if (tok.empty() || tok[0] == "comment" || tok[0] == "obj_info") continue;
         if (tok[0] == "format") {
             if (has_format || tok.size() != 3 || tok[2] != "1.0") bad("malformed format line");
-            if (tok[1] == "ascii") enc = Encoding::ascii;
-            else if (tok[1] == "binary_little_endian") enc = Encoding::little;
-            else if (tok[1] == "binary_big_endian") enc = Encoding::big;
-            else bad("unknown format " + quoted(tok[1]));
+            if (tok[1] == "ascii")
+                enc = Encoding::ascii;
+            else if (tok[1] == "binary_little_endian")
+                enc = Encoding::little;
+            else if (tok[1] == "binary_big_endian")
+                enc = Encoding::big;
+            else
+                bad("unknown format " + quoted(tok[1]));
             has_format = true;
         } else if (tok[0] == "element") {
             long long count;
@@ -185,7 +217,8 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
             body.fail("element " + e.name + ": count " + std::to_string(e.count) + " exceeds the data (truncated?)");
         bool is_vertex = &e == vertex_el;
         int list_prop = (e.name == "face" || e.name == "tristrips")
-                            ? std::max(find_property(e, "vertex_indices"), find_property(e, "vertex_index")) : -1;
+            ? std::max(find_property(e, "vertex_indices"), find_property(e, "vertex_index"))
+            : -1;
         if (is_vertex) mesh.positions.reserve(size_t(e.count) * 3);
         values.resize(e.properties.size());
         for (uint64_t r = 0; r < e.count; ++r) {
@@ -205,8 +238,9 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
                     if (!keep) continue;
                     bool restart = e.name == "tristrips" && v == -1;
                     if (!restart && !(v >= 0 && v < double(vertex_count) && v == std::floor(v)))
-                        body.fail(e.name, r, "index " + std::to_string(v) + " out of range (" +
-                                  std::to_string(vertex_count) + " vertices)");
+                        body.fail(e.name, r,
+                                  "index " + std::to_string(v) + " out of range (" + std::to_string(vertex_count) +
+                                      " vertices)");
                     list.push_back(restart ? UINT32_MAX : uint32_t(v));
                 }
                 if (!keep) continue;
@@ -217,7 +251,10 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
                 } else {  // tristrips: runs separated by -1, every other triangle flipped
                     size_t run = 0;
                     for (size_t i = 0; i < list.size(); ++i) {
-                        if (list[i] == UINT32_MAX) { run = 0; continue; }
+                        if (list[i] == UINT32_MAX) {
+                            run = 0;
+                            continue;
+                        }
                         if (++run >= 3) {
                             bool odd = (run - 3) & 1;
                             uint32_t a = list[i - 2], b = list[i - 1];
@@ -230,7 +267,8 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
                 double xyz[3] = {values[size_t(px)], values[size_t(py)], values[size_t(pz)]};
                 for (double c : xyz)
                     if (!std::isfinite(c) || std::fabs(c) > std::numeric_limits<float>::max())
-                        body.fail("vertex " + std::to_string(r) + ": position is not a finite float (" + std::to_string(c) + ")");
+                        body.fail("vertex " + std::to_string(r) + ": position is not a finite float (" +
+                                  std::to_string(c) + ")");
                 mesh.positions.insert(mesh.positions.end(), {float(xyz[0]), float(xyz[1]), float(xyz[2])});
             }
         }

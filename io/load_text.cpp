@@ -24,7 +24,8 @@ void push_position(Mesh& mesh, const double xyz[3], const std::string& where) {
 }
 
 void push_polygon(Mesh& mesh, const std::vector<uint32_t>& poly) {
-    for (size_t i = 1; i + 1 < poly.size(); ++i) mesh.indices.insert(mesh.indices.end(), {poly[0], poly[i], poly[i + 1]});
+    for (size_t i = 1; i + 1 < poly.size(); ++i)
+        mesh.indices.insert(mesh.indices.end(), {poly[0], poly[i], poly[i + 1]});
 }
 
 }  // namespace
@@ -46,7 +47,8 @@ Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name)
             if (tok.size() < 4) throw LoadError(where + ": vertex needs 3 coordinates");
             double xyz[3];
             for (int k = 0; k < 3; ++k)
-                if (!parse_double(tok[1 + k], xyz[k])) throw LoadError(where + ": bad coordinate " + quoted(tok[1 + k]));
+                if (!parse_double(tok[1 + k], xyz[k]))
+                    throw LoadError(where + ": bad coordinate " + quoted(tok[1 + k]));
             push_position(mesh, xyz, where + ": vertex " + std::to_string(mesh.vertex_count() + 1));
         } else if (tok[0] == "f") {
             saw_any = true;
@@ -87,7 +89,8 @@ Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name)
     size_t off = keyword.find("OFF");
     std::string_view prefix = off == std::string_view::npos ? keyword : keyword.substr(0, off);
     if (off == std::string_view::npos || prefix.find_first_not_of("STCN") != std::string_view::npos)
-        throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": not an OFF header " + quoted(keyword));
+        throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": not an OFF header " +
+                        quoted(keyword));
     std::string_view rest = keyword.substr(off + 3);
     if (rest == "BINARY" || (tok.size() > 1 && tok[1] == "BINARY"))
         throw LoadError(name + ": binary OFF is not supported");

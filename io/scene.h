@@ -31,9 +31,7 @@ struct Mesh {
 // enough for coordinates near 1e6.
 using Transform = std::array<double, 16>;
 
-constexpr Transform identity_transform() {
-    return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-}
+constexpr Transform identity_transform() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }
 
 struct Instance {
     uint32_t mesh = 0;
@@ -43,11 +41,11 @@ struct Instance {
 
 // Things the loader skipped or noticed; reported by `clusterbake info`, never silently dropped.
 struct LoadReport {
-    uint32_t primitives = 0;               // triangle primitives loaded
-    uint32_t skipped_primitives = 0;       // POINTS / LINES / LINE_LOOP / LINE_STRIP
-    uint32_t draco_primitives = 0;         // decoded from KHR_draco_mesh_compression
-    uint64_t degenerate_triangles = 0;     // repeated index or zero area, kept in the mesh
-    uint64_t unreferenced_meshes = 0;      // glTF meshes no node of the chosen scene uses
+    uint32_t primitives = 0;            // triangle primitives loaded
+    uint32_t skipped_primitives = 0;    // POINTS / LINES / LINE_LOOP / LINE_STRIP
+    uint32_t draco_primitives = 0;      // decoded from KHR_draco_mesh_compression
+    uint64_t degenerate_triangles = 0;  // repeated index or zero area, kept in the mesh
+    uint64_t unreferenced_meshes = 0;   // glTF meshes no node of the chosen scene uses
 };
 
 struct Scene {
@@ -58,8 +56,7 @@ struct Scene {
 
 // Applies an affine column-major transform to a point.
 inline std::array<double, 3> transform_point(const Transform& m, double x, double y, double z) {
-    return {m[0] * x + m[4] * y + m[8] * z + m[12],
-            m[1] * x + m[5] * y + m[9] * z + m[13],
+    return {m[0] * x + m[4] * y + m[8] * z + m[12], m[1] * x + m[5] * y + m[9] * z + m[13],
             m[2] * x + m[6] * y + m[10] * z + m[14]};
 }
 

@@ -61,8 +61,8 @@ SceneQueryResult query_scene(const AssetView& view, const double* light, const d
         size_t first = n * t / thread_count, last = n * (t + 1) / thread_count;
         if (batch) {
             std::vector<uint32_t> own(ordered_scratch_size(trees.data(), trees.size()));
-            occluded_ordered(trees.data(), trees.size(), points, order.data() + first, last - first, r.shadowed.data(), own.data(),
-                             &counts[t]);
+            occluded_ordered(trees.data(), trees.size(), points, order.data() + first, last - first, r.shadowed.data(),
+                             own.data(), &counts[t]);
             return;
         }
         std::vector<uint32_t> stack(stack_size);

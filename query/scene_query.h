@@ -33,9 +33,9 @@ struct SceneQueryResult {
     std::vector<QueryStats> point_stats;  // per point, with per_point
     double build_seconds = 0;             // every instance's structure for the light, the scan's bounds included
     double query_seconds = 0;
-    size_t trees = 0, nodes = 0;          // one structure per instance (none for the reference)
-    size_t always_tested = 0;             // clusters tested for every point (light inside or level with their box)
-    size_t skipped = 0;                   // one-sided: clusters the light sees from their front
+    size_t trees = 0, nodes = 0;  // one structure per instance (none for the reference)
+    size_t always_tested = 0;     // clusters tested for every point (light inside or level with their box)
+    size_t skipped = 0;           // one-sided: clusters the light sees from their front
 };
 
 // The `count` points (xyz, world) against the light (xyz, world).

@@ -35,35 +35,35 @@ enum class SectionType : uint32_t {
     coarse_spheres = 10,
     fine_capsules = 11,
     coarse_capsules = 12,
-    fine_cones = 13,      // need the same level's obbs: a cone's apexes sit on the line through its box centre
+    fine_cones = 13,  // need the same level's obbs: a cone's apexes sit on the line through its box centre
     coarse_cones = 14,
     fine_slabs = 15,
     coarse_slabs = 16,
-    double_sided = 17,    // uint32 words: bit t of the whole triangle array set when triangle t is double-sided
-    mesh_flags = 18,      // uint32 per mesh: MeshFlags
-    vertex_refs = 19,     // uint16 per entry: fine clusters' reused vertices, as distances back from first_vertex
+    double_sided = 17,  // uint32 words: bit t of the whole triangle array set when triangle t is double-sided
+    mesh_flags = 18,    // uint32 per mesh: MeshFlags
+    vertex_refs = 19,   // uint16 per entry: fine clusters' reused vertices, as distances back from first_vertex
 };
 
 enum MeshFlags : uint32_t {
-    mesh_closed = 1,           // every edge is shared by exactly two triangles, wound opposite ways
-    mesh_has_double_sided = 2, // some triangle is double-sided
+    mesh_closed = 1,            // every edge is shared by exactly two triangles, wound opposite ways
+    mesh_has_double_sided = 2,  // some triangle is double-sided
 };
 
 // Bounding volumes as the runtime uses them, rounded outward: every vertex of the cluster is inside,
 // evaluated in double against these floats. Boxes and cones are stored packed (PackedObb, PackedCone) and
 // decoded by unpack_obb / unpack_cone; the fitter measures against the decoded values.
-struct Obb {               // Inside: |dot(p - center, axis[i])| <= half[i], i = 0, 1, 2
+struct Obb {  // Inside: |dot(p - center, axis[i])| <= half[i], i = 0, 1, 2
     float center[3];
-    float axis[3][3];      // right-handed, unit to float precision
+    float axis[3][3];  // right-handed, unit to float precision
     float half[3];
 };
 
-struct Sphere {            // 16 bytes. Inside: |p - center| <= radius
+struct Sphere {  // 16 bytes. Inside: |p - center| <= radius
     float center[3];
     float radius;
 };
 
-struct Capsule {           // 28 bytes. Inside: distance(p, segment a-b) <= radius; a == b for a sphere
+struct Capsule {  // 28 bytes. Inside: distance(p, segment a-b) <= radius; a == b for a sphere
     float a[3], b[3];
     float radius;
 };
@@ -82,11 +82,11 @@ struct Cone {
 
 // A box as stored: centre and half-extents as floats, the rotation as a unit quaternion in "smallest three"
 // form (the largest component, made positive, is left out and recomputed).
-struct PackedObb {         // 32 bytes
+struct PackedObb {  // 32 bytes
     float center[3];
     float half[3];
-    int16_t rotation[3];   // the three other components, each times 32767 * sqrt(2)
-    uint16_t largest;      // which component (0..3: x, y, z, w) was left out
+    int16_t rotation[3];  // the three other components, each times 32767 * sqrt(2)
+    uint16_t largest;     // which component (0..3: x, y, z, w) was left out
 };
 
 // A cone as stored: its axis in octahedral form, its apexes as distances along the axis from the centre of
@@ -97,31 +97,31 @@ struct PackedCone {        // 16 bytes
     float cos_half_angle;  // rounded up; the sine is derived and rounded down
 };
 
-struct Slab {              // 20 bytes. Inside: low <= dot(p, axis) <= high
+struct Slab {  // 20 bytes. Inside: low <= dot(p, axis) <= high
     float axis[3];
     float low, high;
 };
 
-struct AssetHeader {          // 64 bytes at offset 0
+struct AssetHeader {  // 64 bytes at offset 0
     char magic[8];
     uint32_t version;
-    uint32_t flags;           // none defined: must be 0
-    uint32_t header_size;     // sizeof(AssetHeader)
+    uint32_t flags;        // none defined: must be 0
+    uint32_t header_size;  // sizeof(AssetHeader)
     uint32_t section_count;
     uint64_t file_size;
-    uint64_t checksum;        // asset_checksum: every byte of the file but these 8
-    uint8_t reserved[24];     // zero
+    uint64_t checksum;     // asset_checksum: every byte of the file but these 8
+    uint8_t reserved[24];  // zero
 };
 
-struct SectionEntry {         // 32 bytes each, right after the header
-    uint32_t type;            // SectionType
-    uint32_t element_size;    // bytes per element
-    uint64_t offset;          // from the start of the file, a multiple of asset_alignment
-    uint64_t size;            // bytes
-    uint64_t count;           // elements: size == count * element_size
+struct SectionEntry {       // 32 bytes each, right after the header
+    uint32_t type;          // SectionType
+    uint32_t element_size;  // bytes per element
+    uint64_t offset;        // from the start of the file, a multiple of asset_alignment
+    uint64_t size;          // bytes
+    uint64_t count;         // elements: size == count * element_size
 };
 
-struct MeshRecord {           // 40 bytes
+struct MeshRecord {                           // 40 bytes
     uint32_t first_vertex, vertex_count;      // into positions
     uint32_t first_triangle, triangle_count;  // into triangles
     uint32_t first_fine, fine_count;          // into fine_clusters
@@ -133,25 +133,25 @@ struct MeshRecord {           // 40 bytes
 // its own new vertices (a range of the mesh's positions) followed by reused ones from earlier clusters (a
 // range of vertex_refs, each entry the distance back from first_vertex, 1 to 65535; a vertex farther back
 // is stored again as a new one). Each of the three ranges starts where the previous cluster's ended.
-struct FineCluster {          // 16 bytes, all mesh-local
+struct FineCluster {  // 16 bytes, all mesh-local
     uint32_t first_triangle;
     uint32_t first_vertex;
     uint32_t first_ref;
-    uint8_t triangle_count;   // 1 or more
-    uint8_t vertex_count;     // new vertices
-    uint8_t ref_count;        // reused vertices; vertex_count + ref_count <= max_cluster_vertices
-    uint8_t reserved;         // 0
+    uint8_t triangle_count;  // 1 or more
+    uint8_t vertex_count;    // new vertices
+    uint8_t ref_count;       // reused vertices; vertex_count + ref_count <= max_cluster_vertices
+    uint8_t reserved;        // 0
 };
 
-struct ClusterRange {         // 8 bytes
+struct ClusterRange {  // 8 bytes
     uint32_t first, count;
 };
 
-struct InstanceRecord {       // 112 bytes
+struct InstanceRecord {  // 112 bytes
     uint32_t mesh;
     uint32_t reserved;
     uint64_t reserved2;
-    double transform[12];     // affine, column-major 3x4: columns x, y, z axes then translation
+    double transform[12];  // affine, column-major 3x4: columns x, y, z axes then translation
 };
 
 static_assert(sizeof(AssetHeader) == 64 && sizeof(SectionEntry) == 32 && sizeof(MeshRecord) == 40 &&
@@ -282,7 +282,9 @@ inline const char* asset_error_text(AssetError e) {
         case AssetError::bad_instance: return "instance names a missing mesh";
         case AssetError::non_finite: return "non-finite position, transform or bound";
         case AssetError::bad_bounds_count: return "a per-cluster, per-triangle or per-mesh section has the wrong count";
-        case AssetError::bad_packed_bounds: return "packed box or cone malformed (negative extent, bad quaternion index or cone angle), or cones without boxes";
+        case AssetError::bad_packed_bounds:
+            return "packed box or cone malformed (negative extent, bad quaternion index or cone angle), or cones "
+                   "without boxes";
     }
     return "unknown error";
 }
@@ -328,16 +330,21 @@ struct AssetView {
         const FineCluster& f = fine[mesh.first_fine + c];
         const uint8_t* local = triangles + (size_t(mesh.first_triangle) + t) * 3;
         for (int k = 0; k < 3; ++k)
-            out[k] = local[k] < f.vertex_count ? f.first_vertex + local[k]
-                                               : f.first_vertex - vertex_refs[size_t(mesh.first_ref) + f.first_ref + local[k] - f.vertex_count];
+            out[k] = local[k] < f.vertex_count
+                ? f.first_vertex + local[k]
+                : f.first_vertex - vertex_refs[size_t(mesh.first_ref) + f.first_ref + local[k] - f.vertex_count];
     }
     // The position of mesh-local vertex `v`.
-    const float* position(const MeshRecord& mesh, uint32_t v) const { return positions + (size_t(mesh.first_vertex) + v) * 3; }
+    const float* position(const MeshRecord& mesh, uint32_t v) const {
+        return positions + (size_t(mesh.first_vertex) + v) * 3;
+    }
 };
 
 namespace asset_detail {
 
-inline bool range_ok(uint64_t first, uint64_t count, uint64_t limit) { return first <= limit && count <= limit - first; }
+inline bool range_ok(uint64_t first, uint64_t count, uint64_t limit) {
+    return first <= limit && count <= limit - first;
+}
 
 template <class T>
 bool all_finite(const T* records, uint32_t count) {  // every float of the records
@@ -399,7 +406,13 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
         return AssetError::bad_section_table;
     if (asset_checksum(base, size) != h.checksum) return AssetError::bad_checksum;
 
-    struct Known { SectionType type; uint32_t element_size; bool required; const void** data; uint32_t* count; };
+    struct Known {
+        SectionType type;
+        uint32_t element_size;
+        bool required;
+        const void** data;
+        uint32_t* count;
+    };
     AssetView v;
     constexpr int known_count = 19;
     const void* ptr[known_count] = {};
@@ -450,7 +463,8 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
     v.mesh_flags = static_cast<const uint32_t*>(ptr[17]);
     // A bounds section holds one record per cluster of its level.
     for (int b = 0; b < 10; ++b)
-        if (seen[6 + b] && bound_count[b] != (b % 2 == 0 ? v.fine_count : v.coarse_count)) return AssetError::bad_bounds_count;
+        if (seen[6 + b] && bound_count[b] != (b % 2 == 0 ? v.fine_count : v.coarse_count))
+            return AssetError::bad_bounds_count;
     v.meshes = static_cast<const MeshRecord*>(ptr[0]);
     v.positions = static_cast<const float*>(ptr[1]);
     v.triangles = static_cast<const uint8_t*>(ptr[2]);
@@ -467,14 +481,16 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
         level[l]->slabs = static_cast<const Slab*>(ptr[14 + l]);
         uint32_t n = l == 0 ? v.fine_count : v.coarse_count;
         if (!all_finite(level[l]->spheres, level[l]->spheres ? n : 0) ||
-            !all_finite(level[l]->capsules, level[l]->capsules ? n : 0) || !all_finite(level[l]->slabs, level[l]->slabs ? n : 0))
+            !all_finite(level[l]->capsules, level[l]->capsules ? n : 0) ||
+            !all_finite(level[l]->slabs, level[l]->slabs ? n : 0))
             return AssetError::non_finite;
         if (level[l]->cones && !level[l]->obbs) return AssetError::bad_packed_bounds;
         for (uint32_t i = 0; level[l]->obbs && i < n; ++i) {
             const PackedObb& b = level[l]->obbs[i];
             for (int k = 0; k < 3; ++k)
                 if (!std::isfinite(b.center[k]) || !std::isfinite(b.half[k])) return AssetError::non_finite;
-            if (b.largest > 3 || !(b.half[0] >= 0 && b.half[1] >= 0 && b.half[2] >= 0)) return AssetError::bad_packed_bounds;
+            if (b.largest > 3 || !(b.half[0] >= 0 && b.half[1] >= 0 && b.half[2] >= 0))
+                return AssetError::bad_packed_bounds;
         }
         for (uint32_t i = 0; level[l]->cones && i < n; ++i) {
             const PackedCone& c = level[l]->cones[i];
@@ -490,7 +506,8 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
         const MeshRecord& r = v.meshes[m];
         if (!range_ok(r.first_vertex, r.vertex_count, v.vertex_count) ||
             !range_ok(r.first_triangle, r.triangle_count, v.triangle_count) ||
-            !range_ok(r.first_fine, r.fine_count, v.fine_count) || !range_ok(r.first_coarse, r.coarse_count, v.coarse_count) ||
+            !range_ok(r.first_fine, r.fine_count, v.fine_count) ||
+            !range_ok(r.first_coarse, r.coarse_count, v.coarse_count) ||
             !range_ok(r.first_ref, r.ref_count, v.ref_count))
             return AssetError::bad_mesh_range;
         // Fine clusters tile the mesh's triangles, vertices and reused entries; coarse clusters tile its
@@ -498,7 +515,6 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
         if (!fine_clusters_ok(v.fine + r.first_fine, r.fine_count, r, v.triangles, v.vertex_refs + r.first_ref) ||
             !ranges_tile(v.coarse + r.first_coarse, r.coarse_count, r.fine_count))
             return AssetError::bad_cluster_range;
-
     }
     for (uint32_t i = 0; i < v.instance_count; ++i) {
         if (v.instances[i].mesh >= v.mesh_count) return AssetError::bad_instance;

@@ -104,15 +104,17 @@ size_t ordered_scratch_size(const Shadows* trees, size_t tree_count) {
 // The points order[0, count) of `points`, in that order (a range of batch_order's), in tiles: out[order[i]]
 // is 1 when that point is in shadow. `scratch` holds ordered_scratch_size() words.
 template <class Shadows>
-void occluded_ordered(const Shadows* trees, size_t tree_count, const double* points, const uint32_t* order, size_t count,
-                             uint8_t* out, uint32_t* scratch, QueryStats* stats = nullptr) {
+void occluded_ordered(const Shadows* trees, size_t tree_count, const double* points, const uint32_t* order,
+                      size_t count, uint8_t* out, uint32_t* scratch, QueryStats* stats = nullptr) {
     if (tree_count == 0) {
         for (size_t i = 0; i < count; ++i) out[order[i]] = 0;
         return;
     }
     uint32_t* stack = scratch;
     const uintptr_t at = reinterpret_cast<uintptr_t>(stack + detail::batch_stack_size(trees, tree_count));
-    TileCache* cache = new (reinterpret_cast<void*>((at + alignof(TileCache) - 1) / alignof(TileCache) * alignof(TileCache))) TileCache;
+    TileCache* cache =
+        new (reinterpret_cast<void*>((at + alignof(TileCache) - 1) / alignof(TileCache) * alignof(TileCache)))
+            TileCache;
     cache->clear();
     for (size_t first = 0; first < count; first += tile_capacity) {
         uint32_t tile = uint32_t(std::min<size_t>(tile_capacity, count - first));
@@ -137,7 +139,7 @@ size_t batch_scratch_size(const Shadows* trees, size_t tree_count, size_t n) {
 // over the whole order.
 template <class Shadows>
 void occluded_batch(const Shadows* trees, size_t tree_count, const double* points, size_t n, uint8_t* out,
-                           uint32_t* scratch, QueryStats* stats = nullptr) {
+                    uint32_t* scratch, QueryStats* stats = nullptr) {
     if (tree_count == 0) {
         std::fill(out, out + n, uint8_t(0));
         return;

@@ -38,14 +38,14 @@ public:
 
     // One instance of the asset's meshes, for one light given in world space (ShadowBuildOptions says how).
     // Without coarse boxes in the asset, every traversal is one tree.
-    void build(const AssetView& view, uint32_t instance, const double* world_light, const ShadowBuildOptions& options = {}) {
-        traversal_ = options.traversal == Traversal::scan && !view.coarse_bounds.obbs ? Traversal::one_tree : options.traversal;
+    void build(const AssetView& view, uint32_t instance, const double* world_light,
+               const ShadowBuildOptions& options = {}) {
+        traversal_ =
+            options.traversal == Traversal::scan && !view.coarse_bounds.obbs ? Traversal::one_tree : options.traversal;
         switch (traversal_) {
-        case Traversal::scan:
-            return build_as<ScanTraversal>(view, instance, world_light, options);
-        case Traversal::trees:
-        case Traversal::one_tree:
-            return build_as<TopTreeTraversal>(view, instance, world_light, options);
+            case Traversal::scan: return build_as<ScanTraversal>(view, instance, world_light, options);
+            case Traversal::trees:
+            case Traversal::one_tree: return build_as<TopTreeTraversal>(view, instance, world_light, options);
         }
     }
 
@@ -91,7 +91,8 @@ public:
 
 private:
     template <class T>
-    void build_as(const AssetView& view, uint32_t instance, const double* world_light, const ShadowBuildOptions& options) {
+    void build_as(const AssetView& view, uint32_t instance, const double* world_light,
+                  const ShadowBuildOptions& options) {
         if (!std::holds_alternative<T>(held_)) held_.template emplace<T>();  // same type: its arrays are reused
         std::get_if<T>(&held_)->build(view, instance, world_light, options);
     }
@@ -100,11 +101,9 @@ private:
     template <class F>
     auto visit(F f) const -> decltype(f(std::declval<const ScanTraversal&>())) {
         switch (traversal_) {
-        case Traversal::scan:
-            return f(*std::get_if<ScanTraversal>(&held_));
-        case Traversal::trees:
-        case Traversal::one_tree:
-            break;
+            case Traversal::scan: return f(*std::get_if<ScanTraversal>(&held_));
+            case Traversal::trees:
+            case Traversal::one_tree: break;
         }
         return f(*std::get_if<TopTreeTraversal>(&held_));
     }

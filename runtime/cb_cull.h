@@ -54,7 +54,8 @@ inline bool eye_in_back_cone(const Cone& c, const double* eye) {
     if (!c.valid) return false;
     double v[3] = {c.back_apex[0] - eye[0], c.back_apex[1] - eye[1], c.back_apex[2] - eye[2]};
     double a[3] = {c.axis[0], c.axis[1], c.axis[2]};
-    double vl = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    double vl = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]),
+           al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
     if (!(vl > 0) || !(al > 0)) return false;
     return v[0] * a[0] + v[1] * a[1] + v[2] * a[2] > al * vl * (double(c.cos_half_angle) + 1e-9);
 }
@@ -90,7 +91,8 @@ inline size_t cull_clusters(const AssetView& v, const Frustum& f, bool backface,
         }
         for (uint32_t c = 0; c < mesh.coarse_count; ++c) {
             const ClusterRange& range = v.coarse[mesh.first_coarse + c];
-            if (v.coarse_bounds.obbs && !cull_detail::box_in_frustum(v.coarse_bounds.obb(mesh.first_coarse + c), planes, f.count)) {
+            if (v.coarse_bounds.obbs &&
+                !cull_detail::box_in_frustum(v.coarse_bounds.obb(mesh.first_coarse + c), planes, f.count)) {
                 if (stats) ++stats->coarse_culled;
                 continue;
             }

@@ -95,7 +95,8 @@ inline int sign(const Expansion& e) {
 // The determinant | a - d, b - d, c - d | (rows), exactly.
 inline Expansion orient3d_exact(const double* a, const double* b, const double* c, const double* d) {
     Expansion ad[3], bd[3], cd[3];
-    for (int k = 0; k < 3; ++k) ad[k] = difference(a[k], d[k]), bd[k] = difference(b[k], d[k]), cd[k] = difference(c[k], d[k]);
+    for (int k = 0; k < 3; ++k)
+        ad[k] = difference(a[k], d[k]), bd[k] = difference(b[k], d[k]), cd[k] = difference(c[k], d[k]);
     // ad . (bd x cd)
     Expansion x = multiply(bd[1], cd[2]), t = negated(multiply(bd[2], cd[1]));
     add(x, t);
@@ -117,8 +118,8 @@ inline double orient3d_estimate(const double* a, const double* b, const double* 
     double cdx = c[0] - d[0], cdy = c[1] - d[1], cdz = c[2] - d[2];
     double bc = bdy * cdz - bdz * cdy, ca = bdz * cdx - bdx * cdz, ab = bdx * cdy - bdy * cdx;
     double permanent = std::fabs(adx) * (std::fabs(bdy * cdz) + std::fabs(bdz * cdy)) +
-                       std::fabs(ady) * (std::fabs(bdz * cdx) + std::fabs(bdx * cdz)) +
-                       std::fabs(adz) * (std::fabs(bdx * cdy) + std::fabs(bdy * cdx));
+        std::fabs(ady) * (std::fabs(bdz * cdx) + std::fabs(bdx * cdz)) +
+        std::fabs(adz) * (std::fabs(bdx * cdy) + std::fabs(bdy * cdx));
     // Shewchuk's first error bound for this evaluation is (7 + 56 eps) eps * permanent, eps = 2^-53;
     // 1e-15 is above it.
     bound = 1e-15 * permanent;

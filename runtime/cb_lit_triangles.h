@@ -40,7 +40,8 @@ inline SegmentTest exact_triangle(const double* p, const double* light, const fl
 // orient3d(p, light, corner k, corner k + 1) = e . (u x v): one dot product per edge and point. Edge-major
 // arrays, so that the line test runs over several triangles per instruction.
 constexpr uint32_t capacity = 16;  // a fine cluster of the default size (larger ones take several)
-static_assert(capacity < 32 && capacity % simd::width == 0 && (capacity & (capacity - 1)) == 0, "triangles are bits of a uint32_t, in whole lane groups; a power of two (light_triangles halves it)");
+static_assert(capacity < 32 && capacity % simd::width == 0 && (capacity & (capacity - 1)) == 0,
+              "triangles are bits of a uint32_t, in whole lane groups; a power of two (light_triangles halves it)");
 
 // The rest of a triangle's terms from the light, in double, for the points whose line the float test cannot
 // rule out: per edge k, the normal n[k] = u x v and scale[k] = |u|_1 |v|_1 (times det_error |e|_1, it bounds
@@ -76,7 +77,8 @@ struct Triangles {
 };
 
 // Triangle t's corners, and their offsets from the light.
-inline void triangle_corners(const Triangles& lit, uint32_t t, const double* light, double (&p)[3][3], double (&u)[3][3]) {
+inline void triangle_corners(const Triangles& lit, uint32_t t, const double* light, double (&p)[3][3],
+                             double (&u)[3][3]) {
     for (int k = 0; k < 3; ++k)
         for (int j = 0; j < 3; ++j) p[k][j] = lit.corner[t][k][j], u[k][j] = p[k][j] - light[j];
 }
@@ -88,7 +90,8 @@ inline void plane_terms(const Triangles& lit, uint32_t t, const double* light, T
     const double e1x = p[1][0] - p[0][0], e1y = p[1][1] - p[0][1], e1z = p[1][2] - p[0][2];
     const double e2x = p[2][0] - p[0][0], e2y = p[2][1] - p[0][1], e2z = p[2][2] - p[0][2];
     out.plane[0] = e1y * e2z - e1z * e2y, out.plane[1] = e1z * e2x - e1x * e2z, out.plane[2] = e1x * e2y - e1y * e2x;
-    out.plane_bound = det_error * (std::fabs(e1x) + std::fabs(e1y) + std::fabs(e1z)) * (std::fabs(e2x) + std::fabs(e2y) + std::fabs(e2z));
+    out.plane_bound = det_error * (std::fabs(e1x) + std::fabs(e1y) + std::fabs(e1z)) *
+        (std::fabs(e2x) + std::fabs(e2y) + std::fabs(e2z));
     for (int j = 0; j < 3; ++j) out.a[j] = p[0][j];
     // orient3d(a, b, c, light) = N . (a - light), a - light being corner 0's offset from the light.
     out.dq = out.plane[0] * u[0][0] + out.plane[1] * u[0][1] + out.plane[2] * u[0][2];
@@ -129,8 +132,8 @@ inline void prefetch(const AssetView& v, const MeshRecord& mesh, const FineClust
 
 // Triangles [first, first + count) of fine cluster c (count <= capacity), from the light: the corners
 // gathered first, then every term in loops over the triangles that the compiler runs several to an instruction.
-inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first, uint32_t count,
-                            const double* light, bool one_sided, Triangles& out) {
+inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first,
+                            uint32_t count, const double* light, bool one_sided, Triangles& out) {
     out.count = count;
     const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle + first) * 3;
     // The cluster's vertex list (its new vertices, then those it reuses), resolved once rather than per corner.
@@ -148,7 +151,8 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
             out.corner[t][k] = at;
             px[k][t] = at[0], py[k][t] = at[1], pz[k][t] = at[2];
         }
-        out.two_sided |= uint32_t(!one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t)) << t;
+        out.two_sided |=
+            uint32_t(!one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t)) << t;
     }
     // Edge k runs from corner k to corner j = k + 1; with u = corner k - light, the plane through the light and
     // the edge has normal u x (corner j - corner k), equal to u x v. In float, a vector of triangles an
@@ -165,7 +169,8 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     alignas(64) float ox[3][capacity], oy[3][capacity], oz[3][capacity];
     for (int k = 0; k < 3; ++k)
         for (uint32_t t = 0; t < capacity; ++t)
-            ox[k][t] = float(double(px[k][t]) - light[0]), oy[k][t] = float(double(py[k][t]) - light[1]), oz[k][t] = float(double(pz[k][t]) - light[2]);
+            ox[k][t] = float(double(px[k][t]) - light[0]), oy[k][t] = float(double(py[k][t]) - light[1]),
+            oz[k][t] = float(double(pz[k][t]) - light[2]);
     alignas(64) float widest[capacity] = {};  // per triangle, its usable edges' largest max(A)
     for (int k = 0; k < 3; ++k) {
         const int j = (k + 1) % 3;
@@ -175,7 +180,8 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
             const float ax = std::fabs(uy * ez) + std::fabs(uz * ey), ay = std::fabs(uz * ex) + std::fabs(ux * ez),
                         az = std::fabs(ux * ey) + std::fabs(uy * ex);
             const float amax = std::max(std::max(ax, ay), az);
-            const bool usable = amax >= 1e-18f && amax <= 1e30f && std::fabs(ex) + std::fabs(ey) + std::fabs(ez) <= 1e20f;
+            const bool usable =
+                amax >= 1e-18f && amax <= 1e30f && std::fabs(ex) + std::fabs(ey) + std::fabs(ez) <= 1e20f;
             out.fx[k][t] = uy * ez - uz * ey, out.fy[k][t] = uz * ex - ux * ez, out.fz[k][t] = ux * ey - uy * ex;
             out.fbound[k][t] = usable ? 6e-7f * amax : INFINITY;
             widest[t] = std::max(widest[t], usable ? amax : 0.0f);
@@ -206,7 +212,8 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     }
     // The largest, halving the arrays each step (a loop carrying one maximum would not run as vectors).
     for (uint32_t half = capacity / 2; half > 0; half /= 2)
-        for (uint32_t t = 0; t < half; ++t) widest[t] = std::max(widest[t], widest[t + half]), flat[t] = std::max(flat[t], flat[t + half]);
+        for (uint32_t t = 0; t < half; ++t)
+            widest[t] = std::max(widest[t], widest[t + half]), flat[t] = std::max(flat[t], flat[t + half]);
     out.max_scale = widest[0], out.plane_scale = flat[0];
     out.has_plane = out.has_edges = 0;
 }
@@ -221,11 +228,15 @@ inline double plane_side(const TriangleTerms& terms, const double* x, double& bo
 // The float plane test (light_triangles' bounds): whether a point with |e|_1 = l1 keeps its products in
 // range, and its crossing value mix = dq - (1 - f) N . e settled above (up) or below (down) its bound
 // qbound + |e|_1 pbound, a vector an instruction (of triangles, or of points).
-inline bool plane_test_usable(double l1, double plane_scale) { return l1 > 1e-30 && l1 * plane_scale < 1e30 && l1 * plane_scale > 1e-20; }
-inline void crossing_signs(simd::Floats ex, simd::Floats ey, simd::Floats ez, simd::Floats vl, simd::Floats nx, simd::Floats ny, simd::Floats nz,
-                           simd::Floats dq, simd::Floats qbound, simd::Floats pbound, simd::Mask& up, simd::Mask& down) {
+inline bool plane_test_usable(double l1, double plane_scale) {
+    return l1 > 1e-30 && l1 * plane_scale < 1e30 && l1 * plane_scale > 1e-20;
+}
+inline void crossing_signs(simd::Floats ex, simd::Floats ey, simd::Floats ez, simd::Floats vl, simd::Floats nx,
+                           simd::Floats ny, simd::Floats nz, simd::Floats dq, simd::Floats qbound, simd::Floats pbound,
+                           simd::Mask& up, simd::Mask& down) {
     static_assert(float(1 - self_shadow_fraction) == 1 - self_shadow_fraction, "1 - f exact in float");
-    const simd::Floats mix = simd::fma(simd::splat(-float(1 - self_shadow_fraction)), simd::dot(ex, ey, ez, nx, ny, nz), dq);
+    const simd::Floats mix =
+        simd::fma(simd::splat(-float(1 - self_shadow_fraction)), simd::dot(ex, ey, ez, nx, ny, nz), dq);
     const simd::Floats bound = simd::fma(vl, pbound, qbound);
     up = mix > bound, down = -mix > bound;
 }
@@ -240,8 +251,8 @@ inline void crossing_signs(simd::Floats ex, simd::Floats ey, simd::Floats ez, si
 // the points whose segment surely crosses a triangle that blocks (the line through its interior, the plane
 // crossed from f on, and the triangle two-sided or the light behind it): their answer is known. The others
 // with some triangle left in may_meet go in *candidates.
-inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], uint64_t which, const double* light, uint32_t* may_meet,
-                               uint32_t* through, uint64_t* candidates) {
+inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], uint64_t which, const double* light,
+                           uint32_t* may_meet, uint32_t* through, uint64_t* candidates) {
     const uint32_t all = (1u << lit.count) - 1;  // (capacity < 32)
     const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f);
     uint64_t blocked = 0, left = 0;
@@ -262,7 +273,8 @@ inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], uint64_t 
             simd::Floats lo = simd::splat(INFINITY), hi = simd::splat(-INFINITY);
             simd::Mask settled = simd::all_lanes();
             for (int k = 0; k < 3; ++k) {
-                simd::Floats o = simd::dot(v0, v1, v2, simd::load(lit.fx[k] + t), simd::load(lit.fy[k] + t), simd::load(lit.fz[k] + t));
+                simd::Floats o = simd::dot(v0, v1, v2, simd::load(lit.fx[k] + t), simd::load(lit.fy[k] + t),
+                                           simd::load(lit.fz[k] + t));
                 settled = settled & (simd::abs(o) > simd::fma(vl, simd::load(lit.fbound[k] + t), tiny));
                 lo = simd::min(lo, o), hi = simd::max(hi, o);
             }
@@ -276,11 +288,12 @@ inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], uint64_t 
             // against dq's sign, dp has that sign too ((1 - f) dp = mix - f dq): the plane is crossed from f on.
             const simd::Floats dq = simd::load(lit.dq + t), qb = simd::load(lit.qbound + t);
             simd::Mask mix_up, mix_down;
-            crossing_signs(v0, v1, v2, vl, simd::load(lit.nx + t), simd::load(lit.ny + t), simd::load(lit.nz + t), dq, qb, simd::load(lit.pbound + t), mix_up,
-                           mix_down);
+            crossing_signs(v0, v1, v2, vl, simd::load(lit.nx + t), simd::load(lit.ny + t), simd::load(lit.nz + t), dq,
+                           qb, simd::load(lit.pbound + t), mix_up, mix_down);
             const simd::Mask light_up = dq > qb, light_down = -dq > qb;
             missed |= (simd::bits(light_up & mix_up) | simd::bits(light_down & mix_down)) << t;
-            crossed |= (simd::bits(light_up & mix_down) | (simd::bits(light_down & mix_up) & (lit.two_sided >> t))) << t;
+            crossed |= (simd::bits(light_up & mix_down) | (simd::bits(light_down & mix_up) & (lit.two_sided >> t)))
+                << t;
         }
         may_meet[i] = all & ~missed, through[i] = inside & all & ~missed;  // not the padding
         const bool sure = (crossed & inside & all) != 0;
@@ -312,19 +325,21 @@ struct TileView {
 // vector of points an instruction. Near the light a cluster spans a wide angle and most tiles' rays fall
 // inside one of its triangles or outside all (a light inside a mesh's bounds often lies by a cluster that
 // every point reaches).
-inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t which, uint32_t* may_meet, uint32_t* through,
-                            uint64_t* blocked, uint64_t* candidates) {
+inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t which, uint32_t* may_meet,
+                            uint32_t* through, uint64_t* blocked, uint64_t* candidates) {
     const uint32_t all = (1u << lit.count) - 1;
     uint32_t inside = 0;
     for (uint32_t t = 0; t < lit.count; t += simd::width) {
         const uint32_t lanes = uint32_t(all >> t) & ((1u << simd::width) - 1);
         uint32_t settled = ~0u, positive = ~0u, negative = ~0u;
         for (int k = 0; k < 3; ++k) {
-            const simd::Floats fx = simd::load(lit.fx[k] + t), fy = simd::load(lit.fy[k] + t), fz = simd::load(lit.fz[k] + t);
+            const simd::Floats fx = simd::load(lit.fx[k] + t), fy = simd::load(lit.fy[k] + t),
+                               fz = simd::load(lit.fz[k] + t);
             const simd::Floats clear = simd::splat(4.0f) * simd::load(lit.fbound[k] + t);
             uint32_t above = ~0u, below = ~0u;
             for (int j = 0; j < 4; ++j) {
-                const simd::Floats g = simd::dot(simd::splat(tile.rx[j]), simd::splat(tile.ry[j]), simd::splat(tile.rz[j]), fx, fy, fz);
+                const simd::Floats g =
+                    simd::dot(simd::splat(tile.rx[j]), simd::splat(tile.ry[j]), simd::splat(tile.rz[j]), fx, fy, fz);
                 above &= simd::bits(g > clear), below &= simd::bits(-g > clear);
             }
             settled &= above | below, positive &= above, negative &= below;
@@ -339,7 +354,8 @@ inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t
     if (plane_test_usable(tile.l1_lo, lit.plane_scale) && plane_test_usable(tile.l1_hi, lit.plane_scale)) {
         planes = which;
     } else {
-        for (uint64_t w = which; w; w &= w - 1) planes |= uint64_t(plane_test_usable(tile.l1[math::lowest_bit(w)], lit.plane_scale)) << math::lowest_bit(w);
+        for (uint64_t w = which; w; w &= w - 1)
+            planes |= uint64_t(plane_test_usable(tile.l1[math::lowest_bit(w)], lit.plane_scale)) << math::lowest_bit(w);
     }
     uint32_t begin, end;
     simd::lane_span(which, begin, end);
@@ -356,9 +372,10 @@ inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t
             for (uint32_t i = begin; i < end; i += simd::width) {
                 if (!simd::group(which, i)) continue;
                 simd::Mask up, down;
-                crossing_signs(simd::load(tile.ex + i), simd::load(tile.ey + i), simd::load(tile.ez + i), simd::load(tile.vl + i), nx, ny, nz, sdq, sqb, spb,
-                               up, down);
-                ruled |= uint64_t(simd::bits(dq > 0 ? up : down)) << i, across |= uint64_t(simd::bits(dq > 0 ? down : up)) << i;
+                crossing_signs(simd::load(tile.ex + i), simd::load(tile.ey + i), simd::load(tile.ez + i),
+                               simd::load(tile.vl + i), nx, ny, nz, sdq, sqb, spb, up, down);
+                ruled |= uint64_t(simd::bits(dq > 0 ? up : down)) << i,
+                    across |= uint64_t(simd::bits(dq > 0 ? down : up)) << i;
             }
             kept[t] &= ~(ruled & planes);
             if (blocks) crossed |= across & planes & which;
@@ -369,7 +386,8 @@ inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t
     for (uint64_t w = *candidates; w; w &= w - 1) {
         const uint32_t i = math::lowest_bit(w);
         uint32_t meet = 0;
-        for (uint32_t m = inside; m; m &= m - 1) meet |= uint32_t(kept[math::lowest_bit(m)] >> i & 1) << math::lowest_bit(m);
+        for (uint32_t m = inside; m; m &= m - 1)
+            meet |= uint32_t(kept[math::lowest_bit(m)] >> i & 1) << math::lowest_bit(m);
         may_meet[i] = through[i] = meet;
     }
     return true;
@@ -383,7 +401,7 @@ inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t
 // rounding of its plane or of an edge line) goes to the exact test. Sets *touched when an exactly tested
 // triangle was touched. Makes the double terms of the triangles it needs that `lit` lacks.
 inline bool triangles_block(Triangles& lit, const double* p, const double* light, uint32_t may_meet, uint32_t through,
-                                bool* touched) {
+                            bool* touched) {
     const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
     const double edge_scale = det_error * (std::fabs(e0) + std::fabs(e1) + std::fabs(e2));
     for (; may_meet; may_meet &= may_meet - 1) {
@@ -408,12 +426,16 @@ inline bool triangles_block(Triangles& lit, const double* p, const double* light
             const double dp = plane_side(terms, p, bp), dq = terms.dq;
             if (std::fabs(dp) > bp) {
                 decided = true;
-                if ((dq > 0) == (dp > 0) || (!(lit.two_sided >> t & 1) && dq < 0)) continue;  // no crossing, or front-facing
+                if ((dq > 0) == (dp > 0) || (!(lit.two_sided >> t & 1) && dq < 0))
+                    continue;  // no crossing, or front-facing
                 // The crossing counts when it is at t >= f (see segment_triangle).
                 double mix = (1 - self_shadow_fraction) * dp + self_shadow_fraction * dq;
-                double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * terms.bq + 4e-16 * (std::fabs(dp) + std::fabs(dq));
-                if (std::fabs(mix) > mix_bound) blocks = (mix > 0) == (dp > 0);
-                else decided = false;
+                double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * terms.bq +
+                    4e-16 * (std::fabs(dp) + std::fabs(dq));
+                if (std::fabs(mix) > mix_bound)
+                    blocks = (mix > 0) == (dp > 0);
+                else
+                    decided = false;
             }
         }
         if (!decided) {
@@ -451,9 +473,10 @@ struct Cache {
 // triangle. The light's terms are computed once for all the points, 16 triangles at a time (or taken from
 // `cache`, under `owner`, and left there). Sets *touched when an exactly tested triangle was touched. Uses
 // about 7 KB of stack, and the exact test's 50 KB when a sign needs it (docs/RUNTIME.md).
-inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double (*p)[3], uint64_t which,
-                                      const double* light, bool one_sided, QueryStats* stats, bool* touched = nullptr,
-                                      lit::Cache* cache = nullptr, const void* owner = nullptr, const lit::TileView* tile = nullptr) {
+inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double (*p)[3],
+                                      uint64_t which, const double* light, bool one_sided, QueryStats* stats,
+                                      bool* touched = nullptr, lit::Cache* cache = nullptr, const void* owner = nullptr,
+                                      const lit::TileView* tile = nullptr) {
     using namespace lit;
     const FineCluster& c = v.fine[mesh.first_fine + f];
     uint64_t blocked = 0;
@@ -478,9 +501,11 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         // are those near the light, which nearly every point reaches (docs/PERFORMANCE.md).
         uint64_t sure = 0, left = 0;  // points surely blocked (no double work), points with triangles left
         const bool whole = tile && math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32)) >= 32 &&
-                           tile_line_tests(*lit, *tile, which, may_meet, through, &sure, &left);
+            tile_line_tests(*lit, *tile, which, may_meet, through, &sure, &left);
         if (!whole) sure = line_tests(*lit, p, which, light, may_meet, through, &left);
-        if (stats) stats->triangles_tested += uint64_t(lit->count) * (math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32)));
+        if (stats)
+            stats->triangles_tested +=
+                uint64_t(lit->count) * (math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32)));
         blocked |= sure, which &= ~sure;
         for (uint64_t w = left; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);

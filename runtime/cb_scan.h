@@ -41,7 +41,8 @@ public:
         coarse_boxes_.resize(coarse_count);
         coarse_skipped_.assign(coarse_count, 0);
         for (uint32_t c = 0; c < coarse_count; ++c) {
-            coarse_boxes_[c] = box_filter(s.coarse_obbs.empty() ? view.coarse_bounds.obb(mesh_->first_coarse + c) : s.coarse_obbs[c]);
+            coarse_boxes_[c] =
+                box_filter(s.coarse_obbs.empty() ? view.coarse_bounds.obb(mesh_->first_coarse + c) : s.coarse_obbs[c]);
             if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c)))
                 skipped_ += view.coarse[mesh_->first_coarse + c].count, coarse_skipped_[c] = 1;
         }
@@ -102,10 +103,12 @@ private:
         const ScanBounds& s = scan_bounds();
         const bool spheres = s.source_fine != nullptr;  // none without fine boxes: every cluster is tested
         for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
-            if ((one_sided_ && coarse_skipped_[c]) || (spheres && !segment_may_touch_sphere(s.coarse_first + c, q))) continue;
+            if ((one_sided_ && coarse_skipped_[c]) || (spheres && !segment_may_touch_sphere(s.coarse_first + c, q)))
+                continue;
             const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
             for (uint32_t f = r.first; f < r.first + r.count; ++f)
-                if ((!spheres || segment_may_touch_sphere(f, q)) && !skippable_fine(f) && test_cluster(f, q)) return true;
+                if ((!spheres || segment_may_touch_sphere(f, q)) && !skippable_fine(f) && test_cluster(f, q))
+                    return true;
         }
         return false;
     }
@@ -137,7 +140,8 @@ private:
     };
     LitSphere lit_sphere(uint32_t i) const {
         const ScanBounds& s = scan_bounds();
-        const double x = double(s.x[i]) - light_from_origin_[0], y = double(s.y[i]) - light_from_origin_[1], z = double(s.z[i]) - light_from_origin_[2];
+        const double x = double(s.x[i]) - light_from_origin_[0], y = double(s.y[i]) - light_from_origin_[1],
+                     z = double(s.z[i]) - light_from_origin_[2];
         const double d1 = std::fabs(x) + std::fabs(y) + std::fabs(z), r = s.r[i], grown = r + 2e-5 * (r + d1);
         return {float(x), float(y), float(z), float(grown), d1 + grown < float_tiny};
     }
@@ -145,7 +149,8 @@ private:
     // Conservative, in double: the segment from the query point to the light may meet sphere i.
     bool segment_may_touch_sphere(uint32_t i, const Query& q) const {
         const ScanBounds& s = scan_bounds();
-        const double c[3] = {double(s.x[i]) - light_from_origin_[0], double(s.y[i]) - light_from_origin_[1], double(s.z[i]) - light_from_origin_[2]};
+        const double c[3] = {double(s.x[i]) - light_from_origin_[0], double(s.y[i]) - light_from_origin_[1],
+                             double(s.z[i]) - light_from_origin_[2]};
         const double r = s.r[i];
         double t = (c[0] * q.e[0] + c[1] * q.e[1] + c[2] * q.e[2]) / q.dist;
         t = std::min(std::max(t, 0.0), q.dist);
@@ -165,12 +170,13 @@ private:
         uint32_t begin, end;
         simd::lane_span(subset, begin, end);
         using simd::Floats;
-        const Floats x = simd::splat(s.x), y = simd::splat(s.y), z = simd::splat(s.z), r = simd::splat(s.r), r2 = simd::splat(s.r * s.r),
-                     zero = simd::splat(0.0f);
+        const Floats x = simd::splat(s.x), y = simd::splat(s.y), z = simd::splat(s.z), r = simd::splat(s.r),
+                     r2 = simd::splat(s.r * s.r), zero = simd::splat(0.0f);
         uint64_t keep = 0;
         for (uint32_t i = begin; i < end; i += simd::width) {
             if (!simd::group(subset, i)) continue;
-            const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i), d = simd::load(t.fd + i);
+            const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i),
+                         d = simd::load(t.fd + i);
             const Floats a = simd::fms(y, ez, z * ey), b = simd::fms(z, ex, x * ez), c = simd::fms(x, ey, y * ex);
             const Floats along = simd::dot(ex, ey, ez, x, y, z), cross2 = simd::dot(a, b, c, a, b, c);
             Floats m = simd::fms(r2 * d, d, cross2);
@@ -241,11 +247,13 @@ private:
         for (uint32_t first = first_sphere; first < stop; first += 64) {
             const uint32_t n = std::min<uint32_t>(64, stop - first);
             const float *x = &s.x[first], *y = &s.y[first], *z = &s.z[first], *rr = &s.r[first];
-            uint64_t keep = 0;  // bit j: sphere first + j may meet the pyramid
+            uint64_t keep = 0;                               // bit j: sphere first + j may meet the pyramid
             for (uint32_t j = 0; j < n; j += simd::width) {  // the arrays are padded past each level's last group
-                const simd::Floats cx = simd::loadu(x + j), cy = simd::loadu(y + j), cz = simd::loadu(z + j), r = simd::loadu(rr + j);
+                const simd::Floats cx = simd::loadu(x + j), cy = simd::loadu(y + j), cz = simd::loadu(z + j),
+                                   r = simd::loadu(rr + j);
                 simd::Mask k = simd::dot_plus(cx, cy, cz, nx[4], ny[4], nz[4], r) >= simd::splat(side[4]);
-                for (int q = 0; q < 4; ++q) k = k & (simd::dot_plus(cx, cy, cz, nx[q], ny[q], nz[q], r) >= simd::splat(side[q]));
+                for (int q = 0; q < 4; ++q)
+                    k = k & (simd::dot_plus(cx, cy, cz, nx[q], ny[q], nz[q], r) >= simd::splat(side[q]));
                 keep |= uint64_t(simd::bits(k)) << j;
             }
             if (n < 64) keep &= (uint64_t(1) << n) - 1;

@@ -26,7 +26,7 @@ struct ScanBounds {
     std::vector<Obb> fine_obbs, coarse_obbs;  // decoded (unpack_obb): the box set-ups read these
     uint32_t coarse_first = 0;  // the first coarse sphere's index: after the fine ones and a group of padding
     double origin[3] = {0, 0, 0};
-    double extent = INFINITY;  // at least |centre|_1 + radius of every sphere; not below float_safe: unusable
+    double extent = INFINITY;       // at least |centre|_1 + radius of every sphere; not below float_safe: unusable
     std::vector<float> x, y, z, r;  // fine spheres, padding, coarse spheres, padding (a lane group each)
 
     // Mesh `mesh` of `view`, which needs fine and coarse boxes (otherwise nothing is made, and the scan tests
@@ -35,7 +35,8 @@ struct ScanBounds {
         const MeshRecord& mesh = view.meshes[mesh_index];
         *this = ScanBounds{};
         if (!view.fine_bounds.obbs || !view.coarse_bounds.obbs) return;
-        const PackedObb *fine_boxes = view.fine_bounds.obbs + mesh.first_fine, *coarse_boxes = view.coarse_bounds.obbs + mesh.first_coarse;
+        const PackedObb *fine_boxes = view.fine_bounds.obbs + mesh.first_fine,
+                        *coarse_boxes = view.coarse_bounds.obbs + mesh.first_coarse;
         source_fine = fine_boxes, source_coarse = coarse_boxes;
         fine_count = mesh.fine_count, coarse_count = mesh.coarse_count;
         fine_obbs.resize(fine_count), coarse_obbs.resize(coarse_count);
@@ -47,7 +48,9 @@ struct ScanBounds {
         for (std::vector<float>* a : {&x, &y, &z, &r}) a->assign(total, 0.0f);
         double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
         for (uint32_t c = 0; c < coarse_count; ++c)
-            for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], double(coarse_boxes[c].center[k])), hi[k] = std::max(hi[k], double(coarse_boxes[c].center[k]));
+            for (int k = 0; k < 3; ++k)
+                lo[k] = std::min(lo[k], double(coarse_boxes[c].center[k])),
+                hi[k] = std::max(hi[k], double(coarse_boxes[c].center[k]));
         for (int k = 0; k < 3; ++k) origin[k] = coarse_count ? 0.5 * (lo[k] + hi[k]) : 0.0;
         extent = 0;
         auto fill = [&](const PackedObb* boxes, uint32_t count, uint32_t out) {
@@ -57,7 +60,8 @@ struct ScanBounds {
                 const double h0 = b.half[0] + pad, h1 = b.half[1] + pad, h2 = b.half[2] + pad;
                 const double cx = b.center[0] - origin[0], cy = b.center[1] - origin[1], cz = b.center[2] - origin[2];
                 const double c1 = std::fabs(cx) + std::fabs(cy) + std::fabs(cz);
-                const double radius = std::sqrt(h0 * h0 + h1 * h1 + h2 * h2) * (1 + 1e-6) + 2.4e-7 * c1;  // + the centre's rounding
+                const double radius =
+                    std::sqrt(h0 * h0 + h1 * h1 + h2 * h2) * (1 + 1e-6) + 2.4e-7 * c1;  // + the centre's rounding
                 float f = float(radius);
                 if (double(f) < radius) f = std::nextafter(f, INFINITY);
                 x[out + i] = float(cx), y[out + i] = float(cy), z[out + i] = float(cz), r[out + i] = f;
@@ -69,12 +73,14 @@ struct ScanBounds {
     }
 
     bool made_from(const AssetView& view, const MeshRecord& mesh) const {
-        return source_fine && source_fine == view.fine_bounds.obbs + mesh.first_fine && source_coarse == view.coarse_bounds.obbs + mesh.first_coarse &&
-               fine_count == mesh.fine_count && coarse_count == mesh.coarse_count;
+        return source_fine && source_fine == view.fine_bounds.obbs + mesh.first_fine &&
+            source_coarse == view.coarse_bounds.obbs + mesh.first_coarse && fine_count == mesh.fine_count &&
+            coarse_count == mesh.coarse_count;
     }
 
     size_t memory_bytes() const {
-        return (x.capacity() + y.capacity() + z.capacity() + r.capacity()) * sizeof(float) + (fine_obbs.capacity() + coarse_obbs.capacity()) * sizeof(Obb);
+        return (x.capacity() + y.capacity() + z.capacity() + r.capacity()) * sizeof(float) +
+            (fine_obbs.capacity() + coarse_obbs.capacity()) * sizeof(Obb);
     }
 };
 

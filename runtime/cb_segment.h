@@ -44,14 +44,14 @@ struct SegmentTest {
 // The segment p -> q against the closed triangle a, b, c, exactly. With `two_sided` false the triangle only
 // blocks when q (the light) is strictly behind it.
 inline SegmentTest segment_triangle(const double* p, const double* q, const double* a, const double* b, const double* c,
-                                   bool two_sided = true) {
+                                    bool two_sided = true) {
     SegmentTest r;
     double bp, bq, ep = exact::orient3d_estimate(a, b, c, p, bp), eq = exact::orient3d_estimate(a, b, c, q, bq);
     int sp = ep > bp ? 1 : -ep > bp ? -1 : exact::sign(exact::orient3d_exact(a, b, c, p));
     int sq = eq > bq ? 1 : -eq > bq ? -1 : exact::sign(exact::orient3d_exact(a, b, c, q));
-    if (!two_sided && sq != 1) return r;        // one-sided: the light sees its front, or lies in its plane
-    if (sp == 0 && sq == 0) return r;           // coplanar (or no area): edge-on, never blocks
-    if (sp == sq) return r;                     // both ends strictly on one side
+    if (!two_sided && sq != 1) return r;  // one-sided: the light sees its front, or lies in its plane
+    if (sp == 0 && sq == 0) return r;     // coplanar (or no area): edge-on, never blocks
+    if (sp == sq) return r;               // both ends strictly on one side
     // The line through p and q must pass through the closed triangle: no two edge orientations of
     // opposite strict signs.
     int e0 = exact::orient3d(p, q, a, b), e1 = exact::orient3d(p, q, b, c), e2 = exact::orient3d(p, q, c, a);
@@ -59,12 +59,13 @@ inline SegmentTest segment_triangle(const double* p, const double* q, const doub
     r.touching = sp == 0 || sq == 0 || e0 == 0 || e1 == 0 || e2 == 0;
     // The crossing is at t = Dp / (Dp - Dq) with D the plane determinants; it counts when t >= f, that is
     // when (1 - f) Dp + f Dq has Dp's sign or is zero (Dp and Dq have opposite signs or Dq is zero).
-    if (sp == 0) return r;                      // at the query point itself: t = 0 < f
-    if (sq == 0) return r.blocks = true, r;     // at the light: t = 1
+    if (sp == 0) return r;                   // at the query point itself: t = 0 < f
+    if (sq == 0) return r.blocks = true, r;  // at the light: t = 1
     // In double first: the estimate of (1 - f) Dp + f Dq is off by at most the bounds' blend and its own
     // rounding; only when that cannot decide, exactly.
     double mix_estimate = (1 - self_shadow_fraction) * ep + self_shadow_fraction * eq;
-    double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * bq + 4e-16 * (std::fabs(ep) + std::fabs(eq));
+    double mix_bound =
+        (1 - self_shadow_fraction) * bp + self_shadow_fraction * bq + 4e-16 * (std::fabs(ep) + std::fabs(eq));
     if (std::fabs(mix_estimate) > mix_bound) {
         r.blocks = (mix_estimate > 0 ? 1 : -1) == sp;
         return r;
@@ -89,7 +90,8 @@ inline bool invert_instance(const double* m, double* inv) {
                    (d * h - e * g) / det, (b * g - a * h) / det, (a * e - b * d) / det};  // row-major
     for (int row = 0; row < 3; ++row)
         for (int col = 0; col < 3; ++col) inv[col * 3 + row] = r[row * 3 + col];
-    for (int row = 0; row < 3; ++row) inv[9 + row] = -(r[row * 3] * m[9] + r[row * 3 + 1] * m[10] + r[row * 3 + 2] * m[11]);
+    for (int row = 0; row < 3; ++row)
+        inv[9 + row] = -(r[row * 3] * m[9] + r[row * 3 + 1] * m[10] + r[row * 3 + 2] * m[11]);
     return true;
 }
 
@@ -106,7 +108,8 @@ inline bool segment_may_touch_box(const Obb& box, const double* p, const double*
     double t0 = 0, t1 = 1;
     double pc[3] = {p[0] - box.center[0], p[1] - box.center[1], p[2] - box.center[2]};
     double qc[3] = {q[0] - box.center[0], q[1] - box.center[1], q[2] - box.center[2]};
-    double size = std::fabs(pc[0]) + std::fabs(pc[1]) + std::fabs(pc[2]) + std::fabs(qc[0]) + std::fabs(qc[1]) + std::fabs(qc[2]);
+    double size =
+        std::fabs(pc[0]) + std::fabs(pc[1]) + std::fabs(pc[2]) + std::fabs(qc[0]) + std::fabs(qc[1]) + std::fabs(qc[2]);
     for (int i = 0; i < 3; ++i) {
         const float* a = box.axis[i];
         double dp = pc[0] * a[0] + pc[1] * a[1] + pc[2] * a[2], dq = qc[0] * a[0] + qc[1] * a[1] + qc[2] * a[2];
@@ -129,16 +132,17 @@ inline bool light_in_front_cone(const Cone& c, const double* light) {
     if (!c.valid) return false;
     double v[3] = {light[0] - c.front_apex[0], light[1] - c.front_apex[1], light[2] - c.front_apex[2]};
     double a[3] = {c.axis[0], c.axis[1], c.axis[2]};
-    double vl = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    double vl = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]),
+           al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
     if (!(vl > 0) || !(al > 0)) return false;
     return v[0] * a[0] + v[1] * a[1] + v[2] * a[2] > al * vl * (double(c.cos_half_angle) + 1e-9);
 }
 
 struct QueryStats {
-    uint64_t nodes_visited = 0;     // tree nodes (TopTreeTraversal only)
-    uint64_t clusters_tested = 0;   // fine clusters whose triangles were tested
+    uint64_t nodes_visited = 0;    // tree nodes (TopTreeTraversal only)
+    uint64_t clusters_tested = 0;  // fine clusters whose triangles were tested
     uint64_t triangles_tested = 0;
-    uint64_t touching = 0;          // queries whose answer involved a touching contact
+    uint64_t touching = 0;  // queries whose answer involved a touching contact
 };
 
 }  // namespace cb

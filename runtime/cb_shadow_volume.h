@@ -15,9 +15,9 @@ namespace cb {
 // the box, closed by the box's distance from the light. Any point a triangle in the box can shadow lies
 // inside: the blocking point X is in the box and p lies on the ray from the light through X, beyond X.
 struct ShadowVolume {
-    float normal[4][3];   // unit to float precision; inside: dot(normal[k], p - light) >= 0 for every k
-    double near;          // no point closer than this to the light can be shadowed by the box
-    bool valid;           // false: the light is inside or level with the box; test its cluster for every point
+    float normal[4][3];  // unit to float precision; inside: dot(normal[k], p - light) >= 0 for every k
+    double near;         // no point closer than this to the light can be shadowed by the box
+    bool valid;          // false: the light is inside or level with the box; test its cluster for every point
     // The frame the planes come from (for samplers and drawing): the volume is about the points
     // light + z (direction + x across[0] + y across[1]), z > 0, rect[0] <= x <= rect[1], rect[2] <= y <= rect[3]
     // (the stored float planes hold at least that, and are what inside_shadow_volume tests).
@@ -39,9 +39,9 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
     padded_halves(box, half);  // the corners of a box that holds the stored one (cb_asset.h)
     for (int i = 0; i < 8; ++i)
         for (int k = 0; k < 3; ++k)
-            corner[i][k] = (c[k] - light[k]) + ((i & 1 ? 1 : -1) * half[0] * box.axis[0][k] +
-                                                (i & 2 ? 1 : -1) * half[1] * box.axis[1][k] +
-                                                (i & 4 ? 1 : -1) * half[2] * box.axis[2][k]);
+            corner[i][k] = (c[k] - light[k]) +
+                ((i & 1 ? 1 : -1) * half[0] * box.axis[0][k] + (i & 2 ? 1 : -1) * half[1] * box.axis[1][k] +
+                 (i & 4 ? 1 : -1) * half[2] * box.axis[2][k]);
     // Every corner must be clearly in front of the light; otherwise no pyramid through the light holds the
     // box (the light is inside it or level with it): never build a wrong plane. Corner sizes are taken in
     // the max norm (no square roots): twice it bounds the Euclidean length.
@@ -98,7 +98,8 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
             // Every corner strictly inside the stored plane, by more than this double evaluation can err.
             bool holds = true;
             for (int i = 0; i < 8; ++i) {
-                double s = v.normal[k][0] * corner[i][0] + v.normal[k][1] * corner[i][1] + v.normal[k][2] * corner[i][2];
+                double s =
+                    v.normal[k][0] * corner[i][0] + v.normal[k][1] * corner[i][1] + v.normal[k][2] * corner[i][2];
                 holds &= s > 1e-12 * corner_size[i];
             }
             if (holds) break;
@@ -108,7 +109,8 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
     // Closing distance: from the light to the nearest point of the padded box, shortened for rounding.
     double q[3] = {0, 0, 0}, dist2 = 0;
     for (int i = 0; i < 3; ++i) {
-        double t = -(d[0] * box.axis[i][0] + d[1] * box.axis[i][1] + d[2] * box.axis[i][2]) * len;  // (light - c) . axis
+        double t =
+            -(d[0] * box.axis[i][0] + d[1] * box.axis[i][1] + d[2] * box.axis[i][2]) * len;  // (light - c) . axis
         t = std::max(-half[i], std::min(half[i], t));
         for (int k = 0; k < 3; ++k) q[k] += t * box.axis[i][k];
     }

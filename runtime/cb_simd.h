@@ -42,8 +42,12 @@ inline namespace portable {
 // either is NaN, as the x86 instructions do.
 #if defined(CB_SIMD_AVX512)
 constexpr uint32_t width = 16;
-struct Floats { __m512 v; };
-struct Mask { __mmask16 m; };
+struct Floats {
+    __m512 v;
+};
+struct Mask {
+    __mmask16 m;
+};
 inline Floats load(const float* p) { return {_mm512_load_ps(p)}; }  // 64-byte aligned
 inline Floats loadu(const float* p) { return {_mm512_loadu_ps(p)}; }
 inline Floats splat(float x) { return {_mm512_set1_ps(x)}; }
@@ -68,8 +72,12 @@ inline Mask all_lanes() { return {__mmask16(0xffff)}; }
 inline uint32_t bits(Mask m) { return m.m; }
 #elif defined(CB_SIMD_AVX)
 constexpr uint32_t width = 8;
-struct Floats { __m256 v; };
-struct Mask { __m256 v; };
+struct Floats {
+    __m256 v;
+};
+struct Mask {
+    __m256 v;
+};
 inline Floats load(const float* p) { return {_mm256_load_ps(p)}; }  // 32-byte aligned
 inline Floats loadu(const float* p) { return {_mm256_loadu_ps(p)}; }
 inline Floats splat(float x) { return {_mm256_set1_ps(x)}; }
@@ -98,8 +106,12 @@ inline Mask all_lanes() { return {_mm256_castsi256_ps(_mm256_set1_epi32(-1))}; }
 inline uint32_t bits(Mask m) { return uint32_t(_mm256_movemask_ps(m.v)); }
 #elif defined(CB_SIMD_SSE2)
 constexpr uint32_t width = 4;
-struct Floats { __m128 v; };
-struct Mask { __m128 v; };
+struct Floats {
+    __m128 v;
+};
+struct Mask {
+    __m128 v;
+};
 inline Floats load(const float* p) { return {_mm_load_ps(p)}; }  // 16-byte aligned
 inline Floats loadu(const float* p) { return {_mm_loadu_ps(p)}; }
 inline Floats splat(float x) { return {_mm_set1_ps(x)}; }
@@ -123,8 +135,12 @@ inline Mask all_lanes() { return {_mm_castsi128_ps(_mm_set1_epi32(-1))}; }
 inline uint32_t bits(Mask m) { return uint32_t(_mm_movemask_ps(m.v)); }
 #else
 constexpr uint32_t width = 4;
-struct Floats { float v[width]; };
-struct Mask { uint32_t b; };  // bit i: lane i
+struct Floats {
+    float v[width];
+};
+struct Mask {
+    uint32_t b;
+};  // bit i: lane i
 template <class F>
 inline Floats each(F f) {
     Floats r;
@@ -137,25 +153,51 @@ inline Mask each_bit(F f) {
     for (uint32_t i = 0; i < width; ++i) b |= uint32_t(f(i)) << i;
     return {b};
 }
-inline Floats load(const float* p) { return each([&](uint32_t i) { return p[i]; }); }
+inline Floats load(const float* p) {
+    return each([&](uint32_t i) { return p[i]; });
+}
 inline Floats loadu(const float* p) { return load(p); }
-inline Floats splat(float x) { return each([&](uint32_t) { return x; }); }
-inline Floats operator+(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] + b.v[i]; }); }
-inline Floats operator-(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] - b.v[i]; }); }
-inline Floats operator*(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] * b.v[i]; }); }
+inline Floats splat(float x) {
+    return each([&](uint32_t) { return x; });
+}
+inline Floats operator+(Floats a, Floats b) {
+    return each([&](uint32_t i) { return a.v[i] + b.v[i]; });
+}
+inline Floats operator-(Floats a, Floats b) {
+    return each([&](uint32_t i) { return a.v[i] - b.v[i]; });
+}
+inline Floats operator*(Floats a, Floats b) {
+    return each([&](uint32_t i) { return a.v[i] * b.v[i]; });
+}
 inline Floats fma(Floats a, Floats b, Floats c) { return a * b + c; }
 inline Floats fms(Floats a, Floats b, Floats c) { return a * b - c; }
-inline Floats min(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] < b.v[i] ? a.v[i] : b.v[i]; }); }
-inline Floats max(Floats a, Floats b) { return each([&](uint32_t i) { return a.v[i] > b.v[i] ? a.v[i] : b.v[i]; }); }
-inline Floats abs(Floats a) { return each([&](uint32_t i) { return std::fabs(a.v[i]); }); }
-inline Floats sqrt(Floats a) { return each([&](uint32_t i) { return std::sqrt(a.v[i]); }); }
+inline Floats min(Floats a, Floats b) {
+    return each([&](uint32_t i) { return a.v[i] < b.v[i] ? a.v[i] : b.v[i]; });
+}
+inline Floats max(Floats a, Floats b) {
+    return each([&](uint32_t i) { return a.v[i] > b.v[i] ? a.v[i] : b.v[i]; });
+}
+inline Floats abs(Floats a) {
+    return each([&](uint32_t i) { return std::fabs(a.v[i]); });
+}
+inline Floats sqrt(Floats a) {
+    return each([&](uint32_t i) { return std::sqrt(a.v[i]); });
+}
 inline void store(float* p, Floats a) {
     for (uint32_t i = 0; i < width; ++i) p[i] = a.v[i];
 }
-inline Mask operator>=(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] >= b.v[i]; }); }
-inline Mask operator>(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] > b.v[i]; }); }
-inline Mask operator<=(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] <= b.v[i]; }); }
-inline Mask operator<(Floats a, Floats b) { return each_bit([&](uint32_t i) { return a.v[i] < b.v[i]; }); }
+inline Mask operator>=(Floats a, Floats b) {
+    return each_bit([&](uint32_t i) { return a.v[i] >= b.v[i]; });
+}
+inline Mask operator>(Floats a, Floats b) {
+    return each_bit([&](uint32_t i) { return a.v[i] > b.v[i]; });
+}
+inline Mask operator<=(Floats a, Floats b) {
+    return each_bit([&](uint32_t i) { return a.v[i] <= b.v[i]; });
+}
+inline Mask operator<(Floats a, Floats b) {
+    return each_bit([&](uint32_t i) { return a.v[i] < b.v[i]; });
+}
 inline Mask operator&(Mask a, Mask b) { return {a.b & b.b}; }
 inline Mask and_not(Mask a, Mask b) { return {a.b & ~b.b}; }
 inline Mask all_lanes() { return {(1u << width) - 1}; }
@@ -165,7 +207,9 @@ inline uint32_t bits(Mask m) { return m.b; }
 inline Floats operator-(Floats a) { return splat(0.0f) - a; }
 // x a + y b + z c (+ w), the products fused into the sums where the target allows (fma).
 inline Floats dot(Floats x, Floats y, Floats z, Floats a, Floats b, Floats c) { return fma(z, c, fma(y, b, x * a)); }
-inline Floats dot(Floats x, Floats y, Floats z, float a, float b, float c) { return dot(x, y, z, splat(a), splat(b), splat(c)); }
+inline Floats dot(Floats x, Floats y, Floats z, float a, float b, float c) {
+    return dot(x, y, z, splat(a), splat(b), splat(c));
+}
 inline Floats dot_plus(Floats x, Floats y, Floats z, float a, float b, float c, Floats w) {
     return fma(z, splat(c), fma(y, splat(b), fma(x, splat(a), w)));
 }

@@ -116,17 +116,18 @@ protected:
     // A tile's points in the mesh's frame, and the pyramid from the light that holds their directions.
     struct Tile {
         uint32_t count;
-        uint64_t alive;           // in the pyramid and not yet found in shadow
+        uint64_t alive;  // in the pyramid and not yet found in shadow
         uint64_t shadowed;
-        bool small;               // every live point within float_safe of the light: the float filters apply
+        bool small;  // every live point within float_safe of the light: the float filters apply
         double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
-        alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];  // e and dist in float
+        alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity],
+            fd[tile_capacity];                   // e and dist in float
         alignas(64) float slack[tile_capacity];  // the plane checks' tolerance, 2e-6 of the distance
         alignas(64) float vl[tile_capacity];  // |e|_1 (l1) and a float just above it, for the triangle tests (TileView)
         double l1[tile_capacity], l1_lo, l1_hi;
-        double frame[3][3];        // the mean direction from the light and two axes across it (make_frame)
+        double frame[3][3];               // the mean direction from the light and two axes across it (make_frame)
         double across[tile_capacity][2];  // each point's central projection in that frame
-        Pyramid pyramid;          // holds the points walking now
+        Pyramid pyramid;                  // holds the points walking now
         // Fine clusters met by the walk and the points inside their volumes, tested nearest to the light
         // first once the whole walk is done (or the list is full): a point in shadow then usually meets
         // its blocker before the cluster it lies on, and is not tested against that one (blockers often lie
@@ -150,7 +151,7 @@ protected:
         Entered entered[entered_capacity];
         uint32_t entered_count;
         QueryStats* stats;
-        TileCache* cache;  // kept between tiles (may be null)
+        TileCache* cache;      // kept between tiles (may be null)
         const Obb* fine_obbs;  // the fine boxes decoded (ScanBounds), or null: from the asset
     };
 
@@ -168,7 +169,8 @@ protected:
         if (!(ml > 0)) return 0;
         double *z = t.frame[0], *a = t.frame[1], *b = t.frame[2];
         for (int k = 0; k < 3; ++k) z[k] = m[k] / ml;
-        int k0 = std::fabs(z[0]) < std::fabs(z[1]) ? (std::fabs(z[0]) < std::fabs(z[2]) ? 0 : 2) : (std::fabs(z[1]) < std::fabs(z[2]) ? 1 : 2);
+        int k0 = std::fabs(z[0]) < std::fabs(z[1]) ? (std::fabs(z[0]) < std::fabs(z[2]) ? 0 : 2)
+                                                   : (std::fabs(z[1]) < std::fabs(z[2]) ? 1 : 2);
         double axis[3] = {0, 0, 0};
         axis[k0] = 1;
         math::cross3(z, axis, a);
@@ -196,7 +198,8 @@ protected:
         for (uint64_t w = which; w; w &= w - 1) {
             uint32_t i = math::lowest_bit(w);
             const double x = t.across[i][0], y = t.across[i][1];
-            lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y), hi[1] = std::max(hi[1], y);
+            lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y),
+            hi[1] = std::max(hi[1], y);
             out.dmax = std::max(out.dmax, t.dist[i]);
         }
         // Widened far beyond the rounding of x and y (a few 1e-16 for |x|, |y| below 2) and of the rays to
@@ -239,7 +242,9 @@ protected:
             for (uint32_t g = 0; g < groups; g += simd::width) {
                 const simd::Floats v = simd::load(key + g);
                 const uint32_t less = simd::bits(v < k), tied = simd::bits(v <= k) & ~less;
-                const uint32_t earlier = i >= g + simd::width ? ~0u : i > g ? (1u << (i - g)) - 1 : 0u;  // lanes before i
+                const uint32_t earlier = i >= g + simd::width ? ~0u
+                    : i > g                                   ? (1u << (i - g)) - 1
+                                                              : 0u;  // lanes before i
                 rank += math::bit_count(less) + math::bit_count(tied & earlier);
             }
             sorted[rank] = a[i];
@@ -268,8 +273,8 @@ protected:
     // finite, or beyond float's range). Returns the points over 60 degrees off the tile's mean direction,
     // which the tile does not take either (the traversal says where they go). `fine_obbs`: the fine boxes
     // decoded (ScanBounds), or null to read them from the asset.
-    uint64_t start_tile(Tile& t, const double* points, const uint32_t* index, uint32_t count, uint64_t alive, QueryStats* stats,
-                        TileCache* cache, const Obb* fine_obbs, uint64_t& alone) const {
+    uint64_t start_tile(Tile& t, const double* points, const uint32_t* index, uint32_t count, uint64_t alive,
+                        QueryStats* stats, TileCache* cache, const Obb* fine_obbs, uint64_t& alone) const {
         t.count = count;
         t.stats = stats;
         t.cache = cache;
@@ -303,7 +308,8 @@ protected:
             t.small = t.pyramid.dmax < float_safe;
             for (uint32_t i = 0; i < tile_capacity; ++i) {
                 bool in = t.alive >> i & 1;
-                t.ex[i] = in ? float(t.e[i][0]) : 0.0f, t.ey[i] = in ? float(t.e[i][1]) : 0.0f, t.ez[i] = in ? float(t.e[i][2]) : 0.0f;
+                t.ex[i] = in ? float(t.e[i][0]) : 0.0f, t.ey[i] = in ? float(t.e[i][1]) : 0.0f,
+                t.ez[i] = in ? float(t.e[i][2]) : 0.0f;
                 t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
                 t.slack[i] = 2e-6f * t.fd[i];
             }
@@ -380,9 +386,11 @@ protected:
         const Floats zero = simd::splat(0.0f), micro = simd::splat(1e-6f), vtol = simd::splat(tol);
         for (uint32_t i = begin; i < end; i += simd::width) {
             if (!simd::group(subset, i)) continue;  // no point in these lanes (the subset is often sparse)
-            const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i), d = simd::load(t.fd + i);
+            const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i),
+                         d = simd::load(t.fd + i);
             const Floats slack = micro * d;
-            const Floats g[3] = {simd::dot(ex, ey, ez, ax[0][0], ax[0][1], ax[0][2]), simd::dot(ex, ey, ez, ax[1][0], ax[1][1], ax[1][2]),
+            const Floats g[3] = {simd::dot(ex, ey, ez, ax[0][0], ax[0][1], ax[0][2]),
+                                 simd::dot(ex, ey, ez, ax[1][0], ax[1][1], ax[1][2]),
                                  simd::dot(ex, ey, ez, ax[2][0], ax[2][1], ax[2][2])};
             Floats m = simd::splat(INFINITY);
             for (int k = 0; k < 3; ++k) {
@@ -402,13 +410,16 @@ protected:
     }
 
     // Tests fine cluster f's triangles for the points of `subset` still alive whose segment may touch its box.
-    void test_points(uint32_t f, uint64_t subset, Tile& t) const { test_triangles(f, fine_box_points(f, subset & t.alive, t), t); }
+    void test_points(uint32_t f, uint64_t subset, Tile& t) const {
+        test_triangles(f, fine_box_points(f, subset & t.alive, t), t);
+    }
 
     // The points of `subset` whose segment may touch fine cluster f's box.
     uint64_t fine_box_points(uint32_t f, uint64_t subset, Tile& t) const {
         if (!view_->fine_bounds.obbs || !subset) return subset;
         BoxFilter own;
-        const BoxFilter& b = t.cache ? cached_fine_box_filter(f, t.fine_obbs, *t.cache) : (own = fine_box_filter(f, t.fine_obbs));
+        const BoxFilter& b =
+            t.cache ? cached_fine_box_filter(f, t.fine_obbs, *t.cache) : (own = fine_box_filter(f, t.fine_obbs));
         if (b.usable && t.small) return box_points(b, subset, t);
         const Obb box = fine_obb(f, t.fine_obbs);
         for (uint64_t w = subset; w; w &= w - 1) {
@@ -424,8 +435,10 @@ protected:
         if (!todo) return;
         // The tile's pyramid holds every point of `todo`: it is narrowed only while a scan or a fine walk works
         // for some points, and the clusters tested then are those that scan or walk found for them.
-        const lit::TileView tile{t.ex, t.ey, t.ez, t.vl, t.l1, t.l1_lo, t.l1_hi, t.pyramid.rx, t.pyramid.ry, t.pyramid.rz};
-        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr, t.cache ? &t.cache->lit : nullptr, this, &tile);
+        const lit::TileView tile{t.ex,    t.ey,    t.ez,         t.vl,         t.l1,
+                                 t.l1_lo, t.l1_hi, t.pyramid.rx, t.pyramid.ry, t.pyramid.rz};
+        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr,
+                                             t.cache ? &t.cache->lit : nullptr, this, &tile);
         t.alive &= ~hit, t.shadowed |= hit;
     }
 
@@ -457,7 +470,9 @@ protected:
     }
 
     // Fine cluster f's box: decoded already (`fine_obbs`, ScanBounds) or from the asset.
-    Obb fine_obb(uint32_t f, const Obb* fine_obbs) const { return fine_obbs ? fine_obbs[f] : view_->fine_bounds.obb(mesh_->first_fine + f); }
+    Obb fine_obb(uint32_t f, const Obb* fine_obbs) const {
+        return fine_obbs ? fine_obbs[f] : view_->fine_bounds.obb(mesh_->first_fine + f);
+    }
 
     IndexRange coarse_triangles(uint32_t c) const {
         const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
@@ -483,8 +498,7 @@ protected:
     // A cluster's triangles, unless the segment certainly misses its box (a volume only says the point
     // is in the box's shadow cone, which a 4-plane outline makes wider than the box).
     bool test_cluster(uint32_t f, const Query& q) const {
-        if (view_->fine_bounds.obbs && !segment_may_touch_box(fine_obb(f, q.fine_obbs), q.p, light_))
-            return false;
+        if (view_->fine_bounds.obbs && !segment_may_touch_box(fine_obb(f, q.fine_obbs), q.p, light_)) return false;
         return cluster_blocks(*view_, *mesh_, f, q.p, light_, one_sided_, q.stats);
     }
 

@@ -41,24 +41,24 @@ constexpr uint32_t none = TraversalBase::none;
 constexpr uint32_t cluster_bit = 0x80000000u;  // in a child reference: a cluster node
 
 // A plane through the light; inside: dot(n, p - light) >= 0.
-struct PlaneNode {          // 32 bytes
-    float n[3];             // unit to float precision
+struct PlaneNode {  // 32 bytes
+    float n[3];     // unit to float precision
     // Every point of every volume in the straddling subtree makes an angle with the plane whose sine is
     // at most this (rounded up); a point farther from the plane skips that subtree.
     float straddle_sine;
-    float near_min;         // smallest closing distance below (rounded down)
-    uint32_t child[3];      // inside, outside, straddling
+    float near_min;     // smallest closing distance below (rounded down)
+    uint32_t child[3];  // inside, outside, straddling
 };
 
 // The end of a volume's chain: its cluster, then the volumes inserted later inside it.
-struct ClusterNode {               // 32 bytes
-    float near = 0;         // closing distance (rounded down)
-    float near_min = 0;     // the smaller of near and the closing distances in `inside`
+struct ClusterNode {     // 32 bytes
+    float near = 0;      // closing distance (rounded down)
+    float near_min = 0;  // the smaller of near and the closing distances in `inside`
     uint32_t inside = none;
-    uint32_t fine_root = none;  // coarse: the root of its fine tree
-    uint32_t cluster = none;    // fine: the fine cluster (mesh-local); none for a coarse cluster
-    IndexRange always;               // coarse: its fine clusters tested whenever it is entered (a range of
-                                // always_fine_)
+    uint32_t fine_root = none;    // coarse: the root of its fine tree
+    uint32_t cluster = none;      // fine: the fine cluster (mesh-local); none for a coarse cluster
+    IndexRange always;            // coarse: its fine clusters tested whenever it is entered (a range of
+                                  // always_fine_)
     uint32_t first_plane = none;  // the 4 planes of its volume, consecutive (none: no volume)
 };
 
@@ -82,18 +82,19 @@ struct Part {
 
 // The working arrays of TopTreeTraversal::build, reusable between builds (ShadowBuildOptions::scratch).
 struct BuildScratch {
-    top_tree::Nodes built;               // every node before the walk-order layout
-    std::vector<top_tree::Part> parts;   // per build thread
+    top_tree::Nodes built;                             // every node before the walk-order layout
+    std::vector<top_tree::Part> parts;                 // per build thread
     std::vector<uint32_t> plane_to, cluster_to, todo;  // the layout's renumbering
-    std::vector<uint8_t> part_of;    // which thread built each coarse cluster's fine tree
-    std::vector<uint32_t> always;    // always-tested fine clusters, put back in coarse order
+    std::vector<uint8_t> part_of;                      // which thread built each coarse cluster's fine tree
+    std::vector<uint32_t> always;                      // always-tested fine clusters, put back in coarse order
     size_t memory_bytes() const {
-        size_t b = built.planes.capacity() * sizeof(top_tree::PlaneNode) + built.clusters.capacity() * sizeof(top_tree::ClusterNode) +
-                   (plane_to.capacity() + cluster_to.capacity() + todo.capacity() + always.capacity()) * sizeof(uint32_t) +
-                   part_of.capacity();
+        size_t b = built.planes.capacity() * sizeof(top_tree::PlaneNode) +
+            built.clusters.capacity() * sizeof(top_tree::ClusterNode) +
+            (plane_to.capacity() + cluster_to.capacity() + todo.capacity() + always.capacity()) * sizeof(uint32_t) +
+            part_of.capacity();
         for (const top_tree::Part& p : parts)
-            b += p.nodes.planes.capacity() * sizeof(top_tree::PlaneNode) + p.nodes.clusters.capacity() * sizeof(top_tree::ClusterNode) +
-                 p.always.capacity() * sizeof(uint32_t);
+            b += p.nodes.planes.capacity() * sizeof(top_tree::PlaneNode) +
+                p.nodes.clusters.capacity() * sizeof(top_tree::ClusterNode) + p.always.capacity() * sizeof(uint32_t);
         return b;
     }
 };
@@ -142,7 +143,8 @@ public:
         if (parts.size() < part_count) parts.resize(part_count);
         for (uint32_t k = 0; k < part_count; ++k) {
             Part& part = parts[k];
-            part.nodes.planes.clear(), part.nodes.clusters.clear(), part.always.clear(), part.skipped = 0, part.depth = 0;
+            part.nodes.planes.clear(), part.nodes.clusters.clear(), part.always.clear(), part.skipped = 0,
+                                                                                         part.depth = 0;
         }
         // Threads take coarse clusters one at a time (their costs vary with the light); part 0 builds
         // straight into the final arrays, the others are appended after it.
@@ -178,7 +180,9 @@ public:
         uint32_t fine_depth = 0;
         std::vector<uint32_t> plane_base(part_count, 0), cluster_base(part_count, 0);
         auto move = [&](uint32_t k, uint32_t ref) {  // a node reference of part k, into the merged arrays
-            return ref == none ? none : ref & cluster_bit ? ((ref & ~cluster_bit) + cluster_base[k]) | cluster_bit : ref + plane_base[k];
+            return ref == none      ? none
+                : ref & cluster_bit ? ((ref & ~cluster_bit) + cluster_base[k]) | cluster_bit
+                                    : ref + plane_base[k];
         };
         for (uint32_t k = 0; k < part_count; ++k) {
             Part& part = parts[k];
@@ -205,7 +209,8 @@ public:
                 fine_roots[c] = move(k, fine_roots[c]);
                 const std::vector<uint32_t>& from = k == 0 ? always_fine_ : parts[k].always;
                 uint32_t first = uint32_t(always.size());
-                always.insert(always.end(), from.begin() + fine_always[c].first, from.begin() + fine_always[c].first + fine_always[c].count);
+                always.insert(always.end(), from.begin() + fine_always[c].first,
+                              from.begin() + fine_always[c].first + fine_always[c].count);
                 fine_always[c].first = first;
             }
             always_fine_.swap(always);
@@ -253,7 +258,8 @@ public:
             test_pending(t);
         }
         for (uint32_t i = 0; i < count; ++i)
-            if ((alone >> i & 1) && walk_alone(points + size_t(index[i]) * 3, stack, stats)) t.shadowed |= uint64_t(1) << i;
+            if ((alone >> i & 1) && walk_alone(points + size_t(index[i]) * 3, stack, stats))
+                t.shadowed |= uint64_t(1) << i;
         return t.shadowed;
     }
 
@@ -261,7 +267,7 @@ public:
     // Bytes this traversal holds (the asset it reads is not counted).
     size_t memory_bytes() const {
         return planes_.capacity() * sizeof(PlaneNode) + clusters_.capacity() * sizeof(ClusterNode) +
-               (always_fine_.capacity() + always_coarse_.capacity()) * sizeof(uint32_t);
+            (always_fine_.capacity() + always_coarse_.capacity()) * sizeof(uint32_t);
     }
     size_t always_tested() const { return always_fine_.size(); }
 
@@ -275,7 +281,8 @@ private:
     // The smallest and largest sine of the pyramid's rays against the plane with normal n (4 at once with SSE).
     static void ray_sines(const float* n, const Pyramid& P, float& smin, float& smax) {
 #ifdef CB_SIMD_SSE2
-        __m128 s = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(n[0]), _mm_load_ps(P.rx)), _mm_mul_ps(_mm_set1_ps(n[1]), _mm_load_ps(P.ry))),
+        __m128 s = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(n[0]), _mm_load_ps(P.rx)),
+                                         _mm_mul_ps(_mm_set1_ps(n[1]), _mm_load_ps(P.ry))),
                               _mm_mul_ps(_mm_set1_ps(n[2]), _mm_load_ps(P.rz)));
         __m128 swapped = _mm_shuffle_ps(s, s, _MM_SHUFFLE(1, 0, 3, 2));
         __m128 lo = _mm_min_ps(s, swapped), hi = _mm_max_ps(s, swapped);
@@ -317,9 +324,12 @@ private:
         uint64_t in = 0;
         for (uint32_t i = begin; i < end; i += simd::width) {
             if (!simd::group(subset, i)) continue;
-            const simd::Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i), slack = simd::load(t.slack + i);
-            simd::Floats margin = simd::load(t.fd + i) - near;  // >= 0: inside everything checked (a float difference has the exact sign)
-            for (int k = 0; k < planes; ++k) margin = simd::min(margin, simd::dot_plus(ex, ey, ez, n[k][0], n[k][1], n[k][2], slack));
+            const simd::Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i),
+                               slack = simd::load(t.slack + i);
+            simd::Floats margin =
+                simd::load(t.fd + i) - near;  // >= 0: inside everything checked (a float difference has the exact sign)
+            for (int k = 0; k < planes; ++k)
+                margin = simd::min(margin, simd::dot_plus(ex, ey, ez, n[k][0], n[k][1], n[k][2], slack));
             in |= uint64_t(simd::bits(margin >= zero)) << i;
         }
         return in & subset;
@@ -347,7 +357,8 @@ private:
             uint64_t in = e[i].points & t.alive;
             if (!in) continue;
             const ClusterNode& leaf = clusters_[e[i].id];
-            for (uint32_t k = leaf.always.first; k < leaf.always.first + leaf.always.count; ++k) test_points(always_fine_[k], in, t);
+            for (uint32_t k = leaf.always.first; k < leaf.always.first + leaf.always.count; ++k)
+                test_points(always_fine_[k], in, t);
             if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in & t.alive, t, stack);
             test_pending(t);
         }
@@ -373,7 +384,8 @@ private:
                     if (leaf.inside != none) stack[top++] = leaf.inside;
                     if (P.dmax < leaf.near) break;
                     // Planes 0..3 of the chain are bits 3..0 of the history.
-                    uint32_t chain = (straddled >> 3 & 1) | (straddled >> 1 & 2) | (straddled << 1 & 4) | (straddled << 3 & 8);
+                    uint32_t chain =
+                        (straddled >> 3 & 1) | (straddled >> 1 & 2) | (straddled << 1 & 4) | (straddled << 3 & 8);
                     uint64_t in = volume_points(leaf, subset & t.alive, chain, t);
                     if (!in) break;
                     if (leaf.cluster != none) {
@@ -441,13 +453,16 @@ private:
         visit(root_);
         for (uint32_t r : always_coarse_) visit(r);
         auto map = [&](uint32_t ref) {
-            return ref == none ? none : ref & cluster_bit ? (cluster_to[ref & ~cluster_bit] | cluster_bit) : plane_to[ref];
+            return ref == none      ? none
+                : ref & cluster_bit ? (cluster_to[ref & ~cluster_bit] | cluster_bit)
+                                    : plane_to[ref];
         };
         for (PlaneNode& n : planes)
             for (uint32_t& c : n.child) c = map(c);
         // A chain's planes stay consecutive: the walk order takes the inside child right after its plane.
         for (ClusterNode& l : leaves)
-            l.inside = map(l.inside), l.fine_root = map(l.fine_root), l.first_plane = l.first_plane == none ? none : plane_to[l.first_plane];
+            l.inside = map(l.inside), l.fine_root = map(l.fine_root),
+            l.first_plane = l.first_plane == none ? none : plane_to[l.first_plane];
         root_ = map(root_);
         for (uint32_t& r : always_coarse_) r = map(r);
     }
@@ -522,18 +537,20 @@ private:
 
     // A tree over the fine clusters [first, first + count) of the mesh; returns its root. Clusters without
     // a volume go to `always`.
-    uint32_t build_fine_tree(Nodes& nodes, uint32_t first, uint32_t count, uint32_t& depth, std::vector<uint32_t>& always,
-                             size_t& skipped) const {
+    uint32_t build_fine_tree(Nodes& nodes, uint32_t first, uint32_t count, uint32_t& depth,
+                             std::vector<uint32_t>& always, size_t& skipped) const {
         uint32_t root = none;
         for (uint32_t i : shuffled(count)) {
             uint32_t f = first + i;
             const FineCluster& r = view_->fine[mesh_->first_fine + f];
-            if (one_sided_ && skippable(view_->fine_bounds, mesh_->first_fine + f, {r.first_triangle, r.triangle_count})) {
+            if (one_sided_ &&
+                skippable(view_->fine_bounds, mesh_->first_fine + f, {r.first_triangle, r.triangle_count})) {
                 ++skipped;
                 continue;
             }
-            ShadowVolume v = view_->fine_bounds.obbs ? make_shadow_volume(view_->fine_bounds.obb(mesh_->first_fine + f), light_)
-                                                     : ShadowVolume{};
+            ShadowVolume v = view_->fine_bounds.obbs
+                ? make_shadow_volume(view_->fine_bounds.obb(mesh_->first_fine + f), light_)
+                : ShadowVolume{};
             if (!v.valid) {
                 always.push_back(f);
                 continue;
@@ -576,7 +593,8 @@ private:
         // The rays in float, to classify 4 at once. Their rounding and the float sines err by under 3e-7,
         // so the thresholds below are 1e-6: a volume goes to one side only when it is clearly there.
         Pyramid cone;
-        for (int r = 0; r < 4; ++r) cone.rx[r] = float(rays[r][0]), cone.ry[r] = float(rays[r][1]), cone.rz[r] = float(rays[r][2]);
+        for (int r = 0; r < 4; ++r)
+            cone.rx[r] = float(rays[r][0]), cone.ry[r] = float(rays[r][1]), cone.rz[r] = float(rays[r][2]);
         // Walk down while the volume falls clearly on one side; stop at the first empty slot, named by the
         // node that holds it (indices, since the appends below may move the arrays).
         uint32_t* slot = &root;
@@ -617,9 +635,12 @@ private:
         leaf.near = leaf.near_min = near;
         leaf.first_plane = first;
         nodes.planes.back().child[0] = add_cluster_node(nodes, leaf);
-        if (parent == none) *slot = first;
-        else if (parent & cluster_bit) nodes.clusters[parent & ~cluster_bit].inside = first;
-        else nodes.planes[parent].child[which] = first;
+        if (parent == none)
+            *slot = first;
+        else if (parent & cluster_bit)
+            nodes.clusters[parent & ~cluster_bit].inside = first;
+        else
+            nodes.planes[parent].child[which] = first;
         max_depth = std::max(max_depth, depth + 5);
     }
 

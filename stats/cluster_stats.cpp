@@ -47,7 +47,8 @@ std::vector<uint32_t> welded_ids(const std::vector<float>& positions) {
     std::iota(order.begin(), order.end(), 0u);
     auto key = [&](uint32_t v) { return std::tuple(positions[v * 3], positions[v * 3 + 1], positions[v * 3 + 2]); };
     std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
-    for (uint32_t i = 0; i < n; ++i) id[order[i]] = i > 0 && key(order[i]) == key(order[i - 1]) ? id[order[i - 1]] : order[i];
+    for (uint32_t i = 0; i < n; ++i)
+        id[order[i]] = i > 0 && key(order[i]) == key(order[i - 1]) ? id[order[i - 1]] : order[i];
     return id;
 }
 
@@ -92,7 +93,8 @@ void sample_shadow_volume(const MeshContext& ctx, const Obb& box, const double* 
     double widest = std::sqrt(1 + std::max(lo0 * lo0, hi0 * hi0) + std::max(lo1 * lo1, hi1 * hi1));
     double zmin = v.near / widest, zmax = 0;
     for (int c = 0; c < 8; ++c) {
-        double corner[3] = {c & 1 ? ctx.hi[0] : ctx.lo[0], c & 2 ? ctx.hi[1] : ctx.lo[1], c & 4 ? ctx.hi[2] : ctx.lo[2]};
+        double corner[3] = {c & 1 ? ctx.hi[0] : ctx.lo[0], c & 2 ? ctx.hi[1] : ctx.lo[1],
+                            c & 4 ? ctx.hi[2] : ctx.lo[2]};
         double e[3] = {corner[0] - light[0], corner[1] - light[1], corner[2] - light[2]};
         zmax = std::max(zmax, dot3(e, d));
     }
@@ -158,9 +160,11 @@ ClusterFigures cluster_figures(const MeshContext& ctx, const LevelVolumes& volum
     SplitMix rng{seed};
     for (size_t l = 0; l < ctx.lights.size() / 3; ++l) {
         const double* light = &ctx.lights[l * 3];
-        if (!volumes.cones.empty() && !sided && light_in_front_cone(unpack_cone(volumes.cones[index], volumes.obbs[index]), light))
+        if (!volumes.cones.empty() && !sided &&
+            light_in_front_cone(unpack_cone(volumes.cones[index], volumes.obbs[index]), light))
             ++f.lights_skipping;
-        if (!volumes.obbs.empty()) sample_shadow_volume(ctx, unpack_obb(volumes.obbs[index]), light, r, options.samples, rng, f);
+        if (!volumes.obbs.empty())
+            sample_shadow_volume(ctx, unpack_obb(volumes.obbs[index]), light, r, options.samples, rng, f);
     }
     return f;
 }
@@ -169,21 +173,25 @@ double ratio(double a, double b) { return b > 0 ? a / b : NAN; }
 
 LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std::vector<Instance>& instances, bool fine,
                             double scene_volume, double scene_area, const StatsOptions& options) {
-    struct Item { uint32_t mesh, cluster; TriangleRange range; };
+    struct Item {
+        uint32_t mesh, cluster;
+        TriangleRange range;
+    };
     std::vector<Item> items;
     for (uint32_t m = 0; m < contexts.size(); ++m) {
         const AssetMesh& mesh = *contexts[m].mesh;
         size_t n = fine ? mesh.fine.size() : mesh.coarse.size();
         for (uint32_t c = 0; c < n; ++c)
-            items.push_back({m, c, fine ? TriangleRange{mesh.fine[c].first, mesh.fine[c].count} : coarse_triangles(mesh, c)});
+            items.push_back(
+                {m, c, fine ? TriangleRange{mesh.fine[c].first, mesh.fine[c].count} : coarse_triangles(mesh, c)});
     }
     std::vector<ClusterFigures> figures(items.size());
     parallel_for(items.size(), options.threads, [&](size_t i) {
         const Item& it = items[i];
         const AssetMesh& mesh = *contexts[it.mesh].mesh;
         uint64_t seed = splitmix(options.seed ^ splitmix(uint64_t(it.mesh) << 33 ^ uint64_t(fine) << 32 ^ it.cluster));
-        figures[i] = cluster_figures(contexts[it.mesh], fine ? mesh.fine_volumes : mesh.coarse_volumes, it.cluster, it.range,
-                                     options, seed);
+        figures[i] = cluster_figures(contexts[it.mesh], fine ? mesh.fine_volumes : mesh.coarse_volumes, it.cluster,
+                                     it.range, options, seed);
     });
 
     LevelStats s;
@@ -224,7 +232,8 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
             fill_sum += a > 0 ? figures[i].area / a : 0;
             double box = obb_volume(b);
             // Flat boxes (a planar cluster) would make any ratio infinite: left out of the medians.
-            bool solid = box > 1e-9 * std::pow(std::max({double(b.half[0]), double(b.half[1]), double(b.half[2])}) * 2, 3);
+            bool solid =
+                box > 1e-9 * std::pow(std::max({double(b.half[0]), double(b.half[1]), double(b.half[2])}) * 2, 3);
             if (spheres) {
                 double v_sphere = 4.0 / 3.0 * M_PI * std::pow(double(v.spheres[items[i].cluster].radius), 3);
                 sphere += v_sphere;
@@ -243,7 +252,8 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
         s.fill = ratio(triangle_area, area), s.fill_mean = fill_sum / double(items.size());
         auto median_or_nan = [](const std::vector<double>& v) { return v.empty() ? double(NAN) : median(v); };
         if (spheres) s.sphere_over_obb = ratio(sphere, volume), s.sphere_over_obb_median = median_or_nan(sphere_ratio);
-        if (capsules) s.capsule_over_obb = ratio(capsule, volume), s.capsule_over_obb_median = median_or_nan(capsule_ratio);
+        if (capsules)
+            s.capsule_over_obb = ratio(capsule, volume), s.capsule_over_obb_median = median_or_nan(capsule_ratio);
         // World space: each instance's linear part scales volumes by |det| and maps box faces to parallelograms.
         double world_volume = 0, world_area = 0;
         std::vector<std::vector<uint32_t>> items_of_mesh(contexts.size());
@@ -258,7 +268,8 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
                 double edge[3][3];
                 for (int a = 0; a < 3; ++a)
                     for (int k = 0; k < 3; ++k)
-                        edge[a][k] = 2 * double(b.half[a]) * (col[0][k] * b.axis[a][0] + col[1][k] * b.axis[a][1] + col[2][k] * b.axis[a][2]);
+                        edge[a][k] = 2 * double(b.half[a]) *
+                            (col[0][k] * b.axis[a][0] + col[1][k] * b.axis[a][1] + col[2][k] * b.axis[a][2]);
                 world_volume += det * obb_volume(b);
                 double c01[3], c12[3], c02[3];
                 cross3(edge[0], edge[1], c01), cross3(edge[1], edge[2], c12), cross3(edge[0], edge[2], c02);
@@ -335,12 +346,14 @@ SceneStats cluster_statistics(const std::vector<AssetMesh>& meshes, const std::v
         s.scene_triangles += m.triangles.size() / 3;
         for (size_t v = 0; v < m.positions.size() / 3; ++v) {
             auto p = transform_point(inst.world, m.positions[v * 3], m.positions[v * 3 + 1], m.positions[v * 3 + 2]);
-            for (int k = 0; k < 3; ++k) s.bounds_min[k] = std::min(s.bounds_min[k], p[k]), s.bounds_max[k] = std::max(s.bounds_max[k], p[k]);
+            for (int k = 0; k < 3; ++k)
+                s.bounds_min[k] = std::min(s.bounds_min[k], p[k]), s.bounds_max[k] = std::max(s.bounds_max[k], p[k]);
         }
     }
     if (!(s.bounds_min[0] <= s.bounds_max[0]))
         for (int k = 0; k < 3; ++k) s.bounds_min[k] = s.bounds_max[k] = 0;
-    double e[3] = {s.bounds_max[0] - s.bounds_min[0], s.bounds_max[1] - s.bounds_min[1], s.bounds_max[2] - s.bounds_min[2]};
+    double e[3] = {s.bounds_max[0] - s.bounds_min[0], s.bounds_max[1] - s.bounds_min[1],
+                   s.bounds_max[2] - s.bounds_min[2]};
     double scene_volume = e[0] * e[1] * e[2], scene_area = 2 * (e[0] * e[1] + e[1] * e[2] + e[0] * e[2]);
 
     std::vector<MeshContext> contexts(meshes.size());
@@ -352,10 +365,12 @@ SceneStats cluster_statistics(const std::vector<AssetMesh>& meshes, const std::v
         c.weld = welded_ids(mesh.positions);
         size_t tris = mesh.triangles.size() / 3;
         s.triangles += tris;
-        acmr_weighted += fifo_acmr(mesh.triangles.data(), tris, mesh.positions.size() / 3, options.acmr_cache) * double(tris);
+        acmr_weighted +=
+            fifo_acmr(mesh.triangles.data(), tris, mesh.positions.size() / 3, options.acmr_cache) * double(tris);
         for (int k = 0; k < 3; ++k) c.lo[k] = INFINITY, c.hi[k] = -INFINITY;
         for (size_t v = 0; v < mesh.positions.size(); ++v)
-            c.lo[v % 3] = std::min(c.lo[v % 3], double(mesh.positions[v])), c.hi[v % 3] = std::max(c.hi[v % 3], double(mesh.positions[v]));
+            c.lo[v % 3] = std::min(c.lo[v % 3], double(mesh.positions[v])),
+                     c.hi[v % 3] = std::max(c.hi[v % 3], double(mesh.positions[v]));
         if (mesh.positions.empty())
             for (int k = 0; k < 3; ++k) c.lo[k] = c.hi[k] = 0;
         // Lights in the box three times the mesh bounds (padded by the largest side on every axis, so flat
@@ -383,34 +398,40 @@ namespace {
 nlohmann::json number(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); }
 
 nlohmann::json to_json(const Distribution& d) {
-    return {{"min", d.min}, {"mean", d.mean}, {"max", d.max}, {"histogram", {{"first", d.first}, {"width", d.width}, {"counts", d.counts}}}};
+    return {{"min", d.min},
+            {"mean", d.mean},
+            {"max", d.max},
+            {"histogram", {{"first", d.first}, {"width", d.width}, {"counts", d.counts}}}};
 }
 
 nlohmann::json to_json(const LevelStats& l) {
-    return {{"clusters", l.clusters},
-            {"triangles", to_json(l.triangles)},
-            {"vertices", to_json(l.vertices)},
-            {"vertices_per_triangle", number(l.vertices_per_triangle)},
-            {"components", to_json(l.components)},
-            {"clusters_with_several_components", l.split_clusters},
-            {"obb", {{"volume_sum", number(l.obb_volume_sum)},
-                     {"volume_mean", number(l.obb_volume_mean)},
-                     {"area_sum", number(l.obb_area_sum)},
-                     {"area_mean", number(l.obb_area_mean)},
-                     {"volume_relative_to_scene", number(l.obb_volume_relative)},
-                     {"area_relative_to_scene", number(l.obb_area_relative)}}},
-            {"sphere_volume_over_obb", number(l.sphere_over_obb)},
-            {"capsule_volume_over_obb", number(l.capsule_over_obb)},
-            {"sphere_volume_over_obb_median", number(l.sphere_over_obb_median)},
-            {"capsule_volume_over_obb_median", number(l.capsule_over_obb_median)},
-            {"fill", number(l.fill)},
-            {"fill_mean", number(l.fill_mean)},
-            {"normal_cone_degrees", l.normal_cone_degrees.count ? to_json(l.normal_cone_degrees) : nlohmann::json(nullptr)},
-            {"no_cone_share", number(l.no_cone_share)},
-            {"light_skip_share", number(l.light_skip_share)},
-            {"shadow_volume", {{"useless_share", number(l.useless_share)},
-                               {"samples", l.volume_samples},
-                               {"no_volume_share", number(l.no_volume_share)}}}};
+    return {
+        {"clusters", l.clusters},
+        {"triangles", to_json(l.triangles)},
+        {"vertices", to_json(l.vertices)},
+        {"vertices_per_triangle", number(l.vertices_per_triangle)},
+        {"components", to_json(l.components)},
+        {"clusters_with_several_components", l.split_clusters},
+        {"obb",
+         {{"volume_sum", number(l.obb_volume_sum)},
+          {"volume_mean", number(l.obb_volume_mean)},
+          {"area_sum", number(l.obb_area_sum)},
+          {"area_mean", number(l.obb_area_mean)},
+          {"volume_relative_to_scene", number(l.obb_volume_relative)},
+          {"area_relative_to_scene", number(l.obb_area_relative)}}},
+        {"sphere_volume_over_obb", number(l.sphere_over_obb)},
+        {"capsule_volume_over_obb", number(l.capsule_over_obb)},
+        {"sphere_volume_over_obb_median", number(l.sphere_over_obb_median)},
+        {"capsule_volume_over_obb_median", number(l.capsule_over_obb_median)},
+        {"fill", number(l.fill)},
+        {"fill_mean", number(l.fill_mean)},
+        {"normal_cone_degrees", l.normal_cone_degrees.count ? to_json(l.normal_cone_degrees) : nlohmann::json(nullptr)},
+        {"no_cone_share", number(l.no_cone_share)},
+        {"light_skip_share", number(l.light_skip_share)},
+        {"shadow_volume",
+         {{"useless_share", number(l.useless_share)},
+          {"samples", l.volume_samples},
+          {"no_volume_share", number(l.no_volume_share)}}}};
 }
 
 std::string fmt(const char* format, double x) {
@@ -426,8 +447,10 @@ std::string histogram_text(const Distribution& d, bool integer) {
         if (!d.counts[i]) continue;
         double a = d.first + double(i) * d.width, b = a + d.width - (integer ? 1 : 0);
         char buf[96];
-        if (integer && a == b) std::snprintf(buf, sizeof buf, " %g:%llu", a, (unsigned long long)d.counts[i]);
-        else std::snprintf(buf, sizeof buf, " %g-%g:%llu", a, b, (unsigned long long)d.counts[i]);
+        if (integer && a == b)
+            std::snprintf(buf, sizeof buf, " %g:%llu", a, (unsigned long long)d.counts[i]);
+        else
+            std::snprintf(buf, sizeof buf, " %g-%g:%llu", a, b, (unsigned long long)d.counts[i]);
         out += buf;
     }
     return out;
@@ -440,8 +463,9 @@ nlohmann::json to_json(const SceneStats& s) {
             {"instances", s.instances},
             {"triangles", s.triangles},
             {"scene_triangles", s.scene_triangles},
-            {"world_bounds", {{"min", {s.bounds_min[0], s.bounds_min[1], s.bounds_min[2]}},
-                              {"max", {s.bounds_max[0], s.bounds_max[1], s.bounds_max[2]}}}},
+            {"world_bounds",
+             {{"min", {s.bounds_min[0], s.bounds_min[1], s.bounds_min[2]}},
+              {"max", {s.bounds_max[0], s.bounds_max[1], s.bounds_max[2]}}}},
             {"acmr", {{"cache", s.acmr_cache}, {"fifo", s.acmr}}},
             {"options", {{"lights", s.options.lights}, {"samples", s.options.samples}, {"seed", s.options.seed}}},
             {"coarse", to_json(s.coarse)},
@@ -451,41 +475,49 @@ nlohmann::json to_json(const SceneStats& s) {
 std::string to_text(const SceneStats& s) {
     std::string out;
     char buf[512];
-    std::snprintf(buf, sizeof buf, "  meshes %llu, instances %llu, triangles %llu stored, %llu in scene; ACMR (FIFO %u) of the cluster order %.3f\n",
+    std::snprintf(buf, sizeof buf,
+                  "  meshes %llu, instances %llu, triangles %llu stored, %llu in scene; ACMR (FIFO %u) of the cluster "
+                  "order %.3f\n",
                   (unsigned long long)s.meshes, (unsigned long long)s.instances, (unsigned long long)s.triangles,
                   (unsigned long long)s.scene_triangles, s.acmr_cache, s.acmr);
     out += buf;
     for (auto [name, l] : {std::pair{"coarse", &s.coarse}, std::pair{"fine", &s.fine}}) {
         std::snprintf(buf, sizeof buf, "  %s: %llu clusters\n", name, (unsigned long long)l->clusters);
         out += buf;
-        std::snprintf(buf, sizeof buf, "    triangles per cluster %g / %.2f / %g (min / mean / max);%s\n", l->triangles.min,
-                      l->triangles.mean, l->triangles.max, histogram_text(l->triangles, true).c_str());
+        std::snprintf(buf, sizeof buf, "    triangles per cluster %g / %.2f / %g (min / mean / max);%s\n",
+                      l->triangles.min, l->triangles.mean, l->triangles.max,
+                      histogram_text(l->triangles, true).c_str());
         out += buf;
-        std::snprintf(buf, sizeof buf, "    vertices per cluster %g / %.2f / %g (%.3f per triangle);%s\n", l->vertices.min,
-                      l->vertices.mean, l->vertices.max, l->vertices_per_triangle, histogram_text(l->vertices, true).c_str());
+        std::snprintf(buf, sizeof buf, "    vertices per cluster %g / %.2f / %g (%.3f per triangle);%s\n",
+                      l->vertices.min, l->vertices.mean, l->vertices.max, l->vertices_per_triangle,
+                      histogram_text(l->vertices, true).c_str());
         out += buf;
-        std::snprintf(buf, sizeof buf, "    connected components %g / %.3f / %g; %llu clusters of several;%s\n", l->components.min,
-                      l->components.mean, l->components.max, (unsigned long long)l->split_clusters,
+        std::snprintf(buf, sizeof buf, "    connected components %g / %.3f / %g; %llu clusters of several;%s\n",
+                      l->components.min, l->components.mean, l->components.max, (unsigned long long)l->split_clusters,
                       histogram_text(l->components, true).c_str());
         out += buf;
         out += "    OBB volume sum " + fmt("%.6g", l->obb_volume_sum) + ", mean " + fmt("%.6g", l->obb_volume_mean) +
-               ", relative to the scene box " + fmt("%.4f", l->obb_volume_relative) + "\n";
+            ", relative to the scene box " + fmt("%.4f", l->obb_volume_relative) + "\n";
         out += "    OBB area sum " + fmt("%.6g", l->obb_area_sum) + ", mean " + fmt("%.6g", l->obb_area_mean) +
-               ", relative to the scene box " + fmt("%.4f", l->obb_area_relative) + "\n";
-        out += "    sphere / OBB volume " + fmt("%.3f", l->sphere_over_obb) + " (median per cluster " + fmt("%.3f", l->sphere_over_obb_median) +
-               "), capsule / OBB volume " + fmt("%.3f", l->capsule_over_obb) + " (median " + fmt("%.3f", l->capsule_over_obb_median) +
-               ")\n    fill (triangle area / OBB surface) " + fmt("%.3f", l->fill) +
-               " (mean per cluster " + fmt("%.3f", l->fill_mean) + ")\n";
+            ", relative to the scene box " + fmt("%.4f", l->obb_area_relative) + "\n";
+        out += "    sphere / OBB volume " + fmt("%.3f", l->sphere_over_obb) + " (median per cluster " +
+            fmt("%.3f", l->sphere_over_obb_median) + "), capsule / OBB volume " + fmt("%.3f", l->capsule_over_obb) +
+            " (median " + fmt("%.3f", l->capsule_over_obb_median) + ")\n    fill (triangle area / OBB surface) " +
+            fmt("%.3f", l->fill) + " (mean per cluster " + fmt("%.3f", l->fill_mean) + ")\n";
         if (l->normal_cone_degrees.count)
-            std::snprintf(buf, sizeof buf, "    normal cones: widest normal %.1f / %.1f / %.1f degrees;%s; no valid cone %s\n",
-                          l->normal_cone_degrees.min, l->normal_cone_degrees.mean, l->normal_cone_degrees.max,
-                          histogram_text(l->normal_cone_degrees, false).c_str(), fmt("%.1f%%", 100 * l->no_cone_share).c_str());
+            std::snprintf(
+                buf, sizeof buf, "    normal cones: widest normal %.1f / %.1f / %.1f degrees;%s; no valid cone %s\n",
+                l->normal_cone_degrees.min, l->normal_cone_degrees.mean, l->normal_cone_degrees.max,
+                histogram_text(l->normal_cone_degrees, false).c_str(), fmt("%.1f%%", 100 * l->no_cone_share).c_str());
         else
-            std::snprintf(buf, sizeof buf, "    normal cones: none valid; no valid cone %s\n", fmt("%.1f%%", 100 * l->no_cone_share).c_str());
+            std::snprintf(buf, sizeof buf, "    normal cones: none valid; no valid cone %s\n",
+                          fmt("%.1f%%", 100 * l->no_cone_share).c_str());
         out += buf;
         out += "    a light skips " + fmt("%.1f%%", 100 * l->light_skip_share) + " of clusters (one-sided, mean over " +
-               std::to_string(s.options.lights) + " lights)\n";
-        std::snprintf(buf, sizeof buf, "    shadow volumes: %s of %llu sampled points are not shadowed by their cluster; no volume for %s of (cluster, light)\n",
+            std::to_string(s.options.lights) + " lights)\n";
+        std::snprintf(buf, sizeof buf,
+                      "    shadow volumes: %s of %llu sampled points are not shadowed by their cluster; no volume for "
+                      "%s of (cluster, light)\n",
                       fmt("%.1f%%", 100 * l->useless_share).c_str(), (unsigned long long)l->volume_samples,
                       fmt("%.1f%%", 100 * l->no_volume_share).c_str());
         out += buf;

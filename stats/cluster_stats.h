@@ -27,7 +27,7 @@ struct StatsOptions {
     uint32_t samples = 32;     // points sampled in each cluster's shadow volume, per light
     uint32_t acmr_cache = 32;  // FIFO cache size for the ACMR of the cluster order
     uint64_t seed = 1;
-    unsigned threads = 0;      // 0: all hardware threads (figures do not depend on it)
+    unsigned threads = 0;  // 0: all hardware threads (figures do not depend on it)
 };
 
 // min / mean / max of a per-cluster figure and a histogram of it: counts[i] holds values in
@@ -48,16 +48,17 @@ struct LevelStats {
     double vertices_per_triangle = 0;              // sum of distinct vertices / triangles (a per-cluster ACMR)
 
     double obb_volume_sum = NAN, obb_volume_mean = NAN, obb_area_sum = NAN, obb_area_mean = NAN;  // mesh frames
-    double obb_volume_relative = NAN, obb_area_relative = NAN;  // world, over instances, / scene box
-    double sphere_over_obb = NAN, capsule_over_obb = NAN;       // summed volumes over summed OBB volumes
+    double obb_volume_relative = NAN, obb_area_relative = NAN;           // world, over instances, / scene box
+    double sphere_over_obb = NAN, capsule_over_obb = NAN;                // summed volumes over summed OBB volumes
     double sphere_over_obb_median = NAN, capsule_over_obb_median = NAN;  // per cluster (flat boxes left out)
-    double fill = NAN, fill_mean = NAN;                         // triangle area / OBB surface: summed, per cluster
-    Distribution normal_cone_degrees;  // valid cones: the widest normal from the axis (90 degrees - the front half-angle)
-    double no_cone_share = NAN;        // clusters without a valid cone
-    double light_skip_share = NAN;     // clusters a light skips (one-sided, light in the front cone), mean over lights
-    double useless_share = NAN;        // sampled points in a cluster's shadow volume its triangles do not shadow
-    uint64_t volume_samples = 0;       // how many points that share is over
-    double no_volume_share = NAN;      // (cluster, light) pairs with no shadow volume (light in or level with the box)
+    double fill = NAN, fill_mean = NAN;  // triangle area / OBB surface: summed, per cluster
+    Distribution
+        normal_cone_degrees;        // valid cones: the widest normal from the axis (90 degrees - the front half-angle)
+    double no_cone_share = NAN;     // clusters without a valid cone
+    double light_skip_share = NAN;  // clusters a light skips (one-sided, light in the front cone), mean over lights
+    double useless_share = NAN;     // sampled points in a cluster's shadow volume its triangles do not shadow
+    uint64_t volume_samples = 0;    // how many points that share is over
+    double no_volume_share = NAN;   // (cluster, light) pairs with no shadow volume (light in or level with the box)
 };
 
 struct SceneStats {

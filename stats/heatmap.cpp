@@ -26,10 +26,11 @@ void ramp(double t, uint8_t* rgb) {
 
 std::string Heatmap::caption() const {
     char buf[320];
-    std::snprintf(buf, sizeof buf,
-                  "Useless cluster tests per pixel (light at %.4g, %.4g, %.4g): k-means (left) mean %.2f, VCO (right) mean %.2f "
-                  "over %llu pixels; colour bar from 0 (dark) to %u or more (bright); grey: no surface",
-                  light[0], light[1], light[2], mean_useless[0], mean_useless[1], (unsigned long long)pixels, scale_max);
+    std::snprintf(
+        buf, sizeof buf,
+        "Useless cluster tests per pixel (light at %.4g, %.4g, %.4g): k-means (left) mean %.2f, VCO (right) mean %.2f "
+        "over %llu pixels; colour bar from 0 (dark) to %u or more (bright); grey: no surface",
+        light[0], light[1], light[2], mean_useless[0], mean_useless[1], (unsigned long long)pixels, scale_max);
     return buf;
 }
 
@@ -50,14 +51,16 @@ Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options) {
             for (const Instance& inst : baked.instances) {
                 const AssetMesh& m = baked.meshes[inst.mesh];
                 for (size_t v = 0; v < m.positions.size() / 3; ++v) {
-                    auto p = transform_point(inst.world, m.positions[v * 3], m.positions[v * 3 + 1], m.positions[v * 3 + 2]);
+                    auto p =
+                        transform_point(inst.world, m.positions[v * 3], m.positions[v * 3 + 1], m.positions[v * 3 + 2]);
                     for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
                 }
             }
             if (!(lo[0] <= hi[0])) return h;
             Camera cam = default_camera(lo, hi, options.size, options.size);
             hits = first_hits(baked, cam, c.threads);
-            if (options.has_light) std::copy(options.light, options.light + 3, h.light);
+            if (options.has_light)
+                std::copy(options.light, options.light + 3, h.light);
             else {
                 std::vector<double> l = report_lights(lo, hi, 1);
                 std::copy(l.begin(), l.end(), h.light);
@@ -71,7 +74,8 @@ Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options) {
     std::vector<uint32_t> all(counts[0]);
     all.insert(all.end(), counts[1].begin(), counts[1].end());
     std::sort(all.begin(), all.end());
-    h.scale_max = std::max<uint32_t>(1, all.empty() ? 1 : all[std::min(all.size() - 1, size_t(0.99 * double(all.size())))]);
+    h.scale_max =
+        std::max<uint32_t>(1, all.empty() ? 1 : all[std::min(all.size() - 1, size_t(0.99 * double(all.size())))]);
     for (int panel = 0; panel < 2; ++panel) {
         double sum = 0;
         for (uint32_t v : counts[panel]) sum += v;

@@ -13,20 +13,20 @@
 namespace cb {
 
 struct HeatmapOptions {
-    ClusterOptions clustering;       // method is set per panel
+    ClusterOptions clustering;  // method is set per panel
     ObbMethod obb = ObbMethod::refined;
-    uint32_t size = 256;             // each panel is size x size
+    uint32_t size = 256;  // each panel is size x size
     bool has_light = false;
-    double light[3] = {0, 0, 0};     // world; default: the report's first light
+    double light[3] = {0, 0, 0};  // world; default: the report's first light
     bool one_sided = false;
 };
 
 struct Heatmap {
     std::vector<uint8_t> png;
     uint32_t width = 0, height = 0;
-    uint32_t scale_max = 0;          // the colour ramp's top (brightest): this many useless tests or more
-    double mean_useless[2] = {0, 0}; // per covered pixel: k-means, VCO
-    uint64_t pixels = 0;             // pixels that see the scene
+    uint32_t scale_max = 0;           // the colour ramp's top (brightest): this many useless tests or more
+    double mean_useless[2] = {0, 0};  // per covered pixel: k-means, VCO
+    uint64_t pixels = 0;              // pixels that see the scene
     double light[3] = {0, 0, 0};
     std::string caption() const;
 };

@@ -23,12 +23,13 @@ namespace cb {
 
 std::vector<double> report_lights(const double* lo, const double* hi, uint32_t count) {
     // Directions from the centre, in units of the box's largest side: all outside the box.
-    static const double offsets[6][3] = {{-0.8, 1.5, 0.3}, {1.4, 0.6, -0.9}, {0.2, 1.8, 1.3},
+    static const double offsets[6][3] = {{-0.8, 1.5, 0.3},   {1.4, 0.6, -0.9}, {0.2, 1.8, 1.3},
                                          {-1.3, -0.2, -1.1}, {0.9, -1.2, 1.0}, {-0.3, 0.9, -1.6}};
     double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-30});
     std::vector<double> out;
     for (uint32_t i = 0; i < count; ++i)
-        for (int k = 0; k < 3; ++k) out.push_back(0.5 * (lo[k] + hi[k]) + offsets[i % 6][k] * size * (1 + 0.25 * (i / 6)));
+        for (int k = 0; k < 3; ++k)
+            out.push_back(0.5 * (lo[k] + hi[k]) + offsets[i % 6][k] * size * (1 + 0.25 * (i / 6)));
     return out;
 }
 
@@ -89,15 +90,19 @@ void recommend(Report& r) {
     std::string runner_up;
     if (n > 1) {
         char b[160];
-        std::snprintf(b, sizeof b, "; next: %s at %.1f%%", r.scenes[0].configs[second].name().c_str(), 100 * (std::exp(score[second]) - 1));
+        std::snprintf(b, sizeof b, "; next: %s at %.1f%%", r.scenes[0].configs[second].name().c_str(),
+                      100 * (std::exp(score[second]) - 1));
         runner_up = b;
     }
     char buf[640];
     std::snprintf(buf, sizeof buf,
-                  "lowest runtime cost: its frame time (per-light tree build plus one query per visible point of a %ux%u view) is %.1f%% "
-                  "above each scene's best, in geometric mean over %zu scene(s)%s%s; asset %.1f bytes per triangle; bake time %.3f s in all",
+                  "lowest runtime cost: its frame time (per-light tree build plus one query per visible point of a "
+                  "%ux%u view) is %.1f%% "
+                  "above each scene's best, in geometric mean over %zu scene(s)%s%s; asset %.1f bytes per triangle; "
+                  "bake time %.3f s in all",
                   r.options.frame_view, r.options.frame_view, 100 * (std::exp(score[pick]) - 1), r.scenes.size(),
-                  pick != best ? " (within 3% of the fastest, with a smaller asset)" : "", runner_up.c_str(), bytes[pick], bake[pick]);
+                  pick != best ? " (within 3% of the fastest, with a smaller asset)" : "", runner_up.c_str(),
+                  bytes[pick], bake[pick]);
     r.recommended = r.scenes[0].configs[pick].name();
     r.recommendation_reason = buf;
 }
@@ -121,7 +126,8 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
             const Mesh& m = scene.meshes[inst.mesh];
             s.triangles += m.triangle_count();
             for (size_t v = 0; v < m.vertex_count(); ++v) {
-                auto p = transform_point(inst.world, m.positions[v * 3], m.positions[v * 3 + 1], m.positions[v * 3 + 2]);
+                auto p =
+                    transform_point(inst.world, m.positions[v * 3], m.positions[v * 3 + 1], m.positions[v * 3 + 2]);
                 for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
             }
         }
@@ -133,7 +139,8 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
         base.threads = o.threads;
         BoundsOptions auto_bounds;
         auto_bounds.mask = bounds_auto;
-        std::vector<double> points = hit_points(first_hits(bake_in_memory(scene, base, auto_bounds), default_camera(lo, hi, o.view, o.view), o.threads));
+        std::vector<double> points = hit_points(
+            first_hits(bake_in_memory(scene, base, auto_bounds), default_camera(lo, hi, o.view, o.view), o.threads));
         s.points = points.size() / 3;
 
         size_t total = o.methods.size() * o.fine_sizes.size() * o.obbs.size(), done = 0;
@@ -160,7 +167,9 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                 for (ObbMethod obb : o.obbs) {
                     ConfigResult c;
                     c.method = method, c.fine_size = fine, c.obb = obb;
-                    if (progress) progress(s.name + ": " + c.name() + " (" + std::to_string(++done) + "/" + std::to_string(total) + ")");
+                    if (progress)
+                        progress(s.name + ": " + c.name() + " (" + std::to_string(++done) + "/" +
+                                 std::to_string(total) + ")");
                     ClusterOptions co = base;
                     co.method = method, co.fine_size = fine;
                     BoundsOptions bo = auto_bounds;
@@ -194,11 +203,13 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                     if (interleave) {
                         assets.push_back(std::move(asset));
                     } else {
-                        for (int round = 0; round < std::max(1, o.query_runs); ++round) measure_round(s.configs.size() - 1, asset.view);
+                        for (int round = 0; round < std::max(1, o.query_runs); ++round)
+                            measure_round(s.configs.size() - 1, asset.view);
                     }
                 }
         for (int round = 0; interleave && round < std::max(1, o.query_runs); ++round) {
-            if (progress) progress(s.name + ": runtime round " + std::to_string(round + 1) + "/" + std::to_string(o.query_runs));
+            if (progress)
+                progress(s.name + ": runtime round " + std::to_string(round + 1) + "/" + std::to_string(o.query_runs));
             for (size_t i = 0; i < s.configs.size(); ++i) measure_round(i, assets[i].view);
         }
         for (size_t i = 0; i < s.configs.size(); ++i) {
@@ -243,7 +254,7 @@ std::string base64(const std::vector<uint8_t>& bytes) {
     std::string out;
     for (size_t i = 0; i < bytes.size(); i += 3) {
         uint32_t v = uint32_t(bytes[i]) << 16 | (i + 1 < bytes.size() ? uint32_t(bytes[i + 1]) << 8 : 0) |
-                     (i + 2 < bytes.size() ? bytes[i + 2] : 0);
+            (i + 2 < bytes.size() ? bytes[i + 2] : 0);
         out += table[v >> 18 & 63];
         out += table[v >> 12 & 63];
         out += i + 1 < bytes.size() ? table[v >> 6 & 63] : '=';
@@ -303,21 +314,27 @@ std::string report_table(const Report& r) {
     char buf[512];
     for (const SceneReport& s : r.scenes) {
         Fronts f = fronts(s, r.options);
-        std::snprintf(buf, sizeof buf, "%s: %llu triangles, %llu query points (%ux%u view; frame ms for %ux%u), %u light(s)\n\n",
-                      s.file.c_str(), (unsigned long long)s.triangles, (unsigned long long)s.points, r.options.view, r.options.view,
-                      r.options.frame_view, r.options.frame_view, r.options.lights);
+        std::snprintf(buf, sizeof buf,
+                      "%s: %llu triangles, %llu query points (%ux%u view; frame ms for %ux%u), %u light(s)\n\n",
+                      s.file.c_str(), (unsigned long long)s.triangles, (unsigned long long)s.points, r.options.view,
+                      r.options.view, r.options.frame_view, r.options.frame_view, r.options.lights);
         out += buf;
-        out += "| config | fine clusters | bytes / triangle | bake ms | fine OBB vol / scene | useless volume share | build ms | M queries/s | "
-               "clusters / query | useless / query | triangles / query | frame ms | Pareto |\n";
+        out +=
+            "| config | fine clusters | bytes / triangle | bake ms | fine OBB vol / scene | useless volume share | "
+            "build ms | M queries/s | "
+            "clusters / query | useless / query | triangles / query | frame ms | Pareto |\n";
         out += "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
-            std::string pareto = std::string(f.bake[i] ? "bake" : "") + (f.bake[i] && f.frame[i] ? "+" : "") + (f.frame[i] ? "frame" : "");
-            std::snprintf(buf, sizeof buf, "| %s%s | %llu | %.1f | %.1f | %.4f | %.1f%% | %.2f | %.3f | %.2f | %.2f | %.1f | %.2f | %s |\n",
-                          c.name().c_str(), c.name() == r.recommended ? " (recommended)" : "", (unsigned long long)c.fine_clusters,
-                          c.bytes_per_triangle, c.bake_seconds() * 1e3, c.obb_volume_relative, 100 * c.useless_share, c.build_seconds * 1e3,
-                          c.queries_per_second / 1e6, c.clusters_per_query, c.useless_per_query, c.triangles_per_query,
-                          frame_of(s, c) * 1e3, pareto.c_str());
+            std::string pareto = std::string(f.bake[i] ? "bake" : "") + (f.bake[i] && f.frame[i] ? "+" : "") +
+                (f.frame[i] ? "frame" : "");
+            std::snprintf(
+                buf, sizeof buf,
+                "| %s%s | %llu | %.1f | %.1f | %.4f | %.1f%% | %.2f | %.3f | %.2f | %.2f | %.1f | %.2f | %s |\n",
+                c.name().c_str(), c.name() == r.recommended ? " (recommended)" : "",
+                (unsigned long long)c.fine_clusters, c.bytes_per_triangle, c.bake_seconds() * 1e3,
+                c.obb_volume_relative, 100 * c.useless_share, c.build_seconds * 1e3, c.queries_per_second / 1e6,
+                c.clusters_per_query, c.useless_per_query, c.triangles_per_query, frame_of(s, c) * 1e3, pareto.c_str());
             out += buf;
         }
         out += "\n";
@@ -330,9 +347,18 @@ nlohmann::json report_json(const Report& r) {
     const ReportOptions& o = r.options;
     nlohmann::json j;
     j["machine"] = {{"cpu", r.cpu}, {"cores", r.cores}};
-    j["options"] = {{"methods", nlohmann::json::array()}, {"fine_sizes", o.fine_sizes}, {"obbs", nlohmann::json::array()},
-                    {"coarse_size", o.coarse_size}, {"runs", o.runs}, {"query_runs", o.query_runs}, {"view", o.view}, {"frame_view", o.frame_view}, {"lights", o.lights},
-                    {"one_sided", o.one_sided}, {"stats_lights", o.stats.lights}, {"stats_samples", o.stats.samples},
+    j["options"] = {{"methods", nlohmann::json::array()},
+                    {"fine_sizes", o.fine_sizes},
+                    {"obbs", nlohmann::json::array()},
+                    {"coarse_size", o.coarse_size},
+                    {"runs", o.runs},
+                    {"query_runs", o.query_runs},
+                    {"view", o.view},
+                    {"frame_view", o.frame_view},
+                    {"lights", o.lights},
+                    {"one_sided", o.one_sided},
+                    {"stats_lights", o.stats.lights},
+                    {"stats_samples", o.stats.samples},
                     {"threads", o.threads}};
     for (ClusterMethod m : o.methods) j["options"]["methods"].push_back(method_name(m));
     for (ObbMethod m : o.obbs) j["options"]["obbs"].push_back(obb_method_name(m));
@@ -341,25 +367,37 @@ nlohmann::json report_json(const Report& r) {
     j["scenes"] = nlohmann::json::array();
     for (const SceneReport& s : r.scenes) {
         Fronts f = fronts(s, o);
-        nlohmann::json js = {{"file", s.file}, {"name", s.name}, {"triangles", s.triangles}, {"instances", s.instances},
-                             {"points", s.points}, {"lights", s.lights}, {"configs", nlohmann::json::array()}};
+        nlohmann::json js = {
+            {"file", s.file},     {"name", s.name},     {"triangles", s.triangles},          {"instances", s.instances},
+            {"points", s.points}, {"lights", s.lights}, {"configs", nlohmann::json::array()}};
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
             auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
-            js["configs"].push_back({{"name", c.name()}, {"method", method_name(c.method)}, {"fine_size", c.fine_size},
-                                     {"obb", obb_method_name(c.obb)}, {"fine_clusters", c.fine_clusters},
-                                     {"coarse_clusters", c.coarse_clusters}, {"bytes_per_triangle", c.bytes_per_triangle},
+            js["configs"].push_back({{"name", c.name()},
+                                     {"method", method_name(c.method)},
+                                     {"fine_size", c.fine_size},
+                                     {"obb", obb_method_name(c.obb)},
+                                     {"fine_clusters", c.fine_clusters},
+                                     {"coarse_clusters", c.coarse_clusters},
+                                     {"bytes_per_triangle", c.bytes_per_triangle},
                                      {"cluster_seconds", c.cluster_seconds},
-                                     {"fit_seconds", c.fit_seconds}, {"bake_seconds", c.bake_seconds()},
+                                     {"fit_seconds", c.fit_seconds},
+                                     {"bake_seconds", c.bake_seconds()},
                                      {"fine_obb_volume_relative", num(c.obb_volume_relative)},
-                                     {"useless_volume_share", num(c.useless_share)}, {"build_seconds", c.build_seconds},
-                                     {"queries_per_second", c.queries_per_second}, {"nodes_per_query", c.nodes_per_query},
-                                     {"clusters_per_query", c.clusters_per_query}, {"useless_per_query", c.useless_per_query},
-                                     {"triangles_per_query", c.triangles_per_query}, {"shadowed_share", c.shadowed_share},
-                                     {"frame_seconds", frame_of(s, c)}, {"pareto_bake", bool(f.bake[i])},
+                                     {"useless_volume_share", num(c.useless_share)},
+                                     {"build_seconds", c.build_seconds},
+                                     {"queries_per_second", c.queries_per_second},
+                                     {"nodes_per_query", c.nodes_per_query},
+                                     {"clusters_per_query", c.clusters_per_query},
+                                     {"useless_per_query", c.useless_per_query},
+                                     {"triangles_per_query", c.triangles_per_query},
+                                     {"shadowed_share", c.shadowed_share},
+                                     {"frame_seconds", frame_of(s, c)},
+                                     {"pareto_bake", bool(f.bake[i])},
                                      {"pareto_frame", bool(f.frame[i])}});
         }
-        if (!s.heatmap_png.empty()) js["heatmap"] = {{"file", "heatmap-" + s.name + ".png"}, {"caption", s.heatmap_caption}};
+        if (!s.heatmap_png.empty())
+            js["heatmap"] = {{"file", "heatmap-" + s.name + ".png"}, {"caption", s.heatmap_caption}};
         j["scenes"].push_back(js);
     }
     return j;
@@ -378,21 +416,24 @@ std::string csv_field(const std::string& s) {
 }  // namespace
 
 std::string report_csv(const Report& r) {
-    std::string out = "scene,method,fine_size,obb,fine_clusters,coarse_clusters,bytes_per_triangle,cluster_seconds,fit_seconds,fine_obb_volume_relative,"
-                      "useless_volume_share,build_seconds,queries_per_second,nodes_per_query,clusters_per_query,useless_per_query,"
-                      "triangles_per_query,shadowed_share,frame_seconds,pareto_bake,pareto_frame\n";
+    std::string out =
+        "scene,method,fine_size,obb,fine_clusters,coarse_clusters,bytes_per_triangle,cluster_seconds,fit_seconds,fine_"
+        "obb_volume_relative,"
+        "useless_volume_share,build_seconds,queries_per_second,nodes_per_query,clusters_per_query,useless_per_query,"
+        "triangles_per_query,shadowed_share,frame_seconds,pareto_bake,pareto_frame\n";
     char buf[640];
     for (const SceneReport& s : r.scenes) {
         Fronts f = fronts(s, r.options);
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
             out += csv_field(s.name) + ",";
-            std::snprintf(buf, sizeof buf, "%s,%u,%s,%llu,%llu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%d,%d\n",
+            std::snprintf(buf, sizeof buf,
+                          "%s,%u,%s,%llu,%llu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%d,%d\n",
                           method_name(c.method), c.fine_size, obb_method_name(c.obb),
-                          (unsigned long long)c.fine_clusters, (unsigned long long)c.coarse_clusters, c.bytes_per_triangle,
-                          c.cluster_seconds,
-                          c.fit_seconds, c.obb_volume_relative, c.useless_share, c.build_seconds, c.queries_per_second,
-                          c.nodes_per_query, c.clusters_per_query, c.useless_per_query, c.triangles_per_query, c.shadowed_share,
+                          (unsigned long long)c.fine_clusters, (unsigned long long)c.coarse_clusters,
+                          c.bytes_per_triangle, c.cluster_seconds, c.fit_seconds, c.obb_volume_relative,
+                          c.useless_share, c.build_seconds, c.queries_per_second, c.nodes_per_query,
+                          c.clusters_per_query, c.useless_per_query, c.triangles_per_query, c.shadowed_share,
                           frame_of(s, c), int(f.bake[i]), int(f.frame[i]));
             out += buf;
         }
@@ -402,26 +443,37 @@ std::string report_csv(const Report& r) {
 
 std::string report_html(const Report& r) {
     const ReportOptions& o = r.options;
-    std::string h = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>clusterbake report</title>\n<style>\n"
-                    "body{font-family:sans-serif;margin:24px;color:#222;max-width:1240px}\n"
-                    "table{border-collapse:collapse;font-size:13px;margin:8px 0 24px}\n"
-                    "th,td{border:1px solid #ccc;padding:3px 7px;text-align:right}\nth{background:#f0f0f0}\n"
-                    "td:first-child,th:first-child{text-align:left}\ntr.recommended td{background:#fff6d5;font-weight:bold}\n"
-                    ".plots{display:flex;flex-wrap:wrap;gap:16px}\n.plot{border:1px solid #ddd}\n"
-                    "figure{margin:8px 0}\nfigcaption{font-size:13px;color:#444;max-width:900px}\n"
-                    "</style>\n</head>\n<body>\n<h1>clusterbake: speed against error</h1>\n";
+    std::string h =
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>clusterbake "
+        "report</title>\n<style>\n"
+        "body{font-family:sans-serif;margin:24px;color:#222;max-width:1240px}\n"
+        "table{border-collapse:collapse;font-size:13px;margin:8px 0 24px}\n"
+        "th,td{border:1px solid #ccc;padding:3px 7px;text-align:right}\nth{background:#f0f0f0}\n"
+        "td:first-child,th:first-child{text-align:left}\ntr.recommended td{background:#fff6d5;font-weight:bold}\n"
+        ".plots{display:flex;flex-wrap:wrap;gap:16px}\n.plot{border:1px solid #ddd}\n"
+        "figure{margin:8px 0}\nfigcaption{font-size:13px;color:#444;max-width:900px}\n"
+        "</style>\n</head>\n<body>\n<h1>clusterbake: speed against error</h1>\n";
     h += "<p>Each configuration (clustering method / fine size / box fitter) is baked in memory, timed (median of " +
-         std::to_string(o.runs) + " runs), and its shadow trees (runtime, <code>cb::InstanceShadow</code>) built and queried for every camera-visible "
-         "point. <b>Useless cluster tests</b> per query are tests of a cluster whose triangles did not block the point's "
-         "segment to the light: the cost of loose volumes. <b>Frame</b> time is one light's tree build plus one query per visible point of a " +
-         std::to_string(o.frame_view) + " x " + std::to_string(o.frame_view) + " view (the sample's query time scaled by the pixel count), "
-         "on one thread; runtime timings are the median of " + std::to_string(o.query_runs) + " rounds that each measure every configuration once. "
-         "Lower is better on every axis; the dashed line joins the Pareto front.</p>\n";
+        std::to_string(o.runs) +
+        " runs), and its shadow trees (runtime, <code>cb::InstanceShadow</code>) built and queried for every "
+        "camera-visible "
+        "point. <b>Useless cluster tests</b> per query are tests of a cluster whose triangles did not block the "
+        "point's "
+        "segment to the light: the cost of loose volumes. <b>Frame</b> time is one light's tree build plus one query "
+        "per visible point of a " +
+        std::to_string(o.frame_view) + " x " + std::to_string(o.frame_view) +
+        " view (the sample's query time scaled by the pixel count), "
+        "on one thread; runtime timings are the median of " +
+        std::to_string(o.query_runs) +
+        " rounds that each measure every configuration once. "
+        "Lower is better on every axis; the dashed line joins the Pareto front.</p>\n";
     if (!r.recommended.empty())
         h += "<p class=\"recommendation\"><b>Recommended default: " + html_escape(r.recommended) + "</b> &mdash; " +
-             html_escape(r.recommendation_reason) + ".</p>\n";
+            html_escape(r.recommendation_reason) + ".</p>\n";
     h += "<h2>Machine and options</h2>\n<table class=\"machine\">\n";
-    auto row = [&](const std::string& k, const std::string& v) { h += "<tr><th>" + html_escape(k) + "</th><td>" + html_escape(v) + "</td></tr>\n"; };
+    auto row = [&](const std::string& k, const std::string& v) {
+        h += "<tr><th>" + html_escape(k) + "</th><td>" + html_escape(v) + "</td></tr>\n";
+    };
     row("CPU", r.cpu);
     row("cores (hardware threads)", std::to_string(r.cores));
     row("methods", join_methods(o));
@@ -434,7 +486,8 @@ std::string report_html(const Report& r) {
     row("frame time for a view of", std::to_string(o.frame_view) + " x " + std::to_string(o.frame_view));
     row("lights", std::to_string(o.lights));
     row("occluders", o.one_sided ? "one-sided" : "two-sided");
-    row("shadow-volume samples", std::to_string(o.stats.lights) + " lights x " + std::to_string(o.stats.samples) + " points per cluster");
+    row("shadow-volume samples",
+        std::to_string(o.stats.lights) + " lights x " + std::to_string(o.stats.samples) + " points per cluster");
     row("bake threads", o.threads ? std::to_string(o.threads) : "all");
     h += "</table>\n";
     std::vector<std::string> colours, styles;
@@ -442,33 +495,41 @@ std::string report_html(const Report& r) {
     for (ObbMethod m : o.obbs) styles.push_back(std::string("obb ") + obb_method_name(m));
     for (const SceneReport& s : r.scenes) {
         Fronts f = fronts(s, o);
-        h += "<section class=\"scene\" data-scene=\"" + html_escape(s.name) + "\">\n<h2>" + html_escape(s.name) + "</h2>\n";
+        h += "<section class=\"scene\" data-scene=\"" + html_escape(s.name) + "\">\n<h2>" + html_escape(s.name) +
+            "</h2>\n";
         h += "<p>" + html_escape(s.file) + ": " + std::to_string(s.triangles) + " triangles in the scene, " +
-             std::to_string(s.instances) + " instance(s), " + std::to_string(s.points) + " camera-visible query points, " +
-             std::to_string(s.lights.size() / 3) + " light(s).</p>\n<div class=\"plots\">\n";
-        Plot bake{s.name + ": bake time against error", "bake time per configuration (ms)", "useless cluster tests per query",
-                  plot_points(s, o, false)};
-        Plot frame{s.name + ": runtime cost against error", "frame time: build + queries of a " + std::to_string(o.frame_view) + "x" + std::to_string(o.frame_view) + " view, one light (ms)",
+            std::to_string(s.instances) + " instance(s), " + std::to_string(s.points) +
+            " camera-visible query points, " + std::to_string(s.lights.size() / 3) +
+            " light(s).</p>\n<div class=\"plots\">\n";
+        Plot bake{s.name + ": bake time against error", "bake time per configuration (ms)",
+                  "useless cluster tests per query", plot_points(s, o, false)};
+        Plot frame{s.name + ": runtime cost against error",
+                   "frame time: build + queries of a " + std::to_string(o.frame_view) + "x" +
+                       std::to_string(o.frame_view) + " view, one light (ms)",
                    "useless cluster tests per query", plot_points(s, o, true)};
         h += svg_scatter(bake, colours, styles) + svg_scatter(frame, colours, styles) + "</div>\n";
         if (!s.heatmap_png.empty())
-            h += "<figure class=\"heatmap\"><img alt=\"heat map of useless cluster tests\" src=\"data:image/png;base64," +
-                 base64(s.heatmap_png) + "\"><figcaption>" + html_escape(s.heatmap_caption) + "</figcaption></figure>\n";
-        h += "<table class=\"configs\">\n<tr><th>configuration</th><th>fine clusters</th><th>asset bytes / triangle</th><th>cluster ms</th><th>fit ms</th>"
+            h += "<figure class=\"heatmap\"><img alt=\"heat map of useless cluster tests\" "
+                 "src=\"data:image/png;base64," +
+                base64(s.heatmap_png) + "\"><figcaption>" + html_escape(s.heatmap_caption) + "</figcaption></figure>\n";
+        h += "<table class=\"configs\">\n<tr><th>configuration</th><th>fine clusters</th><th>asset bytes / "
+             "triangle</th><th>cluster ms</th><th>fit ms</th>"
              "<th>fine OBB volume / scene box</th><th>useless share of shadow-volume samples</th><th>tree build ms</th>"
-             "<th>M queries/s</th><th>nodes / query</th><th>clusters / query</th><th>useless / query</th><th>triangles / query</th>"
+             "<th>M queries/s</th><th>nodes / query</th><th>clusters / query</th><th>useless / query</th><th>triangles "
+             "/ query</th>"
              "<th>in shadow</th><th>frame ms</th><th>Pareto</th></tr>\n";
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
             std::string pareto = std::string(f.bake[i] ? "bake " : "") + (f.frame[i] ? "frame" : "");
-            h += std::string("<tr") + (c.name() == r.recommended ? " class=\"recommended\"" : "") + "><td>" + html_escape(c.name()) +
-                 "</td><td>" + std::to_string(c.fine_clusters) + "</td><td>" + fixed(c.bytes_per_triangle, 1) + "</td><td>" + fixed(c.cluster_seconds * 1e3, 1) + "</td><td>" +
-                 fixed(c.fit_seconds * 1e3, 1) + "</td><td>" + fixed(c.obb_volume_relative, 4) + "</td><td>" +
-                 fixed(100 * c.useless_share, 1) + "%</td><td>" + fixed(c.build_seconds * 1e3, 2) + "</td><td>" +
-                 fixed(c.queries_per_second / 1e6, 3) + "</td><td>" + fixed(c.nodes_per_query, 1) + "</td><td>" +
-                 fixed(c.clusters_per_query, 2) + "</td><td>" + fixed(c.useless_per_query, 2) + "</td><td>" +
-                 fixed(c.triangles_per_query, 1) + "</td><td>" + fixed(100 * c.shadowed_share, 1) + "%</td><td>" +
-                 fixed(frame_of(s, c) * 1e3, 2) + "</td><td>" + pareto + "</td></tr>\n";
+            h += std::string("<tr") + (c.name() == r.recommended ? " class=\"recommended\"" : "") + "><td>" +
+                html_escape(c.name()) + "</td><td>" + std::to_string(c.fine_clusters) + "</td><td>" +
+                fixed(c.bytes_per_triangle, 1) + "</td><td>" + fixed(c.cluster_seconds * 1e3, 1) + "</td><td>" +
+                fixed(c.fit_seconds * 1e3, 1) + "</td><td>" + fixed(c.obb_volume_relative, 4) + "</td><td>" +
+                fixed(100 * c.useless_share, 1) + "%</td><td>" + fixed(c.build_seconds * 1e3, 2) + "</td><td>" +
+                fixed(c.queries_per_second / 1e6, 3) + "</td><td>" + fixed(c.nodes_per_query, 1) + "</td><td>" +
+                fixed(c.clusters_per_query, 2) + "</td><td>" + fixed(c.useless_per_query, 2) + "</td><td>" +
+                fixed(c.triangles_per_query, 1) + "</td><td>" + fixed(100 * c.shadowed_share, 1) + "%</td><td>" +
+                fixed(frame_of(s, c) * 1e3, 2) + "</td><td>" + pareto + "</td></tr>\n";
         }
         h += "</table>\n</section>\n";
     }

@@ -22,16 +22,16 @@ struct ReportOptions {
     std::vector<uint32_t> fine_sizes = {8, 16, 24, 32};
     std::vector<ObbMethod> obbs = {ObbMethod::refined, ObbMethod::pca};
     uint32_t coarse_size = 2048;
-    int runs = 3;             // bake timings are the median of this many runs
-    int query_runs = 7;       // runtime timings: the median of this many rounds over every configuration
+    int runs = 3;        // bake timings are the median of this many runs
+    int query_runs = 7;  // runtime timings: the median of this many rounds over every configuration
     double memory_budget = 2.0 * (1u << 30);  // bytes of assets held for the rounds; past it, one at a time
-    uint32_t view = 128;      // the camera's resolution; its first hits are the query points
+    uint32_t view = 128;                      // the camera's resolution; its first hits are the query points
     uint32_t frame_view = 1024;  // frame time is for this resolution: build + its visible points / queries per second
-    uint32_t lights = 2;      // fixed light positions around the scene (report_lights)
-    bool one_sided = false;   // query mode
-    StatsOptions stats{4, 8}; // lights and samples of the shadow-volume conservativeness
-    unsigned threads = 0;     // bake threads (queries run on one thread)
-    bool heatmap = false;     // per scene, the useless-tests heat map (k-means beside VCO) embedded in the HTML
+    uint32_t lights = 2;         // fixed light positions around the scene (report_lights)
+    bool one_sided = false;      // query mode
+    StatsOptions stats{4, 8};    // lights and samples of the shadow-volume conservativeness
+    unsigned threads = 0;        // bake threads (queries run on one thread)
+    bool heatmap = false;        // per scene, the useless-tests heat map (k-means beside VCO) embedded in the HTML
     uint32_t heatmap_size = 256;
 };
 
@@ -51,9 +51,9 @@ struct ConfigResult {
     double queries_per_second = 0;
     double nodes_per_query = 0, clusters_per_query = 0, useless_per_query = 0, triangles_per_query = 0;
     double shadowed_share = 0;
-    double frame_seconds = 0;                     // one light's build plus a query per visible point of a frame_view frame
+    double frame_seconds = 0;  // one light's build plus a query per visible point of a frame_view frame
     double bake_seconds() const { return cluster_seconds + fit_seconds; }
-    std::string name() const;                     // e.g. "kmeans/16/refined"
+    std::string name() const;  // e.g. "kmeans/16/refined"
 };
 
 struct SceneReport {

@@ -81,7 +81,8 @@ Camera default_camera(const double* lo, const double* hi, uint32_t width, uint32
         double e[3];
         for (int k = 0; k < 3; ++k) e[k] = ((i >> k & 1) ? hi[k] : lo[k]) - c.eye[k];
         double depth = dot3(e, c.forward);
-        if (depth > 0) extent = std::max({extent, std::fabs(dot3(e, c.right)) / depth / aspect, std::fabs(dot3(e, c.up)) / depth});
+        if (depth > 0)
+            extent = std::max({extent, std::fabs(dot3(e, c.right)) / depth / aspect, std::fabs(dot3(e, c.up)) / depth});
     }
     c.half_extent = 1.04 * extent;
     return c;
@@ -99,12 +100,14 @@ std::vector<double> first_hits(const BakedScene& baked, const Camera& cam, unsig
     parallel_for(cam.height, threads, [&](size_t y) {
         for (uint32_t x = 0; x < cam.width; ++x) {
             double sx = ((x + 0.5) / cam.width * 2 - 1) * aspect, sy = 1 - (y + 0.5) / cam.height * 2, dir[3];
-            for (int k = 0; k < 3; ++k) dir[k] = cam.forward[k] + cam.half_extent * (sx * cam.right[k] + sy * cam.up[k]);
+            for (int k = 0; k < 3; ++k)
+                dir[k] = cam.forward[k] + cam.half_extent * (sx * cam.right[k] + sy * cam.up[k]);
             double best = INFINITY;
             for (size_t i = 0; i < baked.instances.size(); ++i) {
                 if (!frames[i].usable) continue;
                 const AssetMesh& m = baked.meshes[baked.instances[i].mesh];
-                if (m.coarse_volumes.obbs.size() != m.coarse.size() || m.fine_volumes.obbs.size() != m.fine.size()) continue;
+                if (m.coarse_volumes.obbs.size() != m.coarse.size() || m.fine_volumes.obbs.size() != m.fine.size())
+                    continue;
                 // The ray in the mesh frame: an affine map keeps the ray parameter t.
                 const double* inv = frames[i].inverse;
                 double o[3], v[3];
@@ -117,7 +120,8 @@ std::vector<double> first_hits(const BakedScene& baked, const Camera& cam, unsig
                         for (uint32_t t = m.fine[f].first; t < m.fine[f].first + m.fine[f].count; ++t) {
                             double p[3][3];
                             for (int k = 0; k < 3; ++k)
-                                for (int j = 0; j < 3; ++j) p[k][j] = m.positions[size_t(m.triangles[size_t(t) * 3 + k]) * 3 + j];
+                                for (int j = 0; j < 3; ++j)
+                                    p[k][j] = m.positions[size_t(m.triangles[size_t(t) * 3 + k]) * 3 + j];
                             best = std::min(best, ray_triangle(o, v, p[0], p[1], p[2]));
                         }
                     }
@@ -152,7 +156,8 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
             SceneQueryResult q = query_scene(view, &lights[size_t(l) * 3], points.data(), n, options);
             build_times.push_back(q.build_seconds), query_times.push_back(q.query_seconds);
             if (r == 0) {  // the counts are the same every run
-                cost.stats.nodes_visited += q.stats.nodes_visited, cost.stats.clusters_tested += q.stats.clusters_tested;
+                cost.stats.nodes_visited += q.stats.nodes_visited,
+                    cost.stats.clusters_tested += q.stats.clusters_tested;
                 cost.stats.triangles_tested += q.stats.triangles_tested, cost.stats.touching += q.stats.touching;
                 for (uint8_t s : q.shadowed) cost.shadowed += s;
             }
@@ -164,7 +169,8 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
     return cost;
 }
 
-std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, const std::vector<double>& points, bool one_sided) {
+std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, const std::vector<double>& points,
+                                    bool one_sided) {
     SceneQueryOptions options;
     options.one_sided = one_sided;
     options.per_point = true;  // the counts are per point

@@ -32,16 +32,18 @@ std::vector<double> first_hits(const BakedScene& baked, const Camera& camera, un
 std::vector<double> hit_points(const std::vector<double>& hits);
 
 struct RuntimeCost {
-    double build_seconds = 0;    // all instances' trees for one light: median over runs, mean over lights
-    double query_seconds = 0;    // every point once, one thread: median over runs, mean over lights
-    uint64_t queries = 0;        // points x lights
+    double build_seconds = 0;  // all instances' trees for one light: median over runs, mean over lights
+    double query_seconds = 0;  // every point once, one thread: median over runs, mean over lights
+    uint64_t queries = 0;      // points x lights
     uint64_t shadowed = 0;
-    QueryStats stats;            // summed over points and lights
+    QueryStats stats;  // summed over points and lights
     // A shadowed query stops at its one blocking cluster; every other cluster test found nothing.
     double useless_per_query() const {
         return queries ? double(stats.clusters_tested - shadowed) / double(queries) : 0;
     }
-    double queries_per_second() const { return query_seconds > 0 && queries ? double(queries) / double(lights) / query_seconds : 0; }
+    double queries_per_second() const {
+        return query_seconds > 0 && queries ? double(queries) / double(lights) / query_seconds : 0;
+    }
     uint32_t lights = 0;
 };
 

@@ -9,10 +9,10 @@ namespace cb {
 
 struct PlotPoint {
     double x = 0, y = 0;
-    std::string label;   // tooltip and data-config attribute
-    std::string tag;     // short text drawn beside the marker
-    int colour = 0;      // index into the plot palette
-    bool hollow = false; // a second marker style
+    std::string label;    // tooltip and data-config attribute
+    std::string tag;      // short text drawn beside the marker
+    int colour = 0;       // index into the plot palette
+    bool hollow = false;  // a second marker style
 };
 
 struct Plot {

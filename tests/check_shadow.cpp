@@ -52,17 +52,19 @@ struct Answer {
 };
 
 struct Tally {
-    size_t queries = 0, shadowed = 0, touching = 0, only_touching = 0, bad_scan = 0, bad_tree2 = 0, bad_tree1 = 0, bad_walk = 0,
-           bad_walk2 = 0, bad_reference = 0;
+    size_t queries = 0, shadowed = 0, touching = 0, only_touching = 0, bad_scan = 0, bad_tree2 = 0, bad_tree1 = 0,
+           bad_walk = 0, bad_walk2 = 0, bad_reference = 0;
     size_t missed_shadow = 0;  // some runtime answer says lit where the oracle says shadow
     size_t bad_touching = 0;   // disagreements on queries the oracle calls touching
     size_t brute_checked = 0, brute_bad = 0;
 
     void add(const Tally& t) {
         queries += t.queries, shadowed += t.shadowed, touching += t.touching, only_touching += t.only_touching;
-        bad_scan += t.bad_scan, bad_tree2 += t.bad_tree2, bad_tree1 += t.bad_tree1, bad_walk += t.bad_walk, bad_walk2 += t.bad_walk2;
+        bad_scan += t.bad_scan, bad_tree2 += t.bad_tree2, bad_tree1 += t.bad_tree1, bad_walk += t.bad_walk,
+            bad_walk2 += t.bad_walk2;
         bad_reference += t.bad_reference;
-        missed_shadow += t.missed_shadow, bad_touching += t.bad_touching, brute_checked += t.brute_checked, brute_bad += t.brute_bad;
+        missed_shadow += t.missed_shadow, bad_touching += t.bad_touching, brute_checked += t.brute_checked,
+            brute_bad += t.brute_bad;
     }
     size_t bad() const { return bad_scan + bad_tree2 + bad_tree1 + bad_walk + bad_walk2 + bad_reference + brute_bad; }
 };
@@ -74,7 +76,8 @@ std::vector<std::string> scene_files(const fs::path& root) {
     std::vector<std::string> out;
     if (!fs::exists(root)) return out;
     for (const auto& e : fs::recursive_directory_iterator(root))
-        if (e.is_regular_file() && cb::format_from_path(e.path().string()) != cb::FileFormat::unknown) out.push_back(e.path().string());
+        if (e.is_regular_file() && cb::format_from_path(e.path().string()) != cb::FileFormat::unknown)
+            out.push_back(e.path().string());
     std::sort(out.begin(), out.end());
     return out;
 }
@@ -94,8 +97,9 @@ Point cross(const Point& a, const Point& b) {
 // raster over the bounding sphere, first hits through the oracle's CGAL trees, in double.
 std::vector<Point> camera_points(const SceneOracle& oracle, const WorldSample& w, int grid) {
     Point c = {0.5 * (w.lo[0] + w.hi[0]), 0.5 * (w.lo[1] + w.hi[1]), 0.5 * (w.lo[2] + w.hi[2])};
-    double r = 0.5 * std::sqrt((w.hi[0] - w.lo[0]) * (w.hi[0] - w.lo[0]) + (w.hi[1] - w.lo[1]) * (w.hi[1] - w.lo[1]) +
-                               (w.hi[2] - w.lo[2]) * (w.hi[2] - w.lo[2]));
+    double r = 0.5 *
+        std::sqrt((w.hi[0] - w.lo[0]) * (w.hi[0] - w.lo[0]) + (w.hi[1] - w.lo[1]) * (w.hi[1] - w.lo[1]) +
+                  (w.hi[2] - w.lo[2]) * (w.hi[2] - w.lo[2]));
     if (!(r > 0)) r = 1;
     std::vector<Point> out;
     for (Point d : {Point{1, 0.8, 0.6}, Point{-0.7, 0.5, -1}, Point{0.3, -0.9, 0.8}}) {
@@ -142,11 +146,15 @@ std::vector<Light> scene_lights(const cb::Scene& scene, const WorldSample& w, do
         {"level", {lo[0] - 0.5 * size, hi[1], 0.5 * (lo[2] + hi[2])}},  // beside the bounds, level with the top vertex
         {"inside", {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])}}};
     Light vertex{"vertex", {}};
-    if (cb::test::vertex_light(scene, 2027, vertex.at.data())) lights.push_back(vertex);
-    else note += " no-vertex-light";
+    if (cb::test::vertex_light(scene, 2027, vertex.at.data()))
+        lights.push_back(vertex);
+    else
+        note += " no-vertex-light";
     plane = cb::test::plane_light(scene, 4099);
-    if (plane.found) lights.push_back({"plane", {plane.light[0], plane.light[1], plane.light[2]}});
-    else note += " no-plane-light";
+    if (plane.found)
+        lights.push_back({"plane", {plane.light[0], plane.light[1], plane.light[2]}});
+    else
+        note += " no-plane-light";
     if (plane.found && scene.instances[plane.instance].world != cb::identity_transform())
         note += " plane-light-on-transformed-instance-" + std::to_string(plane.instance);
     return lights;
@@ -154,20 +162,25 @@ std::vector<Light> scene_lights(const cb::Scene& scene, const WorldSample& w, do
 
 // The query points of one light: 40% seen by the cameras, 20% vertices, 20% through triangles, 20% random
 // in and around the bounds (half of those on the plane for the plane light).
-std::vector<Point> light_points(size_t n, uint32_t salt, const std::vector<Point>& seen, const WorldSample& w, double size,
-                                const std::vector<Point>& through, const std::vector<Point>& flat) {
+std::vector<Point> light_points(size_t n, uint32_t salt, const std::vector<Point>& seen, const WorldSample& w,
+                                double size, const std::vector<Point>& through, const std::vector<Point>& flat) {
     std::mt19937 rng(101 + salt);
     std::uniform_real_distribution<double> u(0, 1);
     std::vector<Point> out(n);
     for (size_t k = 0; k < n; ++k) {
         size_t kind = k % 5, pick = k * 7919 + salt * 104729;
-        if (kind <= 1 && !seen.empty()) out[k] = seen[pick % seen.size()];
-        else if (kind == 2 && !w.surface.empty()) out[k] = w.surface[pick % w.surface.size()];
-        else if (kind == 3 && !through.empty()) out[k] = through[(k / 5) % through.size()];
-        else if (k % 10 == 4 && !flat.empty()) out[k] = flat[pick % flat.size()];
+        if (kind <= 1 && !seen.empty())
+            out[k] = seen[pick % seen.size()];
+        else if (kind == 2 && !w.surface.empty())
+            out[k] = w.surface[pick % w.surface.size()];
+        else if (kind == 3 && !through.empty())
+            out[k] = through[(k / 5) % through.size()];
+        else if (k % 10 == 4 && !flat.empty())
+            out[k] = flat[pick % flat.size()];
         else
             for (int j = 0; j < 3; ++j) {
-                double margin = 0.1 * (w.hi[j] - w.lo[j]) + (k % 2 ? 0.05 * size : 0.0);  // flat scenes: off their plane too
+                double margin =
+                    0.1 * (w.hi[j] - w.lo[j]) + (k % 2 ? 0.05 * size : 0.0);  // flat scenes: off their plane too
                 out[k][j] = w.lo[j] - margin + (w.hi[j] - w.lo[j] + 2 * margin) * u(rng);
             }
     }
@@ -208,15 +221,17 @@ std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle
         for (size_t k = begin; k < end; ++k) {
             const double* p = points[k].data();
             answers[k].scan = ts[k - begin], answers[k].tree2 = t2[k - begin], answers[k].tree1 = t1[k - begin];
-            for (const cb::InstanceShadow& tree : scan) answers[k].walk = answers[k].walk || tree.occluded(p, scratch.data());
-            for (const cb::InstanceShadow& tree : two) answers[k].walk2 = answers[k].walk2 || tree.occluded(p, scratch.data());
+            for (const cb::InstanceShadow& tree : scan)
+                answers[k].walk = answers[k].walk || tree.occluded(p, scratch.data());
+            for (const cb::InstanceShadow& tree : two)
+                answers[k].walk2 = answers[k].walk2 || tree.occluded(p, scratch.data());
             answers[k].reference = cb::occluded_reference(v, p, light.at.data(), one_sided);
             answers[k].exact = oracle.occluded(p, light.at.data(), one_sided);
             if (brute_every && k % brute_every == 0) {
                 cb::test::OracleAnswer b = oracle.occluded_brute_force(p, light.at.data(), one_sided);
                 answers[k].brute_checked = true;
-                answers[k].brute_agrees = b.blocked == answers[k].exact.blocked && b.touching == answers[k].exact.touching &&
-                                          b.only_touching == answers[k].exact.only_touching;
+                answers[k].brute_agrees = b.blocked == answers[k].exact.blocked &&
+                    b.touching == answers[k].exact.touching && b.only_touching == answers[k].exact.only_touching;
             }
         }
     });
@@ -224,29 +239,32 @@ std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle
 }
 
 void report(const std::string& scene, const Light& light, bool one_sided, const Point& p, const Answer& a) {
-    std::printf("DISAGREEMENT %s: light %s (%.17g, %.17g, %.17g), %s, point (%.17g, %.17g, %.17g): oracle %d (touching %d), "
-                "scan %d, fine trees %d, one tree %d, scan walk %d, fine trees walk %d, reference %d\n",
-                scene.c_str(), light.kind, light.at[0], light.at[1], light.at[2], one_sided ? "one-sided" : "two-sided", p[0], p[1],
-                p[2], a.exact.blocked, a.exact.touching, a.scan, a.tree2, a.tree1, a.walk, a.walk2, a.reference);
+    std::printf(
+        "DISAGREEMENT %s: light %s (%.17g, %.17g, %.17g), %s, point (%.17g, %.17g, %.17g): oracle %d (touching %d), "
+        "scan %d, fine trees %d, one tree %d, scan walk %d, fine trees walk %d, reference %d\n",
+        scene.c_str(), light.kind, light.at[0], light.at[1], light.at[2], one_sided ? "one-sided" : "two-sided", p[0],
+        p[1], p[2], a.exact.blocked, a.exact.touching, a.scan, a.tree2, a.tree1, a.walk, a.walk2, a.reference);
 }
 
-Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points, const std::string& scene, const Light& light,
-            bool one_sided, size_t& reported) {
+Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points, const std::string& scene,
+            const Light& light, bool one_sided, size_t& reported) {
     Tally t;
     for (size_t k = 0; k < answers.size(); ++k) {
         const Answer& a = answers[k];
         bool exact = a.exact.blocked;
         t.queries++, t.shadowed += exact, t.touching += a.exact.touching, t.only_touching += a.exact.only_touching;
-        t.bad_scan += a.scan != exact, t.bad_tree2 += a.tree2 != exact, t.bad_tree1 += a.tree1 != exact, t.bad_walk += a.walk != exact;
+        t.bad_scan += a.scan != exact, t.bad_tree2 += a.tree2 != exact, t.bad_tree1 += a.tree1 != exact,
+            t.bad_walk += a.walk != exact;
         t.bad_walk2 += a.walk2 != exact, t.bad_reference += a.reference != exact;
-        bool wrong = a.scan != exact || a.tree2 != exact || a.tree1 != exact || a.walk != exact || a.walk2 != exact || a.reference != exact;
+        bool wrong = a.scan != exact || a.tree2 != exact || a.tree1 != exact || a.walk != exact || a.walk2 != exact ||
+            a.reference != exact;
         t.missed_shadow += exact && !(a.scan && a.tree2 && a.tree1 && a.walk && a.walk2 && a.reference);
         t.bad_touching += a.exact.touching && wrong;
         t.brute_checked += a.brute_checked, t.brute_bad += !a.brute_agrees;
-        if (!a.brute_agrees) std::printf("ORACLE TREES MISSED A TRIANGLE %s: light %s, %s, point (%.17g, %.17g, %.17g)\n", scene.c_str(),
-                                         light.kind, one_sided ? "one-sided" : "two-sided", points[k][0], points[k][1], points[k][2]);
-        if (wrong && reported++ < max_reports)
-            report(scene, light, one_sided, points[k], a);
+        if (!a.brute_agrees)
+            std::printf("ORACLE TREES MISSED A TRIANGLE %s: light %s, %s, point (%.17g, %.17g, %.17g)\n", scene.c_str(),
+                        light.kind, one_sided ? "one-sided" : "two-sided", points[k][0], points[k][1], points[k][2]);
+        if (wrong && reported++ < max_reports) report(scene, light, one_sided, points[k], a);
     }
     return t;
 }
@@ -271,15 +289,19 @@ Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget
     for (uint32_t l = 0; l < lights.size(); ++l) {
         std::vector<Point> through = cb::test::through_points(scene, lights[l].at.data(), per_variant / 5 + 1, l);
         bool on_plane = std::string(lights[l].kind) == "plane";
-        std::vector<Point> points = light_points(per_variant, l, seen, w, size, through, on_plane ? flat : std::vector<Point>{});
+        std::vector<Point> points =
+            light_points(per_variant, l, seen, w, size, through, on_plane ? flat : std::vector<Point>{});
         for (bool one_sided : {false, true}) {
-            std::vector<Answer> answers = answer_all(b.view, oracle, lights[l], one_sided, points, o.threads, o.brute_every);
+            std::vector<Answer> answers =
+                answer_all(b.view, oracle, lights[l], one_sided, points, o.threads, o.brute_every);
             Tally v = tally(answers, points, name, lights[l], one_sided, reported);
             if (v.bad())
-                std::printf("disagreements %s: light %s, %s: scan %zu, tree2 %zu, tree1 %zu, walk %zu, walk2 %zu, reference %zu of %zu "
-                            "queries; %zu said lit in shadow, %zu touching\n",
-                            name.c_str(), lights[l].kind, one_sided ? "one-sided" : "two-sided", v.bad_scan, v.bad_tree2, v.bad_tree1,
-                            v.bad_walk, v.bad_walk2, v.bad_reference, v.queries, v.missed_shadow, v.bad_touching);
+                std::printf(
+                    "disagreements %s: light %s, %s: scan %zu, tree2 %zu, tree1 %zu, walk %zu, walk2 %zu, reference "
+                    "%zu of %zu "
+                    "queries; %zu said lit in shadow, %zu touching\n",
+                    name.c_str(), lights[l].kind, one_sided ? "one-sided" : "two-sided", v.bad_scan, v.bad_tree2,
+                    v.bad_tree1, v.bad_walk, v.bad_walk2, v.bad_reference, v.queries, v.missed_shadow, v.bad_touching);
             t.add(v);
         }
     }
@@ -294,20 +316,25 @@ size_t triangles_in_scene(const cb::Scene& s) {
 }
 
 void print_row(const std::string& name, size_t triangles, const Tally& t, double seconds, const std::string& note) {
-    std::printf("%-58s %9zu %9zu %9zu %9zu %7zu %6zu %6zu %6zu %6zu %6zu %6zu %8.1f %s\n", name.c_str(), triangles, t.queries, t.shadowed,
-                t.touching, t.only_touching, t.bad_scan, t.bad_tree2, t.bad_tree1, t.bad_walk, t.bad_walk2, t.bad_reference, seconds,
-                note.c_str());
+    std::printf("%-58s %9zu %9zu %9zu %9zu %7zu %6zu %6zu %6zu %6zu %6zu %6zu %8.1f %s\n", name.c_str(), triangles,
+                t.queries, t.shadowed, t.touching, t.only_touching, t.bad_scan, t.bad_tree2, t.bad_tree1, t.bad_walk,
+                t.bad_walk2, t.bad_reference, seconds, note.c_str());
     std::fflush(stdout);
 }
 
 bool parse(int argc, char** argv, Options& o) {
     for (int i = 1; i < argc; ++i) {
         std::string a = argv[i];
-        if (a == "--queries" && i + 1 < argc) o.queries = std::stoul(argv[++i]);
-        else if (a == "--threads" && i + 1 < argc) o.threads = unsigned(std::stoul(argv[++i]));
-        else if (a == "--brute-force-every" && i + 1 < argc) o.brute_every = std::stoul(argv[++i]);
-        else if (a.rfind("--", 0) == 0) return false;
-        else o.files.push_back(a);
+        if (a == "--queries" && i + 1 < argc)
+            o.queries = std::stoul(argv[++i]);
+        else if (a == "--threads" && i + 1 < argc)
+            o.threads = unsigned(std::stoul(argv[++i]));
+        else if (a == "--brute-force-every" && i + 1 < argc)
+            o.brute_every = std::stoul(argv[++i]);
+        else if (a.rfind("--", 0) == 0)
+            return false;
+        else
+            o.files.push_back(a);
     }
     if (o.threads == 0) o.threads = std::max(1u, std::thread::hardware_concurrency());
     return true;
@@ -343,8 +370,8 @@ int main(int argc, char** argv) {
     if (scenes.empty()) return std::printf("no scene loaded\n"), 2;
     size_t budget = (o.queries + scenes.size() - 1) / scenes.size();
     std::printf("%zu scenes, %zu queries each (lights x both modes), %u threads\n", scenes.size(), budget, o.threads);
-    std::printf("%-58s %9s %9s %9s %9s %7s %6s %6s %6s %6s %6s %6s %8s\n", "scene", "triangles", "queries", "in shadow", "touching",
-                "t-only", "scan", "tree2", "tree1", "walk", "walk2", "ref", "seconds");
+    std::printf("%-58s %9s %9s %9s %9s %7s %6s %6s %6s %6s %6s %6s %8s\n", "scene", "triangles", "queries", "in shadow",
+                "touching", "t-only", "scan", "tree2", "tree1", "walk", "walk2", "ref", "seconds");
     Tally total;
     size_t total_triangles = 0;
     auto start = std::chrono::steady_clock::now();
@@ -360,14 +387,17 @@ int main(int argc, char** argv) {
     }
     double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     print_row("total", total_triangles, total, s, "");
-    std::printf("columns: in shadow, touching (the segment touches a triangle: edge, vertex or an end on its plane) and t-only "
-                "(in shadow through touching contacts only) per the exact oracle; scan, tree2, tree1, walk, walk2, ref: disagreements "
-                "with it of the tiled batches with fine scans (the default), fine trees and one tree, of walks point by point with fine "
-                "scans and with fine trees, and of the reference walk\n");
-    std::printf("queries the oracle calls touching: %zu of %zu; disagreements among them: %zu\n", total.touching, total.queries,
-                total.bad_touching);
+    std::printf(
+        "columns: in shadow, touching (the segment touches a triangle: edge, vertex or an end on its plane) and t-only "
+        "(in shadow through touching contacts only) per the exact oracle; scan, tree2, tree1, walk, walk2, ref: "
+        "disagreements "
+        "with it of the tiled batches with fine scans (the default), fine trees and one tree, of walks point by point "
+        "with fine "
+        "scans and with fine trees, and of the reference walk\n");
+    std::printf("queries the oracle calls touching: %zu of %zu; disagreements among them: %zu\n", total.touching,
+                total.queries, total.bad_touching);
     if (o.brute_every)
-        std::printf("the oracle's trees against all triangles on every %zu-th query: %zu checked, %zu disagreements\n", o.brute_every,
-                    total.brute_checked, total.brute_bad);
+        std::printf("the oracle's trees against all triangles on every %zu-th query: %zu checked, %zu disagreements\n",
+                    o.brute_every, total.brute_checked, total.brute_bad);
     return total.bad() ? 1 : 0;
 }

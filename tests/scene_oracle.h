@@ -92,8 +92,8 @@ inline PlaneLight plane_light(const cb::Scene& scene, uint64_t seed) {
             size_t t = (seed + tries * 7919) % n;
             for (int k = 0; k < 3; ++k)
                 for (int j = 0; j < 3; ++j) r.corner[k][j] = mesh.positions[size_t(mesh.indices[t * 3 + k]) * 3 + j];
-            Epick::Point_3 a(r.corner[0][0], r.corner[0][1], r.corner[0][2]), b(r.corner[1][0], r.corner[1][1], r.corner[1][2]),
-                c(r.corner[2][0], r.corner[2][1], r.corner[2][2]);
+            Epick::Point_3 a(r.corner[0][0], r.corner[0][1], r.corner[0][2]),
+                b(r.corner[1][0], r.corner[1][1], r.corner[1][2]), c(r.corner[2][0], r.corner[2][1], r.corner[2][2]);
             if (CGAL::collinear(a, b, c)) continue;
             double local[3], back[3];
             for (int j = 0; j < 3; ++j) local[j] = r.corner[1][j] + r.corner[2][j] - r.corner[0][j];
@@ -118,7 +118,8 @@ inline bool vertex_light(const cb::Scene& scene, uint64_t seed, double* light) {
             const float* v = &mesh.positions[size_t(mesh.indices[t * 3 + tries % 3]) * 3];
             double local[3] = {v[0], v[1], v[2]}, back[3];
             cb::apply_instance(m.data(), local, light);
-            if (world_to_mesh(inst, light, back) && back[0] == local[0] && back[1] == local[1] && back[2] == local[2]) return true;
+            if (world_to_mesh(inst, light, back) && back[0] == local[0] && back[1] == local[1] && back[2] == local[2])
+                return true;
         }
     }
     return false;
@@ -127,7 +128,8 @@ inline bool vertex_light(const cb::Scene& scene, uint64_t seed, double* light) {
 // Points whose segment to the light runs through a triangle's centroid c (c + s (c - light) in world space,
 // s = 1/64 or 1: just behind it or far), half of them through double-sided triangles when the scene has
 // any: one-sided mode has to get sidedness right there.
-inline std::vector<std::array<double, 3>> through_points(const cb::Scene& scene, const double* light, size_t n, uint64_t seed) {
+inline std::vector<std::array<double, 3>> through_points(const cb::Scene& scene, const double* light, size_t n,
+                                                         uint64_t seed) {
     std::vector<std::pair<uint32_t, uint32_t>> any, two_sided;  // (instance, triangle)
     for (uint32_t i = 0; i < scene.instances.size(); ++i) {
         const cb::Mesh& mesh = scene.meshes[scene.instances[i].mesh];
@@ -193,7 +195,7 @@ public:
             double lx[3] = {local.x(), local.y(), local.z()}, w[3];
             cb::apply_instance(f.to_world.data(), lx, w);
             double d = (w[0] - origin[0]) * (w[0] - origin[0]) + (w[1] - origin[1]) * (w[1] - origin[1]) +
-                       (w[2] - origin[2]) * (w[2] - origin[2]);
+                (w[2] - origin[2]) * (w[2] - origin[2]);
             if (d < best) best = d, hit[0] = w[0], hit[1] = w[1], hit[2] = w[2];
         }
         return best < INFINITY;
@@ -212,7 +214,7 @@ private:
     using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Epick, Primitive>>;
 
     struct MeshTree {
-        Triangles triangles;               // the mesh's triangles with an area, in index order
+        Triangles triangles;                // the mesh's triangles with an area, in index order
         std::vector<uint8_t> double_sided;  // per kept triangle, from its primitive
         Tree tree;                          // holds iterators into `triangles`: a MeshTree never moves
     };
@@ -274,7 +276,8 @@ private:
             for (size_t k : candidates) {
                 double c[3][3];
                 for (int v = 0; v < 3; ++v)
-                    for (int j = 0; j < 3; ++j) c[v][j] = CGAL::to_double(m.triangles[k].vertex(v)[j]);  // doubles from floats: exact
+                    for (int j = 0; j < 3; ++j)
+                        c[v][j] = CGAL::to_double(m.triangles[k].vertex(v)[j]);  // doubles from floats: exact
                 cb::SegmentTest r = oracle(lp, ll, c[0], c[1], c[2], !one_sided || m.double_sided[k]);
                 a.touching |= r.touching;
                 a.blocked |= r.blocks;

@@ -24,9 +24,10 @@ using Epeck = CGAL::Exact_predicates_exact_constructions_kernel;
 // One-sided (two_sided false): only a triangle with the light (q) strictly on its negative side, CGAL's
 // side opposite the counter-clockwise normal, can block.
 inline cb::SegmentTest oracle(const double* p, const double* q, const double* a, const double* b, const double* c,
-                       bool two_sided = true) {
+                              bool two_sided = true) {
     cb::SegmentTest r;
-    Epeck::Point_3 P(p[0], p[1], p[2]), Q(q[0], q[1], q[2]), A(a[0], a[1], a[2]), B(b[0], b[1], b[2]), C(c[0], c[1], c[2]);
+    Epeck::Point_3 P(p[0], p[1], p[2]), Q(q[0], q[1], q[2]), A(a[0], a[1], a[2]), B(b[0], b[1], b[2]),
+        C(c[0], c[1], c[2]);
     if (CGAL::collinear(A, B, C)) return r;
     if (!two_sided && CGAL::orientation(A, B, C, Q) != CGAL::NEGATIVE) return r;
     CGAL::Orientation op = CGAL::orientation(A, B, C, P), oq = CGAL::orientation(A, B, C, Q);

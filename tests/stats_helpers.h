@@ -55,7 +55,8 @@ inline std::string slurp(const std::string& path) {
 // in parallel).
 inline CliRun run_program(const std::string& program, const std::string& args) {
     static int calls = 0;
-    auto base = std::filesystem::temp_directory_path() / ("cb_stats_" + std::to_string(getpid()) + "_" + std::to_string(calls++));
+    auto base = std::filesystem::temp_directory_path() /
+        ("cb_stats_" + std::to_string(getpid()) + "_" + std::to_string(calls++));
     std::string out = base.string() + ".out", err = base.string() + ".err";
     int status = std::system((program + " " + args + " >" + out + " 2>" + err).c_str());
     CliRun r;

@@ -50,9 +50,10 @@ TEST(AssimpModels, EveryGltfLoadsOrFailsCleanly) {
     std::printf("glTF2: %zu loaded, %zu refused\n", o.loaded, o.refused);
     EXPECT_GE(o.loaded, 30u);
     // The deliberately broken ones must be refused, not loaded as garbage.
-    for (const char* bad : {"glTF2/IndexOutOfRange/IndexOutOfRange.gltf", "glTF2/IndexOutOfRange/AllIndicesOutOfRange.gltf",
-                            "glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
-                            "glTF2/RecursiveNodes/RecursiveNodes.gltf", "glTF2/MissingBin/BoxTextured.gltf"})
+    for (const char* bad :
+         {"glTF2/IndexOutOfRange/IndexOutOfRange.gltf", "glTF2/IndexOutOfRange/AllIndicesOutOfRange.gltf",
+          "glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb", "glTF2/RecursiveNodes/RecursiveNodes.gltf",
+          "glTF2/MissingBin/BoxTextured.gltf"})
         EXPECT_THROW(cb::load_scene((models() / bad).string()), cb::LoadError) << bad;
 }
 

@@ -81,7 +81,7 @@ TEST(AtomicWrite, StaleTemporariesOfDeadWritersAreRemoved) {
     for (const fs::path& p : {dead, other}) std::ofstream(p) << "left over";
     cb::write_file_atomic(out.string(), std::vector<uint8_t>(10, 1));
     EXPECT_FALSE(fs::exists(dead));
-    EXPECT_TRUE(fs::exists(other));  // another output's: not ours to remove
+    EXPECT_TRUE(fs::exists(other));   // another output's: not ours to remove
     EXPECT_FALSE(fs::exists(alive));  // our own temporary never outlives the call
     EXPECT_EQ(read_all(out), std::vector<uint8_t>(10, 1));
     fs::remove_all(d);

@@ -38,7 +38,8 @@ bool finite(const cb::ClusterBounds& b) {
     for (size_t i = 0; i < 4; ++i)
         if (!std::isfinite(s[i])) return false;
     if (b.has_capsule)
-        for (float v : {b.capsule.a[0], b.capsule.a[1], b.capsule.a[2], b.capsule.b[0], b.capsule.b[1], b.capsule.b[2], b.capsule.radius})
+        for (float v : {b.capsule.a[0], b.capsule.a[1], b.capsule.a[2], b.capsule.b[0], b.capsule.b[1], b.capsule.b[2],
+                        b.capsule.radius})
             if (!std::isfinite(v)) return false;
     for (float v : {b.slab.axis[0], b.slab.axis[1], b.slab.axis[2], b.slab.low, b.slab.high})
         if (!std::isfinite(v)) return false;
@@ -52,7 +53,8 @@ bool finite(const cb::ClusterBounds& b) {
 
 double segment_distance(const double p[3], const float a[3], const float b[3]) {
     double ab[3], ap[3], len2 = 0, t = 0;
-    for (int k = 0; k < 3; ++k) ab[k] = double(b[k]) - a[k], ap[k] = p[k] - a[k], len2 += ab[k] * ab[k], t += ap[k] * ab[k];
+    for (int k = 0; k < 3; ++k)
+        ab[k] = double(b[k]) - a[k], ap[k] = p[k] - a[k], len2 += ab[k] * ab[k], t += ap[k] * ab[k];
     t = len2 > 0 ? std::clamp(t / len2, 0.0, 1.0) : 0.0;
     double d2 = 0;
     for (int k = 0; k < 3; ++k) d2 += (p[k] - (a[k] + t * ab[k])) * (p[k] - (a[k] + t * ab[k]));
@@ -84,15 +86,16 @@ size_t containment_misses(const cb::ClusterBounds& b, const float* positions, co
 
 // Random points strictly inside the front cone must see every non-degenerate triangle from the front, and
 // points inside the back cone from the back, by CGAL's exact orientation. Returns the violations.
-size_t cone_violations(const cb::ClusterBounds& b, const float* positions, const uint32_t* indices, const uint32_t* tris,
-                       size_t count, std::mt19937& rng, int samples) {
+size_t cone_violations(const cb::ClusterBounds& b, const float* positions, const uint32_t* indices,
+                       const uint32_t* tris, size_t count, std::mt19937& rng, int samples) {
     if (!b.cone.valid) return 0;
     double axis[3] = {b.cone.axis[0], b.cone.axis[1], b.cone.axis[2]};
     double len = std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
     for (double& a : axis) a /= len;
     // Two unit vectors across the axis.
     double helper[3] = {std::fabs(axis[0]) < 0.9 ? 1.0 : 0.0, std::fabs(axis[0]) < 0.9 ? 0.0 : 1.0, 0.0};
-    double u[3] = {axis[1] * helper[2] - axis[2] * helper[1], axis[2] * helper[0] - axis[0] * helper[2], axis[0] * helper[1] - axis[1] * helper[0]};
+    double u[3] = {axis[1] * helper[2] - axis[2] * helper[1], axis[2] * helper[0] - axis[0] * helper[2],
+                   axis[0] * helper[1] - axis[1] * helper[0]};
     double ul = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
     for (double& x : u) x /= ul;
     double w[3] = {axis[1] * u[2] - axis[2] * u[1], axis[2] * u[0] - axis[0] * u[2], axis[0] * u[1] - axis[1] * u[0]};
@@ -126,12 +129,14 @@ size_t cone_violations(const cb::ClusterBounds& b, const float* positions, const
 void check_all(const Soup& s, const char* what, int expect_cone) {
     SCOPED_TRACE(what);
     std::vector<uint32_t> tris = s.all();
-    for (cb::ObbMethod method : {cb::ObbMethod::pca, cb::ObbMethod::pca_area, cb::ObbMethod::refined, cb::ObbMethod::cgal_optimal}) {
+    for (cb::ObbMethod method :
+         {cb::ObbMethod::pca, cb::ObbMethod::pca_area, cb::ObbMethod::refined, cb::ObbMethod::cgal_optimal}) {
         cb::BoundsOptions o;
         o.obb = method;
         cb::ClusterBounds b = cb::fit_bounds(s.positions.data(), s.indices.data(), tris.data(), tris.size(), o);
         EXPECT_TRUE(finite(b));
-        EXPECT_EQ(containment_misses(b, s.positions.data(), s.indices.data(), tris.data(), tris.size()), 0u) << int(method);
+        EXPECT_EQ(containment_misses(b, s.positions.data(), s.indices.data(), tris.data(), tris.size()), 0u)
+            << int(method);
         std::mt19937 rng(1);
         EXPECT_EQ(cone_violations(b, s.positions.data(), s.indices.data(), tris.data(), tris.size(), rng, 50), 0u);
         if (expect_cone >= 0) {
@@ -149,7 +154,8 @@ Soup bumpy_patch(int n, float size, float bump) {  // a height field facing +z: 
     Soup s;
     for (int j = 0; j <= n; ++j)
         for (int i = 0; i <= n; ++i)
-            s.positions.insert(s.positions.end(), {size * i / n, size * j / n, bump * std::sin(float(i * 1.3 + j * 0.7))});
+            s.positions.insert(s.positions.end(),
+                               {size * i / n, size * j / n, bump * std::sin(float(i * 1.3 + j * 0.7))});
     for (int j = 0; j < n; ++j)
         for (int i = 0; i < n; ++i) {
             uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1), d = c + 1;
@@ -179,7 +185,8 @@ TEST(Bounds, AllCollinear) {
 TEST(Bounds, DuplicateVertices) {
     Soup s = bumpy_patch(3, 1, 0.2f);
     size_t n = s.positions.size();
-    s.positions.insert(s.positions.end(), s.positions.begin(), s.positions.begin() + std::ptrdiff_t(n));  // every vertex twice
+    s.positions.insert(s.positions.end(), s.positions.begin(),
+                       s.positions.begin() + std::ptrdiff_t(n));  // every vertex twice
     size_t half = s.indices.size();
     for (size_t i = 0; i < half; ++i) s.indices.push_back(s.indices[i] + uint32_t(n / 3));
     check_all(s, "duplicates", true);
@@ -212,7 +219,8 @@ TEST(Bounds, NormalsThatCancel) {
     // A closed box: normals spread over every direction.
     Soup box;
     box.positions = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
-    box.indices = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 2, 3, 7, 2, 7, 6, 1, 2, 6, 1, 6, 5, 0, 4, 7, 0, 7, 3};
+    box.indices = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+                   2, 3, 7, 2, 7, 6, 1, 2, 6, 1, 6, 5, 0, 4, 7, 0, 7, 3};
     check_all(box, "closed box", false);
 }
 
@@ -222,7 +230,7 @@ TEST(Bounds, RotatedBoxIsFoundExactly) {
     std::vector<double> pts;
     for (int i = 0; i < 8; ++i) {
         double x = (i & 1 ? 2 : -2), y = (i & 2 ? 1 : -1), z = (i & 4 ? 0.5 : -0.5);
-        double x1 = c * x - s * y, y1 = s * x + c * y;       // about z
+        double x1 = c * x - s * y, y1 = s * x + c * y;        // about z
         double y2 = c2 * y1 - s2 * z, z2 = s2 * y1 + c2 * z;  // about x
         pts.insert(pts.end(), {x1, y2, z2});
     }
@@ -254,16 +262,20 @@ TEST(Bounds, EveryClusterOfEverySharedFile) {
     cb::test::for_each_shared_scene([&](const std::string& path, const cb::Scene& scene) {
         for (const cb::Mesh& m : scene.meshes) {
             cb::ClusterOptions co;
-            cb::Hierarchy h = cb::build_hierarchy(m.positions.data(), m.vertex_count(), m.indices.data(), m.triangle_count(), co);
+            cb::Hierarchy h =
+                cb::build_hierarchy(m.positions.data(), m.vertex_count(), m.indices.data(), m.triangle_count(), co);
             auto check = [&](uint32_t first, uint32_t count, int samples) {
-                cb::ClusterBounds b = cb::fit_bounds(m.positions.data(), m.indices.data(), h.order.data() + first, count, {});
+                cb::ClusterBounds b =
+                    cb::fit_bounds(m.positions.data(), m.indices.data(), h.order.data() + first, count, {});
                 ++clusters;
                 cones += b.cone.valid;
                 EXPECT_TRUE(finite(b)) << path;
                 misses += containment_misses(b, m.positions.data(), m.indices.data(), h.order.data() + first, count);
-                violations += cone_violations(b, m.positions.data(), m.indices.data(), h.order.data() + first, count, rng, samples);
+                violations += cone_violations(b, m.positions.data(), m.indices.data(), h.order.data() + first, count,
+                                              rng, samples);
             };
-            for (size_t f = 0; f < h.fine_count(); ++f) check(h.fine_offsets[f], h.fine_offsets[f + 1] - h.fine_offsets[f], 1);
+            for (size_t f = 0; f < h.fine_count(); ++f)
+                check(h.fine_offsets[f], h.fine_offsets[f + 1] - h.fine_offsets[f], 1);
             for (size_t c = 0; c < h.coarse_count(); ++c) {
                 uint32_t a = h.fine_offsets[h.coarse_offsets[c]], b = h.fine_offsets[h.coarse_offsets[c + 1]];
                 check(a, b - a, 2);
@@ -278,8 +290,8 @@ TEST(Bounds, EveryClusterOfEverySharedFile) {
 }
 
 TEST(Bounds, AssetBoundsContainEveryVertexOfTheirCluster) {
-    cb::test::Baked baked = cb::test::bake_scene(cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"), {},
-                                                 cb::bounds_all, 2);
+    cb::test::Baked baked = cb::test::bake_scene(cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"),
+                                                 {}, cb::bounds_all, 2);
     ASSERT_GT(baked.view.mesh_count, 0u) << "bake failed";
     const cb::AssetView& view = baked.view;
     size_t misses = 0, violations = 0, checked = 0;
@@ -319,7 +331,8 @@ TEST(Bounds, AssetBoundsContainEveryVertexOfTheirCluster) {
             const cb::ClusterRange& range = view.coarse[r.first_coarse + c];
             const cb::FineCluster& a = view.fine[r.first_fine + range.first];
             const cb::FineCluster& z = view.fine[r.first_fine + range.first + range.count - 1];
-            check(view.coarse_bounds, r.first_coarse + c, a.first_triangle, z.first_triangle + z.triangle_count - a.first_triangle);
+            check(view.coarse_bounds, r.first_coarse + c, a.first_triangle,
+                  z.first_triangle + z.triangle_count - a.first_triangle);
         }
     }
     EXPECT_EQ(checked, size_t(view.fine_count) + view.coarse_count);

@@ -18,7 +18,8 @@ struct CliRun {
 CliRun run(const std::string& args) {
     // ctest runs tests in parallel processes: name the capture files after this one.
     static int calls = 0;
-    auto base = std::filesystem::temp_directory_path() / ("cb_cli_" + std::to_string(getpid()) + "_" + std::to_string(calls++));
+    auto base =
+        std::filesystem::temp_directory_path() / ("cb_cli_" + std::to_string(getpid()) + "_" + std::to_string(calls++));
     std::string out = base.string() + ".out", err = base.string() + ".err";
     std::string cmd = std::string(CB_CLI) + " " + args + " >" + out + " 2>" + err;
     int status = std::system(cmd.c_str());
@@ -124,8 +125,14 @@ TEST(Cli, AssetIsByteIdenticalForAnyThreadCount) {
     std::string a = (dir / ("cb_cli_t1_" + std::to_string(getpid()) + ".cbk")).string();
     std::string b = (dir / ("cb_cli_t4_" + std::to_string(getpid()) + ".cbk")).string();
     for (const char* method : {"kmeans", "vco", "morton"}) {
-        ASSERT_EQ(run("bake " + data("default_scene.glb") + " --bounds all --coarse 512 --threads 1 --method " + method + " -o " + a).code, 0);
-        ASSERT_EQ(run("bake " + data("default_scene.glb") + " --bounds all --coarse 512 --threads 4 --method " + method + " -o " + b).code, 0);
+        ASSERT_EQ(run("bake " + data("default_scene.glb") + " --bounds all --coarse 512 --threads 1 --method " +
+                      method + " -o " + a)
+                      .code,
+                  0);
+        ASSERT_EQ(run("bake " + data("default_scene.glb") + " --bounds all --coarse 512 --threads 4 --method " +
+                      method + " -o " + b)
+                      .code,
+                  0);
         std::ifstream fa(a, std::ios::binary), fb(b, std::ios::binary);
         std::string sa((std::istreambuf_iterator<char>(fa)), std::istreambuf_iterator<char>());
         std::string sb((std::istreambuf_iterator<char>(fb)), std::istreambuf_iterator<char>());
@@ -187,7 +194,8 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     {
         std::ofstream grid(pts);
         for (int i = 0; i < 40; ++i)
-            for (int j = 0; j < 40; ++j) grid << -18 + 0.9 * i << " " << 0.02 + 0.05 * ((i * 7 + j) % 5) << " " << -18 + 0.9 * j << "\n";
+            for (int j = 0; j < 40; ++j)
+                grid << -18 + 0.9 * i << " " << 0.02 + 0.05 * ((i * 7 + j) % 5) << " " << -18 + 0.9 * j << "\n";
     }
     CliRun one = run("query " + asset + " --light -4,30,2 --points " + pts);
     CliRun three = run("query " + asset + " --light -4,30,2 --points " + pts + " --threads 3");

@@ -29,7 +29,8 @@ struct TestMesh {
 TestMesh grid(int w, int h, float scale = 1, float offset = 0, unsigned seed = 0) {
     TestMesh m;
     for (int j = 0; j <= h; ++j)
-        for (int i = 0; i <= w; ++i) m.positions.insert(m.positions.end(), {offset + i * scale, offset + j * scale, offset});
+        for (int i = 0; i <= w; ++i)
+            m.positions.insert(m.positions.end(), {offset + i * scale, offset + j * scale, offset});
     std::vector<std::array<uint32_t, 3>> tris;
     for (int j = 0; j < h; ++j)
         for (int i = 0; i < w; ++i) {
@@ -50,7 +51,8 @@ bool shares_vertex(const uint32_t* a, const uint32_t* b) {
 }
 
 // Every invariant the hierarchy promises.
-void check_hierarchy(const cb::Hierarchy& h, const uint32_t* indices, size_t triangle_count, const cb::ClusterOptions& o) {
+void check_hierarchy(const cb::Hierarchy& h, const uint32_t* indices, size_t triangle_count,
+                     const cb::ClusterOptions& o) {
     ASSERT_EQ(h.order.size(), triangle_count);
     std::vector<uint32_t> sorted = h.order;
     std::sort(sorted.begin(), sorted.end());
@@ -81,7 +83,8 @@ void check_hierarchy(const cb::Hierarchy& h, const uint32_t* indices, size_t tri
                 for (uint32_t i = 0; i < n; ++i)
                     for (uint32_t j = 0; j < n; ++j)
                         if (reached[i] && !reached[j] &&
-                            shares_vertex(indices + size_t(h.order[first + i]) * 3, indices + size_t(h.order[first + j]) * 3))
+                            shares_vertex(indices + size_t(h.order[first + i]) * 3,
+                                          indices + size_t(h.order[first + j]) * 3))
                             reached[j] = grew = true;
             }
             ASSERT_TRUE(std::all_of(reached.begin(), reached.end(), [](bool b) { return b; })) << "patch " << f;
@@ -145,7 +148,8 @@ TEST(Cluster, KmeansCoarseClustersAreCompacterThanMortonChunks) {
     TestMesh a = grid(40, 25, 1, 0, 5), b = grid(40, 25, 1, 0, 6);
     TestMesh m = a;
     const uint32_t offset = uint32_t(a.positions.size() / 3);
-    for (size_t i = 0; i < b.positions.size(); i += 3) m.positions.insert(m.positions.end(), {b.positions[i] + 1000.0f, b.positions[i + 1], b.positions[i + 2]});
+    for (size_t i = 0; i < b.positions.size(); i += 3)
+        m.positions.insert(m.positions.end(), {b.positions[i] + 1000.0f, b.positions[i + 1], b.positions[i + 2]});
     for (uint32_t i : b.indices) m.indices.push_back(i + offset);
     auto spread = [&](const cb::Hierarchy& h) {
         double sum = 0;
@@ -157,7 +161,8 @@ TEST(Cluster, KmeansCoarseClustersAreCompacterThanMortonChunks) {
                         float x = m.positions[size_t(m.indices[size_t(h.order[at]) * 3 + k]) * 3 + j];
                         lo[j] = std::min(lo[j], x), hi[j] = std::max(hi[j], x);
                     }
-            sum += std::sqrt(double(hi[0] - lo[0]) * (hi[0] - lo[0]) + double(hi[1] - lo[1]) * (hi[1] - lo[1]) + double(hi[2] - lo[2]) * (hi[2] - lo[2]));
+            sum += std::sqrt(double(hi[0] - lo[0]) * (hi[0] - lo[0]) + double(hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                             double(hi[2] - lo[2]) * (hi[2] - lo[2]));
         }
         return sum;
     };
@@ -203,7 +208,8 @@ TEST(Cluster, TinyMeshes) {
         for (size_t n : {0u, 1u, 2u, 16u, 17u, 33u}) {
             SCOPED_TRACE(std::string(cb::method_name(method)) + " " + std::to_string(n) + " triangles");
             TestMesh full = grid(40, 1);
-            TestMesh m{full.positions, std::vector<uint32_t>(full.indices.begin(), full.indices.begin() + std::ptrdiff_t(n * 3))};
+            TestMesh m{full.positions,
+                       std::vector<uint32_t>(full.indices.begin(), full.indices.begin() + std::ptrdiff_t(n * 3))};
             cb::ClusterOptions o;
             o.method = method;
             cb::Hierarchy h = cluster(m, o);
@@ -275,7 +281,8 @@ TEST(Cluster, KMeansIsMoreCompactThanMortonSlices) {
     auto mean_extent = [&](cb::ClusterMethod method) {
         cb::ClusterOptions o;
         o.method = method;
-        return mean_xy_extent(m.positions.data(), m.indices.data(), cluster(m, o), [](double w, double h) { return w + h; });
+        return mean_xy_extent(m.positions.data(), m.indices.data(), cluster(m, o),
+                              [](double w, double h) { return w + h; });
     };
     EXPECT_LT(mean_extent(cb::ClusterMethod::kmeans), mean_extent(cb::ClusterMethod::morton));
 }
@@ -297,7 +304,8 @@ TEST(Cluster, ForsythBeatsAShuffledOrder) {
     std::sort(sorted.begin(), sorted.end());
     for (size_t i = 0; i < sorted.size(); ++i) ASSERT_EQ(sorted[i], i);
     std::vector<uint32_t> reordered;
-    for (uint32_t t : order) reordered.insert(reordered.end(), m.indices.begin() + t * 3, m.indices.begin() + t * 3 + 3);
+    for (uint32_t t : order)
+        reordered.insert(reordered.end(), m.indices.begin() + t * 3, m.indices.begin() + t * 3 + 3);
     double before = cb::fifo_acmr(m.indices.data(), m.triangles(), m.vertices(), 32);
     double after = cb::fifo_acmr(reordered.data(), m.triangles(), m.vertices(), 32);
     EXPECT_GT(before, 2.0);
@@ -399,7 +407,8 @@ void check_round_trip(const std::string& path) {
 TEST(Cluster, AssetRoundTripsThroughTheRuntimeView) {
     check_round_trip(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
     // Over 65,535 vertices: some reused vertices lie too far back for a 16-bit reference and are stored again.
-    if (fs::exists(CB_SHARED_DATA)) check_round_trip(std::string(CB_SHARED_DATA) + "/scanned/dragon_vrip_res2_binary.ply");
+    if (fs::exists(CB_SHARED_DATA))
+        check_round_trip(std::string(CB_SHARED_DATA) + "/scanned/dragon_vrip_res2_binary.ply");
 }
 
 // The bytes of a section of an encoded asset, and a way to re-seal the checksum after editing them.
@@ -411,13 +420,16 @@ struct Sections {
         cb::AssetHeader h;
         std::memcpy(&h, bytes(), sizeof h);
         for (uint32_t i = 0; i < h.section_count; ++i) {
-            auto* e = reinterpret_cast<cb::SectionEntry*>(bytes() + sizeof(cb::AssetHeader) + i * sizeof(cb::SectionEntry));
+            auto* e =
+                reinterpret_cast<cb::SectionEntry*>(bytes() + sizeof(cb::AssetHeader) + i * sizeof(cb::SectionEntry));
             if (e->type == uint32_t(type)) return e;
         }
         return nullptr;
     }
     template <class T>
-    T* data(cb::SectionType type) { return reinterpret_cast<T*>(bytes() + entry(type)->offset); }
+    T* data(cb::SectionType type) {
+        return reinterpret_cast<T*>(bytes() + entry(type)->offset);
+    }
     cb::AssetError open() {
         uint64_t sum = cb::asset_checksum(bytes(), size);
         std::memcpy(bytes() + offsetof(cb::AssetHeader, checksum), &sum, 8);
@@ -476,8 +488,10 @@ TEST(Cluster, CityModelAtHugeCoordinates) {
     cb::Scene scene = cb::load_scene(file.string());
     const cb::Mesh& m = scene.meshes[0];
     cb::ClusterOptions o;
-    cb::Hierarchy h = cb::build_hierarchy(m.positions.data(), m.vertex_count(), m.indices.data(), m.triangle_count(), o);
+    cb::Hierarchy h =
+        cb::build_hierarchy(m.positions.data(), m.vertex_count(), m.indices.data(), m.triangle_count(), o);
     check_hierarchy(h, m.indices.data(), m.triangle_count(), o);
-    double mean_extent = mean_xy_extent(m.positions.data(), m.indices.data(), h, [](double w, double h) { return std::max(w, h); });
+    double mean_extent =
+        mean_xy_extent(m.positions.data(), m.indices.data(), h, [](double w, double h) { return std::max(w, h); });
     EXPECT_LT(mean_extent, 40.0) << "fine clusters of a 524 m terrain should span metres, not the whole site";
 }

@@ -18,10 +18,12 @@ cb::Frustum perspective(const double* eye, const double* target, double half_fov
     for (double& x : dir) x /= std::sqrt(len);
     double up0[3] = {0, 1, 0};
     if (std::fabs(dir[1]) > 0.9) up0[0] = 1, up0[1] = 0;
-    double right[3] = {dir[1] * up0[2] - dir[2] * up0[1], dir[2] * up0[0] - dir[0] * up0[2], dir[0] * up0[1] - dir[1] * up0[0]};
+    double right[3] = {dir[1] * up0[2] - dir[2] * up0[1], dir[2] * up0[0] - dir[0] * up0[2],
+                       dir[0] * up0[1] - dir[1] * up0[0]};
     double rl = std::sqrt(right[0] * right[0] + right[1] * right[1] + right[2] * right[2]);
     for (double& x : right) x /= rl;
-    double up[3] = {right[1] * dir[2] - right[2] * dir[1], right[2] * dir[0] - right[0] * dir[2], right[0] * dir[1] - right[1] * dir[0]};
+    double up[3] = {right[1] * dir[2] - right[2] * dir[1], right[2] * dir[0] - right[0] * dir[2],
+                    right[0] * dir[1] - right[1] * dir[0]};
     cb::Frustum f;
     for (int k = 0; k < 3; ++k) f.eye[k] = eye[k];
     auto set = [&](int i, const double* n, double d) {
@@ -35,7 +37,8 @@ cb::Frustum perspective(const double* eye, const double* target, double half_fov
     double corner[4][3];
     for (int c = 0; c < 4; ++c)
         for (int k = 0; k < 3; ++k)
-            corner[c][k] = dir[k] + half_fov_tan * ((c == 0 || c == 3) ? -1 : 1) * right[k] + half_fov_tan * (c < 2 ? -1 : 1) * up[k];
+            corner[c][k] = dir[k] + half_fov_tan * ((c == 0 || c == 3) ? -1 : 1) * right[k] +
+                half_fov_tan * (c < 2 ? -1 : 1) * up[k];
     for (int c = 0; c < 4; ++c) {
         const double* a = corner[c];
         const double* b = corner[(c + 1) % 4];
@@ -50,12 +53,14 @@ cb::Frustum perspective(const double* eye, const double* target, double half_fov
 
 // Does the triangle reach strictly inside the frustum (planes pulled in by `inset`)? Sutherland-Hodgman.
 bool triangle_inside(const double tri[3][3], const cb::Frustum& f, double inset) {
-    std::vector<std::array<double, 3>> poly = {{tri[0][0], tri[0][1], tri[0][2]}, {tri[1][0], tri[1][1], tri[1][2]},
-                                               {tri[2][0], tri[2][1], tri[2][2]}};
+    std::vector<std::array<double, 3>> poly = {
+        {tri[0][0], tri[0][1], tri[0][2]}, {tri[1][0], tri[1][1], tri[1][2]}, {tri[2][0], tri[2][1], tri[2][2]}};
     for (int k = 0; k < f.count && !poly.empty(); ++k) {
         const double* pl = f.plane[k];
         double nl = std::sqrt(pl[0] * pl[0] + pl[1] * pl[1] + pl[2] * pl[2]);
-        auto dist = [&](const std::array<double, 3>& p) { return (pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] + pl[3]) / nl - inset; };
+        auto dist = [&](const std::array<double, 3>& p) {
+            return (pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] + pl[3]) / nl - inset;
+        };
         std::vector<std::array<double, 3>> next;
         for (size_t i = 0; i < poly.size(); ++i) {
             const auto& a = poly[i];
@@ -85,7 +90,8 @@ TEST(Cull, ConservativeAndEffectiveOnTheDefaultScene) {
     cb::CullStats stats;
     std::vector<cb::VisibleCluster> out(v.fine_count * v.instance_count);
     for (int view = 0; view < 40; ++view) {
-        double eye[3] = {u(rng) * 25, 1 + 6 * (u(rng) + 1), u(rng) * 25}, target[3] = {u(rng) * 10, 0.5 * (u(rng) + 1), u(rng) * 10};
+        double eye[3] = {u(rng) * 25, 1 + 6 * (u(rng) + 1), u(rng) * 25},
+               target[3] = {u(rng) * 10, 0.5 * (u(rng) + 1), u(rng) * 10};
         cb::Frustum f = perspective(eye, target, 0.3 + 0.4 * (u(rng) + 1), 0.1, 25 + 15 * u(rng));
         bool backface = view % 2 == 0;
         size_t n = cb::cull_clusters(v, f, backface, out.data(), out.size(), &stats);
@@ -118,7 +124,7 @@ TEST(Cull, ConservativeAndEffectiveOnTheDefaultScene) {
                     double e1[3], e2[3];
                     for (int k = 0; k < 3; ++k) e1[k] = local[1][k] - local[0][k], e2[k] = local[2][k] - local[0][k];
                     bool degenerate = e1[1] * e2[2] - e1[2] * e2[1] == 0 && e1[2] * e2[0] - e1[0] * e2[2] == 0 &&
-                                      e1[0] * e2[1] - e1[1] * e2[0] == 0;  // no area: no side to face
+                        e1[0] * e2[1] - e1[1] * e2[0] == 0;  // no area: no side to face
                     if (o != 1 && !degenerate) all_back = false;
                     if (v.double_sided(size_t(m.first_triangle) + t)) all_back = false;
                 }
@@ -129,9 +135,11 @@ TEST(Cull, ConservativeAndEffectiveOnTheDefaultScene) {
             }
         }
     }
-    std::printf("%zu of %zu (instance, cluster) pairs listed over 40 views; culled: %llu coarse, %llu by frustum, %llu by back "
-                "face; %zu wrongly culled\n", listed, total, (unsigned long long)stats.coarse_culled,
-                (unsigned long long)stats.frustum_culled, (unsigned long long)stats.backface_culled, missed);
+    std::printf(
+        "%zu of %zu (instance, cluster) pairs listed over 40 views; culled: %llu coarse, %llu by frustum, %llu by back "
+        "face; %zu wrongly culled\n",
+        listed, total, (unsigned long long)stats.coarse_culled, (unsigned long long)stats.frustum_culled,
+        (unsigned long long)stats.backface_culled, missed);
     EXPECT_EQ(missed, 0u);
     EXPECT_EQ(wrong_backface, 0u);
     EXPECT_LT(listed, total * 2 / 3);  // it does cull

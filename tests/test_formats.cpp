@@ -34,7 +34,8 @@ std::string read_file(const std::string& path) {
 }  // namespace
 
 TEST(Formats, GeneratedCubesAgreeAcrossFormats) {
-    const char* files[] = {"cube.obj", "cube.off", "cube_ascii.ply", "cube_binary.ply", "cube_ascii.stl", "cube_binary.stl"};
+    const char* files[] = {"cube.obj",        "cube.off",       "cube_ascii.ply",
+                           "cube_binary.ply", "cube_ascii.stl", "cube_binary.stl"};
     for (const char* f : files) {
         SCOPED_TRACE(f);
         cb::Scene s = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/small/" + f);
@@ -50,7 +51,9 @@ TEST(Formats, GeneratedCubesAgreeAcrossFormats) {
             const float* a = &m.positions[m.indices[t * 3] * 3];
             const float* b = &m.positions[m.indices[t * 3 + 1] * 3];
             const float* c = &m.positions[m.indices[t * 3 + 2] * 3];
-            volume += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
+            volume += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+                       a[2] * (b[0] * c[1] - b[1] * c[0])) /
+                6.0;
         }
         EXPECT_NEAR(volume, 8.0, 1e-9);
     }
@@ -58,9 +61,10 @@ TEST(Formats, GeneratedCubesAgreeAcrossFormats) {
 
 TEST(Formats, ObjFeatures) {
     // Polygons, v/vt/vn references, negative indices, line continuations, comments, a repeated index.
-    cb::Scene s = load("# c\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 \\\n 0\nvt 0 0\nvn 0 0 1\n"
-                       "f 1/1/1 2/1/1 3/1/1 4/1/1\nf -4//1 -3//1 -2//1\nf 1 1 3\n",
-                       cb::FileFormat::obj);
+    cb::Scene s = load(
+        "# c\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 \\\n 0\nvt 0 0\nvn 0 0 1\n"
+        "f 1/1/1 2/1/1 3/1/1 4/1/1\nf -4//1 -3//1 -2//1\nf 1 1 3\n",
+        cb::FileFormat::obj);
     const cb::Mesh& m = s.meshes[0];
     EXPECT_EQ(m.vertex_count(), 4u);
     EXPECT_EQ(std::vector<uint32_t>(m.indices.begin(), m.indices.end()),
@@ -73,7 +77,8 @@ TEST(Formats, ObjErrorsNameTheLine) {
               "t: line 4: face index 9 out of range (3 vertices)");
     EXPECT_EQ(error_of("v 0 0 0\nv nan 0 0\n", cb::FileFormat::obj),
               "t: line 2: vertex 2: position is not a finite float (nan)");
-    EXPECT_EQ(error_of("v 0 0 1e39\n", cb::FileFormat::obj).find("t: line 1: vertex 1: position is not a finite float"), 0u);
+    EXPECT_EQ(error_of("v 0 0 1e39\n", cb::FileFormat::obj).find("t: line 1: vertex 1: position is not a finite float"),
+              0u);
     EXPECT_EQ(error_of("v 0 0 x\n", cb::FileFormat::obj), "t: line 1: bad coordinate 'x'");
     EXPECT_EQ(error_of("v 0 0 0\nf 1 0 1\n", cb::FileFormat::obj), "t: line 2: face index 0 out of range (1 vertices)");
     EXPECT_EQ(error_of("v 0 0 0\nf 1 1\n", cb::FileFormat::obj), "t: line 2: face with 2 vertices");
@@ -86,15 +91,19 @@ TEST(Formats, OffVariants) {
     cb::Scene s = load("OFF 4 2 0 # counts\n0 0 0\n1 0 0 # a vertex\n1 1 0\n0 1 0\n3 0 1 2 1.0 0.0 0.0\n3 0 2 3\n",
                        cb::FileFormat::off);
     EXPECT_EQ(s.meshes[0].triangle_count(), 2u);
-    EXPECT_EQ(load("COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 255 0 0 255\n0 1 0 255 0 0 255\n3 0 1 2\n",
-                   cb::FileFormat::off).meshes[0].triangle_count(), 1u);
+    EXPECT_EQ(
+        load("COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 255 0 0 255\n0 1 0 255 0 0 255\n3 0 1 2\n", cb::FileFormat::off)
+            .meshes[0]
+            .triangle_count(),
+        1u);
 }
 
 TEST(Formats, OffErrors) {
     EXPECT_EQ(error_of("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", cb::FileFormat::off),
               "t: line 6: face 0: index '3' out of range (3 vertices)");
     EXPECT_EQ(error_of("OFF\n3 1 0\n0 0 0\n1 0 0\n", cb::FileFormat::off), "t: truncated: 2 of 3 vertices");
-    EXPECT_EQ(error_of("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", cb::FileFormat::off), "t: truncated: 1 of 2 faces");
+    EXPECT_EQ(error_of("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", cb::FileFormat::off),
+              "t: truncated: 1 of 2 faces");
     EXPECT_EQ(error_of("OFF\n1000000000 1 0\n", cb::FileFormat::off).find("t: counts 1000000000 vertices"), 0u);
     EXPECT_EQ(error_of("PLY\n", cb::FileFormat::off), "t: line 1: not an OFF header 'PLY'");
     EXPECT_EQ(error_of("OFF\n1 0 0\ninf 0 0\n", cb::FileFormat::off),
@@ -110,29 +119,45 @@ TEST(Formats, PlyAndStlErrors) {
             // OpenMesh may accept a cut file as long as what it produced is consistent; it never may
             // produce more than the file holds.
             EXPECT_LE(s.meshes[0].triangle_count(), 12u);
-        } catch (const cb::LoadError&) {
-        }
+        } catch (const cb::LoadError&) {}
     }
     EXPECT_THROW(load("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
                       "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 1 2\n",
                       cb::FileFormat::ply),
                  cb::LoadError);
     EXPECT_THROW(load("solid x\n facet normal 0 0 0\n outer loop\n vertex 0 0 nan\n vertex 1 0 0\n vertex 0 1 0\n"
-                      " endloop\n endfacet\nendsolid x\n", cb::FileFormat::stl),
+                      " endloop\n endfacet\nendsolid x\n",
+                      cb::FileFormat::stl),
                  cb::LoadError);
     EXPECT_THROW(load("", cb::FileFormat::stl), cb::LoadError);
 }
 
 TEST(Formats, PlyFeatures) {
     // Big-endian binary with a double coordinate, an extra property, and tristrips with a restart.
-    std::string ply = "ply\nformat binary_big_endian 1.0\ncomment made by hand\nelement vertex 4\nproperty double x\n"
-                      "property float y\nproperty float z\nproperty uchar red\nelement tristrips 1\n"
-                      "property list int int vertex_indices\nend_header\n";
-    auto be32 = [&](uint32_t v) { for (int i = 3; i >= 0; --i) ply.push_back(char(v >> (8 * i))); };
-    auto bef = [&](float f) { uint32_t v; std::memcpy(&v, &f, 4); be32(v); };
-    auto bed = [&](double d) { uint64_t v; std::memcpy(&v, &d, 8); for (int i = 7; i >= 0; --i) ply.push_back(char(v >> (8 * i))); };
+    std::string ply =
+        "ply\nformat binary_big_endian 1.0\ncomment made by hand\nelement vertex 4\nproperty double x\n"
+        "property float y\nproperty float z\nproperty uchar red\nelement tristrips 1\n"
+        "property list int int vertex_indices\nend_header\n";
+    auto be32 = [&](uint32_t v) {
+        for (int i = 3; i >= 0; --i) ply.push_back(char(v >> (8 * i)));
+    };
+    auto bef = [&](float f) {
+        uint32_t v;
+        std::memcpy(&v, &f, 4);
+        be32(v);
+    };
+    auto bed = [&](double d) {
+        uint64_t v;
+        std::memcpy(&v, &d, 8);
+        for (int i = 7; i >= 0; --i) ply.push_back(char(v >> (8 * i)));
+    };
     float xyz[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
-    for (auto& p : xyz) { bed(p[0]); bef(p[1]); bef(p[2]); ply.push_back(7); }
+    for (auto& p : xyz) {
+        bed(p[0]);
+        bef(p[1]);
+        bef(p[2]);
+        ply.push_back(7);
+    }
     int strip[] = {0, 1, 2, 3, -1, 0, 1, 2};
     be32(8);
     for (int i : strip) be32(uint32_t(i));
@@ -141,25 +166,32 @@ TEST(Formats, PlyFeatures) {
     EXPECT_EQ(m.positions[3 * 3 + 0], 1.0f);
     EXPECT_EQ(m.positions[3 * 3 + 1], 1.0f);
     // 0 1 2 3 gives (0,1,2) and (2,1,3); after the restart 0 1 2 gives (0,1,2).
-    EXPECT_EQ(std::vector<uint32_t>(m.indices.begin(), m.indices.end()), (std::vector<uint32_t>{0, 1, 2, 2, 1, 3, 0, 1, 2}));
+    EXPECT_EQ(std::vector<uint32_t>(m.indices.begin(), m.indices.end()),
+              (std::vector<uint32_t>{0, 1, 2, 2, 1, 3, 0, 1, 2}));
 }
 
 TEST(Formats, PlyErrors) {
-    const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                             "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    const std::string head =
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
     EXPECT_EQ(error_of(head + "0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", cb::FileFormat::ply),
               "t: face 0: index 3.000000 out of range (3 vertices)");
     EXPECT_EQ(error_of(head + "0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n", cb::FileFormat::ply),
               "t: vertex 1: position is not a finite float (nan)");
     EXPECT_EQ(error_of(head + "0 0 0\n1 0 0\n", cb::FileFormat::ply), "t: vertex 2: unexpected end of data");
-    EXPECT_EQ(error_of("ply\nformat ascii 1.0\nelement vertex 3\n", cb::FileFormat::ply), "t: header has no end_header (truncated?)");
-    EXPECT_EQ(error_of("ply\nproperty float x\nend_header\n", cb::FileFormat::ply), "t: line 2: property before any element");
-    EXPECT_EQ(error_of("ply\nformat ascii 1.0\nelement vertex 99999999\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n",
+    EXPECT_EQ(error_of("ply\nformat ascii 1.0\nelement vertex 3\n", cb::FileFormat::ply),
+              "t: header has no end_header (truncated?)");
+    EXPECT_EQ(error_of("ply\nproperty float x\nend_header\n", cb::FileFormat::ply),
+              "t: line 2: property before any element");
+    EXPECT_EQ(error_of("ply\nformat ascii 1.0\nelement vertex 99999999\nproperty float x\nproperty float y\nproperty "
+                       "float z\nend_header\n0 0 0\n",
                        cb::FileFormat::ply),
               "t: element vertex: count 99999999 exceeds the data (truncated?)");
     // Found by fuzz_ply: an element without properties but a count near 2^63 used to spin for ever.
-    cb::Scene s = load("ply\nformat ascii 1.0\nelement junk 6148914691236517209\nelement vertex 3\nproperty float x\n"
-                       "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n", cb::FileFormat::ply);
+    cb::Scene s = load(
+        "ply\nformat ascii 1.0\nelement junk 6148914691236517209\nelement vertex 3\nproperty float x\n"
+        "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n",
+        cb::FileFormat::ply);
     EXPECT_EQ(s.meshes[0].vertex_count(), 3u);
     // Binary garbage in an error message is made printable.
     std::string bad = head + std::string("0 0 0\n1 0 \x01\x02zz\n0 1 0\n3 0 1 2\n");

@@ -101,8 +101,9 @@ TEST(Gltf, InterleavedStrideUnsignedByteIndicesAndNonIndexed) {
     uint16_t q[] = {0, 0, 0, 7, 0, 0, 0, 9, 0};
     int qv = w.view(q, sizeof q, 34962);
     int qa = w.accessor({{"bufferView", qv}, {"componentType", 5123}, {"count", 3}, {"type", "VEC3"}});
-    w.doc["meshes"] = json::array({{{"primitives", json::array({{{"attributes", {{"POSITION", pa}}}, {"indices", ia}},
-                                                                {{"attributes", {{"POSITION", qa}}}}})}}});
+    w.doc["meshes"] = json::array({{{"primitives",
+                                     json::array({{{"attributes", {{"POSITION", pa}}}, {"indices", ia}},
+                                                  {{"attributes", {{"POSITION", qa}}}}})}}});
     w.node({{"mesh", 0}});
     cb::Scene s = load_text(w.gltf_embedded());
     const cb::Mesh& m = s.meshes[0];
@@ -182,7 +183,8 @@ TEST(Gltf, ExternalBufferNextToTheFile) {
     std::filesystem::create_directories(dir);
     GltfWriter w = one_mesh_scene(triangle());
     w.doc["buffers"] = json::array({{{"byteLength", w.bin.size()}, {"uri", "tri.bin"}}});
-    std::ofstream(dir / "tri.bin", std::ios::binary).write(reinterpret_cast<const char*>(w.bin.data()), std::streamsize(w.bin.size()));
+    std::ofstream(dir / "tri.bin", std::ios::binary)
+        .write(reinterpret_cast<const char*>(w.bin.data()), std::streamsize(w.bin.size()));
     std::ofstream(dir / "tri.gltf") << w.doc.dump();
     EXPECT_EQ(cb::load_scene((dir / "tri.gltf").string()).meshes[0].triangle_count(), 1u);
     // A missing buffer file is an error naming the file.
@@ -329,11 +331,13 @@ TEST(Gltf, DracoCountsMustAgreeWithTheAccessors) {
         load_text(text, "t.gltf", dir);
         ADD_FAILURE();
     } catch (const cb::LoadError& e) {
-        EXPECT_NE(std::string(e.what()).find("Draco decoded 12 triangles but indices accessor"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("Draco decoded 12 triangles but indices accessor"), std::string::npos)
+            << e.what();
     }
     // A corrupted Draco stream is a clean error too.
     doc["accessors"][indices]["count"] = 36;
-    doc["bufferViews"][doc["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]["bufferView"].get<int>()]["byteLength"] = 20;
+    doc["bufferViews"][doc["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]["bufferView"]
+                           .get<int>()]["byteLength"] = 20;
     EXPECT_THROW(load_text(doc.dump(), "t.gltf", dir), cb::LoadError);
 }
 
@@ -342,7 +346,8 @@ TEST(Gltf, HugeZeroFilledAccessorIsRefused) {
     GltfWriter w = one_mesh_scene(triangle());
     w.doc["accessors"].push_back({{"componentType", 5126}, {"count", 4000000000u}, {"type", "VEC3"}});
     w.doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = w.doc["accessors"].size() - 1;
-    EXPECT_NE(error_of(w.gltf_embedded()).find("without a bufferView (zero-filled) exceeds 16 M elements"), std::string::npos);
+    EXPECT_NE(error_of(w.gltf_embedded()).find("without a bufferView (zero-filled) exceeds 16 M elements"),
+              std::string::npos);
 }
 
 TEST(Gltf, ExponentialNodeDagIsCapped) {

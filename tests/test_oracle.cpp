@@ -66,8 +66,8 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
         size_t per_light;  // the brute force looks at every triangle: fewer queries on bigger scenes
     };
     std::vector<File> files = {{std::string(CB_SOURCE_DIR) + "/data/default_scene.glb", 40}};
-    for (const char* f : {"gltf/SpheresScaledInstances/spheres_scaled_instances.gltf", "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf",
-                          "gltf/nested.glb", "hard/tube.obj"})
+    for (const char* f : {"gltf/SpheresScaledInstances/spheres_scaled_instances.gltf",
+                          "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf", "gltf/nested.glb", "hard/tube.obj"})
         if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back({(fs::path(CB_SHARED_DATA) / f).string(), 250});
     size_t queries = 0, blocked = 0, touching = 0, bad_blocked = 0, bad_touching = 0, plane_lights = 0;
     for (const File& file : files) {
@@ -82,10 +82,11 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
         PlaneLight plane = cb::test::plane_light(b.scene, 12345);
         ASSERT_TRUE(plane.found);
         ++plane_lights;
-        std::vector<Point> lights = {{w.lo[0] - size, w.hi[1] + 2 * size, w.lo[2] - 0.5 * size},
-                                     {w.lo[0] + 0.45 * (w.hi[0] - w.lo[0]), w.lo[1] + 0.55 * (w.hi[1] - w.lo[1]), 0.5 * (w.lo[2] + w.hi[2])},
-                                     {0, 0, 0},
-                                     {plane.light[0], plane.light[1], plane.light[2]}};
+        std::vector<Point> lights = {
+            {w.lo[0] - size, w.hi[1] + 2 * size, w.lo[2] - 0.5 * size},
+            {w.lo[0] + 0.45 * (w.hi[0] - w.lo[0]), w.lo[1] + 0.55 * (w.hi[1] - w.lo[1]), 0.5 * (w.lo[2] + w.hi[2])},
+            {0, 0, 0},
+            {plane.light[0], plane.light[1], plane.light[2]}};
         ASSERT_TRUE(cb::test::vertex_light(b.scene, 777, lights[2].data()));
         std::vector<Point> seen = seen_points(fast, w, 200, rng), flat = in_plane_points(b.scene, plane);
         ASSERT_FALSE(seen.empty());
@@ -93,11 +94,16 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
             std::vector<Point> through = cb::test::through_points(b.scene, lights[l].data(), file.per_light / 5 + 1, l);
             for (size_t k = 0; k < file.per_light; ++k) {
                 Point p;
-                if (k % 5 == 0) p = w.surface[(k * 7919) % w.surface.size()];
-                else if (k % 5 == 1) p = seen[k % seen.size()];
-                else if (k % 5 == 2 && l == 3 && !flat.empty()) p = flat[k % flat.size()];
-                else if (k % 5 == 3 && k / 5 < through.size()) p = through[k / 5];
-                else for (int j = 0; j < 3; ++j) p[j] = w.lo[j] + (w.hi[j] - w.lo[j]) * (1.2 * u(rng) - 0.1);
+                if (k % 5 == 0)
+                    p = w.surface[(k * 7919) % w.surface.size()];
+                else if (k % 5 == 1)
+                    p = seen[k % seen.size()];
+                else if (k % 5 == 2 && l == 3 && !flat.empty())
+                    p = flat[k % flat.size()];
+                else if (k % 5 == 3 && k / 5 < through.size())
+                    p = through[k / 5];
+                else
+                    for (int j = 0; j < 3; ++j) p[j] = w.lo[j] + (w.hi[j] - w.lo[j]) * (1.2 * u(rng) - 0.1);
                 for (bool one_sided : {false, true}) {
                     cb::test::OracleAnswer all = fast.occluded_brute_force(p.data(), lights[l].data(), one_sided);
                     cb::test::OracleAnswer a = fast.occluded(p.data(), lights[l].data(), one_sided);
@@ -109,8 +115,10 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
             }
         }
     }
-    std::printf("%zu queries on %zu scenes (both modes), %zu in shadow, %zu touching; disagreements: blocked %zu, touching %zu\n",
-                queries, files.size(), blocked, touching, bad_blocked, bad_touching);
+    std::printf(
+        "%zu queries on %zu scenes (both modes), %zu in shadow, %zu touching; disagreements: blocked %zu, touching "
+        "%zu\n",
+        queries, files.size(), blocked, touching, bad_blocked, bad_touching);
     EXPECT_EQ(bad_blocked, 0u);
     EXPECT_EQ(bad_touching, 0u);
     EXPECT_GT(blocked, queries / 10);

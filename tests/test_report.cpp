@@ -44,7 +44,8 @@ const fs::path& report_dir() {
 // Each <svg class="plot"> ... </svg> of a page.
 std::vector<std::string> plots_of(const std::string& page) {
     std::vector<std::string> out;
-    for (size_t at = page.find("<svg class=\"plot\""); at != std::string::npos; at = page.find("<svg class=\"plot\"", at + 1))
+    for (size_t at = page.find("<svg class=\"plot\""); at != std::string::npos;
+         at = page.find("<svg class=\"plot\"", at + 1))
         out.push_back(page.substr(at, page.find("</svg>", at) - at));
     return out;
 }
@@ -174,17 +175,20 @@ TEST(ReportBrowser, RendersWithoutNetwork) {
         for (std::string dir; std::getline(path, dir, ':') && chromium.empty();)
             if (fs::exists(fs::path(dir) / name)) chromium = (fs::path(dir) / name).string();
     }
-    if (chromium.empty()) GTEST_SKIP() << "chromium is not installed (scripts/install-deps.sh installs it): browser test skipped";
+    if (chromium.empty())
+        GTEST_SKIP() << "chromium is not installed (scripts/install-deps.sh installs it): browser test skipped";
     const fs::path& d = report_dir();
     fs::path shot = d / "screenshot.png", dom = d / "dom.html", profile = d / "chromium-profile";
     fs::remove(shot);
     // No network: every host name resolves to nothing and every request would go to a proxy that is not there.
-    std::string flags = "--headless --no-sandbox --disable-gpu --no-first-run --disable-extensions --disable-sync "
-                        "--disable-background-networking --disable-component-update --disable-default-apps "
-                        "--host-resolver-rules=\"MAP * ~NOTFOUND\" --proxy-server=127.0.0.1:9 --user-data-dir=" +
-                        profile.string() + " ";
+    std::string flags =
+        "--headless --no-sandbox --disable-gpu --no-first-run --disable-extensions --disable-sync "
+        "--disable-background-networking --disable-component-update --disable-default-apps "
+        "--host-resolver-rules=\"MAP * ~NOTFOUND\" --proxy-server=127.0.0.1:9 --user-data-dir=" +
+        profile.string() + " ";
     std::string url = "file://" + fs::absolute(d / "report.html").string();
-    CliRun s = run_program("timeout 120 " + chromium, flags + "--window-size=1280,1600 --screenshot=" + shot.string() + " " + url);
+    CliRun s = run_program("timeout 120 " + chromium,
+                           flags + "--window-size=1280,1600 --screenshot=" + shot.string() + " " + url);
     ASSERT_EQ(s.code, 0) << s.err;
     Rgb img = read_png(shot.string());
     ASSERT_EQ(img.width, 1280u) << "screenshot did not decode";

@@ -20,8 +20,8 @@
 
 namespace fs = std::filesystem;
 using Epick = CGAL::Exact_predicates_inexact_constructions_kernel;
-using cb::test::Baked;
 using cb::test::bake;
+using cb::test::Baked;
 using cb::test::oracle;
 using cb::test::sample_scene;
 using cb::test::SceneOracle;
@@ -53,9 +53,18 @@ TEST(Lanes, BuiltForTheIntendedWidth) {
 // The inlined next float (rounding outward without a library call) against std::nextafter: zeros,
 // subnormals, the ends of the normal range, infinities and random bit patterns, both ways.
 TEST(Exact, NextFloatMatchesNextafter) {
-    std::vector<float> values = {0.0f, -0.0f, 1.0f, -1.0f, std::numeric_limits<float>::denorm_min(), -std::numeric_limits<float>::denorm_min(),
-                                 std::numeric_limits<float>::min(), -std::numeric_limits<float>::min(), std::numeric_limits<float>::max(),
-                                 -std::numeric_limits<float>::max(), INFINITY, -INFINITY};
+    std::vector<float> values = {0.0f,
+                                 -0.0f,
+                                 1.0f,
+                                 -1.0f,
+                                 std::numeric_limits<float>::denorm_min(),
+                                 -std::numeric_limits<float>::denorm_min(),
+                                 std::numeric_limits<float>::min(),
+                                 -std::numeric_limits<float>::min(),
+                                 std::numeric_limits<float>::max(),
+                                 -std::numeric_limits<float>::max(),
+                                 INFINITY,
+                                 -INFINITY};
     std::mt19937 rng(5);
     while (values.size() < 100000) {
         uint32_t bits = uint32_t(rng());
@@ -126,7 +135,8 @@ TEST(Exact, SegmentTestAgreesWithCgalOracle) {
             for (int k = 0; k < 3; ++k) p[k] = a[k] + s * (b[k] - a[k]) + t * (c[k] - a[k]);
         }
         bool two_sided = i % 3 != 2;
-        cb::SegmentTest ours = cb::segment_triangle(p, q, a, b, c, two_sided), theirs = oracle(p, q, a, b, c, two_sided);
+        cb::SegmentTest ours = cb::segment_triangle(p, q, a, b, c, two_sided),
+                        theirs = oracle(p, q, a, b, c, two_sided);
         ASSERT_EQ(ours.blocks, theirs.blocks) << "case " << i;
         ASSERT_EQ(ours.touching, theirs.touching) << "case " << i;
         touching += ours.touching;
@@ -137,7 +147,6 @@ TEST(Exact, SegmentTestAgreesWithCgalOracle) {
     EXPECT_GT(touching, 1000u);
     EXPECT_GT(blocks, 1000u);
 }
-
 
 TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
     std::vector<std::string> files = {std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"};
@@ -162,10 +171,11 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
         const float* on = v.positions + (size_t(m0.first_vertex) + m0.vertex_count / 2) * 3;
         double on_vertex[3] = {on[0], on[1], on[2]}, on_world[3];
         cb::apply_instance(v.instances[0].transform, on_vertex, on_world);
-        double lights[4][3] = {{lo[0] - 2 * size, hi[1] + 3 * size, lo[2] - size},
-                               {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])},
-                               {lo[0] + 0.4 * (hi[0] - lo[0]), lo[1] + 0.6 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
-                               {on_world[0], on_world[1], on_world[2]}};
+        double lights[4][3] = {
+            {lo[0] - 2 * size, hi[1] + 3 * size, lo[2] - size},
+            {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])},
+            {lo[0] + 0.4 * (hi[0] - lo[0]), lo[1] + 0.6 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
+            {on_world[0], on_world[1], on_world[2]}};
         size_t per_light = v.triangle_count > 20000 ? 60 : 400;
         for (const auto& light : lights)
             for (size_t k = 0; k < per_light; ++k) {
@@ -189,8 +199,10 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
                 }
             }
     }
-    std::printf("%zu queries (two-sided and one-sided), %zu in shadow, %zu touching (per the oracle), %zu disagreements; "
-                "one-sided answer differs from two-sided for %zu\n", queries, shadowed, touching, disagreements, one_sided_differs);
+    std::printf(
+        "%zu queries (two-sided and one-sided), %zu in shadow, %zu touching (per the oracle), %zu disagreements; "
+        "one-sided answer differs from two-sided for %zu\n",
+        queries, shadowed, touching, disagreements, one_sided_differs);
     EXPECT_GT(one_sided_differs, 0u);  // the mode is really exercised
     EXPECT_EQ(disagreements, 0u);
     EXPECT_GT(shadowed, queries / 10);
@@ -253,13 +265,18 @@ TEST(Shadow, ShadowVolumesHoldEverythingTheirBoxCanShadow) {
         // And it does cull: the point halfway between the light and the box's nearest point is outside.
         if (v.valid) {
             double mid[3];
-            for (int k = 0; k < 3; ++k) mid[k] = light[k] + 0.5 * v.near / std::sqrt(
-                (box.center[0] - light[0]) * (box.center[0] - light[0]) + (box.center[1] - light[1]) * (box.center[1] - light[1]) +
-                (box.center[2] - light[2]) * (box.center[2] - light[2])) * (box.center[k] - light[k]);
+            for (int k = 0; k < 3; ++k)
+                mid[k] = light[k] +
+                    0.5 * v.near /
+                        std::sqrt((box.center[0] - light[0]) * (box.center[0] - light[0]) +
+                                  (box.center[1] - light[1]) * (box.center[1] - light[1]) +
+                                  (box.center[2] - light[2]) * (box.center[2] - light[2])) *
+                        (box.center[k] - light[k]);
             rejected += !cb::inside_shadow_volume(v, light, mid);
         }
     }
-    std::printf("%zu valid volumes, %zu lights inside or level (invalid), %zu samples, %zu missed\n", valid, invalid, samples, misses);
+    std::printf("%zu valid volumes, %zu lights inside or level (invalid), %zu samples, %zu missed\n", valid, invalid,
+                samples, misses);
     EXPECT_EQ(misses, 0u);
     EXPECT_GT(valid, 10000u);
     EXPECT_GT(invalid, 100u);
@@ -268,10 +285,11 @@ TEST(Shadow, ShadowVolumesHoldEverythingTheirBoxCanShadow) {
 
 TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
     std::vector<std::string> files = {std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"};
-    for (const char* f : {"scanned/bunny_npm.obj", "scanned/dragon_vrip_res4.ply", "hard/tube.obj", "hard/3dfier_testarea/testarea.obj",
-                          "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf"})
+    for (const char* f : {"scanned/bunny_npm.obj", "scanned/dragon_vrip_res4.ply", "hard/tube.obj",
+                          "hard/3dfier_testarea/testarea.obj", "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf"})
         if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back((fs::path(CB_SHARED_DATA) / f).string());
-    size_t queries = 0, disagreements = 0, batch_disagreements = 0, ordered_disagreements = 0, shadowed = 0, skipped = 0;
+    size_t queries = 0, disagreements = 0, batch_disagreements = 0, ordered_disagreements = 0, shadowed = 0,
+           skipped = 0;
     uint64_t tested_tree = 0, tested_reference = 0;
     for (const std::string& file : files) {
         SCOPED_TRACE(file);
@@ -285,10 +303,11 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
         std::mt19937 rng(17);
         std::uniform_real_distribution<double> u(0, 1);
         const auto& sv = surface[surface.size() / 3];
-        double lights[4][3] = {{lo[0] - size, hi[1] + 2 * size, lo[2] - 0.5 * size},
-                               {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])},
-                               {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
-                               {sv[0], sv[1], sv[2]}};
+        double lights[4][3] = {
+            {lo[0] - size, hi[1] + 2 * size, lo[2] - 0.5 * size},
+            {0.5 * (lo[0] + hi[0]), hi[1] + 1e-3 * size, 0.5 * (lo[2] + hi[2])},
+            {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
+            {sv[0], sv[1], sv[2]}};
         const std::vector<cb::ScanBounds> bounds = cb::make_scan_bounds(v);
         for (int variant = 0; variant < 24; ++variant) {
             const double* light = lights[variant % 4];
@@ -297,7 +316,9 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
             std::vector<cb::InstanceShadow> trees(v.instance_count);
             size_t stack = 0;
             for (uint32_t i = 0; i < v.instance_count; ++i) {  // half the scans share the bounds, half make their own
-                trees[i].build(v, i, light, {.traversal = level, .one_sided = one_sided, .bounds = variant % 2 == 0 ? bounds.data() : nullptr});
+                trees[i].build(
+                    v, i, light,
+                    {.traversal = level, .one_sided = one_sided, .bounds = variant % 2 == 0 ? bounds.data() : nullptr});
                 stack = std::max(stack, trees[i].stack_size());
                 skipped += trees[i].skipped_clusters();
             }
@@ -330,7 +351,8 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
             // The same points as one batch over every instance's tree.
             std::vector<uint32_t> batch_scratch(cb::batch_scratch_size(trees.data(), trees.size(), references.size()));
             std::vector<uint8_t> batch(references.size());
-            cb::occluded_batch(trees.data(), trees.size(), points.data(), batch.size(), batch.data(), batch_scratch.data());
+            cb::occluded_batch(trees.data(), trees.size(), points.data(), batch.size(), batch.data(),
+                               batch_scratch.data());
             for (size_t k = 0; k < batch.size(); ++k) batch_disagreements += bool(batch[k]) != references[k];
             // And ordered once, then answered in uneven ranges of the order, the last first (as threads would
             // take them): every range of the order gives the same answers.
@@ -350,15 +372,19 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
             std::vector<uint8_t> ordered(n, 2);
             for (size_t end = n; end > 0;) {
                 const size_t begin = end > 101 ? end - 101 : 0;
-                cb::occluded_ordered(trees.data(), trees.size(), points.data(), &order[begin], end - begin, ordered.data(), ordered_scratch.data());
+                cb::occluded_ordered(trees.data(), trees.size(), points.data(), &order[begin], end - begin,
+                                     ordered.data(), ordered_scratch.data());
                 end = begin;
             }
             for (size_t k = 0; k < n; ++k) ordered_disagreements += ordered[k] != batch[k];
         }
     }
-    std::printf("%zu queries (fine scan, fine trees and one tree; two- and one-sided), %zu in shadow, %zu disagreements; triangles tested per query: tree %.1f, "
-                "reference %.1f; one-sided builds skipped %zu clusters (light in their front cone)\n",
-                queries, shadowed, disagreements, double(tested_tree) / double(queries), double(tested_reference) / double(queries), skipped);
+    std::printf(
+        "%zu queries (fine scan, fine trees and one tree; two- and one-sided), %zu in shadow, %zu disagreements; "
+        "triangles tested per query: tree %.1f, "
+        "reference %.1f; one-sided builds skipped %zu clusters (light in their front cone)\n",
+        queries, shadowed, disagreements, double(tested_tree) / double(queries),
+        double(tested_reference) / double(queries), skipped);
     EXPECT_EQ(disagreements, 0u);
     EXPECT_EQ(batch_disagreements, 0u);
     EXPECT_EQ(ordered_disagreements, 0u);
@@ -379,8 +405,9 @@ TEST(Shadow, PointsAndLightsThatAreNotFiniteAreNeverInShadow) {
     WorldSample world = sample_scene(b.scene, 1);
     const double light[3] = {world.lo[0] - world.size(), world.hi[1] + 2 * world.size(), world.lo[2]};
     std::vector<double> points;
-    for (size_t k = 0; k < 200; ++k) points.insert(points.end(), world.surface[k * 7 % world.surface.size()].begin(),
-                                                   world.surface[k * 7 % world.surface.size()].end());
+    for (size_t k = 0; k < 200; ++k)
+        points.insert(points.end(), world.surface[k * 7 % world.surface.size()].begin(),
+                      world.surface[k * 7 % world.surface.size()].end());
     const double bad[4][3] = {{NAN, 0, 0}, {0, INFINITY, 0}, {-INFINITY, 1, 2}, {1e308, -1e308, NAN}};
     for (const auto& p : bad) points.insert(points.end(), p, p + 3);
     const size_t n = points.size() / 3;
@@ -423,7 +450,8 @@ TEST(Shadow, ParallelBuildGivesTheSameTree) {
         WorldSample world = sample_scene(b.scene, 1);
         double size = world.size();
         std::vector<double> points;
-        for (size_t k = 0; k < world.surface.size(); k += 3) points.insert(points.end(), world.surface[k].begin(), world.surface[k].end());
+        for (size_t k = 0; k < world.surface.size(); k += 3)
+            points.insert(points.end(), world.surface[k].begin(), world.surface[k].end());
         const double light[3] = {world.lo[0] - size, world.hi[1] + 2 * size, world.lo[2] - 0.5 * size};
         for (bool one_sided : {false, true}) {
             std::vector<cb::InstanceShadow> one(v.instance_count), three(v.instance_count);
@@ -456,7 +484,8 @@ TEST(Shadow, ParallelBuildGivesTheSameTree) {
 // coarse cluster is tested (scan: spheres that hold everything; fine trees: every fine cluster without a
 // volume). Answers as the reference's, which tests every cluster then.
 TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
-    Baked b = cb::test::bake_scene(cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"), {}, cb::bounds_auto, 1,
+    Baked b = cb::test::bake_scene(cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"), {},
+                                   cb::bounds_auto, 1,
                                    /*fine_bounds=*/false);
     ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
     const cb::AssetView& v = b.view;
@@ -471,7 +500,8 @@ TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
             const auto& s = world.surface[size_t(k) * 7919 % world.surface.size()];
             points.insert(points.end(), s.begin(), s.end());
         } else {
-            for (int j = 0; j < 3; ++j) points.push_back(world.lo[j] + (world.hi[j] - world.lo[j]) * (1.2 * u(rng) - 0.1));
+            for (int j = 0; j < 3; ++j)
+                points.push_back(world.lo[j] + (world.hi[j] - world.lo[j]) * (1.2 * u(rng) - 0.1));
         }
     }
     const size_t n = points.size() / 3;
@@ -535,7 +565,9 @@ Baked bumpy_grid(double offset, double dx, double dy, double height, double wave
     std::vector<uint32_t> idx;
     for (int j = 0; j <= 6; ++j)
         for (int i = 0; i <= 6; ++i)
-            pos.insert(pos.end(), {float(offset + i * dx), float(offset + j * dy), float(offset + height * std::sin(i * wave + j))});
+            pos.insert(
+                pos.end(),
+                {float(offset + i * dx), float(offset + j * dy), float(offset + height * std::sin(i * wave + j))});
     for (uint32_t j = 0; j < 6; ++j)
         for (uint32_t i = 0; i < 6; ++i) {
             uint32_t a = j * 7 + i;
@@ -560,7 +592,8 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
         // A flat, zero-thickness grid (coplanar clusters, flat boxes) at z = 0 around (offset, offset).
         Case flat{offset == 0 ? "flat grid" : "flat grid at 1e6", {}, {}, {}};
         for (int j = 0; j <= 8; ++j)
-            for (int i = 0; i <= 8; ++i) flat.positions.insert(flat.positions.end(), {float(offset + i), float(offset + j), 0.0f});
+            for (int i = 0; i <= 8; ++i)
+                flat.positions.insert(flat.positions.end(), {float(offset + i), float(offset + j), 0.0f});
         for (uint32_t j = 0; j < 8; ++j)
             for (uint32_t i = 0; i < 8; ++i) {
                 uint32_t a = j * 9 + i;
@@ -568,8 +601,11 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
             }
         // Lights: above, exactly in the plane (on the grid and beside it), inside a flat box, and 2e9 above
         // (beyond float_safe, where the runtime's float filters give way to double tests).
-        flat.lights = {{offset + 4.3, offset + 3.7, 6}, {offset + 4, offset + 4, 0}, {offset - 3, offset + 4.5, 0},
-                       {offset + 2.5, offset + 2.5, 0}, {offset + 4.2, offset + 3.9, 2e9}};
+        flat.lights = {{offset + 4.3, offset + 3.7, 6},
+                       {offset + 4, offset + 4, 0},
+                       {offset - 3, offset + 4.5, 0},
+                       {offset + 2.5, offset + 2.5, 0},
+                       {offset + 4.2, offset + 3.9, 2e9}};
         cases.push_back(flat);
     }
     // Two bumpy layers at scales where float squares vanish (1e-23: squares near 1e-46) or where
@@ -580,7 +616,8 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
             const uint32_t base = uint32_t(tiny.positions.size() / 3), n = layer == 0 ? 10 : 5;
             for (uint32_t j = 0; j <= n; ++j)
                 for (uint32_t i = 0; i <= n; ++i) {
-                    double x = layer == 0 ? i : 2.5 + i, y = layer == 0 ? j : 2.5 + j, z = 4.0 * layer + 0.3 * std::sin(1.7 * i + 2.3 * j);
+                    double x = layer == 0 ? i : 2.5 + i, y = layer == 0 ? j : 2.5 + j,
+                           z = 4.0 * layer + 0.3 * std::sin(1.7 * i + 2.3 * j);
                     tiny.positions.insert(tiny.positions.end(), {float(x * scale), float(y * scale), float(z * scale)});
                 }
             for (uint32_t j = 0; j < n; ++j)
@@ -589,7 +626,9 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                     tiny.indices.insert(tiny.indices.end(), {a, a + 1, a + n + 1, a + 1, a + n + 2, a + n + 1});
                 }
         }
-        tiny.lights = {{5.1 * scale, 4.9 * scale, 9 * scale}, {-6 * scale, 5 * scale, 4 * scale}, {5.2 * scale, 4.7 * scale, 2 * scale}};
+        tiny.lights = {{5.1 * scale, 4.9 * scale, 9 * scale},
+                       {-6 * scale, 5 * scale, 4 * scale},
+                       {5.2 * scale, 4.7 * scale, 2 * scale}};
         cases.push_back(tiny);
     }
     // Needles: long, thin triangles fanned around the origin, and a light among them (inside their boxes).
@@ -597,9 +636,10 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
     for (int i = 0; i < 40; ++i) {
         double a = i * 0.157;
         uint32_t b = uint32_t(needles.positions.size() / 3);
-        needles.positions.insert(needles.positions.end(), {0.0f, 0.0f, float(0.01 * i), float(20 * std::cos(a)), float(20 * std::sin(a)),
-                                                           float(0.01 * i), float(20 * std::cos(a + 1e-3)), float(20 * std::sin(a + 1e-3)),
-                                                           float(0.01 * i + 0.05)});
+        needles.positions.insert(
+            needles.positions.end(),
+            {0.0f, 0.0f, float(0.01 * i), float(20 * std::cos(a)), float(20 * std::sin(a)), float(0.01 * i),
+             float(20 * std::cos(a + 1e-3)), float(20 * std::sin(a + 1e-3)), float(0.01 * i + 0.05)});
         needles.indices.insert(needles.indices.end(), {b, b + 1, b + 2});
     }
     cases.push_back(needles);
@@ -637,7 +677,8 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                         p[1] = world.lo[1] + (world.hi[1] - world.lo[1]) * (1.4 * (u(rng) + 1) / 2 - 0.2);
                         p[2] = 0;
                     } else {  // around, below and above
-                        for (int j = 0; j < 3; ++j) p[j] = 0.5 * (world.lo[j] + world.hi[j]) + (world.hi[j] - world.lo[j] + 2) * u(rng);
+                        for (int j = 0; j < 3; ++j)
+                            p[j] = 0.5 * (world.lo[j] + world.hi[j]) + (world.hi[j] - world.lo[j] + 2) * u(rng);
                     }
                     cb::test::OracleAnswer exact_answer = exact_oracle.occluded(p, light.data(), one_sided);
                     bool exact = exact_answer.blocked;
@@ -657,8 +698,9 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                 for (size_t k = 0; k < batch.size(); ++k) batch_disagreements += bool(batch[k]) != exact_answers[k];
             }
     }
-    std::printf("%zu hard-case queries, %zu touching; disagreements with the oracle: reference %zu, tree %zu, tree batch %zu\n",
-                queries, touching, disagreements, tree_disagreements, batch_disagreements);
+    std::printf(
+        "%zu hard-case queries, %zu touching; disagreements with the oracle: reference %zu, tree %zu, tree batch %zu\n",
+        queries, touching, disagreements, tree_disagreements, batch_disagreements);
     EXPECT_EQ(disagreements, 0u);
     EXPECT_EQ(tree_disagreements, 0u);
     EXPECT_EQ(batch_disagreements, 0u);
@@ -667,7 +709,8 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
 
 namespace {
 // Triangle `triangle` of fine cluster f (mesh-local indices), its corners in double.
-void triangle_corners(const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, uint32_t triangle, double (&q)[3][3]) {
+void triangle_corners(const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, uint32_t triangle,
+                      double (&q)[3][3]) {
     uint32_t corner[3];
     v.triangle(m, f, triangle, corner);
     for (int z = 0; z < 3; ++z)
@@ -677,8 +720,8 @@ void triangle_corners(const cb::AssetView& v, const cb::MeshRecord& m, uint32_t 
 // visit(offset, v, m, f, trial) for `trials` fine clusters f drawn from rng, of a bumpy grid (bumpy_grid's
 // parameters) at each offset.
 template <class Visit>
-void for_each_grid_cluster(std::initializer_list<double> offsets, double dx, double dy, double height, double wave, int trials, std::mt19937& rng,
-                           Visit visit) {
+void for_each_grid_cluster(std::initializer_list<double> offsets, double dx, double dy, double height, double wave,
+                           int trials, std::mt19937& rng, Visit visit) {
     for (double offset : offsets) {
         Baked b = bumpy_grid(offset, dx, dy, height, wave);
         const cb::AssetView& v = b.view;
@@ -700,105 +743,120 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
     std::mt19937 rng(17);
     std::uniform_real_distribution<double> u(0, 1);
     size_t tiles = 0, decided = 0, pairs_left_out = 0, surely_blocked = 0, wrong = 0, answers = 0, blocked = 0;
-    for_each_grid_cluster({0.0, 1e6, 3e7}, 1, 1, 0.3, 1.7, 90, rng, [&](double, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
-        const cb::FineCluster& c = v.fine[m.first_fine + f];
-        uint32_t id[3];
-        v.triangle(m, f, c.first_triangle + uint32_t(rng() % c.triangle_count), id);
-        double a[3], bb[3], cc[3], normal[3], light[3];
-        for (int k = 0; k < 3; ++k) a[k] = v.position(m, id[0])[k], bb[k] = v.position(m, id[1])[k], cc[k] = v.position(m, id[2])[k];
-        const double e1[3] = {bb[0] - a[0], bb[1] - a[1], bb[2] - a[2]}, e2[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]};
-        normal[0] = e1[1] * e2[2] - e1[2] * e2[1], normal[1] = e1[2] * e2[0] - e1[0] * e2[2], normal[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        const double nl = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
-        const double s = u(rng), t = u(rng) * (1 - s);
-        const double lift = trial % 3 == 0 ? 0.0 : (trial % 3 == 1 ? 1e-3 : 0.3) * (u(rng) < 0.5 ? -1 : 1);  // on the plane, near it, off it
-        for (int k = 0; k < 3; ++k) light[k] = a[k] + s * e1[k] + t * e2[k] + lift * normal[k] / nl;
-        // The rays: a small square cone about a random direction, or (one trial in four) a very thin one
-        // aimed at a point of the triangle's edge a-b, so that every ray lies within rounding of that
-        // edge's plane through the light.
-        double d[3] = {u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5}, x[3], y[3];
-        const bool at_edge = trial % 4 == 3;
-        if (at_edge)
-            for (int k = 0; k < 3; ++k) d[k] = a[k] + s * e1[k] - light[k];
-        const double dl = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-        for (double& q : d) q /= dl;
-        const double pick[3] = {std::fabs(d[0]) < 0.5 ? 1.0 : 0.0, std::fabs(d[0]) < 0.5 ? 0.0 : 1.0, 0.0};
-        x[0] = d[1] * pick[2] - d[2] * pick[1], x[1] = d[2] * pick[0] - d[0] * pick[2], x[2] = d[0] * pick[1] - d[1] * pick[0];
-        const double xl = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
-        for (double& q : x) q /= xl;
-        y[0] = d[1] * x[2] - d[2] * x[1], y[1] = d[2] * x[0] - d[0] * x[2], y[2] = d[0] * x[1] - d[1] * x[0];
-        const double spread = at_edge ? 1e-9 : std::pow(10.0, -4 + 3 * u(rng));
-        alignas(64) float rx[4], ry[4], rz[4];
-        for (int j = 0; j < 4; ++j) {
-            const double sx = (j == 0 || j == 3) ? -spread : spread, sy = j < 2 ? -spread : spread;
-            double r[3], rl = 0;
-            for (int k = 0; k < 3; ++k) r[k] = d[k] + sx * x[k] + sy * y[k], rl += r[k] * r[k];
-            rl = std::sqrt(rl);
-            rx[j] = float(r[0] / rl), ry[j] = float(r[1] / rl), rz[j] = float(r[2] / rl);
-        }
-        // 64 points, each a positive mix of the float rays (each weight at least 1/100 of the largest).
-        double p[64][3];
-        alignas(64) float ex[64], ey[64], ez[64], vl[64];
-        double l1[64];
-        const double reach = std::pow(10.0, -2 + 3 * u(rng));
-        for (int i = 0; i < 64; ++i) {
-            double w[4], e[3] = {0, 0, 0};
-            for (double& q : w) q = (0.01 + u(rng)) * reach;
-            for (int j = 0; j < 4; ++j) e[0] += w[j] * rx[j], e[1] += w[j] * ry[j], e[2] += w[j] * rz[j];
-            for (int k = 0; k < 3; ++k) p[i][k] = light[k] + e[k];
-            const double f0 = p[i][0] - light[0], f1 = p[i][1] - light[1], f2 = p[i][2] - light[2];
-            ex[i] = float(f0), ey[i] = float(f1), ez[i] = float(f2);
-            l1[i] = std::fabs(f0) + std::fabs(f1) + std::fabs(f2), vl[i] = float(l1[i] * 1.000001);
-        }
-        const cb::lit::TileView tile{ex, ey, ez, vl, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64), rx, ry, rz};
-        const uint64_t which = ~uint64_t(0);
-        for (bool one_sided : {false, true}) {
-            for (uint32_t first = 0; first < c.triangle_count; first += cb::lit::capacity) {
-                const uint32_t count = std::min<uint32_t>(cb::lit::capacity, c.triangle_count - first);
-                cb::lit::Triangles lit;
-                cb::lit::light_triangles(v, m, c, first, count, light, one_sided, lit);
-                uint32_t may_meet[64], through[64];
-                uint64_t sure = 0, left = 0;
-                ++tiles;
-                if (!cb::lit::tile_line_tests(lit, tile, which, may_meet, through, &sure, &left)) continue;
-                ++decided;
-                for (int i = 0; i < 64; ++i) {
-                    bool blocks = false;  // exactly, by a triangle of this group
-                    for (uint32_t k = 0; k < count; ++k) {
-                        double q[3][3];
-                        triangle_corners(v, m, f, c.first_triangle + first + k, q);
-                        const bool meets = (left >> i & 1) && (may_meet[i] >> k & 1);
-                        if (!(sure >> i & 1) && !meets) {
-                            ++pairs_left_out;
-                            wrong += cb::segment_triangle(p[i], light, q[0], q[1], q[2], true).blocks;  // two-sided: the strictest
-                        }
-                        if (meets && (through[i] >> k & 1)) {
-                            const int o0 = cb::exact::orient3d(p[i], light, q[0], q[1]), o1 = cb::exact::orient3d(p[i], light, q[1], q[2]),
-                                      o2 = cb::exact::orient3d(p[i], light, q[2], q[0]);
-                            wrong += !(o0 != 0 && o0 == o1 && o1 == o2);
-                        }
-                        blocks = blocks || cb::segment_triangle(p[i], light, q[0], q[1], q[2], lit.two_sided >> k & 1).blocks;
-                    }
-                    surely_blocked += sure >> i & 1;
-                    wrong += (sure >> i & 1) && !blocks;  // said blocked for sure, and is not
-                }
+    for_each_grid_cluster(
+        {0.0, 1e6, 3e7}, 1, 1, 0.3, 1.7, 90, rng,
+        [&](double, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
+            const cb::FineCluster& c = v.fine[m.first_fine + f];
+            uint32_t id[3];
+            v.triangle(m, f, c.first_triangle + uint32_t(rng() % c.triangle_count), id);
+            double a[3], bb[3], cc[3], normal[3], light[3];
+            for (int k = 0; k < 3; ++k)
+                a[k] = v.position(m, id[0])[k], bb[k] = v.position(m, id[1])[k], cc[k] = v.position(m, id[2])[k];
+            const double e1[3] = {bb[0] - a[0], bb[1] - a[1], bb[2] - a[2]},
+                         e2[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]};
+            normal[0] = e1[1] * e2[2] - e1[2] * e2[1], normal[1] = e1[2] * e2[0] - e1[0] * e2[2],
+            normal[2] = e1[0] * e2[1] - e1[1] * e2[0];
+            const double nl = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
+            const double s = u(rng), t = u(rng) * (1 - s);
+            const double lift = trial % 3 == 0
+                ? 0.0
+                : (trial % 3 == 1 ? 1e-3 : 0.3) * (u(rng) < 0.5 ? -1 : 1);  // on the plane, near it, off it
+            for (int k = 0; k < 3; ++k) light[k] = a[k] + s * e1[k] + t * e2[k] + lift * normal[k] / nl;
+            // The rays: a small square cone about a random direction, or (one trial in four) a very thin one
+            // aimed at a point of the triangle's edge a-b, so that every ray lies within rounding of that
+            // edge's plane through the light.
+            double d[3] = {u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5}, x[3], y[3];
+            const bool at_edge = trial % 4 == 3;
+            if (at_edge)
+                for (int k = 0; k < 3; ++k) d[k] = a[k] + s * e1[k] - light[k];
+            const double dl = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            for (double& q : d) q /= dl;
+            const double pick[3] = {std::fabs(d[0]) < 0.5 ? 1.0 : 0.0, std::fabs(d[0]) < 0.5 ? 0.0 : 1.0, 0.0};
+            x[0] = d[1] * pick[2] - d[2] * pick[1], x[1] = d[2] * pick[0] - d[0] * pick[2],
+            x[2] = d[0] * pick[1] - d[1] * pick[0];
+            const double xl = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+            for (double& q : x) q /= xl;
+            y[0] = d[1] * x[2] - d[2] * x[1], y[1] = d[2] * x[0] - d[0] * x[2], y[2] = d[0] * x[1] - d[1] * x[0];
+            const double spread = at_edge ? 1e-9 : std::pow(10.0, -4 + 3 * u(rng));
+            alignas(64) float rx[4], ry[4], rz[4];
+            for (int j = 0; j < 4; ++j) {
+                const double sx = (j == 0 || j == 3) ? -spread : spread, sy = j < 2 ? -spread : spread;
+                double r[3], rl = 0;
+                for (int k = 0; k < 3; ++k) r[k] = d[k] + sx * x[k] + sy * y[k], rl += r[k] * r[k];
+                rl = std::sqrt(rl);
+                rx[j] = float(r[0] / rl), ry[j] = float(r[1] / rl), rz[j] = float(r[2] / rl);
             }
-            // Whole answers, with and without the tile, against the exact test of every triangle.
-            const uint64_t with = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr, nullptr, nullptr, nullptr, &tile);
-            const uint64_t without = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr);
+            // 64 points, each a positive mix of the float rays (each weight at least 1/100 of the largest).
+            double p[64][3];
+            alignas(64) float ex[64], ey[64], ez[64], vl[64];
+            double l1[64];
+            const double reach = std::pow(10.0, -2 + 3 * u(rng));
             for (int i = 0; i < 64; ++i) {
-                bool exact = false;
-                for (uint32_t k = c.first_triangle; k < c.first_triangle + c.triangle_count && !exact; ++k) {
-                    double q[3][3];
-                    triangle_corners(v, m, f, k, q);
-                    exact = cb::segment_triangle(p[i], light, q[0], q[1], q[2], !one_sided).blocks;
-                }
-                ++answers, blocked += exact;
-                wrong += bool(with >> i & 1) != exact || bool(without >> i & 1) != exact;
+                double w[4], e[3] = {0, 0, 0};
+                for (double& q : w) q = (0.01 + u(rng)) * reach;
+                for (int j = 0; j < 4; ++j) e[0] += w[j] * rx[j], e[1] += w[j] * ry[j], e[2] += w[j] * rz[j];
+                for (int k = 0; k < 3; ++k) p[i][k] = light[k] + e[k];
+                const double f0 = p[i][0] - light[0], f1 = p[i][1] - light[1], f2 = p[i][2] - light[2];
+                ex[i] = float(f0), ey[i] = float(f1), ez[i] = float(f2);
+                l1[i] = std::fabs(f0) + std::fabs(f1) + std::fabs(f2), vl[i] = float(l1[i] * 1.000001);
             }
-        }
-    });
-    std::printf("%zu groups, %zu decided for the whole tile (%zu point and triangle pairs left out, %zu points surely blocked), %zu answers (%zu blocked)\n",
-                tiles, decided, pairs_left_out, surely_blocked, answers, blocked);
+            const cb::lit::TileView tile{
+                ex, ey, ez, vl, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64), rx, ry, rz};
+            const uint64_t which = ~uint64_t(0);
+            for (bool one_sided : {false, true}) {
+                for (uint32_t first = 0; first < c.triangle_count; first += cb::lit::capacity) {
+                    const uint32_t count = std::min<uint32_t>(cb::lit::capacity, c.triangle_count - first);
+                    cb::lit::Triangles lit;
+                    cb::lit::light_triangles(v, m, c, first, count, light, one_sided, lit);
+                    uint32_t may_meet[64], through[64];
+                    uint64_t sure = 0, left = 0;
+                    ++tiles;
+                    if (!cb::lit::tile_line_tests(lit, tile, which, may_meet, through, &sure, &left)) continue;
+                    ++decided;
+                    for (int i = 0; i < 64; ++i) {
+                        bool blocks = false;  // exactly, by a triangle of this group
+                        for (uint32_t k = 0; k < count; ++k) {
+                            double q[3][3];
+                            triangle_corners(v, m, f, c.first_triangle + first + k, q);
+                            const bool meets = (left >> i & 1) && (may_meet[i] >> k & 1);
+                            if (!(sure >> i & 1) && !meets) {
+                                ++pairs_left_out;
+                                wrong += cb::segment_triangle(p[i], light, q[0], q[1], q[2], true)
+                                             .blocks;  // two-sided: the strictest
+                            }
+                            if (meets && (through[i] >> k & 1)) {
+                                const int o0 = cb::exact::orient3d(p[i], light, q[0], q[1]),
+                                          o1 = cb::exact::orient3d(p[i], light, q[1], q[2]),
+                                          o2 = cb::exact::orient3d(p[i], light, q[2], q[0]);
+                                wrong += !(o0 != 0 && o0 == o1 && o1 == o2);
+                            }
+                            blocks = blocks ||
+                                cb::segment_triangle(p[i], light, q[0], q[1], q[2], lit.two_sided >> k & 1).blocks;
+                        }
+                        surely_blocked += sure >> i & 1;
+                        wrong += (sure >> i & 1) && !blocks;  // said blocked for sure, and is not
+                    }
+                }
+                // Whole answers, with and without the tile, against the exact test of every triangle.
+                const uint64_t with = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr, nullptr,
+                                                                nullptr, nullptr, &tile);
+                const uint64_t without = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr);
+                for (int i = 0; i < 64; ++i) {
+                    bool exact = false;
+                    for (uint32_t k = c.first_triangle; k < c.first_triangle + c.triangle_count && !exact; ++k) {
+                        double q[3][3];
+                        triangle_corners(v, m, f, k, q);
+                        exact = cb::segment_triangle(p[i], light, q[0], q[1], q[2], !one_sided).blocks;
+                    }
+                    ++answers, blocked += exact;
+                    wrong += bool(with >> i & 1) != exact || bool(without >> i & 1) != exact;
+                }
+            }
+        });
+    std::printf(
+        "%zu groups, %zu decided for the whole tile (%zu point and triangle pairs left out, %zu points surely "
+        "blocked), %zu answers (%zu blocked)\n",
+        tiles, decided, pairs_left_out, surely_blocked, answers, blocked);
     EXPECT_EQ(wrong, 0u);
     EXPECT_GT(decided, tiles / 10);
     EXPECT_GT(surely_blocked, 0u);
@@ -827,23 +885,29 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
             double a[3], bb[3], cc[3], p[3], light[3];
             for (int k = 0; k < 3; ++k)
                 a[k] = v.position(m, id[0])[k], bb[k] = v.position(m, id[1])[k], cc[k] = v.position(m, id[2])[k];
-            double s = u(rng), t = u(rng) * (1 - s), far[3] = {offset + 20 * u(rng) - 7, offset + 20 * u(rng) - 7, offset + 5 + 5 * u(rng)};
+            double s = u(rng), t = u(rng) * (1 - s),
+                   far[3] = {offset + 20 * u(rng) - 7, offset + 20 * u(rng) - 7, offset + 5 + 5 * u(rng)};
             switch (trial % 4) {
                 case 0:  // p within rounding of the triangle's plane, the light above or below
-                    for (int k = 0; k < 3; ++k) p[k] = a[k] + s * (bb[k] - a[k]) + t * (cc[k] - a[k]), light[k] = far[k];
+                    for (int k = 0; k < 3; ++k)
+                        p[k] = a[k] + s * (bb[k] - a[k]) + t * (cc[k] - a[k]), light[k] = far[k];
                     if (trial % 2) std::swap(p, light);
                     break;
                 case 1:  // the light within rounding of the plane of p, a and b: the segment grazes edge a-b
-                    for (int k = 0; k < 3; ++k) p[k] = far[k], light[k] = a[k] + s * (bb[k] - a[k]) + 1.5 * (a[k] + s * (bb[k] - a[k]) - far[k]);
+                    for (int k = 0; k < 3; ++k)
+                        p[k] = far[k],
+                        light[k] = a[k] + s * (bb[k] - a[k]) + 1.5 * (a[k] + s * (bb[k] - a[k]) - far[k]);
                     break;
                 case 2:  // both within rounding of the triangle's plane (edge-on, nearly)
                     for (int k = 0; k < 3; ++k)
-                        p[k] = a[k] + 3 * s * (bb[k] - a[k]) - t * (cc[k] - a[k]), light[k] = a[k] - 2 * t * (bb[k] - a[k]) + 4 * s * (cc[k] - a[k]);
+                        p[k] = a[k] + 3 * s * (bb[k] - a[k]) - t * (cc[k] - a[k]),
+                        light[k] = a[k] - 2 * t * (bb[k] - a[k]) + 4 * s * (cc[k] - a[k]);
                     break;
                 default:  // the segment crosses the triangle within rounding of 2^-13 of the way from p
                     for (int k = 0; k < 3; ++k) {
                         double x = a[k] + s * (bb[k] - a[k]) + t * (cc[k] - a[k]);
-                        light[k] = far[k], p[k] = (x - cb::self_shadow_fraction * far[k]) / (1 - cb::self_shadow_fraction);
+                        light[k] = far[k],
+                        p[k] = (x - cb::self_shadow_fraction * far[k]) / (1 - cb::self_shadow_fraction);
                     }
             }
             for (bool one_sided : {false, true}) {
@@ -871,25 +935,29 @@ template <class Visit>
 void for_each_lit_plane_sample(uint32_t seed, Visit visit) {
     std::mt19937 rng(seed);
     std::uniform_real_distribution<double> u(0, 1);
-    for_each_grid_cluster({0.0, 1e3, 1e6, 3e7}, 0.7, 1.3, 0.4, 1.9, 300, rng, [&](double offset, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
-        const cb::FineCluster& c = v.fine[m.first_fine + f];
-        const double light[3] = {offset + 10 * u(rng) - 3, offset + 10 * u(rng) - 3, offset + (trial % 2 ? 0.2 : 6) * u(rng)};
-        cb::lit::Triangles lit;
-        const uint32_t count = std::min<uint32_t>(cb::lit::capacity, c.triangle_count);
-        cb::lit::light_triangles(v, m, c, 0, count, light, false, lit);
-        for (uint32_t t = 0; t < count; ++t) {
-            double corner[3][3], e1[3], e2[3], n[3], points[4][3];
-            for (int k = 0; k < 3; ++k)
-                for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
-            for (int j = 0; j < 3; ++j) e1[j] = corner[1][j] - corner[0][j], e2[j] = corner[2][j] - corner[0][j];
-            cb::math::cross3(e1, e2, n);
-            for (int k = 0; k < 4; ++k) {
-                const double s = u(rng), w = u(rng) * (1 - s), lift[4] = {0, 1e-12, 1e-6, 0.3};
-                for (int j = 0; j < 3; ++j) points[k][j] = corner[0][j] + s * e1[j] + w * e2[j] + lift[k] * n[j];
-            }
-            visit(lit, t, corner, light, points);
-        }
-    });
+    for_each_grid_cluster({0.0, 1e3, 1e6, 3e7}, 0.7, 1.3, 0.4, 1.9, 300, rng,
+                          [&](double offset, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
+                              const cb::FineCluster& c = v.fine[m.first_fine + f];
+                              const double light[3] = {offset + 10 * u(rng) - 3, offset + 10 * u(rng) - 3,
+                                                       offset + (trial % 2 ? 0.2 : 6) * u(rng)};
+                              cb::lit::Triangles lit;
+                              const uint32_t count = std::min<uint32_t>(cb::lit::capacity, c.triangle_count);
+                              cb::lit::light_triangles(v, m, c, 0, count, light, false, lit);
+                              for (uint32_t t = 0; t < count; ++t) {
+                                  double corner[3][3], e1[3], e2[3], n[3], points[4][3];
+                                  for (int k = 0; k < 3; ++k)
+                                      for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
+                                  for (int j = 0; j < 3; ++j)
+                                      e1[j] = corner[1][j] - corner[0][j], e2[j] = corner[2][j] - corner[0][j];
+                                  cb::math::cross3(e1, e2, n);
+                                  for (int k = 0; k < 4; ++k) {
+                                      const double s = u(rng), w = u(rng) * (1 - s), lift[4] = {0, 1e-12, 1e-6, 0.3};
+                                      for (int j = 0; j < 3; ++j)
+                                          points[k][j] = corner[0][j] + s * e1[j] + w * e2[j] + lift[k] * n[j];
+                                  }
+                                  visit(lit, t, corner, light, points);
+                              }
+                          });
 }
 
 TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
@@ -899,25 +967,26 @@ TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
     size_t checked = 0, outside = 0, inexact = 0;
     auto within = [&](const double* a, const double* b, const double* c, const double* x, double value, double bound) {
         cb::exact::Expansion low = cb::exact::orient3d_exact(a, b, c, x), high = low;
-        cb::exact::grow(low, -value), cb::exact::grow(low, bound);    // exact - value + bound >= 0
-        cb::exact::grow(high, -value), cb::exact::grow(high, -bound); // exact - value - bound <= 0
+        cb::exact::grow(low, -value), cb::exact::grow(low, bound);     // exact - value + bound >= 0
+        cb::exact::grow(high, -value), cb::exact::grow(high, -bound);  // exact - value - bound <= 0
         cb::exact::Expansion error = cb::exact::orient3d_exact(a, b, c, x);
         cb::exact::grow(error, -value);
         inexact += cb::exact::sign(error) != 0;
         ++checked;
         outside += cb::exact::sign(low) < 0 || cb::exact::sign(high) > 0;
     };
-    for_each_lit_plane_sample(11, [&](const cb::lit::Triangles& lit, uint32_t t, const double (&corner)[3][3],
-                                      const double* light, const double (&points)[4][3]) {
-        cb::lit::TriangleTerms terms;
-        cb::lit::plane_terms(lit, t, light, terms);
-        within(corner[0], corner[1], corner[2], light, terms.dq, terms.bq);
-        for (const double* x : points) {
-            double bound;
-            const double value = cb::lit::plane_side(terms, x, bound);
-            within(corner[0], corner[1], corner[2], x, value, bound);
-        }
-    });
+    for_each_lit_plane_sample(11,
+                              [&](const cb::lit::Triangles& lit, uint32_t t, const double(&corner)[3][3],
+                                  const double* light, const double(&points)[4][3]) {
+                                  cb::lit::TriangleTerms terms;
+                                  cb::lit::plane_terms(lit, t, light, terms);
+                                  within(corner[0], corner[1], corner[2], light, terms.dq, terms.bq);
+                                  for (const double* x : points) {
+                                      double bound;
+                                      const double value = cb::lit::plane_side(terms, x, bound);
+                                      within(corner[0], corner[1], corner[2], x, value, bound);
+                                  }
+                              });
     EXPECT_EQ(outside, 0u) << "of " << checked;
     EXPECT_GT(inexact, checked / 10) << "the double values were exact too often for the bound to be tested";
 }
@@ -929,7 +998,7 @@ TEST(Shadow, LitTriangleFloatPlaneTestsStayWithinTheirBounds) {
     // hold the exact values, checked here with exact expansions (times 8192 = 1 / f, to stay exact), for
     // points on, near and off the planes, at large offsets. The float values are computed as the lanes do.
     size_t checked = 0, outside = 0, usable = 0;
-    double worst = 0;  // the largest |error| / bound seen
+    double worst = 0;                                                            // the largest |error| / bound seen
     auto within = [&](cb::exact::Expansion exact, double value, double bound) {  // |exact - value| <= bound
         cb::exact::Expansion low = exact, high = exact;
         cb::exact::grow(low, -value), cb::exact::grow(low, bound);
@@ -943,27 +1012,30 @@ TEST(Shadow, LitTriangleFloatPlaneTestsStayWithinTheirBounds) {
         worst = std::max(worst, std::fabs(e) / bound);
     };
     static_assert(cb::self_shadow_fraction == 1.0 / 8192, "the scaling below");
-    for_each_lit_plane_sample(12, [&](const cb::lit::Triangles& lit, uint32_t t, const double (&corner)[3][3],
-                                      const double* light, const double (&points)[4][3]) {
-        if (!(lit.qbound[t] < INFINITY)) return;
-        ++usable;
-        const cb::exact::Expansion q = cb::exact::orient3d_exact(corner[0], corner[1], corner[2], light);
-        within(q, lit.dq[t], lit.qbound[t]);
-        for (const double* x : points) {
-            const double e[3] = {x[0] - light[0], x[1] - light[1], x[2] - light[2]};
-            const double e_l1 = std::fabs(e[0]) + std::fabs(e[1]) + std::fabs(e[2]);
-            if (!(e_l1 * lit.plane_scale < 1e30 && e_l1 * lit.plane_scale > 1e-20)) continue;  // as the lanes skip
-            const float v0 = float(e[0]), v1 = float(e[1]), v2 = float(e[2]), vl = float(e_l1 * 1.000001);
-            const float mix = lit.dq[t] - float(1 - cb::self_shadow_fraction) * (v0 * lit.nx[t] + v1 * lit.ny[t] + v2 * lit.nz[t]);
-            const float bound = lit.qbound[t] + vl * lit.pbound[t];
-            // 8192 mix = q + 8191 orient3d(a, b, c, x) = q + 8192 p - p
-            const cb::exact::Expansion side = cb::exact::orient3d_exact(corner[0], corner[1], corner[2], x);
-            cb::exact::Expansion scaled = q;
-            cb::exact::add(scaled, cb::exact::scaled_by_power_of_two(side, 8192));
-            cb::exact::add(scaled, cb::exact::negated(side));
-            within(scaled, 8192.0 * double(mix), 8192.0 * double(bound));
-        }
-    });
+    for_each_lit_plane_sample(
+        12,
+        [&](const cb::lit::Triangles& lit, uint32_t t, const double(&corner)[3][3], const double* light,
+            const double(&points)[4][3]) {
+            if (!(lit.qbound[t] < INFINITY)) return;
+            ++usable;
+            const cb::exact::Expansion q = cb::exact::orient3d_exact(corner[0], corner[1], corner[2], light);
+            within(q, lit.dq[t], lit.qbound[t]);
+            for (const double* x : points) {
+                const double e[3] = {x[0] - light[0], x[1] - light[1], x[2] - light[2]};
+                const double e_l1 = std::fabs(e[0]) + std::fabs(e[1]) + std::fabs(e[2]);
+                if (!(e_l1 * lit.plane_scale < 1e30 && e_l1 * lit.plane_scale > 1e-20)) continue;  // as the lanes skip
+                const float v0 = float(e[0]), v1 = float(e[1]), v2 = float(e[2]), vl = float(e_l1 * 1.000001);
+                const float mix = lit.dq[t] -
+                    float(1 - cb::self_shadow_fraction) * (v0 * lit.nx[t] + v1 * lit.ny[t] + v2 * lit.nz[t]);
+                const float bound = lit.qbound[t] + vl * lit.pbound[t];
+                // 8192 mix = q + 8191 orient3d(a, b, c, x) = q + 8192 p - p
+                const cb::exact::Expansion side = cb::exact::orient3d_exact(corner[0], corner[1], corner[2], x);
+                cb::exact::Expansion scaled = q;
+                cb::exact::add(scaled, cb::exact::scaled_by_power_of_two(side, 8192));
+                cb::exact::add(scaled, cb::exact::negated(side));
+                within(scaled, 8192.0 * double(mix), 8192.0 * double(bound));
+            }
+        });
     std::printf("%zu values checked (%zu usable planes); largest error: %.3f of its bound\n", checked, usable, worst);
     EXPECT_EQ(outside, 0u) << "of " << checked;
     EXPECT_GT(usable, 3000u);
@@ -989,7 +1061,8 @@ TEST(Shadow, PaddedBoxCornersHoldEveryClusterVertex) {
             auto check = [&](cb::Obb box, uint32_t first_fine, uint32_t fine_count) {
                 std::vector<Eigen::Vector3d> offsets;
                 for_each_corner(v, r, first_fine, fine_count, [&](const float* q) {
-                    offsets.emplace_back(double(q[0]) - box.center[0], double(q[1]) - box.center[1], double(q[2]) - box.center[2]);
+                    offsets.emplace_back(double(q[0]) - box.center[0], double(q[1]) - box.center[1],
+                                         double(q[2]) - box.center[2]);
                 });
                 Eigen::Matrix3d axes;  // rows are the axes
                 for (int i = 0; i < 3; ++i)
@@ -1020,8 +1093,10 @@ TEST(Shadow, PaddedBoxCornersHoldEveryClusterVertex) {
             }
         }
     }
-    std::printf("%zu cluster vertices checked against their boxes' padded corners; %zu coefficients beyond the "
-                "unpadded half extents\n", checked, beyond_tight);
+    std::printf(
+        "%zu cluster vertices checked against their boxes' padded corners; %zu coefficients beyond the "
+        "unpadded half extents\n",
+        checked, beyond_tight);
     EXPECT_GT(checked, 100000u);
     EXPECT_GT(beyond_tight, 0u);  // the padding is needed
     EXPECT_EQ(outside, 0u);
@@ -1033,7 +1108,8 @@ TEST(Shadow, ScanBoundsHoldTheirClusters) {
     // must be the asset's, bit for bit.
     std::vector<Baked> scenes;
     for (const char* f : {"scanned/bunny_npm.obj", "hard/wallhole.obj"})
-        if (fs::exists(fs::path(CB_SHARED_DATA) / f)) scenes.push_back(cb::test::bake((fs::path(CB_SHARED_DATA) / f).string()));
+        if (fs::exists(fs::path(CB_SHARED_DATA) / f))
+            scenes.push_back(cb::test::bake((fs::path(CB_SHARED_DATA) / f).string()));
     scenes.push_back(cb::test::bake(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"));
     scenes.push_back(bumpy_grid(1e6, 1.5, 1, 0.7, 0.9));
     scenes.push_back(bumpy_grid(0, 3e-23, 2e-23, 1e-23, 1.3));
@@ -1051,8 +1127,10 @@ TEST(Shadow, ScanBoundsHoldTheirClusters) {
             ASSERT_EQ(s.fine_obbs.size(), r.fine_count);
             ASSERT_EQ(s.coarse_obbs.size(), r.coarse_count);
             auto same = [](const cb::Obb& a, const cb::Obb& b) { return std::memcmp(&a, &b, sizeof a) == 0; };
-            for (uint32_t f = 0; f < r.fine_count; ++f, ++boxes) other_boxes += !same(s.fine_obbs[f], v.fine_bounds.obb(r.first_fine + f));
-            for (uint32_t c = 0; c < r.coarse_count; ++c, ++boxes) other_boxes += !same(s.coarse_obbs[c], v.coarse_bounds.obb(r.first_coarse + c));
+            for (uint32_t f = 0; f < r.fine_count; ++f, ++boxes)
+                other_boxes += !same(s.fine_obbs[f], v.fine_bounds.obb(r.first_fine + f));
+            for (uint32_t c = 0; c < r.coarse_count; ++c, ++boxes)
+                other_boxes += !same(s.coarse_obbs[c], v.coarse_bounds.obb(r.first_coarse + c));
             auto check = [&](uint32_t sphere, uint32_t first_fine, uint32_t fine_count) {
                 const double c[3] = {s.origin[0] + s.x[sphere], s.origin[1] + s.y[sphere], s.origin[2] + s.z[sphere]};
                 double farthest = 0;
@@ -1065,11 +1143,14 @@ TEST(Shadow, ScanBoundsHoldTheirClusters) {
                 if (farthest > 0) widest = std::max(widest, double(s.r[sphere]) / farthest);
             };
             for (uint32_t f = 0; f < r.fine_count; ++f) check(f, f, 1);
-            for (uint32_t c = 0; c < r.coarse_count; ++c) check(s.coarse_first + c, v.coarse[r.first_coarse + c].first, v.coarse[r.first_coarse + c].count);
+            for (uint32_t c = 0; c < r.coarse_count; ++c)
+                check(s.coarse_first + c, v.coarse[r.first_coarse + c].first, v.coarse[r.first_coarse + c].count);
         }
     }
-    std::printf("%zu cluster vertices checked against their spheres; radius up to %.2f times the farthest vertex's distance; "
-                "%zu decoded boxes\n", checked, widest, boxes);
+    std::printf(
+        "%zu cluster vertices checked against their spheres; radius up to %.2f times the farthest vertex's distance; "
+        "%zu decoded boxes\n",
+        checked, widest, boxes);
     EXPECT_GT(checked, 100000u);
     EXPECT_EQ(outside, 0u);
     EXPECT_EQ(other_boxes, 0u);
@@ -1085,7 +1166,8 @@ TEST(Shadow, SharedScanBoundsGiveTheTreesOwnAnswers) {
     const std::vector<cb::ScanBounds> shared = cb::make_scan_bounds(v), foreign = cb::make_scan_bounds(other.view);
     WorldSample world = sample_scene(b.scene, 1);
     std::vector<double> points;
-    for (size_t k = 0; k < world.surface.size(); k += 7) points.insert(points.end(), world.surface[k].begin(), world.surface[k].end());
+    for (size_t k = 0; k < world.surface.size(); k += 7)
+        points.insert(points.end(), world.surface[k].begin(), world.surface[k].end());
     const size_t n = points.size() / 3;
     const double light[3] = {world.lo[0] - world.size(), world.hi[1] + world.size(), world.lo[2]};
     std::vector<uint8_t> answers[3];
@@ -1177,7 +1259,8 @@ TEST(Shadow, SegmentBoxFilterNeverMissesATouch) {
         touching += meets;
         if (meets && !cb::segment_may_touch_box(box, p, q)) ++missed;
     }
-    std::printf("%zu segments, %zu meet their box exactly; filter said 'misses' for %zu of those\n", tests, touching, missed);
+    std::printf("%zu segments, %zu meet their box exactly; filter said 'misses' for %zu of those\n", tests, touching,
+                missed);
     EXPECT_GT(touching, tests / 10);
     EXPECT_EQ(missed, 0u);
 }

@@ -142,7 +142,8 @@ TEST(SharedData, DracoMilkTruckMatchesOriginal) {
             float best = 1e30f;
             for (size_t w = 0; w < to.vertex_count(); ++w) {
                 float d = 0;
-                for (int k = 0; k < 3; ++k) d = std::max(d, std::fabs(from.positions[v * 3 + k] - to.positions[w * 3 + k]));
+                for (int k = 0; k < 3; ++k)
+                    d = std::max(d, std::fabs(from.positions[v * 3 + k] - to.positions[w * 3 + k]));
                 best = std::min(best, d);
             }
             return best;

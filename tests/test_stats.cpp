@@ -87,12 +87,14 @@ TEST(Stats, OneTriangle) {
 
 TEST(Stats, TwoDisjointPartsInOneCluster) {
     // Two triangles far apart, then two that share an edge by position only (an unwelded soup).
-    cb::SceneStats apart = stats_of(scene_of(mesh_of({0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 5, 5, 6, 5, 5, 5, 6, 5}, {0, 1, 2, 3, 4, 5})));
+    cb::SceneStats apart =
+        stats_of(scene_of(mesh_of({0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 5, 5, 6, 5, 5, 5, 6, 5}, {0, 1, 2, 3, 4, 5})));
     EXPECT_EQ(apart.fine.clusters, 1u);
     EXPECT_EQ(apart.fine.components.max, 2);
     EXPECT_EQ(apart.fine.split_clusters, 1u);
     EXPECT_EQ(apart.fine.vertices.max, 6);
-    cb::SceneStats soup = stats_of(scene_of(mesh_of({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, {0, 1, 2, 3, 4, 5})));
+    cb::SceneStats soup =
+        stats_of(scene_of(mesh_of({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, {0, 1, 2, 3, 4, 5})));
     EXPECT_EQ(soup.fine.components.max, 1);
     EXPECT_EQ(soup.fine.vertices.max, 6);  // distinct stored vertices, as the asset stores them
 }

@@ -32,13 +32,19 @@ struct GltfWriter {
 
     int mesh(const std::string& name, const MeshData& m, int material) {
         float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
-        for (size_t i = 0; i < m.positions.size(); ++i) lo[i % 3] = std::min(lo[i % 3], m.positions[i]), hi[i % 3] = std::max(hi[i % 3], m.positions[i]);
+        for (size_t i = 0; i < m.positions.size(); ++i)
+            lo[i % 3] = std::min(lo[i % 3], m.positions[i]), hi[i % 3] = std::max(hi[i % 3], m.positions[i]);
         int pv = view(m.positions.data(), m.positions.size() * 4, 34962);
-        doc["accessors"].push_back({{"bufferView", pv}, {"componentType", 5126}, {"count", m.positions.size() / 3},
-                                    {"type", "VEC3"}, {"min", {lo[0], lo[1], lo[2]}}, {"max", {hi[0], hi[1], hi[2]}}});
+        doc["accessors"].push_back({{"bufferView", pv},
+                                    {"componentType", 5126},
+                                    {"count", m.positions.size() / 3},
+                                    {"type", "VEC3"},
+                                    {"min", {lo[0], lo[1], lo[2]}},
+                                    {"max", {hi[0], hi[1], hi[2]}}});
         int pa = int(doc["accessors"].size() - 1);
         int iv = view(m.indices.data(), m.indices.size() * 4, 34963);
-        doc["accessors"].push_back({{"bufferView", iv}, {"componentType", 5125}, {"count", m.indices.size()}, {"type", "SCALAR"}});
+        doc["accessors"].push_back(
+            {{"bufferView", iv}, {"componentType", 5125}, {"count", m.indices.size()}, {"type", "SCALAR"}});
         int ia = int(doc["accessors"].size() - 1);
         json prim = {{"attributes", {{"POSITION", pa}}}, {"indices", ia}, {"mode", 4}};
         if (material >= 0) prim["material"] = material;
@@ -63,14 +69,15 @@ struct GltfWriter {
         std::string enc;
         for (size_t i = 0; i < bin.size(); i += 3) {
             uint32_t v = uint32_t(bin[i]) << 16 | (i + 1 < bin.size() ? uint32_t(bin[i + 1]) << 8 : 0) |
-                         (i + 2 < bin.size() ? bin[i + 2] : 0);
+                (i + 2 < bin.size() ? bin[i + 2] : 0);
             enc += b64[v >> 18 & 63];
             enc += b64[v >> 12 & 63];
             enc += i + 1 < bin.size() ? b64[v >> 6 & 63] : '=';
             enc += i + 2 < bin.size() ? b64[v & 63] : '=';
         }
         json d = doc;
-        d["buffers"] = json::array({{{"byteLength", bin.size()}, {"uri", "data:application/octet-stream;base64," + enc}}});
+        d["buffers"] =
+            json::array({{{"byteLength", bin.size()}, {"uri", "data:application/octet-stream;base64," + enc}}});
         return d.dump(1);
     }
 
@@ -80,7 +87,9 @@ struct GltfWriter {
         std::string text = doc.dump();
         while (text.size() % 4) text.push_back(' ');
         std::vector<uint8_t> out;
-        auto u32 = [&](uint32_t v) { for (int i = 0; i < 4; ++i) out.push_back(uint8_t(v >> (8 * i))); };
+        auto u32 = [&](uint32_t v) {
+            for (int i = 0; i < 4; ++i) out.push_back(uint8_t(v >> (8 * i)));
+        };
         out.insert(out.end(), {'g', 'l', 'T', 'F'});
         u32(2);
         u32(uint32_t(12 + 8 + text.size() + 8 + bin.size()));

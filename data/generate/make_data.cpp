@@ -36,7 +36,11 @@ MeshData grid_plane(int n, float size) {
 
 // Integer hash noise, so the shapes do not depend on a random library's implementation.
 float hash_noise(uint32_t x) {
-    x ^= x >> 16; x *= 0x7feb352dU; x ^= x >> 15; x *= 0x846ca68bU; x ^= x >> 16;
+    x ^= x >> 16;
+    x *= 0x7feb352dU;
+    x ^= x >> 15;
+    x *= 0x846ca68bU;
+    x ^= x >> 16;
     return float(x & 0xffffff) / float(0xffffff) * 2.0f - 1.0f;
 }
 
@@ -45,10 +49,10 @@ float hash_noise(uint32_t x) {
 MeshData blob(int levels, uint32_t seed) {
     const float t = (1.0f + std::sqrt(5.0f)) / 2.0f;
     MeshData m;
-    m.positions = {-1, t, 0, 1, t, 0, -1, -t, 0, 1, -t, 0, 0, -1, t, 0, 1, t,
-                   0, -1, -t, 0, 1, -t, t, 0, -1, t, 0, 1, -t, 0, -1, -t, 0, 1};
-    m.indices = {0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11, 4, 11, 10, 2, 10, 7, 6, 7, 1, 8,
-                 3, 9, 4, 3, 4, 2, 3, 2, 6, 3, 6, 8, 3, 8, 9, 4, 9, 5, 2, 4, 11, 6, 2, 10, 8, 6, 7, 9, 8, 1};
+    m.positions = {-1, t,  0,  1, t, 0,  -1, -t, 0,  1, -t, 0, 0,  -1, t,  0,  1, t,
+                   0,  -1, -t, 0, 1, -t, t,  0,  -1, t, 0,  1, -t, 0,  -1, -t, 0, 1};
+    m.indices = {0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11, 4,  11, 10, 2,  10, 7, 6, 7, 1, 8,
+                 3, 9,  4, 3, 4, 2, 3, 2, 6, 3, 6, 8,  3, 8,  9,  4, 9, 5, 2, 4,  11, 6,  2,  10, 8,  6, 7, 9, 8, 1};
     auto normalize = [&](uint32_t v) {
         float* p = &m.positions[v * 3];
         float l = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
@@ -128,13 +132,15 @@ MeshData pillar() {
         }
     uint32_t top = uint32_t(m.positions.size() / 3);
     m.positions.insert(m.positions.end(), {0, 1.9f, 0});
-    for (uint32_t s = 0; s < sides; ++s) m.indices.insert(m.indices.end(), {top, 4 * sides + (s + 1) % sides, 4 * sides + s});
+    for (uint32_t s = 0; s < sides; ++s)
+        m.indices.insert(m.indices.end(), {top, 4 * sides + (s + 1) % sides, 4 * sides + s});
     return m;
 }
 
 std::vector<uint8_t> default_scene() {
     GltfWriter w;
-    w.doc["materials"] = json::array({{{"name", "single_sided"}}, {{"name", "fence_two_sided"}, {"doubleSided", true}}});
+    w.doc["materials"] =
+        json::array({{{"name", "single_sided"}}, {{"name", "fence_two_sided"}, {"doubleSided", true}}});
     int ground = w.mesh("ground", grid_plane(64, 40.0f), 0);
     int blob_a = w.mesh("blob_a", blob(5, 1), 0);
     int blob_b = w.mesh("blob_b", blob(4, 2), 0);
@@ -143,16 +149,22 @@ std::vector<uint8_t> default_scene() {
 
     std::vector<int> children;
     children.push_back(w.node({{"name", "ground"}, {"mesh", ground}}));
-    children.push_back(w.node({{"name", "blob_a"}, {"mesh", blob_a}, {"translation", {-4.0, 1.0, 2.0}}, {"scale", {1.5, 1.5, 1.5}}}));
-    children.push_back(w.node({{"name", "blob_b"}, {"mesh", blob_b}, {"translation", {5.0, 0.9, -3.0}},
+    children.push_back(
+        w.node({{"name", "blob_a"}, {"mesh", blob_a}, {"translation", {-4.0, 1.0, 2.0}}, {"scale", {1.5, 1.5, 1.5}}}));
+    children.push_back(w.node({{"name", "blob_b"},
+                               {"mesh", blob_b},
+                               {"translation", {5.0, 0.9, -3.0}},
                                {"rotation", {0.0, 0.3826834, 0.0, 0.9238795}}}));
     children.push_back(w.node({{"name", "fence"}, {"mesh", fence_mesh}, {"translation", {-9.0, 0.0, 8.0}}}));
     // The pillar mesh is stored once and placed by eight nodes under a rotated group.
     std::vector<int> colonnade;
     for (int i = 0; i < 8; ++i)
-        colonnade.push_back(w.node({{"name", "pillar_" + std::to_string(i)}, {"mesh", pillar_mesh},
+        colonnade.push_back(w.node({{"name", "pillar_" + std::to_string(i)},
+                                    {"mesh", pillar_mesh},
                                     {"translation", {i * 2.0 - 7.0, 0.0, 0.0}}}));
-    children.push_back(w.node({{"name", "colonnade"}, {"children", colonnade}, {"translation", {0.0, 0.0, -9.0}},
+    children.push_back(w.node({{"name", "colonnade"},
+                               {"children", colonnade},
+                               {"translation", {0.0, 0.0, -9.0}},
                                {"rotation", {0.0, 0.0871557, 0.0, 0.9961947}}}));
     int root = w.node({{"name", "root"}, {"children", children}});
     w.doc["scenes"] = json::array({{{"name", "default"}, {"nodes", {root}}}});
@@ -162,34 +174,46 @@ std::vector<uint8_t> default_scene() {
 
 // ---------------------------------------------------------------- small per-format inputs
 
-const float cube_v[8][3] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1}, {-1, -1, 1}, {1, -1, 1}, {1, 1, 1}, {-1, 1, 1}};
+const float cube_v[8][3] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1},
+                            {-1, -1, 1},  {1, -1, 1},  {1, 1, 1},  {-1, 1, 1}};
 const int cube_q[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {2, 3, 7, 6}, {1, 2, 6, 5}, {0, 4, 7, 3}};
 
 std::string cube_obj() {
     std::string s = "# unit cube, quads, written by clusterbake's make_data\n";
-    for (auto& v : cube_v) s += "v " + std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\n";
-    for (auto& q : cube_q) s += "f " + std::to_string(q[0] + 1) + " " + std::to_string(q[1] + 1) + " " + std::to_string(q[2] + 1) + " " + std::to_string(q[3] + 1) + "\n";
+    for (auto& v : cube_v)
+        s += "v " + std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\n";
+    for (auto& q : cube_q)
+        s += "f " + std::to_string(q[0] + 1) + " " + std::to_string(q[1] + 1) + " " + std::to_string(q[2] + 1) + " " +
+            std::to_string(q[3] + 1) + "\n";
     return s;
 }
 
 std::string cube_off() {
     std::string s = "OFF\n# unit cube\n8 6 12\n";
     for (auto& v : cube_v) s += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\n";
-    for (auto& q : cube_q) s += "4 " + std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2]) + " " + std::to_string(q[3]) + "\n";
+    for (auto& q : cube_q)
+        s += "4 " + std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2]) + " " +
+            std::to_string(q[3]) + "\n";
     return s;
 }
 
 std::string cube_ply(bool binary) {
     std::string s = std::string("ply\nformat ") + (binary ? "binary_little_endian" : "ascii") +
-                    " 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\n"
-                    "element face 6\nproperty list uchar int vertex_indices\nend_header\n";
+        " 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 6\nproperty list uchar int vertex_indices\nend_header\n";
     for (auto& v : cube_v) {
-        if (binary) s.append((const char*)v, 12);
-        else s += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\n";
+        if (binary)
+            s.append((const char*)v, 12);
+        else
+            s += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\n";
     }
     for (auto& q : cube_q) {
-        if (binary) { s.push_back(4); s.append((const char*)q, 16); }
-        else s += "4 " + std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2]) + " " + std::to_string(q[3]) + "\n";
+        if (binary) {
+            s.push_back(4);
+            s.append((const char*)q, 16);
+        } else
+            s += "4 " + std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2]) + " " +
+                std::to_string(q[3]) + "\n";
     }
     return s;
 }
@@ -214,7 +238,9 @@ std::string cube_stl(bool binary) {
     s = "solid cube\n";
     for (auto& t : tris) {
         s += "  facet normal 0 0 0\n    outer loop\n";
-        for (int k : t) s += "      vertex " + std::to_string(cube_v[k][0]) + " " + std::to_string(cube_v[k][1]) + " " + std::to_string(cube_v[k][2]) + "\n";
+        for (int k : t)
+            s += "      vertex " + std::to_string(cube_v[k][0]) + " " + std::to_string(cube_v[k][1]) + " " +
+                std::to_string(cube_v[k][2]) + "\n";
         s += "    endloop\n  endfacet\n";
     }
     return s + "endsolid cube\n";
@@ -231,14 +257,20 @@ std::string primitive_modes_gltf() {
     int16_t quant[] = {0, 0, 0, 0, 32767, 0, 0, 0, 32767, 32767, 0, 0, 0, 32767, 0, 0};
     int qv = w.view(quant, sizeof quant, 34962);
     w.doc["bufferViews"][qv]["byteStride"] = 8;
-    w.doc["accessors"].push_back({{"bufferView", qv}, {"componentType", 5122}, {"normalized", true}, {"count", 4}, {"type", "VEC3"}});
+    w.doc["accessors"].push_back(
+        {{"bufferView", qv}, {"componentType", 5122}, {"normalized", true}, {"count", 4}, {"type", "VEC3"}});
     uint16_t sparse_idx[] = {1};
     float sparse_val[] = {0.5f, 0.25f, 0.125f};
     int si = w.view(sparse_idx, sizeof sparse_idx, 0);
     int sval = w.view(sparse_val, sizeof sparse_val, 0);
-    w.doc["accessors"].push_back({{"bufferView", sv}, {"componentType", 5126}, {"count", 6}, {"type", "VEC3"},
-                                  {"sparse", {{"count", 1}, {"indices", {{"bufferView", si}, {"componentType", 5123}}},
-                                              {"values", {{"bufferView", sval}}}}}});
+    w.doc["accessors"].push_back({{"bufferView", sv},
+                                  {"componentType", 5126},
+                                  {"count", 6},
+                                  {"type", "VEC3"},
+                                  {"sparse",
+                                   {{"count", 1},
+                                    {"indices", {{"bufferView", si}, {"componentType", 5123}}},
+                                    {"values", {{"bufferView", sval}}}}}});
     json prims = json::array({{{"attributes", {{"POSITION", 0}}}, {"mode", 5}},
                               {{"attributes", {{"POSITION", 1}}}, {"mode", 6}},
                               {{"attributes", {{"POSITION", 2}}}, {"mode", 4}},
@@ -272,9 +304,11 @@ int main(int argc, char** argv) {
     std::filesystem::create_directories(dir + "/small", ec);
     std::vector<uint8_t> scene = default_scene();
     bool ok = write(dir + "/default_scene.glb", scene.data(), scene.size()) &&
-              write(dir + "/small/cube.obj", cube_obj()) && write(dir + "/small/cube.off", cube_off()) &&
-              write(dir + "/small/cube_ascii.ply", cube_ply(false)) && write(dir + "/small/cube_binary.ply", cube_ply(true)) &&
-              write(dir + "/small/cube_ascii.stl", cube_stl(false)) && write(dir + "/small/cube_binary.stl", cube_stl(true)) &&
-              write(dir + "/small/primitive_modes.gltf", primitive_modes_gltf());
+        write(dir + "/small/cube.obj", cube_obj()) && write(dir + "/small/cube.off", cube_off()) &&
+        write(dir + "/small/cube_ascii.ply", cube_ply(false)) &&
+        write(dir + "/small/cube_binary.ply", cube_ply(true)) &&
+        write(dir + "/small/cube_ascii.stl", cube_stl(false)) &&
+        write(dir + "/small/cube_binary.stl", cube_stl(true)) &&
+        write(dir + "/small/primitive_modes.gltf", primitive_modes_gltf());
     return ok ? 0 : 1;
 }

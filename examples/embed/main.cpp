@@ -49,7 +49,7 @@ cb::Frustum look_at(const double* eye, const double* target) {
         p[0] = nx, p[1] = ny, p[2] = nz;
         p[3] = -(nx * eye[0] + ny * eye[1] + nz * eye[2]) + offset;
     };
-    add(z[0], z[1], z[2], -1e-3);  // near
+    add(z[0], z[1], z[2], -1e-3);       // near
     for (int s = -1; s <= 1; s += 2) {  // 45 degrees either side: z + s x and z + s y
         add(z[0] - s * x[0], z[1] - s * x[1], z[2] - s * x[2], 0);
         add(z[0] - s * y[0], z[1] - s * y[1], z[2] - s * y[2], 0);
