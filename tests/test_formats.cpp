@@ -187,7 +187,7 @@ TEST(Formats, PlyErrors) {
                        "float z\nend_header\n0 0 0\n",
                        cb::FileFormat::ply),
               "t: element vertex: count 99999999 exceeds the data (truncated?)");
-    // Found by fuzz_ply: an element without properties but a count near 2^63 used to spin for ever.
+    // Found by fuzz_ply: an element without properties but a count near 2^63 must not spin for ever.
     cb::Scene s = load(
         "ply\nformat ascii 1.0\nelement junk 6148914691236517209\nelement vertex 3\nproperty float x\n"
         "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n",
