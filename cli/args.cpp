@@ -31,6 +31,17 @@ bool parse_obb(const std::string& text, cb::ObbMethod& out) {
 
 bool parse_clustering(const ClusterArgs& a, cb::ClusterOptions& clustering, cb::BoundsOptions& bounds) {
     clustering = a.options;
+    // Ranges no algorithm can work with, refused before any work: one line each.
+    auto refuse = [](const char* what) {
+        std::fprintf(stderr, "clusterbake: %s\n", what);
+        return false;
+    };
+    if (clustering.coarse_size == 0) return refuse("--coarse must be at least 1");
+    if (clustering.coarse_size < clustering.fine_size) return refuse("--coarse must be at least --fine");
+    if (clustering.kmeans_branching < 2) return refuse("--k0 must be at least 2 (children per k-means node)");
+    if (clustering.vco_cache_size < 3) return refuse("--cache must be at least 3 (a triangle's corners)");
+    if (!(a.capsule_ratio >= 1 && std::isfinite(a.capsule_ratio)))
+        return refuse("--capsule-ratio must be a finite number of at least 1");
     if (!cb::parse_method(a.method, clustering.method)) {
         std::fprintf(stderr, "clusterbake: unknown method '%s' (kmeans, vco, morton)\n", a.method.c_str());
         return false;

@@ -12,7 +12,8 @@
 
 namespace cb::cli {
 
-constexpr int exit_bad_input = 2;  // a file that does not load or is not valid; bad options exit with 1
+constexpr int exit_bad_input = 2;  // a file that does not load or is not valid
+constexpr int exit_usage = 2;      // an option or argument the command cannot take, found before any work
 
 struct ClusterArgs {
     std::string file, out, method = "kmeans";

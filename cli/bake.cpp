@@ -19,12 +19,12 @@ namespace {
 int run_bake(const ClusterArgs& a) {
     cb::ClusterOptions options;
     cb::BoundsOptions bounds;
-    if (!parse_clustering(a, options, bounds)) return 1;
+    if (!parse_clustering(a, options, bounds)) return exit_usage;
     if (a.fit && !cb::parse_bounds_mask(a.bounds, bounds.mask)) {
         std::fprintf(stderr,
                      "clusterbake: --bounds takes auto, all or a list of obb,sphere,capsule,cone,slab (got '%s')\n",
                      a.bounds.c_str());
-        return 1;
+        return exit_usage;
     }
     auto t0 = std::chrono::steady_clock::now();
     cb::Scene scene;

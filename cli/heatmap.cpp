@@ -19,13 +19,13 @@ struct HeatmapArgs {
 
 int run_heatmap(HeatmapArgs a) {
     if (!a.light.empty()) {
-        if (!parse_light(a.light, a.options.light)) return 1;
+        if (!parse_light(a.light, a.options.light)) return exit_usage;
         a.options.has_light = true;
     }
-    if (!parse_obb(a.obb, a.options.obb)) return 1;
+    if (!parse_obb(a.obb, a.options.obb)) return exit_usage;
     if (a.options.size < 8 || a.options.size > 4096) {
         std::fprintf(stderr, "clusterbake: --size takes 8 to 4096\n");
-        return 1;
+        return exit_usage;
     }
     cb::Heatmap h;
     try {

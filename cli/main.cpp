@@ -4,20 +4,33 @@
 
 #include <cstdio>
 #include <exception>
+#include <string>
 
+#include <cb_asset.h>
+
+#include "args.h"
 #include "commands.h"
 
 int main(int argc, char** argv) {
     CLI::App app{"clusterbake: clusters triangle scenes, fits bounding volumes and bakes a compact asset"};
     app.require_subcommand(1);
+    app.set_version_flag("--version",
+                         "clusterbake " CB_VERSION " (asset format " + std::to_string(cb::asset_version) + ")");
     using namespace cb::cli;
     const Command commands[] = {add_info(app),   add_cluster(app), add_bake(app),     add_stats(app),
                                 add_report(app), add_heatmap(app), add_validate(app), add_query(app)};
 
     try {
         app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-        return app.exit(e) == 0 ? 0 : 1;  // --help is a success; every bad option is exit code 1
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {  // one line, as every other usage error
+        std::fprintf(stderr, "clusterbake: %s (see clusterbake --help)\n", e.what());
+        return cb::cli::exit_usage;
     }
 
     try {
@@ -25,7 +38,7 @@ int main(int argc, char** argv) {
             if (*c.subcommand) return c.run();
     } catch (const std::exception& e) {
         std::fprintf(stderr, "clusterbake: %s\n", e.what());
-        return 1;
+        return cb::cli::exit_bad_input;
     }
     return 0;
 }

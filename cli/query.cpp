@@ -63,7 +63,7 @@ bool read_points(const QueryArgs& a, std::vector<double>& pts) {
 
 int run_query(const QueryArgs& a) {
     double light[3];
-    if (!parse_light(a.light, light)) return 1;
+    if (!parse_light(a.light, light)) return exit_usage;
     cb::LoadedAsset asset;
     if (!load_asset(a.asset, asset)) return exit_bad_input;
     std::vector<double> pts;

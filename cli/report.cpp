@@ -58,11 +58,11 @@ int run_report(ReportArgs a) {
     if (!parse_list(a.methods, "--methods takes a list of kmeans, vco, morton", cb::parse_method, o.methods) ||
         !parse_list(a.fine, "--fine takes a list of sizes from 1 to 85", fine_size, o.fine_sizes) ||
         !parse_list(a.obbs, "--obb takes a list of refined, pca, pca-area, cgal", cb::parse_obb_method, o.obbs))
-        return 1;
+        return exit_usage;
     if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.frame_view < 1 || o.lights < 1) {
         std::fprintf(stderr,
                      "clusterbake: --runs, --query-runs, --view, --frame-view and --lights must be at least 1\n");
-        return 1;
+        return exit_usage;
     }
     cb::Report r;
     try {

@@ -17,7 +17,7 @@ namespace {
 int run_stats(const ClusterArgs& a, cb::StatsOptions so) {
     cb::ClusterOptions clustering;
     cb::BoundsOptions bounds;
-    if (!parse_clustering(a, clustering, bounds)) return 1;
+    if (!parse_clustering(a, clustering, bounds)) return exit_usage;
     bounds.mask = cb::bounds_all;
     so.threads = clustering.threads;
     cb::BakedScene baked;

@@ -2,6 +2,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cb_asset.h>
+
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -117,7 +120,7 @@ TEST(Cli, FailedClusterLeavesTheOutputUntouched) {
     CliRun v = run("validate " + out.string());
     EXPECT_EQ(v.code, 2);
     EXPECT_NE(v.err.find("too small"), std::string::npos) << v.err;
-    EXPECT_EQ(run("cluster " + data("small/cube.obj") + " --method nonsense -o " + out.string()).code, 1);
+    EXPECT_EQ(run("cluster " + data("small/cube.obj") + " --method nonsense -o " + out.string()).code, 2);
 }
 
 TEST(Cli, AssetIsByteIdenticalForAnyThreadCount) {
@@ -162,17 +165,17 @@ TEST(Cli, BakeWritesTheChosenBounds) {
     v = run("validate " + out.string());
     EXPECT_NE(v.out.find("fine bounds: none"), std::string::npos) << v.out;
 
-    EXPECT_EQ(run("bake " + data("small/cube.obj") + " --bounds obb,box -o " + out.string()).code, 1);
-    EXPECT_EQ(run("bake " + data("small/cube.obj") + " --obb best -o " + out.string()).code, 1);
+    EXPECT_EQ(run("bake " + data("small/cube.obj") + " --bounds obb,box -o " + out.string()).code, 2);
+    EXPECT_EQ(run("bake " + data("small/cube.obj") + " --obb best -o " + out.string()).code, 2);
     // Cones are stored relative to boxes: asking for cones alone stores the boxes too.
     ASSERT_EQ(run("bake " + data("small/cube.obj") + " --bounds cone -o " + out.string()).code, 0);
     v = run("validate " + out.string());
     EXPECT_NE(v.out.find("fine bounds: obb cone"), std::string::npos) << v.out;
     // Fine clusters must fit 8-bit local indices: 85 triangles at most.
-    EXPECT_EQ(run("bake " + data("small/cube.obj") + " --fine 86 -o " + out.string()).code, 1);
+    EXPECT_EQ(run("bake " + data("small/cube.obj") + " --fine 86 -o " + out.string()).code, 2);
     EXPECT_EQ(run("bake " + data("small/cube.obj") + " --fine 85 -o " + out.string()).code, 0);
-    EXPECT_EQ(run("report " + data("small/cube.obj") + " --fine 16,86 -o " + out.string() + "_report").code, 1);
-    EXPECT_EQ(run("heatmap " + data("small/cube.obj") + " --fine 86 -o " + out.string() + ".png").code, 1);
+    EXPECT_EQ(run("report " + data("small/cube.obj") + " --fine 16,86 -o " + out.string() + "_report").code, 2);
+    EXPECT_EQ(run("heatmap " + data("small/cube.obj") + " --fine 86 -o " + out.string() + ".png").code, 2);
     std::filesystem::remove(out);
 }
 
@@ -189,7 +192,7 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     EXPECT_NE(r.err.find("3 queries, 1 in shadow"), std::string::npos) << r.err;
     CliRun ref = run("query " + asset + " --light -4,30,2 --points " + pts + " --reference");
     EXPECT_EQ(ref.out, r.out);
-    EXPECT_EQ(run("query " + asset + " --light 1,2 --points " + pts).code, 1);
+    EXPECT_EQ(run("query " + asset + " --light 1,2 --points " + pts).code, 2);
     // Many points over the scene: the same answers on 1 and 3 threads, trees or reference.
     {
         std::ofstream grid(pts);
@@ -205,7 +208,7 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     EXPECT_EQ(three_ref.out, one.out);
     for (const char* fine : {"trees", "one-tree"})  // the other traversals: the same answers
         EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --fine " + fine).out, one.out) << fine;
-    EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --fine leaves").code, 1);
+    EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --fine leaves").code, 2);
     EXPECT_NE(one.out.find('1'), std::string::npos);
     EXPECT_NE(one.out.find('0'), std::string::npos);
     std::ofstream(pts) << "1 2\n";
@@ -215,4 +218,25 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     EXPECT_EQ(run("query " + pts + " --light 1,2,3 --points " + pts).code, 2);  // not an asset
     std::filesystem::remove(asset);
     std::filesystem::remove(pts);
+}
+
+TEST(Cli, OptionsNoAlgorithmTakesAreRefusedInOneLineBeforeAnyWork) {
+    const std::filesystem::path out = std::filesystem::temp_directory_path() / "cb_cli_refused.cbk";
+    std::filesystem::remove(out);
+    for (const char* options : {"--coarse 0", "--coarse 8 --fine 16", "--k0 0", "--k0 1", "--capsule-ratio -1",
+                                "--capsule-ratio nan", "--cache 0", "--fine 0", "--threads x", "--no-such-flag"}) {
+        CliRun r = run("bake " + data("small/cube.obj") + " " + options + " -o " + out.string());
+        EXPECT_EQ(r.code, 2) << options;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << options << ": " << r.err;
+        EXPECT_EQ(r.err.rfind("clusterbake: ", 0), 0u) << options << ": " << r.err;
+        EXPECT_FALSE(std::filesystem::exists(out)) << options;
+    }
+    EXPECT_EQ(run("stats " + data("small/cube.obj") + " --coarse 8 --fine 16").code, 2);
+}
+
+TEST(Cli, VersionNamesTheToolAndTheAssetFormat) {
+    CliRun r = run("--version");
+    EXPECT_EQ(r.code, 0);
+    EXPECT_EQ(r.out.rfind("clusterbake ", 0), 0u) << r.out;
+    EXPECT_NE(r.out.find("asset format " + std::to_string(cb::asset_version)), std::string::npos) << r.out;
 }

@@ -145,8 +145,8 @@ TEST(Report, BadInputIsOneLineNamingTheFile) {
     EXPECT_EQ(r.code, 2);
     EXPECT_NE(r.err.find("missing.ply"), std::string::npos) << r.err;
     EXPECT_EQ(count_of(r.err, "\n"), 1u) << r.err;
-    EXPECT_EQ(run_cli("report " + data("small/cube.obj") + " -o " + out.string() + " --fine 0 -q").code, 1);
-    EXPECT_EQ(run_cli("report " + data("small/cube.obj") + " -o " + out.string() + " --obb box -q").code, 1);
+    EXPECT_EQ(run_cli("report " + data("small/cube.obj") + " -o " + out.string() + " --fine 0 -q").code, 2);
+    EXPECT_EQ(run_cli("report " + data("small/cube.obj") + " -o " + out.string() + " --obb box -q").code, 2);
 }
 
 TEST(Heatmap, TwoPanelsWithAColourBar) {

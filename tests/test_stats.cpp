@@ -215,5 +215,5 @@ TEST(StatsCli, BadInputIsOneLineNamingTheFile) {
     CliRun corrupt = run_cli("stats " + asset);
     EXPECT_EQ(corrupt.code, 2);
     EXPECT_NE(corrupt.err.find("stats_corrupt.cbk: checksum"), std::string::npos) << corrupt.err;
-    EXPECT_EQ(run_cli("stats --method nope " + data("small/cube.obj")).code, 1);
+    EXPECT_EQ(run_cli("stats --method nope " + data("small/cube.obj")).code, 2);
 }
