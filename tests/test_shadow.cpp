@@ -392,7 +392,7 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
     if (fs::exists(CB_SHARED_DATA))  // every listed scene was found and asked
         EXPECT_EQ(files.size(), 6u) << "a scene of ../shared/data is missing";
     else
-        std::printf("[  SKIPPED ] the ../shared/data scenes (absent): the default scene alone\n");
+        std::printf("../shared/data is absent: the default scene alone (the shared scenes are not asked)\n");
 }
 
 TEST(Shadow, PointsAndLightsThatAreNotFiniteAreNeverInShadow) {
