@@ -5,6 +5,8 @@ packages=(
   cmake ninja-build g++ ccache pkg-config
   libcgal-dev libeigen3-dev libopenmesh-dev libdraco-dev libtinygltf-dev libflann-dev
   nlohmann-json3-dev libcli11-dev libgtest-dev
+  libxxhash-dev              # input hashes of incremental batch bakes
+  python3-distributed        # scripts/clusterbake-dask and its test (Dask scheduler and workers)
   libmeshoptimizer-dev libembree-dev
   zlib1g-dev                 # PNG heat maps (clusterbake heatmap, report --heatmap)
   libpng-dev chromium chromium-driver   # the report's browser test: headless Chromium renders report.html
