@@ -23,31 +23,57 @@ void add_clustering_flags(CLI::App* c, ClusterArgs& a) {
     c->add_option("--cache", a.options.vco_cache_size, "vco: vertex cache size (default 32)");
 }
 
+void add_bounds_flags(CLI::App* c, ClusterArgs& a) {
+    c->add_option("--bounds", a.bounds,
+                  "auto (what the shadow runtime reads: obb,cone), all, or a list of obb,sphere,capsule,cone,slab");
+    c->add_option("--obb", a.obb, "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow)");
+    c->add_option("--capsule-ratio", a.capsule_ratio,
+                  "Fit a capsule when the box's longest side is this many times each other (default 2)");
+}
+
 bool parse_obb(const std::string& text, cb::ObbMethod& out) {
     if (cb::parse_obb_method(text, out)) return true;
     std::fprintf(stderr, "clusterbake: --obb takes refined, pca, pca-area or cgal (got '%s')\n", text.c_str());
     return false;
 }
 
-bool parse_clustering(const ClusterArgs& a, cb::ClusterOptions& clustering, cb::BoundsOptions& bounds) {
+std::string clustering_error(const ClusterArgs& a, cb::ClusterOptions& clustering, cb::BoundsOptions& bounds) {
     clustering = a.options;
-    // Ranges no algorithm can work with, refused before any work: one line each.
-    auto refuse = [](const char* what) {
-        std::fprintf(stderr, "clusterbake: %s\n", what);
-        return false;
-    };
-    if (clustering.coarse_size == 0) return refuse("--coarse must be at least 1");
-    if (clustering.coarse_size < clustering.fine_size) return refuse("--coarse must be at least --fine");
-    if (clustering.kmeans_branching < 2) return refuse("--k0 must be at least 2 (children per k-means node)");
-    if (clustering.vco_cache_size < 3) return refuse("--cache must be at least 3 (a triangle's corners)");
+    // Ranges no algorithm can work with, refused before any work.
+    if (clustering.coarse_size == 0) return "--coarse must be at least 1";
+    if (clustering.coarse_size < clustering.fine_size) return "--coarse must be at least --fine";
+    if (clustering.kmeans_branching < 2) return "--k0 must be at least 2 (children per k-means node)";
+    if (clustering.vco_cache_size < 3) return "--cache must be at least 3 (a triangle's corners)";
     if (!(a.capsule_ratio >= 1 && std::isfinite(a.capsule_ratio)))
-        return refuse("--capsule-ratio must be a finite number of at least 1");
-    if (!cb::parse_method(a.method, clustering.method)) {
-        std::fprintf(stderr, "clusterbake: unknown method '%s' (kmeans, vco, morton)\n", a.method.c_str());
-        return false;
-    }
+        return "--capsule-ratio must be a finite number of at least 1";
+    if (!cb::parse_method(a.method, clustering.method))
+        return "unknown method '" + a.method + "' (kmeans, vco, morton)";
     bounds.capsule_ratio = a.capsule_ratio;
-    return parse_obb(a.obb, bounds.obb);
+    if (!cb::parse_obb_method(a.obb, bounds.obb))
+        return "--obb takes refined, pca, pca-area or cgal (got '" + a.obb + "')";
+    return {};
+}
+
+bool parse_clustering(const ClusterArgs& a, cb::ClusterOptions& clustering, cb::BoundsOptions& bounds) {
+    std::string error = clustering_error(a, clustering, bounds);
+    if (!error.empty()) std::fprintf(stderr, "clusterbake: %s\n", error.c_str());
+    return error.empty();
+}
+
+std::string request_error(const ClusterArgs& a, cb::BakeRequest& out) {
+    out = cb::BakeRequest{};
+    out.fit = a.fit;
+    out.if_changed = a.if_changed;
+    std::string error = clustering_error(a, out.clustering, out.bounds);
+    if (error.empty() && a.fit && !cb::parse_bounds_mask(a.bounds, out.bounds.mask))
+        error = "--bounds takes auto, all or a list of obb,sphere,capsule,cone,slab (got '" + a.bounds + "')";
+    return error;
+}
+
+bool parse_request(const ClusterArgs& a, cb::BakeRequest& out) {
+    std::string error = request_error(a, out);
+    if (!error.empty()) std::fprintf(stderr, "clusterbake: %s\n", error.c_str());
+    return error.empty();
 }
 
 bool parse_light(const std::string& text, double* light) {

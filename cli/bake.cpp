@@ -6,10 +6,11 @@
 #include <iostream>
 #include <memory>
 
+#include <unistd.h>
+
 #include "args.h"
-#include "bake.h"
+#include "bake_file.h"
 #include "commands.h"
-#include "load.h"
 #include "timing.h"
 
 namespace cb::cli {
@@ -17,52 +18,64 @@ namespace {
 
 // `cluster` (geometry and hierarchy only) and `bake` (with bounds) share this.
 int run_bake(const ClusterArgs& a) {
-    cb::ClusterOptions options;
-    cb::BoundsOptions bounds;
-    if (!parse_clustering(a, options, bounds)) return exit_usage;
-    if (a.fit && !cb::parse_bounds_mask(a.bounds, bounds.mask)) {
-        std::fprintf(stderr,
-                     "clusterbake: --bounds takes auto, all or a list of obb,sphere,capsule,cone,slab (got '%s')\n",
-                     a.bounds.c_str());
+    cb::BakeRequest request;
+    if (!parse_request(a, request)) return exit_usage;
+    if (a.force && a.if_changed) {
+        std::fprintf(stderr, "clusterbake: --force and --if-changed contradict each other\n");
         return exit_usage;
     }
+    request.input = a.file;
+    request.output = a.out;
+
+    // Progress once a bake has taken a second, on a terminal only, overwritten in place on stderr.
+    bool shown = false, terminal = !a.quiet && isatty(STDERR_FILENO);
     auto t0 = std::chrono::steady_clock::now();
-    cb::Scene scene;
-    try {
-        scene = cb::load_scene(a.file);
-    } catch (const cb::LoadError& e) {
-        std::fprintf(stderr, "%s\n", e.what());
+    cb::BakeResult r = cb::bake_file(request, [&](size_t m, size_t mc, size_t c, size_t cc) {
+        if (!terminal || cb::seconds_since(t0) < 1) return;
+        std::fprintf(stderr, "\rclustering mesh %zu/%zu: chunk %zu/%zu   ", m + 1, mc, c, cc);
+        shown = true;
+    });
+    if (shown) std::fprintf(stderr, "\n");
+    if (r.status == cb::BakeStatus::failed) {
+        std::fprintf(stderr, "%s\n", r.error.c_str());
         return exit_bad_input;
     }
-    double load_s = cb::seconds_since(t0);
-
-    // Progress for long runs only, on stderr, overwritten in place.
-    uint64_t total = 0;
-    for (const cb::Mesh& m : scene.meshes) total += m.triangle_count();
-    bool show = !a.quiet && total >= 1'000'000;
-    cb::BakeStats stats;
-    std::vector<cb::AssetMesh> meshes =
-        cb::cluster_scene(scene, options, stats, [&](size_t m, size_t mc, size_t c, size_t cc) {
-            if (show) std::fprintf(stderr, "\rclustering mesh %zu/%zu: chunk %zu/%zu   ", m + 1, mc, c, cc);
-        });
-    if (show) std::fprintf(stderr, "\n");
-    if (a.fit) cb::fit_scene_bounds(meshes, bounds, options.threads, stats);
-
-    auto t1 = std::chrono::steady_clock::now();
-    std::vector<uint8_t> bytes = cb::encode_asset(meshes, scene.instances);
-    cb::write_file_atomic(a.out, bytes);
-    double write_s = cb::seconds_since(t1);
-
+    const cb::ClusterOptions& options = request.clustering;
+    const cb::BoundsOptions& bounds = request.bounds;
+    const cb::BakeStats& stats = r.stats;
+    if (r.status == cb::BakeStatus::up_to_date) {
+        if (a.json) {
+            nlohmann::json j = {{"tool", cb::tool_version()},
+                                {"file", a.file},
+                                {"output", a.out},
+                                {"status", cb::status_name(r.status)},
+                                {"input_bytes", r.input_bytes},
+                                {"triangles", r.triangles},
+                                {"fine_clusters", r.fine_clusters},
+                                {"coarse_clusters", r.coarse_clusters},
+                                {"asset_bytes", r.output_bytes},
+                                {"seconds", r.seconds}};
+            std::cout << j.dump(2) << "\n";
+        } else if (!a.quiet) {
+            std::printf("%s -> %s: up to date (same input bytes, options and tool)\n", a.file.c_str(), a.out.c_str());
+        }
+        return 0;
+    }
+    double load_s = r.load_seconds, write_s = r.write_seconds;
+    size_t asset_bytes = r.output_bytes;
     double tps = stats.cluster_seconds > 0 ? double(stats.triangles) / stats.cluster_seconds : 0;
     if (a.json) {
         nlohmann::json j = {
+            {"tool", cb::tool_version()},
             {"file", a.file},
             {"output", a.out},
+            {"status", cb::status_name(r.status)},
+            {"input_bytes", r.input_bytes},
             {"method", cb::method_name(options.method)},
             {"coarse_size", options.coarse_size},
             {"fine_size", options.fine_size},
-            {"meshes", scene.meshes.size()},
-            {"instances", scene.instances.size()},
+            {"meshes", r.meshes},
+            {"instances", r.instances},
             {"triangles", stats.triangles},
             {"coarse_clusters", stats.coarse_clusters},
             {"fine_clusters", stats.fine_clusters},
@@ -75,8 +88,9 @@ int run_bake(const ClusterArgs& a) {
             {"cluster_seconds", stats.cluster_seconds},
             {"write_seconds", write_s},
             {"triangles_per_second", tps},
-            {"asset_bytes", bytes.size()},
-            {"bytes_per_triangle", stats.triangles ? double(bytes.size()) / double(stats.triangles) : 0.0}};
+            {"asset_bytes", asset_bytes},
+            {"bytes_per_triangle", stats.triangles ? double(asset_bytes) / double(stats.triangles) : 0.0},
+            {"seconds", r.seconds}};
         if (a.fit) {
             j["bounds"] = a.bounds;
             j["fit_seconds"] = stats.fit_seconds;
@@ -91,9 +105,9 @@ int run_bake(const ClusterArgs& a) {
         return 0;
     }
     std::printf("%s -> %s\n", a.file.c_str(), a.out.c_str());
-    std::printf("  method %s, coarse %u, fine %u: %llu triangles in %llu meshes (%zu instances)\n",
+    std::printf("  method %s, coarse %u, fine %u: %llu triangles in %llu meshes (%llu instances)\n",
                 cb::method_name(options.method), options.coarse_size, options.fine_size,
-                (unsigned long long)stats.triangles, (unsigned long long)scene.meshes.size(), scene.instances.size());
+                (unsigned long long)stats.triangles, (unsigned long long)r.meshes, (unsigned long long)r.instances);
     std::printf("  coarse clusters %llu (%u..%u triangles), fine clusters %llu (%u..%u triangles, %llu below half)\n",
                 (unsigned long long)stats.coarse_clusters, stats.coarse_min, stats.coarse_max,
                 (unsigned long long)stats.fine_clusters, stats.fine_min, stats.fine_max,
@@ -111,8 +125,8 @@ int run_bake(const ClusterArgs& a) {
     }
     std::printf(
         "  load %.3f s, cluster %.3f s (%.2f M triangles/s), write %.3f s, asset %zu bytes (%.1f per triangle)\n",
-        load_s, stats.cluster_seconds, tps / 1e6, write_s, bytes.size(),
-        stats.triangles ? double(bytes.size()) / double(stats.triangles) : 0.0);
+        load_s, stats.cluster_seconds, tps / 1e6, write_s, asset_bytes,
+        stats.triangles ? double(asset_bytes) / double(stats.triangles) : 0.0);
     return 0;
 }
 
@@ -121,6 +135,9 @@ void add_common(CLI::App* c, ClusterArgs& a) {
     c->add_option("file", a.file, "Scene file")->required();
     c->add_option("-o,--output", a.out, "Output asset (.cbk); written atomically")->required();
     add_clustering_flags(c, a);
+    c->add_flag("--if-changed", a.if_changed,
+                "Keep the output when it was made from the same input bytes, options and tool version");
+    c->add_flag("--force", a.force, "Bake even when the output is up to date (the default without --if-changed)");
     c->add_flag("--json", a.json, "Print the summary as JSON");
     c->add_flag("-q,--quiet", a.quiet, "No progress on stderr");
 }
@@ -140,11 +157,7 @@ Command add_bake(CLI::App& app) {
     a->fit = true;
     CLI::App* c = app.add_subcommand("bake", "Load, cluster, fit bounding volumes and write the asset");
     add_common(c, *a);
-    c->add_option("--bounds", a->bounds,
-                  "auto (what the shadow runtime reads: obb,cone), all, or a list of obb,sphere,capsule,cone,slab");
-    c->add_option("--obb", a->obb, "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow)");
-    c->add_option("--capsule-ratio", a->capsule_ratio,
-                  "Fit a capsule when the box's longest side is this many times each other (default 2)");
+    add_bounds_flags(c, *a);
     return {c, [a] { return run_bake(*a); }};
 }
 

@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version",
                          "clusterbake " CB_VERSION " (asset format " + std::to_string(cb::asset_version) + ")");
     using namespace cb::cli;
-    const Command commands[] = {add_info(app),   add_cluster(app), add_bake(app),     add_stats(app),
+    const Command commands[] = {add_info(app),   add_cluster(app), add_bake(app),     add_batch(app), add_stats(app),
                                 add_report(app), add_heatmap(app), add_validate(app), add_query(app)};
 
     try {

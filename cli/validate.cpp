@@ -1,4 +1,5 @@
 // clusterbake validate: check an asset as the runtime does and print its counts and bounds sections.
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -35,6 +36,17 @@ int run_validate(const std::string& file) {
         if (level->cones) kinds += " cone";
         if (level->slabs) kinds += " slab";
         std::printf("  %s bounds:%s\n", name, kinds.empty() ? " none" : kinds.c_str());
+    }
+    if (view.source) {  // printable text only: the section may hold any bytes
+        std::string text(view.source, view.source_size);
+        for (char& ch : text)
+            if ((static_cast<unsigned char>(ch) < 0x20 && ch != '\n') || ch == 0x7f) ch = '?';
+        std::printf("  made from:\n");
+        for (size_t at = 0; at < text.size();) {
+            size_t end = std::min(text.find('\n', at), text.size());
+            std::printf("    %s\n", text.substr(at, end - at).c_str());
+            at = end + 1;
+        }
     }
     return 0;
 }

@@ -84,7 +84,8 @@ CompactMesh compact(const AssetMesh& m) {
 
 }  // namespace
 
-std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances) {
+std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances,
+                                  const std::string& source) {
     // Concatenate every mesh's arrays; records hold each mesh's offsets into them.
     std::vector<MeshRecord> records;
     std::vector<float> positions;
@@ -179,6 +180,8 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
             level_section(fine ? SectionType::fine_cones : SectionType::coarse_cones, fine, &LevelVolumes::cones);
         level_section(fine ? SectionType::fine_slabs : SectionType::coarse_slabs, fine, &LevelVolumes::slabs);
     }
+
+    if (!source.empty()) add(SectionType::source, source, 1);
 
     auto aligned = [](uint64_t x) { return (x + asset_alignment - 1) / asset_alignment * asset_alignment; };
     std::vector<SectionEntry> table;

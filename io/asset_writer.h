@@ -39,10 +39,12 @@ struct BakedScene {
     std::vector<Instance> instances;
 };
 
-// Bounds sections are written for the volumes every mesh has (each mesh one record per cluster). Throws
+// Bounds sections are written for the volumes every mesh has (each mesh one record per cluster); `source`,
+// when not empty, as the source section (what the asset was made from, docs/FORMAT.md). Throws
 // std::invalid_argument when a fine cluster has more than 255 triangles or its corners more than
 // max_cluster_vertices distinct vertices.
-std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances);
+std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances,
+                                  const std::string& source = {});
 
 // Writes to a temporary file beside `path` and renames it over `path`, so a failure leaves any existing
 // file untouched: an unnamed file (O_TMPFILE) where the filesystem has them, so that a process killed

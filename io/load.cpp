@@ -115,11 +115,17 @@ Scene load_scene_unguarded(const std::string& path) {
     std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     if (in.bad()) throw LoadError(path + ": read error");
 
+    SourceHasher source;
+    source.add(std::filesystem::path(path).filename().string(), bytes.data(), bytes.size());
+    Scene scene;
     if (format == FileFormat::gltf || format == FileFormat::glb) {
         std::string base = std::filesystem::path(path).parent_path().string();
-        return load_gltf_memory(bytes.data(), bytes.size(), path, base.empty() ? "." : base);
+        scene = load_gltf_memory(bytes.data(), bytes.size(), path, base.empty() ? "." : base, &source);
+    } else {
+        scene = load_mesh_memory(bytes.data(), bytes.size(), format, path);
     }
-    return load_mesh_memory(bytes.data(), bytes.size(), format, path);
+    scene.report.source = source.finish();
+    return scene;
 }
 
 }  // namespace cb

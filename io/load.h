@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "scene.h"
+#include "source_files.h"
 
 namespace cb {
 
@@ -32,12 +33,14 @@ enum class FileFormat { gltf, glb, obj, ply, off, stl, unknown };
 // From the file extension, case-insensitive.
 FileFormat format_from_path(std::string_view path);
 
-// Loads any supported file. `path` names the file in every error message.
+// Loads any supported file. `path` names the file in every error message. The report's `source` lists the
+// files read and their hash (source_files.h).
 Scene load_scene(const std::string& path);
 
 // Loads from bytes already in memory. `name` is used in error messages; external glTF resources are looked
-// up relative to `base_dir` (none when empty).
-Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name, const std::string& base_dir);
+// up relative to `base_dir` (none when empty) and, when `source` is set, added to it as they are read.
+Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name, const std::string& base_dir,
+                       SourceHasher* source = nullptr);
 Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name);
 
 // The per-format readers behind load_mesh_memory.

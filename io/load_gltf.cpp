@@ -527,7 +527,24 @@ private:
 
 }  // namespace
 
-Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name, const std::string& base_dir) {
+// tinygltf's own file reading, with each file it reads (external buffers; images are compiled out) added to
+// the source hash under its name relative to the scene's folder.
+struct SourceRecorder {
+    SourceHasher* hasher;
+    std::string base_dir;
+
+    static bool read(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* self) {
+        if (!tinygltf::ReadWholeFile(out, err, path, nullptr)) return false;
+        const SourceRecorder& r = *static_cast<const SourceRecorder*>(self);
+        std::string prefix = r.base_dir.empty() || r.base_dir.back() == '/' ? r.base_dir : r.base_dir + "/";
+        std::string relative = path.compare(0, prefix.size(), prefix) == 0 ? path.substr(prefix.size()) : path;
+        r.hasher->add(relative, out->data(), out->size());
+        return true;
+    }
+};
+
+Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name, const std::string& base_dir,
+                       SourceHasher* source) {
     if (size == 0) throw LoadError(name + ": empty file");
     if (size > std::numeric_limits<unsigned int>::max()) throw LoadError(name + ": larger than 4 GiB");
     bool binary = size >= 4 && std::memcmp(data, "glTF", 4) == 0;
@@ -544,6 +561,10 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
     loader.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*,
                              int, void*) { return true; },
                           nullptr);
+    SourceRecorder recorder{source, base_dir};
+    if (source)
+        loader.SetFsCallbacks({tinygltf::FileExists, tinygltf::ExpandFilePath, SourceRecorder::read,
+                               tinygltf::WriteWholeFile, &recorder});
     tinygltf::Model model;
     std::string err, warn;
     bool ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, data, unsigned(size), base_dir)

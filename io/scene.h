@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "source_files.h"
+
 namespace cb {
 
 // A contiguous range of a mesh's triangles that came from one glTF primitive (or the whole file for
@@ -46,6 +48,7 @@ struct LoadReport {
     uint32_t draco_primitives = 0;      // decoded from KHR_draco_mesh_compression
     uint64_t degenerate_triangles = 0;  // repeated index or zero area, kept in the mesh
     uint64_t unreferenced_meshes = 0;   // glTF meshes no node of the chosen scene uses
+    SourceFiles source;                 // the files read and their hash (load_scene only)
 };
 
 struct Scene {

@@ -42,6 +42,7 @@ enum class SectionType : uint32_t {
     double_sided = 17,  // uint32 words: bit t of the whole triangle array set when triangle t is double-sided
     mesh_flags = 18,    // uint32 per mesh: MeshFlags
     vertex_refs = 19,   // uint16 per entry: fine clusters' reused vertices, as distances back from first_vertex
+    source = 20,        // UTF-8 text: what the asset was made from (input hash, options, tool); not for queries
 };
 
 enum MeshFlags : uint32_t {
@@ -321,6 +322,8 @@ struct AssetView {
     LevelBounds fine_bounds, coarse_bounds;
     const uint32_t* double_sided_bits = nullptr;  // null: every triangle single-sided
     const uint32_t* mesh_flags = nullptr;         // null: no flags known
+    const char* source = nullptr;                 // the source section's text, not terminated; null: none
+    uint32_t source_size = 0;
 
     bool double_sided(size_t triangle) const {
         return double_sided_bits && (double_sided_bits[triangle / 32] >> (triangle % 32) & 1);
@@ -414,7 +417,7 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
         uint32_t* count;
     };
     AssetView v;
-    constexpr int known_count = 19;
+    constexpr int known_count = 20;
     const void* ptr[known_count] = {};
     uint32_t bound_count[10] = {}, extra_count[2] = {};
     Known known[known_count] = {
@@ -437,6 +440,7 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
         {SectionType::double_sided, 4, false, &ptr[16], &extra_count[0]},
         {SectionType::mesh_flags, 4, false, &ptr[17], &extra_count[1]},
         {SectionType::vertex_refs, 2, true, &ptr[18], &v.ref_count},
+        {SectionType::source, 1, false, &ptr[19], &v.source_size},
     };
     bool seen[known_count] = {};
     for (uint32_t s = 0; s < h.section_count; ++s) {
@@ -472,6 +476,7 @@ inline AssetError open_asset(const void* bytes, size_t size, AssetView* out) {
     v.coarse = static_cast<const ClusterRange*>(ptr[4]);
     v.instances = static_cast<const InstanceRecord*>(ptr[5]);
     v.vertex_refs = static_cast<const uint16_t*>(ptr[18]);
+    v.source = static_cast<const char*>(ptr[19]);
     LevelBounds* level[2] = {&v.fine_bounds, &v.coarse_bounds};
     for (int l = 0; l < 2; ++l) {
         level[l]->obbs = static_cast<const PackedObb*>(ptr[6 + l]);

@@ -1,0 +1,144 @@
+#include "bake_file.h"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <new>
+#include <sstream>
+
+#include "asset_file.h"
+#include "load.h"
+#include "timing.h"
+
+namespace cb {
+namespace {
+
+std::string mask_text(uint32_t mask) {
+    static const char* names[] = {"obb", "sphere", "capsule", "cone", "slab"};
+    std::string out;
+    for (int b = 0; b < 5; ++b)
+        if (mask & (1u << b)) out += (out.empty() ? "" : ",") + std::string(names[b]);
+    return out.empty() ? "none" : out;
+}
+
+std::string number(double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.17g", v);
+    return text;
+}
+
+// The file names a source section lists, in order.
+std::vector<std::string> source_names(const char* text, size_t size) {
+    std::vector<std::string> names;
+    std::istringstream lines(std::string(text, size));
+    for (std::string line; std::getline(lines, line);)
+        if (line.compare(0, 5, "file ") == 0) names.push_back(line.substr(5));
+    return names;
+}
+
+// True, with the result filled from the stored asset, when `output` holds an asset whose source section is
+// the one this request would write.
+bool up_to_date(const BakeRequest& r, BakeResult& result) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(r.output, ec)) return false;
+    LoadedAsset asset;
+    std::string error;
+    if (!read_asset_file(r.output, asset, error) || !asset.view.source) return false;
+    SourceFiles now;
+    std::vector<std::string> names = source_names(asset.view.source, asset.view.source_size);
+    if (names.empty() || !hash_source_files(r.input, names, now, error)) return false;
+    if (source_text(now, r.clustering, r.bounds, r.fit) != std::string(asset.view.source, asset.view.source_size))
+        return false;
+    result.status = BakeStatus::up_to_date;
+    result.input_bytes = now.bytes;
+    result.output_bytes = asset.size;
+    result.triangles = asset.view.triangle_count;
+    result.fine_clusters = asset.view.fine_count;
+    result.coarse_clusters = asset.view.coarse_count;
+    result.meshes = asset.view.mesh_count;
+    result.instances = asset.view.instance_count;
+    return true;
+}
+
+void bake_unguarded(const BakeRequest& r, const std::function<void(size_t, size_t, size_t, size_t)>& progress,
+                    BakeResult& result) {
+    auto t0 = std::chrono::steady_clock::now();
+    Scene scene = load_scene(r.input);
+    result.load_seconds = seconds_since(t0);
+    result.input_bytes = scene.report.source.bytes;
+    result.meshes = scene.meshes.size();
+    result.instances = scene.instances.size();
+
+    std::vector<AssetMesh> meshes = cluster_scene(scene, r.clustering, result.stats, progress);
+    if (r.fit) fit_scene_bounds(meshes, r.bounds, r.clustering.threads, result.stats);
+
+    auto t1 = std::chrono::steady_clock::now();
+    std::vector<uint8_t> bytes =
+        encode_asset(meshes, scene.instances, source_text(scene.report.source, r.clustering, r.bounds, r.fit));
+    write_file_atomic(r.output, bytes);
+    result.write_seconds = seconds_since(t1);
+    result.output_bytes = bytes.size();
+    result.triangles = result.stats.triangles;
+    result.fine_clusters = result.stats.fine_clusters;
+    result.coarse_clusters = result.stats.coarse_clusters;
+    result.status = BakeStatus::baked;
+}
+
+}  // namespace
+
+const char* tool_version() { return "clusterbake " CB_VERSION; }
+
+const char* status_name(BakeStatus s) {
+    switch (s) {
+        case BakeStatus::baked: return "baked";
+        case BakeStatus::up_to_date: return "up-to-date";
+        case BakeStatus::failed: return "failed";
+    }
+    return "?";
+}
+
+std::string options_text(const ClusterOptions& c, const BoundsOptions& b, bool fit) {
+    std::string out = fit ? "bake" : "cluster";
+    out += std::string(" --method ") + method_name(c.method);
+    out += " --coarse " + std::to_string(c.coarse_size) + " --fine " + std::to_string(c.fine_size);
+    out += " --seed " + std::to_string(c.seed) + " --k0 " + std::to_string(c.kmeans_branching);
+    out += " --iterations " + std::to_string(c.kmeans_max_iterations);
+    out += " --presplit " + std::to_string(c.kmeans_presplit);
+    if (!c.kmeans_coarse_from_tree) out += " --coarse-morton";
+    out += " --cache " + std::to_string(c.vco_cache_size);
+    if (fit) {
+        out += " --bounds " + mask_text(b.mask) + " --obb " + obb_method_name(b.obb);
+        out += " --capsule-ratio " + number(b.capsule_ratio);
+    }
+    return out;
+}
+
+std::string source_text(const SourceFiles& source, const ClusterOptions& clustering, const BoundsOptions& bounds,
+                        bool fit) {
+    std::string out = std::string(tool_version()) + ", asset format " + std::to_string(asset_version) + "\n";
+    out += options_text(clustering, bounds, fit) + "\n";
+    out += "input xxh3-128 " + source.hash + ", " + std::to_string(source.bytes) + " bytes\n";
+    for (const std::string& name : source.names) out += "file " + name + "\n";
+    return out;
+}
+
+BakeResult bake_file(const BakeRequest& request, const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
+    auto t0 = std::chrono::steady_clock::now();
+    BakeResult result;
+    try {
+        if (!(request.if_changed && up_to_date(request, result))) bake_unguarded(request, progress, result);
+    } catch (const LoadError& e) {
+        result.error = e.what();  // already "FILE: ELEMENT: PROBLEM"
+    } catch (const std::bad_alloc&) {
+        result.error = request.input + ": out of memory";
+    } catch (const std::exception& e) {
+        std::string what = e.what();
+        // write_file_atomic names the output; anything else is about the input.
+        result.error = what.find(request.output) != std::string::npos ? what : request.input + ": " + what;
+    }
+    if (!result.error.empty()) result = BakeResult{BakeStatus::failed, LoadError::printable(result.error)};
+    result.seconds = seconds_since(t0);
+    return result;
+}
+
+}  // namespace cb

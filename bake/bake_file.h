@@ -1,0 +1,54 @@
+// One scene file to one asset file, as `clusterbake bake` and `clusterbake batch` both do it: load, cluster,
+// fit, encode with a source section, write atomically. With `if_changed`, an output made from the same
+// input bytes, options and tool is kept and the bake skipped.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "bake.h"
+#include "bounds.h"
+#include "cluster.h"
+#include "source_files.h"
+
+namespace cb {
+
+// "clusterbake 0.1.0": the tool version written into every source section.
+const char* tool_version();
+
+struct BakeRequest {
+    std::string input, output;
+    ClusterOptions clustering;
+    BoundsOptions bounds;
+    bool fit = true;          // false: geometry and hierarchy only (`clusterbake cluster`)
+    bool if_changed = false;  // keep an up-to-date output
+};
+
+enum class BakeStatus { baked, up_to_date, failed };
+const char* status_name(BakeStatus s);  // "baked", "up-to-date", "failed"
+
+struct BakeResult {
+    BakeStatus status = BakeStatus::failed;
+    std::string error;  // one line naming the file, when failed
+    uint64_t input_bytes = 0, output_bytes = 0;
+    uint64_t triangles = 0, fine_clusters = 0, coarse_clusters = 0;
+    uint64_t meshes = 0, instances = 0;
+    double load_seconds = 0, write_seconds = 0, seconds = 0;  // seconds: the whole call
+    BakeStats stats;                                          // clustering and fitting (baked only)
+};
+
+// The options that shape the asset, as a `bake` (or `cluster`) command line in a fixed order: every
+// clustering and bounds option but the thread count, which changes nothing in the output.
+std::string options_text(const ClusterOptions& clustering, const BoundsOptions& bounds, bool fit);
+
+// The source section's text (docs/FORMAT.md): the tool, the options, the input hash and the files.
+std::string source_text(const SourceFiles& source, const ClusterOptions& clustering, const BoundsOptions& bounds,
+                        bool fit);
+
+// Never throws: every failure (bad input, unwritable output, out of memory) comes back as `failed` with
+// its line, and leaves whatever was at the output untouched. `progress` as in cluster_scene.
+BakeResult bake_file(const BakeRequest& request,
+                     const std::function<void(size_t, size_t, size_t, size_t)>& progress = {});
+
+}  // namespace cb

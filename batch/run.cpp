@@ -1,0 +1,44 @@
+#include "run.h"
+
+#include <algorithm>
+#include <atomic>
+#include <mutex>
+#include <thread>
+
+#include "parallel.h"
+
+namespace cb {
+
+std::vector<BakeResult> run_batch(const std::vector<BakeRequest>& requests, const std::vector<size_t>& order,
+                                  const BatchRun& run, const std::function<void(size_t)>& started,
+                                  const std::function<void(size_t, const BakeResult&)>& finished) {
+    unsigned cores = run.cores ? run.cores : std::max(1u, std::thread::hardware_concurrency());
+    unsigned workers = unsigned(std::min<size_t>(run.jobs ? run.jobs : cores, std::max<size_t>(order.size(), 1)));
+    CoreBudget budget(cores);
+    std::vector<BakeResult> results(requests.size());
+    std::atomic<size_t> next{0};
+    std::mutex report;
+    auto work = [&] {
+        thread_core_budget() = &budget;
+        for (size_t k; (k = next.fetch_add(1)) < order.size();) {
+            size_t i = order[k];
+            budget.take();
+            {
+                std::lock_guard<std::mutex> lock(report);
+                if (started) started(i);
+            }
+            results[i] = bake_file(requests[i]);
+            budget.give();
+            std::lock_guard<std::mutex> lock(report);
+            if (finished) finished(i, results[i]);
+        }
+        thread_core_budget() = nullptr;
+    };
+    std::vector<std::thread> pool;
+    for (unsigned w = 1; w < workers; ++w) pool.emplace_back(work);
+    work();
+    for (std::thread& t : pool) t.join();
+    return results;
+}
+
+}  // namespace cb
