@@ -82,6 +82,10 @@ void bake_unguarded(const BakeRequest& r, const std::function<void(size_t, size_
     result.fine_clusters = result.stats.fine_clusters;
     result.coarse_clusters = result.stats.coarse_clusters;
     result.status = BakeStatus::baked;
+    // Kept, as a valid asset, since a pipeline may expect one asset per scene; said, since it is rarely meant.
+    if (result.triangles == 0)
+        result.warning = r.input + ": no triangles (" + std::to_string(scene.report.skipped_primitives) +
+            " point or line primitives skipped): the asset holds no geometry";
 }
 
 }  // namespace
@@ -136,7 +140,11 @@ BakeResult bake_file(const BakeRequest& request, const std::function<void(size_t
         // write_file_atomic names the output; anything else is about the input.
         result.error = what.find(request.output) != std::string::npos ? what : request.input + ": " + what;
     }
-    if (!result.error.empty()) result = BakeResult{BakeStatus::failed, LoadError::printable(result.error)};
+    if (!result.error.empty()) {
+        std::string error = LoadError::printable(result.error);
+        result = BakeResult{};  // nothing of a bake that failed half-way
+        result.error = error;
+    }
     result.seconds = seconds_since(t0);
     return result;
 }

@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 
@@ -11,10 +12,25 @@
 #include "args.h"
 #include "bake_file.h"
 #include "commands.h"
+#include "load.h"
 #include "timing.h"
 
 namespace cb::cli {
 namespace {
+
+// What is wrong with the output path, found before any work; empty when nothing is. A scene file's name
+// for an asset is a trap (a later load of it fails, or a source is overwritten), allowed with --force.
+std::string output_problem(const std::string& out, bool force) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    fs::file_status status = fs::status(out, ec);
+    if (fs::exists(status) && !fs::is_regular_file(status)) return "exists and is not a regular file";
+    fs::path folder = fs::path(out).parent_path();
+    if (!folder.empty() && !fs::is_directory(folder, ec)) return "folder " + folder.string() + " does not exist";
+    if (!force && cb::format_from_path(out) != cb::FileFormat::unknown)
+        return "named like a scene file; an asset is not one (name it .cbk, or --force)";
+    return {};
+}
 
 // `cluster` (geometry and hierarchy only) and `bake` (with bounds) share this.
 int run_bake(const ClusterArgs& a) {
@@ -26,6 +42,11 @@ int run_bake(const ClusterArgs& a) {
     }
     request.input = a.file;
     request.output = a.out;
+    std::string problem = output_problem(a.out, a.force);
+    if (!problem.empty()) {
+        std::fprintf(stderr, "clusterbake: %s: %s\n", a.out.c_str(), problem.c_str());
+        return exit_usage;
+    }
 
     // Progress once a bake has taken a second, on a terminal only, overwritten in place on stderr.
     bool shown = false, terminal = !a.quiet && isatty(STDERR_FILENO);
@@ -40,6 +61,7 @@ int run_bake(const ClusterArgs& a) {
         std::fprintf(stderr, "%s\n", r.error.c_str());
         return exit_bad_input;
     }
+    if (!r.warning.empty()) std::fprintf(stderr, "clusterbake: warning: %s\n", r.warning.c_str());
     const cb::ClusterOptions& options = request.clustering;
     const cb::BoundsOptions& bounds = request.bounds;
     const cb::BakeStats& stats = r.stats;
@@ -137,7 +159,9 @@ void add_common(CLI::App* c, ClusterArgs& a) {
     add_clustering_flags(c, a);
     c->add_flag("--if-changed", a.if_changed,
                 "Keep the output when it was made from the same input bytes, options and tool version");
-    c->add_flag("--force", a.force, "Bake even when the output is up to date (the default without --if-changed)");
+    c->add_flag("--force", a.force,
+                "Bake even when the output is up to date (the default without --if-changed), and even to an output "
+                "named like a scene file");
     c->add_flag("--json", a.json, "Print the summary as JSON");
     c->add_flag("-q,--quiet", a.quiet, "No progress on stderr");
 }

@@ -173,6 +173,8 @@ int run_batch_command(const BatchArgs& a) {
             if (lines) {
                 if (r.status == BakeStatus::failed)
                     std::fprintf(stderr, "failed      %s\n", r.error.c_str());
+                else if (!r.warning.empty())
+                    std::fprintf(stderr, "warning     %s\n", r.warning.c_str());
                 else
                     std::fprintf(stderr, "%-11s %s -> %s  %s triangles  %.3f s\n", status_name(r.status),
                                  jobs[i].name.c_str(), jobs[i].output.c_str(), thousands(r.triangles).c_str(),
@@ -202,7 +204,8 @@ int run_batch_command(const BatchArgs& a) {
                          {"coarse_clusters", r.coarse_clusters},
                          {"seconds", r.seconds},
                          {"output_bytes", r.output_bytes},
-                         {"error", r.error}});
+                         {"error", r.error},
+                         {"warning", r.warning}});
     }
     size_t baked = counts[int(BakeStatus::baked)], fresh = counts[int(BakeStatus::up_to_date)],
            failed = counts[int(BakeStatus::failed)];
@@ -234,6 +237,10 @@ int run_batch_command(const BatchArgs& a) {
                     jobs.size(), wall, wall > 0 ? double(jobs.size()) / wall : 0.0,
                     wall > 0 ? double(triangles[0]) / wall / 1e6 : 0.0, run.jobs, run.cores);
         std::printf("summary: %s\n", summary_path.c_str());
+        size_t warned = 0;
+        for (size_t i = 0; i < jobs.size(); ++i)
+            if (!results[i].warning.empty())
+                std::printf(warned++ ? "  %s\n" : "warnings:\n  %s\n", results[i].warning.c_str());
         if (failed) {
             std::printf("failed:\n");
             for (size_t i = 0; i < jobs.size(); ++i)

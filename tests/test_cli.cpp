@@ -240,3 +240,38 @@ TEST(Cli, VersionNamesTheToolAndTheAssetFormat) {
     EXPECT_EQ(r.out.rfind("clusterbake ", 0), 0u) << r.out;
     EXPECT_NE(r.out.find("asset format " + std::to_string(cb::asset_version)), std::string::npos) << r.out;
 }
+
+TEST(Cli, BakeChecksItsOutputPathBeforeAnyWork) {
+    namespace fs = std::filesystem;
+    fs::path dir = fs::temp_directory_path() / ("cb_cli_out_" + std::to_string(getpid()));
+    fs::create_directories(dir);
+    std::string cube = data("small/cube.obj");
+    auto refused = [&](const std::string& out, const std::string& why, const std::string& extra = "") {
+        CliRun r = run("bake " + cube + " -o " + out + extra);
+        EXPECT_EQ(r.code, 2) << out;
+        EXPECT_EQ(r.err, "clusterbake: " + out + ": " + why + "\n");
+    };
+    refused((dir / "scene.glb").string(), "named like a scene file; an asset is not one (name it .cbk, or --force)");
+    refused((dir / "scene.GLTF").string(), "named like a scene file; an asset is not one (name it .cbk, or --force)");
+    refused((dir / "no" / "x.cbk").string(), "folder " + (dir / "no").string() + " does not exist");
+    refused(dir.string(), "exists and is not a regular file");
+    EXPECT_FALSE(fs::exists(dir / "scene.glb"));
+    EXPECT_EQ(run("bake " + cube + " -o " + (dir / "scene.glb").string() + " --force -q").code, 0);
+    EXPECT_EQ(run("bake " + cube + " -o " + (dir / "x.cbk").string() + " --force --if-changed").code, 2);
+    fs::remove_all(dir);
+}
+
+TEST(Cli, ASceneWithoutTrianglesBakesWithAWarning) {
+    namespace fs = std::filesystem;
+    fs::path dir = fs::temp_directory_path() / ("cb_cli_empty_" + std::to_string(getpid()));
+    fs::create_directories(dir);
+    std::ofstream(dir / "points.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    CliRun r = run("bake " + (dir / "points.obj").string() + " -o " + (dir / "points.cbk").string());
+    EXPECT_EQ(r.code, 0);
+    EXPECT_NE(r.err.find("clusterbake: warning: " + (dir / "points.obj").string() + ": no triangles"),
+              std::string::npos)
+        << r.err;
+    CliRun v = run("validate " + (dir / "points.cbk").string());
+    EXPECT_EQ(v.code, 0) << v.err;
+    fs::remove_all(dir);
+}
