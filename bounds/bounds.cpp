@@ -487,12 +487,16 @@ Sphere store_sphere(const double* centre, const double* world, size_t n) {
 
 // ------------------------------------------------------------------ capsule
 
+// The distance from p to segment a..b, an upper bound of the exact one but for a few units in the last
+// place of max(|p - a|, |b - a|): any t in [0, 1] gives a point of the segment, so an inexact t only
+// overestimates, and the offset is formed from differences alone. (The closest point itself, a + t (b - a),
+// would be rounded to the absolute coordinates: 1e-11 at 1e5, far above a margin relative to the cluster.)
 double segment_distance(const double* p, const double* a, const double* b) {
     Vec ab = sub(b, a), ap = sub(p, a);
     double len2 = dot3(ab.data(), ab.data());
     double t = len2 > 0 ? std::clamp(dot3(ap.data(), ab.data()) / len2, 0.0, 1.0) : 0.0;
-    double q[3] = {a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
-    return norm(sub(p, q));
+    Vec d = {ap[0] - t * ab[0], ap[1] - t * ab[1], ap[2] - t * ab[2]};
+    return norm(d);
 }
 
 // Axis from the box; radius from the minimal circle of the points projected on the plane across it;

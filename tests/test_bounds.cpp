@@ -1,5 +1,6 @@
 // Bounding volumes: containment of every vertex in every stored (float) volume, checked in double; cone
 // soundness checked with CGAL's exact orientation predicate; the hard cases one by one.
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <gtest/gtest.h>
 
@@ -56,8 +57,8 @@ double segment_distance(const double p[3], const float a[3], const float b[3]) {
     for (int k = 0; k < 3; ++k)
         ab[k] = double(b[k]) - a[k], ap[k] = p[k] - a[k], len2 += ab[k] * ab[k], t += ap[k] * ab[k];
     t = len2 > 0 ? std::clamp(t / len2, 0.0, 1.0) : 0.0;
-    double d2 = 0;
-    for (int k = 0; k < 3; ++k) d2 += (p[k] - (a[k] + t * ab[k])) * (p[k] - (a[k] + t * ab[k]));
+    double d2 = 0;  // from differences only: absolute coordinates would round at 1e-11 near 1e5
+    for (int k = 0; k < 3; ++k) d2 += (ap[k] - t * ab[k]) * (ap[k] - t * ab[k]);
     return std::sqrt(d2);
 }
 
@@ -338,4 +339,45 @@ TEST(Bounds, AssetBoundsContainEveryVertexOfTheirCluster) {
     EXPECT_EQ(checked, size_t(view.fine_count) + view.coarse_count);
     EXPECT_EQ(misses, 0u);
     EXPECT_EQ(violations, 0u);
+}
+
+// Capsules far from the origin, checked exactly: every vertex's squared distance to the stored segment, in
+// CGAL's exact arithmetic over the stored floats, at most the stored radius squared. Elongated single
+// triangles (as `--fine 1` makes) at 1e5 to 1e7, where the rounding of an absolute coordinate is larger
+// than a margin taken relative to the cluster's size.
+TEST(Bounds, CapsulesFarFromTheOriginHoldEveryVertexExactly) {
+    using E = CGAL::Exact_predicates_exact_constructions_kernel;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> unit(-1, 1);
+    cb::BoundsOptions options;
+    options.mask = cb::bounds_capsule;
+    size_t capsules = 0, misses = 0;
+    for (double offset : {1e5, 4e5, 3e6, 1e7})
+        for (int i = 0; i < 2000; ++i) {
+            // A sliver: two corners far apart along a random direction, the third near the middle.
+            double dir[3] = {unit(rng), unit(rng), unit(rng)}, len = 0.5 + 20 * std::fabs(unit(rng));
+            double o[3] = {offset + 50 * unit(rng), -offset + 50 * unit(rng), offset * 0.5 + 50 * unit(rng)};
+            std::vector<float> p = {float(o[0]),
+                                    float(o[1]),
+                                    float(o[2]),
+                                    float(o[0] + len * dir[0]),
+                                    float(o[1] + len * dir[1]),
+                                    float(o[2] + len * dir[2]),
+                                    float(o[0] + 0.5 * len * dir[0] + 0.01 * unit(rng)),
+                                    float(o[1] + 0.5 * len * dir[1] + 0.01 * unit(rng)),
+                                    float(o[2] + 0.5 * len * dir[2] + 0.01 * unit(rng))};
+            std::vector<uint32_t> indices = {0, 1, 2}, tris = {0};
+            cb::ClusterBounds b = cb::fit_bounds(p.data(), indices.data(), tris.data(), 1, options);
+            if (!b.has_capsule) continue;
+            ++capsules;
+            E::Segment_3 axis(E::Point_3(b.capsule.a[0], b.capsule.a[1], b.capsule.a[2]),
+                              E::Point_3(b.capsule.b[0], b.capsule.b[1], b.capsule.b[2]));
+            E::FT r = b.capsule.radius;
+            for (int v = 0; v < 3; ++v) {
+                E::Point_3 q(p[v * 3], p[v * 3 + 1], p[v * 3 + 2]);
+                misses += CGAL::squared_distance(q, axis) > r * r;
+            }
+        }
+    EXPECT_GT(capsules, 7000u);
+    EXPECT_EQ(misses, 0u) << "vertices outside their capsule, exactly, of " << capsules << " capsules";
 }
