@@ -275,3 +275,61 @@ TEST(Cli, ASceneWithoutTrianglesBakesWithAWarning) {
     EXPECT_EQ(v.code, 0) << v.err;
     fs::remove_all(dir);
 }
+
+namespace {
+
+std::filesystem::path scratch(const std::string& name) {
+    return std::filesystem::temp_directory_path() / ("cb_cli_" + std::to_string(getpid()) + "_" + name);
+}
+
+// A bad input: exit code 2 and exactly this one line on stderr.
+void expect_bad_input(const CliRun& r, const std::string& line, const std::string& context) {
+    EXPECT_EQ(r.code, 2) << context;
+    EXPECT_EQ(r.err, line + "\n") << context;
+}
+
+}  // namespace
+
+TEST(Cli, FilesThatAreNotWhatTheirNameSaysGiveOneLineNamingThem) {
+    std::string text = scratch("text.glb").string(), gltf = scratch("text.gltf").string();
+    std::ofstream(text) << "hello world\n";
+    std::ofstream(gltf) << "hello world\n";
+    for (const std::string& command :
+         {std::string("info "), "bake -o " + scratch("text.cbk").string() + " ", std::string("stats ")}) {
+        expect_bad_input(run(command + text),
+                         text +
+                             ": not a glTF file: neither binary glTF (magic 'glTF') nor JSON text (parse error "
+                             "at byte 1)",
+                         command);
+        expect_bad_input(run(command + gltf),
+                         gltf +
+                             ": not a glTF file: neither binary glTF (magic 'glTF') nor JSON text (parse error "
+                             "at byte 1)",
+                         command);
+    }
+    // A GLB whose JSON chunk is broken, and one whose buffer file is missing.
+    auto glb = [](const std::string& path, std::string json) {
+        while (json.size() % 4) json += ' ';
+        auto u32 = [](uint32_t v) { return std::string{char(v), char(v >> 8), char(v >> 16), char(v >> 24)}; };
+        std::ofstream(path, std::ios::binary)
+            << "glTF" + u32(2) + u32(uint32_t(20 + json.size())) + u32(uint32_t(json.size())) + "JSON" + json;
+    };
+    std::string broken = scratch("broken.glb").string(), missing = scratch("missing.glb").string();
+    glb(broken, "{\"asset\": {\"version\": \"2.0\"}, broken");
+    glb(missing, "{\"asset\": {\"version\": \"2.0\"}, \"buffers\": [{\"uri\": \"nowhere.bin\", \"byteLength\": 12}]}");
+    expect_bad_input(run("info " + broken),
+                     broken + ": GLB JSON chunk is not JSON text (parse error at byte 31 of the chunk)", "broken GLB");
+    CliRun r = run("info " + missing);
+    EXPECT_EQ(r.code, 2);
+    EXPECT_EQ(r.err.rfind(missing + ": buffer 0: 'nowhere.bin': no such file (looked for ", 0), 0u) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    // Text named .stl is neither kind of STL, not an empty mesh.
+    std::string stl = scratch("text.stl").string();
+    std::ofstream(stl) << "hello world\n";
+    expect_bad_input(run("info " + stl),
+                     stl +
+                         ": not an STL file: neither binary STL (at least 84 bytes) nor ASCII STL (starts with "
+                         "'solid')",
+                     "text .stl");
+    for (const std::string& f : {text, gltf, broken, missing, stl}) std::filesystem::remove(f);
+}
