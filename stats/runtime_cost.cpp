@@ -150,6 +150,7 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
     cost.lights = uint32_t(lights.size() / 3);
     SceneQueryOptions options;
     options.one_sided = one_sided;
+    options.threads = 1;  // the rates are per thread
     for (uint32_t l = 0; l < cost.lights; ++l) {
         std::vector<double> build_times, query_times;
         for (int r = 0; r < std::max(1, runs); ++r) {

@@ -18,13 +18,14 @@ struct CliRun {
     std::string out, err;
 };
 
-CliRun run(const std::string& args) {
+// `args` to clusterbake; with `pipe_from`, that shell command's output is its standard input.
+CliRun run(const std::string& args, const std::string& pipe_from = "") {
     // ctest runs tests in parallel processes: name the capture files after this one.
     static int calls = 0;
     auto base =
         std::filesystem::temp_directory_path() / ("cb_cli_" + std::to_string(getpid()) + "_" + std::to_string(calls++));
     std::string out = base.string() + ".out", err = base.string() + ".err";
-    std::string cmd = std::string(CB_CLI) + " " + args + " >" + out + " 2>" + err;
+    std::string cmd = (pipe_from.empty() ? "" : pipe_from + " | ") + CB_CLI + " " + args + " >" + out + " 2>" + err;
     int status = std::system(cmd.c_str());
     CliRun r;
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -206,9 +207,10 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     EXPECT_EQ(one.out.size(), 1600u * 2);
     EXPECT_EQ(three.out, one.out);
     EXPECT_EQ(three_ref.out, one.out);
-    for (const char* fine : {"trees", "one-tree"})  // the other traversals: the same answers
-        EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --fine " + fine).out, one.out) << fine;
-    EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --fine leaves").code, 2);
+    for (const char* traversal : {"trees", "one-tree"})  // the other traversals: the same answers
+        EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --traversal " + traversal).out, one.out)
+            << traversal;
+    EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --traversal leaves").code, 2);
     EXPECT_NE(one.out.find('1'), std::string::npos);
     EXPECT_NE(one.out.find('0'), std::string::npos);
     std::ofstream(pts) << "1 2\n";
@@ -332,4 +334,24 @@ TEST(Cli, FilesThatAreNotWhatTheirNameSaysGiveOneLineNamingThem) {
                          "'solid')",
                      "text .stl");
     for (const std::string& f : {text, gltf, broken, missing, stl}) std::filesystem::remove(f);
+}
+
+TEST(Cli, QueryReadsPointsFromStandardInput) {
+    std::string asset = scratch("stdin.cbk").string(), pts = scratch("stdin.txt").string(),
+                bin = scratch("stdin.bin").string();
+    ASSERT_EQ(run("bake " + data("default_scene.glb") + " -o " + asset).code, 0);
+    const float points[] = {-4, 0.05f, 2, -4, 5, 2, 15, 0.01f, 15};
+    std::ofstream(pts) << "-4 0.05 2\n-4 5 2\n15 0.01 15\n";
+    std::ofstream(bin, std::ios::binary).write(reinterpret_cast<const char*>(points), sizeof points);
+    std::string query = "query " + asset + " --light -4,30,2 --points ";
+    EXPECT_EQ(run(query + pts).out, "1\n0\n0\n");
+    EXPECT_EQ(run(query + "- < " + pts).out, "1\n0\n0\n");
+    EXPECT_EQ(run(query + "- --binary < " + bin).out, "1\n0\n0\n");
+    EXPECT_EQ(run(query + "- --binary", "cat " + bin).out, "1\n0\n0\n");  // a pipe, not a file
+    EXPECT_EQ(run(query + "-", "cat " + pts).out, "1\n0\n0\n");
+    std::ofstream(pts) << "1 2\n";
+    expect_bad_input(run(query + "- < " + pts), "standard input: line 1: expected 'x y z'", "stdin");
+    expect_bad_input(run(query + "- --binary < " + pts),
+                     "standard input: 4 bytes is not a whole number of float32 triples", "stdin, binary");
+    for (const std::string& f : {asset, pts, bin}) std::filesystem::remove(f);
 }
