@@ -171,10 +171,11 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
 }
 
 std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, const std::vector<double>& points,
-                                    bool one_sided) {
+                                    bool one_sided, unsigned threads) {
     SceneQueryOptions options;
     options.one_sided = one_sided;
     options.per_point = true;  // the counts are per point
+    options.threads = threads;
     SceneQueryResult q = query_scene(view, light, points.data(), points.size() / 3, options);
     std::vector<uint32_t> out(q.shadowed.size());
     for (size_t p = 0; p < out.size(); ++p) out[p] = uint32_t(q.point_stats[p].clusters_tested - q.shadowed[p]);
