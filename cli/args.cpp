@@ -67,12 +67,11 @@ std::string output_file_error(const std::string& path) {
     namespace fs = std::filesystem;
     std::error_code ec;
     fs::file_status status = fs::status(path, ec);
-    if (fs::exists(status) && !fs::is_regular_file(status))
-        return path + ": exists and is not a regular file (never replaced)";
+    if (fs::exists(status) && !fs::is_regular_file(status)) return path + ": exists and is not a regular file";
     std::string folder = fs::path(path).parent_path().string();
     if (folder.empty()) folder = ".";
-    if (!fs::is_directory(folder, ec)) return path + ": its folder does not exist";
-    if (access(folder.c_str(), W_OK | X_OK) != 0) return path + ": cannot write into its folder";
+    if (!fs::is_directory(folder, ec)) return path + ": folder " + folder + " does not exist";
+    if (access(folder.c_str(), W_OK | X_OK) != 0) return path + ": cannot write into folder " + folder;
     return {};
 }
 

@@ -549,7 +549,7 @@ TEST(Cli, OutputsAreCheckedBeforeAnyWork) {
     expect_usage_error(run("report " + scene + " -o " + file + "/sub"), "cannot make the folder", "under a file");
     expect_usage_error(run("heatmap " + scene + " -o /dev/null"), "exists and is not a regular file", "heatmap");
     expect_usage_error(run("heatmap " + scene + " -o " + scratch("no_folder").string() + "/h.png"),
-                       "its folder does not exist", "heatmap, no folder");
+                       "folder " + scratch("no_folder").string() + " does not exist", "heatmap, no folder");
     expect_usage_error(run("heatmap " + scene + " -o " + std::filesystem::temp_directory_path().string()),
                        "exists and is not a regular file", "heatmap, a folder");
     std::filesystem::remove(file);
