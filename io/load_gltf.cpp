@@ -148,8 +148,9 @@ std::string buffer_file_problem(const nlohmann::json& doc, const std::string& ba
     return {};
 }
 
-// Returns the glTF (or GLB) bytes with viewless indices detached, or an empty vector when nothing changed.
-std::vector<uint8_t> prepare_for_tinygltf(const uint8_t* data, size_t size, bool binary, nlohmann::json doc,
+// Returns the glTF (or GLB) bytes with viewless indices detached from `doc` (in place: only its buffers
+// are read later), or an empty vector when nothing changed.
+std::vector<uint8_t> prepare_for_tinygltf(const uint8_t* data, size_t size, bool binary, nlohmann::json& doc,
                                           DetachedIndices& detached) {
     if (!detach_viewless_indices(doc, detached)) return {};
     const size_t json_size = binary ? read_u32(data + 12) : size;
@@ -611,7 +612,7 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
         std::string layout = glb_layout_error(data, size);
         if (!layout.empty()) throw LoadError(name + ": " + layout);
     }
-    const nlohmann::json doc = parse_document(data, size, binary, name);
+    nlohmann::json doc = parse_document(data, size, binary, name);
     DetachedIndices detached;
     std::vector<uint8_t> prepared = prepare_for_tinygltf(data, size, binary, doc, detached);
     if (!prepared.empty()) data = prepared.data(), size = prepared.size();
