@@ -49,7 +49,7 @@ struct Options {
     int frames = 0;  // bench_shadow: N > 0 times only our frames (build and queries, one thread), N per light
 };
 
-// --data DIR --fine N --runs N --copies N --view N --only NAME --one-sided 0|1 --level scan|trees|one-tree
+// --data DIR --fine N --runs N --copies N --view N --only NAME --one-sided 0|1 --traversal scan|trees|one-tree
 // --frames N, over the given defaults.
 inline Options parse_options(int argc, char** argv, Options o) {
     for (int i = 1; i + 1 < argc; i += 2) {
@@ -68,7 +68,7 @@ inline Options parse_options(int argc, char** argv, Options o) {
             o.only = argv[i + 1];
         else if (a == "--one-sided")
             o.one_sided = std::stoi(argv[i + 1]);
-        else if (a == "--level")
+        else if (a == "--traversal")
             o.level = argv[i + 1];
         else if (a == "--frames")
             o.frames = std::stoi(argv[i + 1]);

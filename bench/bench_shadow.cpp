@@ -6,10 +6,10 @@
 // passes and Embree's one after the other, so noise hits both alike. Both sides' passes run on the same two
 // worker threads, kept for the whole run, with the same chunking. Asserts nothing.
 //
-//   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--runs 3] [--only NAME] [--one-sided 1] [--level L]
+//   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--runs 3] [--only NAME] [--one-sided 1] [--traversal T]
 //                [--frames N]
 //   (NAME "big": only the big scene; --one-sided 1: our trees in one-sided mode, whose answers equal
-//   two-sided ones outside closed meshes; Embree stays two-sided; L: scan (default), trees or one-tree, how
+//   two-sided ones outside closed meshes; Embree stays two-sided; T: scan (default), trees or one-tree, how
 //   our trees reach the fine clusters, cb::Traversal; --frames N: no Embree passes, only N of
 //   our frames per light on one thread, their shortest and median time: on a noisy machine the shortest of
 //   many is the steadier figure for comparing two builds of the runtime, run alternately)

@@ -1,7 +1,10 @@
 #include "args.h"
 
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 
 namespace cb::cli {
 
@@ -11,7 +14,7 @@ void add_clustering_flags(CLI::App* c, ClusterArgs& a) {
     // 85 triangles have at most 255 distinct corners: every cluster fits the asset's 8-bit local indices.
     c->add_option("--fine", a.options.fine_size, "Maximum triangles per fine cluster, 1 to 85 (default 16)")
         ->check(CLI::Range(1, 85));
-    c->add_option("--threads", a.options.threads, "Worker threads, 0 = all (output is identical for any count)");
+    c->add_option("--threads", a.options.threads, threads_help("the output is identical for any count"));
     c->add_option("--seed", a.options.seed, "Seed of k-means++ (default 1)");
     c->add_option("--k0", a.options.kmeans_branching, "k-means children per node (default 8)");
     c->add_option("--iterations", a.options.kmeans_max_iterations, "Cap on Lloyd iterations per node (default 16)");
@@ -21,6 +24,76 @@ void add_clustering_flags(CLI::App* c, ClusterArgs& a) {
     c->add_option("--presplit", a.options.kmeans_presplit,
                   "kmeans: triangles per Morton chunk the trees grow in, in parallel (default 65536; 0: one tree)");
     c->add_option("--cache", a.options.vco_cache_size, "vco: vertex cache size (default 32)");
+}
+
+const std::vector<std::string>& cluster_shape_flags() {
+    static const std::vector<std::string> names = {"--method",     "--coarse", "--fine",     "--seed",         "--k0",
+                                                   "--iterations", "--cache",  "--presplit", "--coarse-morton"};
+    return names;
+}
+
+bool refuse_unused_by_method(const CLI::App* c, cb::ClusterMethod method) {
+    const std::string name = cb::method_name(method);
+    const std::vector<std::string> kmeans = {"--seed", "--k0", "--iterations", "--presplit", "--coarse-morton"};
+    if (method != cb::ClusterMethod::vco && refuse_given(c, {"--cache"}, "an option of vco, and the method is " + name))
+        return true;
+    if (method != cb::ClusterMethod::kmeans &&
+        refuse_given(c, kmeans, "an option of kmeans, and the method is " + name))
+        return true;
+    return !first_given(c, {"--coarse-morton"}).empty() &&
+        refuse_given(c, {"--presplit"}, "with --coarse-morton no k-means tree grows in presplit chunks");
+}
+
+std::string threads_help(const std::string& what) {
+    return "Worker threads, 0 = all hardware threads (default); " + what;
+}
+
+std::string first_given(const CLI::App* c, const std::vector<std::string>& names) {
+    for (const std::string& name : names) {
+        const CLI::Option* option = c->get_option_no_throw(name);
+        if (option && option->count() > 0) return name;
+    }
+    return {};
+}
+
+bool refuse_given(const CLI::App* c, const std::vector<std::string>& names, const std::string& why) {
+    std::string name = first_given(c, names);
+    if (name.empty()) return false;
+    std::fprintf(stderr, "clusterbake: %s does nothing here: %s\n", name.c_str(), why.c_str());
+    return true;
+}
+
+std::string output_file_error(const std::string& path) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    fs::file_status status = fs::status(path, ec);
+    if (fs::exists(status) && !fs::is_regular_file(status)) return path + ": exists and is not a regular file";
+    std::string folder = fs::path(path).parent_path().string();
+    if (folder.empty()) folder = ".";
+    if (!fs::is_directory(folder, ec)) return path + ": folder " + folder + " does not exist";
+    if (access(folder.c_str(), W_OK | X_OK) != 0) return path + ": cannot write into folder " + folder;
+    return {};
+}
+
+std::string output_folder_error(const std::string& path) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::exists(path, ec) && !fs::is_directory(path, ec)) return path + ": exists and is not a folder";
+    fs::create_directories(path, ec);
+    if (ec) return path + ": cannot make the folder (" + ec.message() + ")";
+    if (access(path.c_str(), W_OK | X_OK) != 0) return path + ": cannot write into the folder";
+    return {};
+}
+
+bool usage_ok(const std::string& error) {
+    if (!error.empty()) std::fprintf(stderr, "clusterbake: %s\n", error.c_str());
+    return error.empty();
+}
+
+std::string scene_input_error(const std::string& file, const std::string& command) {
+    if (!cb::is_asset_file(file)) return {};
+    return file + ": is a clusterbake asset; " + command +
+        " clusters a scene file itself (.gltf .glb .obj .ply .off .stl)";
 }
 
 void add_bounds_flags(CLI::App* c, ClusterArgs& a) {

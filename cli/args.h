@@ -1,10 +1,12 @@
 // What the subcommands share: the exit code of bad input, the clustering and box-fitter options of
-// `cluster`, `bake` and `stats`, and the parsers whose errors are one line on stderr.
+// `cluster`, `bake` and `stats`, the checks of options and outputs made before any work, and the parsers
+// whose errors are one line on stderr.
 #pragma once
 
 #include <CLI/CLI.hpp>
 
 #include <string>
+#include <vector>
 
 #include "asset_file.h"
 #include "bake_file.h"
@@ -28,6 +30,38 @@ struct ClusterArgs {
 
 // The clustering options (--method, --coarse, --fine, --threads and the methods' own) of cluster, bake, stats.
 void add_clustering_flags(CLI::App* c, ClusterArgs& a);
+
+// What add_clustering_flags adds but --threads: the options that shape the clusters.
+const std::vector<std::string>& cluster_shape_flags();
+
+// When an option of another clustering method than `method` was given (--cache is vco's, --seed, --k0,
+// --iterations, --presplit and --coarse-morton k-means'), or --presplit with --coarse-morton: the
+// refuse_given line, and true.
+bool refuse_unused_by_method(const CLI::App* c, ClusterMethod method);
+
+// The help text of --threads: the same default, all hardware threads, in every command.
+std::string threads_help(const std::string& what);
+
+// The first of `names` given on the command line, or empty.
+std::string first_given(const CLI::App* c, const std::vector<std::string>& names);
+
+// When one of `names` was given: "clusterbake: NAME does nothing here: WHY" on stderr, and true. A command
+// refuses what it would ignore, so that no option is silently dropped.
+bool refuse_given(const CLI::App* c, const std::vector<std::string>& names, const std::string& why);
+
+// Why `path` cannot be an output file (it exists and is not a regular file, or its folder does not
+// exist), or empty.
+std::string output_file_error(const std::string& path);
+
+// Makes the output folder `path`; why it cannot be one (it exists and is not a folder, cannot be made, or
+// cannot be written into), or empty.
+std::string output_folder_error(const std::string& path);
+
+// "clusterbake: ERROR" on stderr when `error` is not empty; true when it is empty.
+bool usage_ok(const std::string& error);
+
+// Why `file` cannot be the scene `command` reads (it is an asset, whose clusters are already made), or empty.
+std::string scene_input_error(const std::string& file, const std::string& command);
 
 // The bounding volume options of bake and batch: --bounds, --obb, --capsule-ratio.
 void add_bounds_flags(CLI::App* c, ClusterArgs& a);

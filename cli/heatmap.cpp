@@ -1,5 +1,8 @@
 // clusterbake heatmap: a PNG of the useless cluster tests per pixel, k-means beside VCO.
+#include <nlohmann/json.hpp>
+
 #include <cstdio>
+#include <iostream>
 #include <memory>
 #include <stdexcept>
 
@@ -8,6 +11,7 @@
 #include "commands.h"
 #include "heatmap.h"
 #include "load.h"
+#include "progress.h"
 
 namespace cb::cli {
 namespace {
@@ -15,28 +19,64 @@ namespace {
 struct HeatmapArgs {
     std::string file, out, light, obb = "refined";
     cb::HeatmapOptions options;
+    bool json = false, quiet = false;
 };
 
-int run_heatmap(HeatmapArgs a) {
+// The options as the renderer takes them, and the input and output usable; false after one line on stderr.
+bool parse_heatmap(HeatmapArgs& a) {
     if (!a.light.empty()) {
-        if (!parse_light(a.light, a.options.light)) return exit_usage;
+        if (!parse_light(a.light, a.options.light)) return false;
         a.options.has_light = true;
     }
-    if (!parse_obb(a.obb, a.options.obb)) return exit_usage;
+    if (!parse_obb(a.obb, a.options.obb)) return false;
     if (a.options.size < 8 || a.options.size > 4096) {
         std::fprintf(stderr, "clusterbake: --size takes 8 to 4096\n");
-        return exit_usage;
+        return false;
     }
+    if (a.options.clustering.coarse_size < a.options.clustering.fine_size) {
+        std::fprintf(stderr, "clusterbake: --coarse must be at least --fine\n");
+        return false;
+    }
+    return usage_ok(scene_input_error(a.file, "heatmap")) && usage_ok(output_file_error(a.out));
+}
+
+void print_json(const HeatmapArgs& a, const cb::Heatmap& h) {
+    nlohmann::json j = {{"tool", cb::tool_version()},
+                        {"file", a.file},
+                        {"output", a.out},
+                        {"width", h.width},
+                        {"height", h.height},
+                        {"light", {h.light[0], h.light[1], h.light[2]}},
+                        {"fine_size", a.options.clustering.fine_size},
+                        {"coarse_size", a.options.clustering.coarse_size},
+                        {"obb", a.obb},
+                        {"one_sided", a.options.one_sided},
+                        {"pixels", h.pixels},
+                        {"mean_useless", {{"kmeans", h.mean_useless[0]}, {"vco", h.mean_useless[1]}}},
+                        {"scale_max", h.scale_max}};
+    std::cout << j.dump(2) << "\n";
+}
+
+int run_heatmap(HeatmapArgs a) {
+    if (!parse_heatmap(a)) return exit_usage;
+    ProgressLine progress(!a.quiet);
     cb::Heatmap h;
     try {
-        h = cb::render_heatmap(cb::load_scene(a.file), a.options);
+        progress.stage("loading " + a.file);
+        cb::Scene scene = cb::load_scene(a.file);
+        h = cb::render_heatmap(scene, a.options, [&](const std::string& stage) { progress.stage(stage); });
+        progress.clear();
         if (h.png.empty()) throw std::runtime_error(a.file + ": no triangles to draw");
         cb::write_file_atomic(a.out, h.png);
     } catch (const std::runtime_error& e) {
+        progress.clear();
         std::fprintf(stderr, "%s\n", e.what());
         return exit_bad_input;
     }
-    std::printf("%s -> %s (%ux%u)\n  %s\n", a.file.c_str(), a.out.c_str(), h.width, h.height, h.caption().c_str());
+    if (a.json)
+        print_json(a, h);
+    else
+        std::printf("%s -> %s (%ux%u)\n  %s\n", a.file.c_str(), a.out.c_str(), h.width, h.height, h.caption().c_str());
     return 0;
 }
 
@@ -56,7 +96,9 @@ Command add_heatmap(CLI::App& app) {
     c->add_option("--coarse", a->options.clustering.coarse_size, "Triangles per coarse cluster (default 2048)");
     c->add_option("--obb", a->obb, "refined (default), pca, pca-area, or cgal");
     c->add_flag("--one-sided", a->options.one_sided, "One-sided occluders");
-    c->add_option("--threads", a->options.clustering.threads, "Worker threads, 0 = all");
+    c->add_option("--threads", a->options.clustering.threads, threads_help("the picture does not depend on it"));
+    c->add_flag("--json", a->json, "Print the summary as JSON");
+    c->add_flag("-q,--quiet", a->quiet, "No progress on stderr");
     return {c, [a] { return run_heatmap(*a); }};
 }
 

@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "args.h"
+#include "bake_file.h"
 #include "commands.h"
 #include "load.h"
 #include "scene_info.h"
@@ -24,8 +25,8 @@ int run_info(const std::vector<std::string>& files, bool json) {
             double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
             cb::SceneInfo info = cb::describe(scene);
             if (json) {
-                nlohmann::json j = cb::to_json(info);
-                j["file"] = file;
+                nlohmann::json j = {{"tool", cb::tool_version()}, {"file", file}};
+                j.update(cb::to_json(info));
                 j["load_ms"] = ms;
                 all.push_back(j);
                 continue;
@@ -51,7 +52,7 @@ int run_info(const std::vector<std::string>& files, bool json) {
             std::printf("  load time %.2f ms\n", ms);
         } catch (const cb::LoadError& e) {
             std::fprintf(stderr, "%s\n", e.what());
-            if (json) all.push_back({{"file", file}, {"error", e.what()}});
+            if (json) all.push_back({{"tool", cb::tool_version()}, {"file", file}, {"error", e.what()}});
             status = exit_bad_input;
         }
     }
@@ -64,12 +65,13 @@ int run_info(const std::vector<std::string>& files, bool json) {
 Command add_info(CLI::App& app) {
     struct Args {
         std::vector<std::string> files;
-        bool json = false;
+        bool json = false, quiet = false;
     };
     auto a = std::make_shared<Args>();
     CLI::App* c = app.add_subcommand("info", "Load scene files and print counts, bounds and load time");
     c->add_option("files", a->files, "Scene files (.gltf .glb .obj .ply .off .stl)")->required();
     c->add_flag("--json", a->json, "Print a JSON array, one object per file");
+    c->add_flag("-q,--quiet", a->quiet, "No progress on stderr (info prints none; errors are always printed)");
     return {c, [a] { return run_info(a->files, a->json); }};
 }
 

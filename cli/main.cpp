@@ -2,8 +2,10 @@
 // subcommand is a file of its own (commands.h).
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <exception>
+#include <new>
 #include <string>
 
 #include <cb_asset.h>
@@ -29,13 +31,18 @@ int main(int argc, char** argv) {
     } catch (const CLI::CallForVersion& e) {
         return app.exit(e);
     } catch (const CLI::ParseError& e) {  // one line, as every other usage error
-        std::fprintf(stderr, "clusterbake: %s (see clusterbake --help)\n", e.what());
+        std::string text = e.what();
+        std::replace(text.begin(), text.end(), '\n', ' ');
+        std::fprintf(stderr, "clusterbake: %s (see clusterbake --help)\n", text.c_str());
         return cb::cli::exit_usage;
     }
 
     try {
         for (const Command& c : commands)
             if (*c.subcommand) return c.run();
+    } catch (const std::bad_alloc&) {
+        std::fprintf(stderr, "clusterbake: out of memory\n");
+        return cb::cli::exit_bad_input;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "clusterbake: %s\n", e.what());
         return cb::cli::exit_bad_input;

@@ -1,5 +1,6 @@
 // One progress line on a terminal's stderr, redrawn in place at most ten times a second: a bar, the count
-// done, a rate, the time left and what is being worked on. Does nothing when stderr is not a terminal.
+// done, a rate, the time left and what is being worked on; or only the stage of work, where its share is not
+// known. Does nothing when stderr is not a terminal.
 #pragma once
 
 #include <chrono>
@@ -32,11 +33,12 @@ public:
         const int width = 24;
         int filled = int(fraction * width + 0.5);
         std::string bar = std::string(size_t(filled), '#') + std::string(size_t(width - filled), '.');
-        std::string line = "[" + bar + "] " + text + "  ETA " + eta;
-        if (line.size() > 119) line = line.substr(0, 116) + "...";
-        std::fprintf(stderr, "\r%-119s", line.c_str());
-        std::fflush(stderr);
-        drawn_ = true;
+        draw("[" + bar + "] " + text + "  ETA " + eta);
+    }
+
+    // A stage of work whose share of the whole is unknown: `text` alone.
+    void stage(const std::string& text) {
+        if (on_) draw(text);
     }
 
     // Removes the line so that ordinary output can follow.
@@ -48,6 +50,13 @@ public:
     }
 
 private:
+    void draw(std::string line) {
+        if (line.size() > 119) line = line.substr(0, 116) + "...";
+        std::fprintf(stderr, "\r%-119s", line.c_str());
+        std::fflush(stderr);
+        drawn_ = true;
+    }
+
     bool on_, drawn_ = false;
     std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now(), last_{};
 };

@@ -1,9 +1,13 @@
 // clusterbake query: point-light shadow queries on an asset, one 0/1 line per point.
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <memory>
 
 #include "args.h"
@@ -14,54 +18,130 @@ namespace cb::cli {
 namespace {
 
 struct QueryArgs {
-    std::string asset, light, points, out, fine = "scan";
-    bool binary = false, stats = false, reference = false, one_sided = false;
-    unsigned threads = 1;
+    std::string asset, light, points, traversal = "scan", fine;
+    bool binary = false, stats = false, reference = false, one_sided = false, json = false, quiet = false;
+    unsigned threads = 0;
 };
 
-// Points from text lines "x y z" (blank lines and # comments skipped) or raw little-endian float32 triples.
-bool read_points(const QueryArgs& a, std::vector<double>& pts) {
-    std::ifstream in(a.points, std::ios::binary);
-    if (!in) {
-        std::fprintf(stderr, "%s: cannot open\n", a.points.c_str());
+// How errors name the points' source.
+std::string points_name(const std::string& path) { return path == "-" ? "standard input" : path; }
+
+bool read_binary_points(std::istream& in, const std::string& name, std::vector<double>& pts) {
+    std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (raw.size() % 12 != 0) {
+        std::fprintf(stderr, "%s: %zu bytes is not a whole number of float32 triples\n", name.c_str(), raw.size());
         return false;
     }
-    if (a.binary) {
-        std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-        if (raw.size() % 12 != 0) {
-            std::fprintf(stderr, "%s: %zu bytes is not a whole number of float32 triples\n", a.points.c_str(),
-                         raw.size());
+    for (size_t i = 0; i < raw.size(); i += 4) {
+        float f;
+        std::memcpy(&f, raw.data() + i, 4);
+        pts.push_back(f);
+    }
+    return true;
+}
+
+// Text lines "x y z"; blank lines and # comments skipped.
+bool read_text_points(std::istream& in, const std::string& name, std::vector<double>& pts) {
+    std::string line;
+    for (size_t n = 1; std::getline(in, line); ++n) {
+        size_t hash = line.find('#');
+        if (hash != std::string::npos) line.resize(hash);
+        if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+        double x, y, z;
+        char extra;
+        if (std::sscanf(line.c_str(), "%lf %lf %lf %c", &x, &y, &z, &extra) != 3) {
+            std::fprintf(stderr, "%s: line %zu: expected 'x y z'\n", name.c_str(), n);
             return false;
         }
-        for (size_t i = 0; i < raw.size(); i += 4) {
-            float f;
-            std::memcpy(&f, raw.data() + i, 4);
-            pts.push_back(f);
+        pts.insert(pts.end(), {x, y, z});
+    }
+    return true;
+}
+
+// Points from the file, or standard input for "-": text lines or raw little-endian float32 triples.
+bool read_points(const QueryArgs& a, std::vector<double>& pts) {
+    const std::string name = points_name(a.points);
+    std::ifstream file;
+    if (a.points != "-") {
+        std::error_code ec;
+        if (std::filesystem::is_directory(a.points, ec)) {
+            std::fprintf(stderr, "%s: is a folder, not a points file\n", name.c_str());
+            return false;
         }
-    } else {
-        std::string line;
-        for (size_t n = 1; std::getline(in, line); ++n) {
-            size_t hash = line.find('#');
-            if (hash != std::string::npos) line.resize(hash);
-            if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-            double x, y, z;
-            char extra;
-            if (std::sscanf(line.c_str(), "%lf %lf %lf %c", &x, &y, &z, &extra) != 3) {
-                std::fprintf(stderr, "%s: line %zu: expected 'x y z'\n", a.points.c_str(), n);
-                return false;
-            }
-            pts.insert(pts.end(), {x, y, z});
+        file.open(a.points, std::ios::binary);
+        if (!file) {
+            std::fprintf(stderr, "%s: cannot open\n", name.c_str());
+            return false;
         }
+    }
+    std::istream& in = a.points == "-" ? std::cin : file;
+    if (!(a.binary ? read_binary_points(in, name, pts) : read_text_points(in, name, pts))) return false;
+    if (in.bad()) {
+        std::fprintf(stderr, "%s: read error\n", name.c_str());
+        return false;
     }
     for (size_t i = 0; i < pts.size(); ++i)
         if (!std::isfinite(pts[i])) {
-            std::fprintf(stderr, "%s: point %zu: coordinate is not finite\n", a.points.c_str(), i / 3);
+            std::fprintf(stderr, "%s: point %zu: coordinate is not finite\n", name.c_str(), i / 3);
             return false;
         }
     return true;
 }
 
-int run_query(const QueryArgs& a) {
+nlohmann::json stats_json(const QueryArgs& a, const cb::SceneQueryResult& q, size_t n) {
+    nlohmann::json j = {{"query_seconds", q.query_seconds},
+                        {"queries_per_second", n / std::max(q.query_seconds, 1e-9)},
+                        {"clusters_tested", q.stats.clusters_tested},
+                        {"triangles_tested", q.stats.triangles_tested}};
+    if (a.reference) {
+        j["touching"] = q.stats.touching;
+    } else {
+        j["build_seconds"] = q.build_seconds;
+        j["trees"] = q.trees;
+        j["nodes"] = q.nodes;
+        j["always_tested"] = q.always_tested;
+        j["skipped"] = q.skipped;
+    }
+    return j;
+}
+
+void print_json(const QueryArgs& a, const double* light, const cb::SceneQueryResult& q, size_t shadowed) {
+    size_t n = q.shadowed.size();
+    nlohmann::json j = {{"tool", cb::tool_version()},
+                        {"asset", a.asset},
+                        {"light", {light[0], light[1], light[2]}},
+                        {"traversal", a.reference ? "reference" : a.traversal},
+                        {"one_sided", a.one_sided},
+                        {"points", n},
+                        {"shadowed", shadowed},
+                        {"answers", q.shadowed}};
+    if (a.stats) j["stats"] = stats_json(a, q, n);
+    std::cout << j.dump() << "\n";
+}
+
+void print_stats(const QueryArgs& a, const cb::SceneQueryResult& q, size_t shadowed) {
+    size_t n = q.shadowed.size();
+    if (!a.reference)
+        std::fprintf(stderr,
+                     "build %.3f s: %zu trees, %zu nodes, %zu clusters tested for every point (light inside or level "
+                     "with their box), %zu skipped (one-sided, light in their front cone)\n",
+                     q.build_seconds, q.trees, q.nodes, q.always_tested, q.skipped);
+    std::fprintf(stderr,
+                 "%zu queries, %zu in shadow, %.3f s (%.0f queries/s); per query %.1f clusters and %.1f triangles "
+                 "tested\n",
+                 n, shadowed, q.query_seconds, n / std::max(q.query_seconds, 1e-9),
+                 n ? double(q.stats.clusters_tested) / double(n) : 0.0,
+                 n ? double(q.stats.triangles_tested) / double(n) : 0.0);
+    if (a.reference)
+        std::fprintf(stderr, "%llu queries with a touching contact\n", (unsigned long long)q.stats.touching);
+}
+
+int run_query(const CLI::App* c, const QueryArgs& a) {
+    if (refuse_given(c, {"--fine"},
+                     "the fine cluster size is fixed when the asset is baked (--traversal picks how a query finds "
+                     "clusters)") ||
+        (a.reference && refuse_given(c, {"--traversal"}, "--reference walks every cluster box instead")))
+        return exit_usage;
     double light[3];
     if (!parse_light(a.light, light)) return exit_usage;
     cb::LoadedAsset asset;
@@ -70,31 +150,19 @@ int run_query(const QueryArgs& a) {
     if (!read_points(a, pts)) return exit_bad_input;
 
     cb::SceneQueryOptions options;
-    cb::parse_traversal(a.fine, options.traversal);  // CLI11 checked the name
+    cb::parse_traversal(a.traversal, options.traversal);  // CLI11 checked the name
     options.one_sided = a.one_sided, options.threads = a.threads, options.reference = a.reference;
-    size_t n = pts.size() / 3;
-    cb::SceneQueryResult q = cb::query_scene(asset.view, light, pts.data(), n, options);
-    std::string answers;
-    answers.reserve(n * 2);
-    size_t shadowed = 0;
-    for (uint8_t s : q.shadowed) answers += s ? "1\n" : "0\n", shadowed += s;
-    std::fwrite(answers.data(), 1, answers.size(), stdout);
-    if (a.stats) {
-        if (!a.reference)
-            std::fprintf(
-                stderr,
-                "build %.3f s: %zu trees, %zu nodes, %zu clusters tested for every point (light inside or level "
-                "with their box), %zu skipped (one-sided, light in their front cone)\n",
-                q.build_seconds, q.trees, q.nodes, q.always_tested, q.skipped);
-        std::fprintf(stderr,
-                     "%zu queries, %zu in shadow, %.3f s (%.0f queries/s); per query %.1f clusters and %.1f triangles "
-                     "tested\n",
-                     n, shadowed, q.query_seconds, n / std::max(q.query_seconds, 1e-9),
-                     n ? double(q.stats.clusters_tested) / double(n) : 0.0,
-                     n ? double(q.stats.triangles_tested) / double(n) : 0.0);
-        if (a.reference)
-            std::fprintf(stderr, "%llu queries with a touching contact\n", (unsigned long long)q.stats.touching);
+    cb::SceneQueryResult q = cb::query_scene(asset.view, light, pts.data(), pts.size() / 3, options);
+    size_t shadowed = size_t(std::count(q.shadowed.begin(), q.shadowed.end(), uint8_t(1)));
+    if (a.json) {
+        print_json(a, light, q, shadowed);
+        return 0;
     }
+    std::string answers;
+    answers.reserve(q.shadowed.size() * 2);
+    for (uint8_t s : q.shadowed) answers += s ? "1\n" : "0\n";
+    std::fwrite(answers.data(), 1, answers.size(), stdout);
+    if (a.stats) print_stats(a, q, shadowed);
     return 0;
 }
 
@@ -107,24 +175,30 @@ Command add_query(CLI::App& app) {
                                      "--one-sided): one 0/1 line per point on stdout");
     c->add_option("asset", a->asset, "Asset (.cbk)")->required();
     c->add_option("--light", a->light, "Light position X,Y,Z in world space")->required();
-    c->add_option("--points", a->points, "Points: text lines 'x y z', or float32 triples with --binary")->required();
-    c->add_flag("--binary", a->binary, "Points file holds raw little-endian float32 x, y, z triples");
+    c->add_option("--points", a->points,
+                  "Points: text lines 'x y z', or float32 triples with --binary; - reads standard input")
+        ->required();
+    c->add_flag("--binary", a->binary, "Points hold raw little-endian float32 x, y, z triples");
     c->add_flag("--one-sided", a->one_sided,
                 "One-sided occluders: a triangle blocks only when the light is behind it "
                 "(double-sided glTF primitives stay two-sided)");
-    c->add_flag("--stats", a->stats, "Print build and query time and traversal counts on stderr");
+    c->add_flag("--stats", a->stats,
+                "Print build and query time and traversal counts on stderr (with --json: in the JSON)");
     c->add_flag("--reference", a->reference,
                 "Use the reference traversal (every cluster box the segment may touch) "
                 "instead of the clustered shadow volumes; same answers");
-    c->add_option("--threads", a->threads,
-                  "Build and query threads, 0 = all (default 1); the answers do not depend on it");
-    c->add_option("--fine", a->fine,
+    c->add_option("--threads", a->threads, threads_help("the answers do not depend on it"));
+    c->add_option("--traversal", a->traversal,
                   "How queries find the clusters: 'scan' (default: no per-light tree; the coarse clusters' "
                   "spheres, then the entered ones' fine spheres), 'trees' (per light, a tree over the coarse "
                   "clusters and one per coarse cluster over its fine clusters) or 'one-tree' (one tree over "
                   "the fine clusters); same answers")
         ->check(CLI::IsMember({"scan", "trees", "one-tree"}));
-    return {c, [a] { return run_query(*a); }};
+    c->add_option("--fine", a->fine)->group("");  // refused with a pointer to --traversal
+    c->add_flag("--json", a->json,
+                "Print one JSON object: the answers as an array, the counts, and with --stats the timings");
+    c->add_flag("-q,--quiet", a->quiet, "No progress on stderr (query prints none; errors are always printed)");
+    return {c, [a, c] { return run_query(c, *a); }};
 }
 
 }  // namespace cb::cli

@@ -1,6 +1,7 @@
 // clusterbake report: the sweep of clustering method x fine size x box fitter, as a table and report files.
 #include <cstdio>
 #include <cstdlib>
+#include <iostream>
 #include <memory>
 #include <stdexcept>
 
@@ -28,7 +29,7 @@ struct ReportArgs {
     std::vector<std::string> files;
     std::string out, methods = "kmeans,vco,morton", fine = "8,16,24,32", obbs = "refined,pca";
     cb::ReportOptions options;
-    bool quiet = false;
+    bool quiet = false, json = false;
 };
 
 // Each comma-separated item of `text` through parse(item, value) into `out`; at the first bad item, a
@@ -46,7 +47,17 @@ bool parse_list(const std::string& text, const char* what, Parse parse, std::vec
     return true;
 }
 
-int run_report(ReportArgs a) {
+// Every check that needs no sweep: the inputs are scene files, no option is given in vain, the output
+// folder can be made. False after one line on stderr.
+bool usable(const CLI::App* c, const ReportArgs& a) {
+    for (const std::string& file : a.files)
+        if (!usage_ok(scene_input_error(file, "report"))) return false;
+    if (!a.options.heatmap && refuse_given(c, {"--heatmap-size"}, "no heat map is drawn without --heatmap"))
+        return false;
+    return usage_ok(output_folder_error(a.out));
+}
+
+int run_report(const CLI::App* c, ReportArgs a) {
     cb::ReportOptions& o = a.options;
     o.methods.clear(), o.fine_sizes.clear(), o.obbs.clear();
     auto fine_size = [](const std::string& f, uint32_t& v) {  // the asset's 8-bit local indices, as for bake
@@ -55,7 +66,7 @@ int run_report(ReportArgs a) {
         v = uint32_t(n);
         return !f.empty() && !*end && n >= 1 && n <= 85;
     };
-    if (!parse_list(a.methods, "--methods takes a list of kmeans, vco, morton", cb::parse_method, o.methods) ||
+    if (!parse_list(a.methods, "--method takes a list of kmeans, vco, morton", cb::parse_method, o.methods) ||
         !parse_list(a.fine, "--fine takes a list of sizes from 1 to 85", fine_size, o.fine_sizes) ||
         !parse_list(a.obbs, "--obb takes a list of refined, pca, pca-area, cgal", cb::parse_obb_method, o.obbs))
         return exit_usage;
@@ -64,6 +75,17 @@ int run_report(ReportArgs a) {
                      "clusterbake: --runs, --query-runs, --view, --frame-view and --lights must be at least 1\n");
         return exit_usage;
     }
+    for (uint32_t fine : o.fine_sizes)
+        if (o.coarse_size < fine) {
+            std::fprintf(stderr, "clusterbake: --coarse must be at least every --fine (got %u and %u)\n", o.coarse_size,
+                         fine);
+            return exit_usage;
+        }
+    if (o.heatmap_size < 8 || o.heatmap_size > 4096) {
+        std::fprintf(stderr, "clusterbake: --heatmap-size takes 8 to 4096\n");
+        return exit_usage;
+    }
+    if (!usable(c, a)) return exit_usage;
     cb::Report r;
     try {
         r = cb::run_report(a.files, o, [&](const std::string& msg) {
@@ -75,6 +97,10 @@ int run_report(ReportArgs a) {
         if (!a.quiet) std::fprintf(stderr, "\n");
         std::fprintf(stderr, "%s\n", e.what());
         return exit_bad_input;
+    }
+    if (a.json) {
+        std::cout << cb::report_json(r).dump(2) << "\n";
+        return 0;
     }
     std::fputs(cb::report_table(r).c_str(), stdout);
     std::printf("wrote %s/report.html, report.json, report.csv\n", a.out.c_str());
@@ -89,9 +115,9 @@ Command add_report(CLI::App& app) {
                                      "Sweep clustering method x fine size x box fitter: bake time, tightness and "
                                      "runtime cost; writes DIR/report.html, .json, .csv");
     c->add_option("files", a->files, "Scene files")->required();
-    c->add_option("-o,--output", a->out, "Output folder (created)")->required();
-    c->add_option("--methods", a->methods, "Comma list of kmeans, vco, morton (default all three)");
-    c->add_option("--fine", a->fine, "Comma list of fine sizes (default 8,16,24,32)");
+    c->add_option("-o,--output", a->out, "Output folder (created before the sweep)")->required();
+    c->add_option("--method", a->methods, "Comma list of clustering methods: kmeans, vco, morton (default all three)");
+    c->add_option("--fine", a->fine, "Comma list of maximum triangles per fine cluster, 1 to 85 (default 8,16,24,32)");
     c->add_option("--obb", a->obbs, "Comma list of box fitters: refined, pca, pca-area, cgal (default refined,pca)");
     c->add_option("--coarse", a->options.coarse_size, "Triangles per coarse cluster (default 2048)");
     c->add_option("--runs", a->options.runs, "Bake timings are the median of this many runs (default 3)");
@@ -106,12 +132,13 @@ Command add_report(CLI::App& app) {
     c->add_option("--samples", a->options.stats.samples, "Shadow-volume samples per cluster and light (default 8)");
     c->add_option("--sample-lights", a->options.stats.lights,
                   "Random lights for the shadow-volume samples (default 4)");
-    c->add_option("--threads", a->options.threads, "Bake threads, 0 = all (queries run on one thread)");
+    c->add_option("--threads", a->options.threads, threads_help("queries are timed on one thread all the same"));
     c->add_flag("--heatmap", a->options.heatmap,
                 "Also draw each scene's heat map of useless cluster tests (k-means beside VCO)");
     c->add_option("--heatmap-size", a->options.heatmap_size, "Heat map panel size in pixels (default 256)");
+    c->add_flag("--json", a->json, "Print report.json on stdout instead of the table");
     c->add_flag("-q,--quiet", a->quiet, "No progress on stderr");
-    return {c, [a] { return run_report(*a); }};
+    return {c, [a, c] { return run_report(c, *a); }};
 }
 
 }  // namespace cb::cli

@@ -10,40 +10,80 @@
 #include "baked_scene.h"
 #include "cluster_stats.h"
 #include "commands.h"
+#include "progress.h"
 
 namespace cb::cli {
 namespace {
 
-int run_stats(const ClusterArgs& a, cb::StatsOptions so) {
+// The volume kinds an asset stores at both levels.
+uint32_t stored_kinds(const cb::AssetView& view) {
+    uint32_t mask = 0;
+    const cb::LevelBounds &fine = view.fine_bounds, &coarse = view.coarse_bounds;
+    if (fine.obbs && coarse.obbs) mask |= cb::bounds_obb;
+    if (fine.spheres && coarse.spheres) mask |= cb::bounds_sphere;
+    if (fine.capsules && coarse.capsules) mask |= cb::bounds_capsule;
+    if (fine.cones && coarse.cones) mask |= cb::bounds_cone;
+    if (fine.slabs && coarse.slabs) mask |= cb::bounds_slab;
+    return mask;
+}
+
+// An asset's clusters are taken as they are: the options that make clusters do nothing, --obb only shapes
+// the volumes fitted here (those the asset does not store) and --capsule-ratio only capsules fitted here.
+// True when one of them was given in vain, after saying so.
+bool refuse_unused_on_asset(const CLI::App* c, const std::string& file) {
+    const std::string why = file + " is an asset, ";
+    if (refuse_given(c, cluster_shape_flags(), why + "clustered when it was baked")) return true;
+    if (first_given(c, {"--obb", "--capsule-ratio"}).empty()) return false;
+    cb::LoadedAsset asset;
+    std::string error;
+    if (!cb::read_asset_file(file, asset, error)) return false;  // load_baked reports it
+    uint32_t kinds = stored_kinds(asset.view);
+    return (kinds == cb::bounds_all && refuse_given(c, {"--obb"}, why + "which stores every volume kind")) ||
+        ((kinds & cb::bounds_capsule) && refuse_given(c, {"--capsule-ratio"}, why + "which stores capsules"));
+}
+
+nlohmann::json stats_json(const ClusterArgs& a, const cb::SceneStats& s, const cb::ClusterOptions& clustering,
+                          bool asset, const std::string& note) {
+    nlohmann::json j = cb::to_json(s);
+    j["tool"] = cb::tool_version();
+    j["file"] = a.file;
+    if (asset) {
+        j["input"] = "asset";
+        if (!note.empty()) j["note"] = note;
+        return j;
+    }
+    j["input"] = "scene";
+    j["method"] = cb::method_name(clustering.method);
+    j["coarse_size"] = clustering.coarse_size;
+    j["fine_size"] = clustering.fine_size;
+    j["obb"] = a.obb;
+    return j;
+}
+
+int run_stats(const CLI::App* c, const ClusterArgs& a, cb::StatsOptions so) {
     cb::ClusterOptions clustering;
     cb::BoundsOptions bounds;
     if (!parse_clustering(a, clustering, bounds)) return exit_usage;
+    bool asset = cb::is_asset_file(a.file);
+    if (asset ? refuse_unused_on_asset(c, a.file) : refuse_unused_by_method(c, clustering.method)) return exit_usage;
     bounds.mask = cb::bounds_all;
     so.threads = clustering.threads;
+    ProgressLine progress(!a.quiet);
+    progress.stage((asset ? "reading " : "clustering and fitting ") + a.file);
     cb::BakedScene baked;
     std::string note;
     try {
         baked = cb::load_baked(a.file, clustering, bounds, &note);
     } catch (const std::runtime_error& e) {
+        progress.clear();
         std::fprintf(stderr, "%s\n", e.what());
         return exit_bad_input;
     }
+    progress.stage("measuring the clusters of " + a.file);
     cb::SceneStats s = cb::cluster_statistics(baked.meshes, baked.instances, so);
-    bool asset = cb::is_asset_file(a.file);
+    progress.clear();
     if (a.json) {
-        nlohmann::json j = cb::to_json(s);
-        j["file"] = a.file;
-        if (asset) {
-            j["input"] = "asset";
-            if (!note.empty()) j["note"] = note;
-        } else {
-            j["input"] = "scene";
-            j["method"] = cb::method_name(clustering.method);
-            j["coarse_size"] = clustering.coarse_size;
-            j["fine_size"] = clustering.fine_size;
-            j["obb"] = a.obb;
-        }
-        std::cout << j.dump(2) << "\n";
+        std::cout << stats_json(a, s, clustering, asset, note).dump(2) << "\n";
         return 0;
     }
     if (asset)
@@ -69,16 +109,19 @@ Command add_stats(CLI::App& app) {
                   "Scene file, or an asset (.cbk): its clusters and stored volumes as they are")
         ->required();
     add_clustering_flags(c, a->clustering);
-    c->add_option("--obb", a->clustering.obb, "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow)");
+    c->add_option("--obb", a->clustering.obb,
+                  "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow); for an asset, the volumes it "
+                  "does not store");
     c->add_option("--capsule-ratio", a->clustering.capsule_ratio,
                   "Fit a capsule when the box's longest side is this many times each other (default 2)");
-    c->add_option("--lights", a->options.lights, "Random light positions per mesh (default 8)");
+    c->add_option("--sample-lights", a->options.lights, "Random light positions per mesh (default 8)");
     c->add_option("--samples", a->options.samples,
                   "Points sampled in each cluster's shadow volume per light (default 32)");
     c->add_option("--light-seed", a->options.seed, "Seed of the lights and samples (default 1)");
     c->add_option("--acmr-cache", a->options.acmr_cache, "FIFO cache size for the ACMR (default 32)");
     c->add_flag("--json", a->clustering.json, "Print the statistics as JSON");
-    return {c, [a] { return run_stats(a->clustering, a->options); }};
+    c->add_flag("-q,--quiet", a->clustering.quiet, "No progress on stderr");
+    return {c, [a, c] { return run_stats(c, a->clustering, a->options); }};
 }
 
 }  // namespace cb::cli

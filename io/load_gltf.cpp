@@ -5,8 +5,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cctype>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -83,19 +85,75 @@ std::string glb_layout_error(const uint8_t* data, size_t size) {
     return "";
 }
 
-// Returns the glTF (or GLB) bytes with viewless indices detached, or an empty vector when nothing changed
-// or the JSON does not parse (tinygltf then reports the problem itself).
-std::vector<uint8_t> prepare_for_tinygltf(const uint8_t* data, size_t size, bool binary, DetachedIndices& detached) {
-    const uint8_t* json_begin = data;
-    size_t json_size = size;
-    if (binary) {  // 12-byte header, then a JSON chunk (length, type, bytes)
-        if (size < 20 || read_u32(data + 16) != 0x4E4F534Au) return {};
-        json_size = read_u32(data + 12);
-        if (json_size > size - 20) return {};
-        json_begin = data + 20;
+// The document's JSON (a GLB's JSON chunk, whose layout glb_layout_error has checked). Parsed here rather
+// than by tinygltf, whose error is the JSON library's raw exception text: a file that is not glTF at all is
+// said to be so, with where its JSON breaks.
+nlohmann::json parse_document(const uint8_t* data, size_t size, bool binary, const std::string& name) {
+    const uint8_t* begin = binary ? data + 20 : data;
+    const size_t length = binary ? read_u32(data + 12) : size;
+    nlohmann::json doc;
+    try {
+        doc = nlohmann::json::parse(begin, begin + length);
+    } catch (const nlohmann::json::parse_error& e) {
+        const std::string at = "parse error at byte " + std::to_string(e.byte);
+        if (binary) throw LoadError(name + ": GLB JSON chunk is not JSON text (" + at + " of the chunk)");
+        throw LoadError(name + ": not a glTF file: neither binary glTF (magic 'glTF') nor JSON text (" + at + ")");
+    } catch (const nlohmann::json::exception& e) {  // such as a number past double's range
+        std::string what = e.what();
+        what.erase(0, what.find("] ") == std::string::npos ? 0 : what.find("] ") + 2);
+        throw LoadError(name + (binary ? ": GLB JSON chunk: " : ": JSON: ") + what);
     }
-    nlohmann::json doc = nlohmann::json::parse(json_begin, json_begin + json_size, nullptr, false);
-    if (doc.is_discarded() || !detach_viewless_indices(doc, detached)) return {};
+    const auto asset = doc.is_object() ? doc.find("asset") : doc.end();
+    if (asset == doc.end() || !asset->is_object() || !asset->contains("version") || !(*asset)["version"].is_string())
+        throw LoadError(name + ": not a glTF file: JSON without an \"asset\" object naming its \"version\"");
+    return doc;
+}
+
+// "%20" and the like in a URI, as tinygltf decodes them before opening the file.
+std::string percent_decoded(const std::string& uri) {
+    std::string out;
+    for (size_t i = 0; i < uri.size(); ++i) {
+        if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(uint8_t(uri[i + 1])) &&
+            std::isxdigit(uint8_t(uri[i + 2]))) {
+            out += char(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
+            i += 2;
+        } else {
+            out += uri[i];
+        }
+    }
+    return out;
+}
+
+// What is wrong with an external buffer file of the document, or empty: tinygltf's message for it ("File
+// not found : x.bin") names neither the buffer nor where it looked.
+std::string buffer_file_problem(const nlohmann::json& doc, const std::string& base_dir) {
+    const auto buffers = doc.find("buffers");
+    if (buffers == doc.end() || !buffers->is_array()) return {};
+    for (size_t i = 0; i < buffers->size(); ++i) {
+        const nlohmann::json& b = (*buffers)[i];
+        if (!b.is_object() || !b.contains("uri") || !b["uri"].is_string()) continue;
+        const std::string uri = b["uri"];
+        if (uri.rfind("data:", 0) == 0) continue;
+        const std::filesystem::path path = std::filesystem::path(base_dir) / percent_decoded(uri);
+        const std::string where = "buffer " + std::to_string(i) + ": '" + uri + "'";
+        std::error_code ec;
+        if (!std::filesystem::exists(path, ec)) return where + ": no such file (looked for " + path.string() + ")";
+        if (!std::filesystem::is_regular_file(path, ec)) return where + ": not a regular file";
+        const uint64_t bytes = std::filesystem::file_size(path, ec);
+        if (b.contains("byteLength") && b["byteLength"].is_number_unsigned() &&
+            b["byteLength"].get<uint64_t>() != bytes)
+            return where + ": " + std::to_string(bytes) + " bytes, but its byteLength is " +
+                std::to_string(b["byteLength"].get<uint64_t>());
+    }
+    return {};
+}
+
+// Returns the glTF (or GLB) bytes with viewless indices detached from `doc` (in place: only its buffers
+// are read later), or an empty vector when nothing changed.
+std::vector<uint8_t> prepare_for_tinygltf(const uint8_t* data, size_t size, bool binary, nlohmann::json& doc,
+                                          DetachedIndices& detached) {
+    if (!detach_viewless_indices(doc, detached)) return {};
+    const size_t json_size = binary ? read_u32(data + 12) : size;
     std::string text = doc.dump();
     if (!binary) return std::vector<uint8_t>(text.begin(), text.end());
     while (text.size() % 4) text.push_back(' ');  // chunks stay 4-byte aligned
@@ -121,11 +179,13 @@ struct Context {
     }
 };
 
+// tinygltf's message, one line and short: some quote a whole data URI.
 std::string first_line(const std::string& s) {
     size_t begin = s.find_first_not_of(" \n\r\t");
     if (begin == std::string::npos) return "unknown error";
     size_t end = s.find_first_of("\r\n", begin);
-    return s.substr(begin, end == std::string::npos ? std::string::npos : end - begin);
+    std::string line = s.substr(begin, end == std::string::npos ? std::string::npos : end - begin);
+    return line.size() > 200 ? line.substr(0, 197) + "..." : line;
 }
 
 size_t component_size(int component_type) {
@@ -552,8 +612,9 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
         std::string layout = glb_layout_error(data, size);
         if (!layout.empty()) throw LoadError(name + ": " + layout);
     }
+    nlohmann::json doc = parse_document(data, size, binary, name);
     DetachedIndices detached;
-    std::vector<uint8_t> prepared = prepare_for_tinygltf(data, size, binary, detached);
+    std::vector<uint8_t> prepared = prepare_for_tinygltf(data, size, binary, doc, detached);
     if (!prepared.empty()) data = prepared.data(), size = prepared.size();
 
     tinygltf::TinyGLTF loader;
@@ -570,7 +631,10 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
     bool ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, data, unsigned(size), base_dir)
                      : loader.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char*>(data),
                                                   unsigned(size), base_dir);
-    if (!ok) throw LoadError(name + ": " + first_line(err.empty() ? warn : err));
+    if (!ok) {
+        std::string buffer = buffer_file_problem(doc, base_dir);
+        throw LoadError(name + ": " + (buffer.empty() ? first_line(err.empty() ? warn : err) : buffer));
+    }
     for (const std::string& ext : model.extensionsRequired)
         if (!is_known_extension(ext)) throw LoadError(name + ": unsupported required extension " + ext);
     Scene scene = SceneBuilder(model, name, detached).build();

@@ -8,7 +8,9 @@
 #include <OpenMesh/Core/IO/reader/BaseReader.hh>
 #include <OpenMesh/Core/Utils/Endian.hh>
 
+#include <cctype>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <mutex>
 #include <sstream>
@@ -111,6 +113,22 @@ bool looks_like_binary_stl(const uint8_t* data, size_t size) {
     return uint64_t(n) * 50 + 84 == size;
 }
 
+// A file that is not binary STL must be ASCII STL, which starts with "solid": OpenMesh's reader would take
+// any other text as an STL without facets.
+void check_stl_kind(const uint8_t* data, size_t size, const std::string& name) {
+    size_t at = 0;
+    while (at < size && std::isspace(data[at])) ++at;
+    if (size - at >= 5 && std::memcmp(data + at, "solid", 5) == 0) return;
+    std::string binary = "at least 84 bytes";
+    if (size >= 84) {
+        uint64_t n = uint64_t(data[80]) | uint64_t(data[81]) << 8 | uint64_t(data[82]) << 16 | uint64_t(data[83]) << 24;
+        binary = "its header's " + std::to_string(n) + " facets need " + std::to_string(84 + 50 * n) +
+            " bytes, it has " + std::to_string(size);
+    }
+    throw LoadError(name + ": not an STL file: neither binary STL (" + binary +
+                    ") nor ASCII STL (starts with 'solid')");
+}
+
 // OpenMesh's ASCII STL reader parses numbers with iostreams, which cannot read inf or nan and then goes on
 // with whatever the stream left behind. Every coordinate it will read is checked here first, so a bad one
 // is reported by line instead of turning into a wrong vertex. (Facet normals are not used, so they may
@@ -162,10 +180,12 @@ Scene load_stl_memory(const uint8_t* data, size_t size, const std::string& name)
 
     FlatImporter importer;
     IO::Options options;
-    if (looks_like_binary_stl(data, size))
+    if (looks_like_binary_stl(data, size)) {
         options += IO::Options::Binary;
-    else
+    } else {
+        check_stl_kind(data, size, name);
         check_ascii_stl(data, size, name);
+    }
     std::istringstream stream(std::string(reinterpret_cast<const char*>(data), size), std::ios::binary);
     bool ok = IO::IOManager().read(stream, "stl", importer, options);
     if (!importer.error.empty()) throw LoadError(name + ": " + importer.error);

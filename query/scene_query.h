@@ -22,7 +22,7 @@ bool parse_traversal(const std::string& name, Traversal& out);
 struct SceneQueryOptions {
     Traversal traversal = Traversal::scan;
     bool one_sided = false;  // a triangle blocks only when the light is behind it (double-sided ones always)
-    unsigned threads = 1;    // build and query threads, 0 = all; the answers do not depend on it
+    unsigned threads = 0;    // build and query threads, 0 = all; the answers do not depend on it
     bool reference = false;  // occluded_reference instead: every cluster box the segment may touch, no build
     bool per_point = false;  // each point asks alone and keeps its own counts (a batch's tiles share theirs)
 };

@@ -34,12 +34,14 @@ std::string Heatmap::caption() const {
     return buf;
 }
 
-Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options) {
+Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options,
+                       const std::function<void(const std::string&)>& progress) {
     Heatmap h;
     const ClusterMethod methods[2] = {ClusterMethod::kmeans, ClusterMethod::vco};
     std::vector<uint32_t> counts[2];
     std::vector<double> hits;
     for (int panel = 0; panel < 2; ++panel) {
+        if (progress) progress(std::string("heat map: ") + method_name(methods[panel]) + " panel");
         ClusterOptions c = options.clustering;
         c.method = methods[panel];
         BoundsOptions b;
@@ -68,7 +70,7 @@ Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options) {
         }
         LoadedAsset asset;
         open_asset_copy(encode_asset(baked.meshes, baked.instances), asset);
-        counts[panel] = useless_tests(asset.view, h.light, hit_points(hits), options.one_sided);
+        counts[panel] = useless_tests(asset.view, h.light, hit_points(hits), options.one_sided, c.threads);
     }
     h.pixels = counts[0].size();
     std::vector<uint32_t> all(counts[0]);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -32,7 +33,8 @@ struct Heatmap {
 };
 
 // Left panel k-means, right panel VCO; a colour bar along the bottom (dark: 0, bright: scale_max).
-// Pixels that miss the scene are grey.
-Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options);
+// Pixels that miss the scene are grey. Each stage of the work is named to `progress` when set.
+Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options,
+                       const std::function<void(const std::string&)>& progress = {});
 
 }  // namespace cb

@@ -12,6 +12,7 @@
 #include "asset_file.h"
 #include "asset_writer.h"
 #include "bake.h"
+#include "bake_file.h"
 #include "baked_scene.h"
 #include "heatmap.h"
 #include "load.h"
@@ -346,6 +347,7 @@ std::string report_table(const Report& r) {
 nlohmann::json report_json(const Report& r) {
     const ReportOptions& o = r.options;
     nlohmann::json j;
+    j["tool"] = tool_version();
     j["machine"] = {{"cpu", r.cpu}, {"cores", r.cores}};
     j["options"] = {{"methods", nlohmann::json::array()},
                     {"fine_sizes", o.fine_sizes},

@@ -150,6 +150,7 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
     cost.lights = uint32_t(lights.size() / 3);
     SceneQueryOptions options;
     options.one_sided = one_sided;
+    options.threads = 1;  // the rates are per thread
     for (uint32_t l = 0; l < cost.lights; ++l) {
         std::vector<double> build_times, query_times;
         for (int r = 0; r < std::max(1, runs); ++r) {
@@ -170,10 +171,11 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
 }
 
 std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, const std::vector<double>& points,
-                                    bool one_sided) {
+                                    bool one_sided, unsigned threads) {
     SceneQueryOptions options;
     options.one_sided = one_sided;
     options.per_point = true;  // the counts are per point
+    options.threads = threads;
     SceneQueryResult q = query_scene(view, light, points.data(), points.size() / 3, options);
     std::vector<uint32_t> out(q.shadowed.size());
     for (size_t p = 0; p < out.size(); ++p) out[p] = uint32_t(q.point_stats[p].clusters_tested - q.shadowed[p]);

@@ -52,8 +52,9 @@ struct RuntimeCost {
 RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& lights, const std::vector<double>& points,
                             int runs, bool one_sided = false);
 
-// Per point, the cluster tests whose triangles did not block it (the heat map's figure).
+// Per point, the cluster tests whose triangles did not block it (the heat map's figure), on `threads`
+// threads (0: all); the counts do not depend on them.
 std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, const std::vector<double>& points,
-                                    bool one_sided = false);
+                                    bool one_sided = false, unsigned threads = 0);
 
 }  // namespace cb

@@ -18,13 +18,14 @@ struct CliRun {
     std::string out, err;
 };
 
-CliRun run(const std::string& args) {
+// `args` to clusterbake; with `pipe_from`, that shell command's output is its standard input.
+CliRun run(const std::string& args, const std::string& pipe_from = "") {
     // ctest runs tests in parallel processes: name the capture files after this one.
     static int calls = 0;
     auto base =
         std::filesystem::temp_directory_path() / ("cb_cli_" + std::to_string(getpid()) + "_" + std::to_string(calls++));
     std::string out = base.string() + ".out", err = base.string() + ".err";
-    std::string cmd = std::string(CB_CLI) + " " + args + " >" + out + " 2>" + err;
+    std::string cmd = (pipe_from.empty() ? "" : pipe_from + " | ") + CB_CLI + " " + args + " >" + out + " 2>" + err;
     int status = std::system(cmd.c_str());
     CliRun r;
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -206,9 +207,10 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     EXPECT_EQ(one.out.size(), 1600u * 2);
     EXPECT_EQ(three.out, one.out);
     EXPECT_EQ(three_ref.out, one.out);
-    for (const char* fine : {"trees", "one-tree"})  // the other traversals: the same answers
-        EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --fine " + fine).out, one.out) << fine;
-    EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --fine leaves").code, 2);
+    for (const char* traversal : {"trees", "one-tree"})  // the other traversals: the same answers
+        EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --traversal " + traversal).out, one.out)
+            << traversal;
+    EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --traversal leaves").code, 2);
     EXPECT_NE(one.out.find('1'), std::string::npos);
     EXPECT_NE(one.out.find('0'), std::string::npos);
     std::ofstream(pts) << "1 2\n";
@@ -274,4 +276,362 @@ TEST(Cli, ASceneWithoutTrianglesBakesWithAWarning) {
     CliRun v = run("validate " + (dir / "points.cbk").string());
     EXPECT_EQ(v.code, 0) << v.err;
     fs::remove_all(dir);
+}
+
+namespace {
+
+std::filesystem::path scratch(const std::string& name) {
+    return std::filesystem::temp_directory_path() / ("cb_cli_" + std::to_string(getpid()) + "_" + name);
+}
+
+// A bad input: exit code 2 and exactly this one line on stderr.
+void expect_bad_input(const CliRun& r, const std::string& line, const std::string& context) {
+    EXPECT_EQ(r.code, 2) << context;
+    EXPECT_EQ(r.err, line + "\n") << context;
+}
+
+}  // namespace
+
+TEST(Cli, FilesThatAreNotWhatTheirNameSaysGiveOneLineNamingThem) {
+    std::string text = scratch("text.glb").string(), gltf = scratch("text.gltf").string();
+    std::ofstream(text) << "hello world\n";
+    std::ofstream(gltf) << "hello world\n";
+    for (const std::string& command :
+         {std::string("info "), "bake -o " + scratch("text.cbk").string() + " ", std::string("stats ")}) {
+        expect_bad_input(run(command + text),
+                         text +
+                             ": not a glTF file: neither binary glTF (magic 'glTF') nor JSON text (parse error "
+                             "at byte 1)",
+                         command);
+        expect_bad_input(run(command + gltf),
+                         gltf +
+                             ": not a glTF file: neither binary glTF (magic 'glTF') nor JSON text (parse error "
+                             "at byte 1)",
+                         command);
+    }
+    // A GLB whose JSON chunk is broken, and one whose buffer file is missing.
+    auto glb = [](const std::string& path, std::string json) {
+        while (json.size() % 4) json += ' ';
+        auto u32 = [](uint32_t v) { return std::string{char(v), char(v >> 8), char(v >> 16), char(v >> 24)}; };
+        std::ofstream(path, std::ios::binary)
+            << "glTF" + u32(2) + u32(uint32_t(20 + json.size())) + u32(uint32_t(json.size())) + "JSON" + json;
+    };
+    std::string broken = scratch("broken.glb").string(), missing = scratch("missing.glb").string();
+    glb(broken, "{\"asset\": {\"version\": \"2.0\"}, broken");
+    glb(missing, "{\"asset\": {\"version\": \"2.0\"}, \"buffers\": [{\"uri\": \"nowhere.bin\", \"byteLength\": 12}]}");
+    expect_bad_input(run("info " + broken),
+                     broken + ": GLB JSON chunk is not JSON text (parse error at byte 31 of the chunk)", "broken GLB");
+    CliRun r = run("info " + missing);
+    EXPECT_EQ(r.code, 2);
+    EXPECT_EQ(r.err.rfind(missing + ": buffer 0: 'nowhere.bin': no such file (looked for ", 0), 0u) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    // Text named .stl is neither kind of STL, not an empty mesh.
+    std::string stl = scratch("text.stl").string();
+    std::ofstream(stl) << "hello world\n";
+    expect_bad_input(run("info " + stl),
+                     stl +
+                         ": not an STL file: neither binary STL (at least 84 bytes) nor ASCII STL (starts with "
+                         "'solid')",
+                     "text .stl");
+    for (const std::string& f : {text, gltf, broken, missing, stl}) std::filesystem::remove(f);
+}
+
+TEST(Cli, QueryReadsPointsFromStandardInput) {
+    std::string asset = scratch("stdin.cbk").string(), pts = scratch("stdin.txt").string(),
+                bin = scratch("stdin.bin").string();
+    ASSERT_EQ(run("bake " + data("default_scene.glb") + " -o " + asset).code, 0);
+    const float points[] = {-4, 0.05f, 2, -4, 5, 2, 15, 0.01f, 15};
+    std::ofstream(pts) << "-4 0.05 2\n-4 5 2\n15 0.01 15\n";
+    std::ofstream(bin, std::ios::binary).write(reinterpret_cast<const char*>(points), sizeof points);
+    std::string query = "query " + asset + " --light -4,30,2 --points ";
+    EXPECT_EQ(run(query + pts).out, "1\n0\n0\n");
+    EXPECT_EQ(run(query + "- < " + pts).out, "1\n0\n0\n");
+    EXPECT_EQ(run(query + "- --binary < " + bin).out, "1\n0\n0\n");
+    EXPECT_EQ(run(query + "- --binary", "cat " + bin).out, "1\n0\n0\n");  // a pipe, not a file
+    EXPECT_EQ(run(query + "-", "cat " + pts).out, "1\n0\n0\n");
+    std::ofstream(pts) << "1 2\n";
+    expect_bad_input(run(query + "- < " + pts), "standard input: line 1: expected 'x y z'", "stdin");
+    expect_bad_input(run(query + "- --binary < " + pts),
+                     "standard input: 4 bytes is not a whole number of float32 triples", "stdin, binary");
+    for (const std::string& f : {asset, pts, bin}) std::filesystem::remove(f);
+}
+
+namespace {
+
+// A usage error: exit code 2 and one line on stderr, "clusterbake: ...", that names `what`.
+void expect_usage_error(const CliRun& r, const std::string& what, const std::string& context) {
+    EXPECT_EQ(r.code, 2) << context << ": " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << context << ": " << r.err;
+    EXPECT_EQ(r.err.rfind("clusterbake: ", 0), 0u) << context << ": " << r.err;
+    EXPECT_NE(r.err.find(what), std::string::npos) << context << ": " << r.err;
+}
+
+// The line of `help` that describes `flag` (CLI11 prints one line per option).
+std::string help_line(const std::string& help, const std::string& flag) {
+    for (size_t at = help.find(flag); at != std::string::npos; at = help.find(flag, at + 1)) {
+        size_t begin = help.rfind('\n', at) + 1, end = help.find('\n', at);
+        std::string line = help.substr(begin, end - begin);
+        // The option's own line: the flag is the line's first word (after a short alias).
+        std::string first = line.substr(line.find_first_not_of(' '));
+        if (first.rfind(flag + " ", 0) == 0 || first.rfind(flag + ",", 0) == 0 || first.find(", " + flag) < 4)
+            return line;
+    }
+    return {};
+}
+
+// "clusterbake 0.1.0", as --version starts.
+std::string tool_version() {
+    std::string v = run("--version").out;
+    return v.substr(0, v.find(" ("));
+}
+
+// The quickest report of the 12-triangle cube, and its smallest sweep: one configuration.
+const std::string quick_report = " --fine 8 --runs 1 --query-runs 1 --view 16 --lights 1";
+const std::string one_config = " --method kmeans --obb pca";
+
+}  // namespace
+
+TEST(Cli, OneFlagNameHasOneMeaning) {
+    std::string asset = scratch("names.cbk").string(), pts = scratch("names.txt").string();
+    ASSERT_EQ(run("bake " + data("small/cube.obj") + " -o " + asset).code, 0);
+    std::ofstream(pts) << "0 2 0\n";
+    // --fine is a fine cluster size: a query cannot change it, and says what picks the traversal.
+    CliRun fine = run("query " + asset + " --light 0,5,0 --points " + pts + " --fine trees");
+    expect_usage_error(fine, "--fine", "query --fine");
+    EXPECT_NE(fine.err.find("--traversal"), std::string::npos) << fine.err;
+    EXPECT_EQ(run("query " + asset + " --light 0,5,0 --points " + pts + " --traversal trees").out, "0\n");
+    EXPECT_EQ(help_line(run("query --help").out, "--fine"), "");
+    // Every command's --fine is the fine cluster size; report's takes a list of them.
+    for (const char* command : {"cluster", "bake", "batch", "stats", "report", "heatmap"}) {
+        std::string line = help_line(run(std::string(command) + " --help").out, "--fine");
+        EXPECT_NE(line.find("triangles per fine cluster, 1 to 85"), std::string::npos) << command << ": " << line;
+    }
+    // report's sweep takes bake's flag names, each with a comma list.
+    expect_usage_error(
+        run("report " + data("small/cube.obj") + " -o " + scratch("names_report").string() + " --methods kmeans"),
+        "--methods", "report --methods");
+    CliRun report = run("report " + data("small/cube.obj") + " -o " + scratch("names_report").string() + quick_report +
+                        " --method kmeans,vco --obb refined,pca --json -q");
+    ASSERT_EQ(report.code, 0) << report.err;
+    nlohmann::json j = nlohmann::json::parse(report.out);
+    EXPECT_EQ(j["options"]["methods"], nlohmann::json::array({"kmeans", "vco"}));
+    EXPECT_EQ(j["options"]["obbs"], nlohmann::json::array({"refined", "pca"}));
+    EXPECT_EQ(j["scenes"][0]["configs"].size(), 4u);
+    // The shadow-volume sampling lights are --sample-lights in stats as in report; --lights is report's own.
+    expect_usage_error(run("stats " + data("small/cube.obj") + " --lights 2"), "--lights", "stats --lights");
+    EXPECT_EQ(run("stats " + data("small/cube.obj") + " --sample-lights 2 --samples 4").code, 0);
+    std::filesystem::remove_all(scratch("names_report"));
+    std::filesystem::remove(asset);
+    std::filesystem::remove(pts);
+}
+
+TEST(Cli, EveryCommandTakesJsonAndQuietAndNamesTheTool) {
+    const std::string tool = tool_version(), cube = data("small/cube.obj");
+    EXPECT_EQ(tool.rfind("clusterbake 0.", 0), 0u) << tool;
+    std::string asset = scratch("json.cbk").string(), pts = scratch("json.txt").string();
+    std::ofstream(pts) << "0 2 0\n0 0.5 0\n";
+    const std::vector<std::string> commands = {
+        "bake " + cube + " -o " + asset,
+        "cluster " + cube + " -o " + scratch("json_cluster.cbk").string(),
+        "info " + cube,
+        "validate " + asset,
+        "query " + asset + " --light 0,5,0 --points " + pts + " --stats",
+        "stats " + cube,
+        "stats " + asset,
+        "heatmap " + cube + " -o " + scratch("json.png").string() + " --size 16",
+        "report " + cube + " -o " + scratch("json_report").string() + quick_report + one_config,
+        "batch " + cube + " -o " + scratch("json_batch").string()};
+    for (const std::string& command : commands) {
+        CliRun r = run(command + " --json -q");
+        ASSERT_EQ(r.code, 0) << command << ": " << r.err;
+        EXPECT_EQ(r.err, "") << command;
+        nlohmann::json j = nlohmann::json::parse(r.out);
+        for (const nlohmann::json& record : j.is_array() ? j : nlohmann::json::array({j}))
+            EXPECT_EQ(record["tool"], tool) << command;
+    }
+    nlohmann::json q = nlohmann::json::parse(run(commands[4] + " --json").out);
+    EXPECT_EQ(q["answers"], nlohmann::json::array({0, 1}));
+    EXPECT_EQ(q["shadowed"], 1);
+    EXPECT_TRUE(q["stats"].contains("build_seconds"));
+    nlohmann::json v = nlohmann::json::parse(run(commands[3] + " --json").out);
+    EXPECT_EQ(v["valid"], true);
+    EXPECT_EQ(v["triangles"], 12);
+    EXPECT_EQ(v["fine_bounds"], nlohmann::json::array({"obb", "cone"}));
+    // An invalid asset is still one JSON object, and one line on stderr.
+    CliRun invalid = run("validate " + pts + " --json");
+    EXPECT_EQ(invalid.code, 2);
+    EXPECT_EQ(nlohmann::json::parse(invalid.out)["valid"], false);
+    EXPECT_EQ(std::count(invalid.err.begin(), invalid.err.end(), '\n'), 1) << invalid.err;
+    for (const char* f : {"json.cbk", "json_cluster.cbk", "json.png", "json.txt"}) std::filesystem::remove(scratch(f));
+    for (const char* d : {"json_report", "json_batch"}) std::filesystem::remove_all(scratch(d));
+}
+
+TEST(Cli, ThreadsMeanAllHardwareThreadsByDefaultEverywhere) {
+    for (const char* command : {"cluster", "bake", "batch", "stats", "report", "heatmap", "query"}) {
+        std::string line = help_line(run(std::string(command) + " --help").out, "--threads");
+        EXPECT_NE(line.find("0 = all hardware threads (default)"), std::string::npos) << command << ": " << line;
+    }
+    std::string asset = scratch("threads.cbk").string(), pts = scratch("threads.txt").string();
+    ASSERT_EQ(run("bake " + data("default_scene.glb") + " -o " + asset).code, 0);
+    {
+        std::ofstream grid(pts);
+        for (int i = 0; i < 30; ++i)
+            for (int j = 0; j < 30; ++j) grid << -18 + 1.2 * i << " 0.05 " << -18 + 1.2 * j << "\n";
+    }
+    std::string query = "query " + asset + " --light -4,30,2 --points " + pts;
+    CliRun all = run(query), one = run(query + " --threads 1"), zero = run(query + " --threads 0");
+    ASSERT_EQ(all.code, 0) << all.err;
+    EXPECT_EQ(all.out, one.out);
+    EXPECT_EQ(all.out, zero.out);
+    // The heat map uses every thread for every stage, and draws the same picture.
+    std::string png_all = scratch("threads_all.png").string(), png_one = scratch("threads_one.png").string();
+    ASSERT_EQ(run("heatmap " + data("default_scene.glb") + " --size 32 -o " + png_all).code, 0);
+    ASSERT_EQ(run("heatmap " + data("default_scene.glb") + " --size 32 --threads 1 -o " + png_one).code, 0);
+    auto bytes = [](const std::string& path) {
+        std::ifstream in(path, std::ios::binary);
+        return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    };
+    EXPECT_FALSE(bytes(png_all).empty());
+    EXPECT_TRUE(bytes(png_all) == bytes(png_one));
+    for (const std::string& f : {asset, pts, png_all, png_one}) std::filesystem::remove(f);
+}
+
+TEST(Cli, OptionsACommandWouldIgnoreAreRefused) {
+    const std::string cube = data("small/cube.obj");
+    std::string asset = scratch("ignored.cbk").string(), all = scratch("ignored_all.cbk").string();
+    ASSERT_EQ(run("bake " + cube + " -o " + asset).code, 0);
+    ASSERT_EQ(run("bake " + cube + " --bounds all -o " + all).code, 0);
+    // An asset's clusters are made: every option that shapes clusters does nothing to it.
+    for (const char* option : {"--method vco", "--coarse 512", "--fine 8", "--seed 2", "--k0 4", "--iterations 3",
+                               "--method vco --cache 16", "--presplit 1000", "--coarse-morton"}) {
+        std::string name = std::string(option).substr(0, std::string(option).find(' '));
+        expect_usage_error(run("stats " + asset + " " + option), name + " does nothing here", option);
+        EXPECT_EQ(run("stats " + cube + " " + option + " -q").code, 0) << option;  // a scene is clustered
+    }
+    // A method's own options do nothing to another method.
+    for (const char* option : {"--cache 16", "--method morton --cache 16", "--method vco --seed 2",
+                               "--method vco --k0 4", "--method morton --iterations 3", "--method vco --presplit 100",
+                               "--method morton --coarse-morton", "--coarse-morton --presplit 100"}) {
+        std::string last = std::string(option).substr(std::string(option).rfind("--"));
+        std::string name = last.substr(0, last.find(' '));
+        expect_usage_error(run("stats " + cube + " " + option), name + " does nothing here", option);
+    }
+    // The box fitter and the capsule ratio shape only the volumes the asset does not store.
+    EXPECT_EQ(run("stats " + asset + " --obb pca --capsule-ratio 3").code, 0);
+    expect_usage_error(run("stats " + all + " --obb pca"), "--obb does nothing here", "all kinds stored");
+    expect_usage_error(run("stats " + all + " --capsule-ratio 3"), "--capsule-ratio does nothing here",
+                       "capsules stored");
+    EXPECT_EQ(run("stats " + all + " --threads 1").code, 0);
+    // heatmap and report cluster a scene themselves: an asset is refused before any work.
+    std::string png = scratch("ignored.png").string(), dir = scratch("ignored_report").string();
+    expect_usage_error(run("heatmap " + asset + " -o " + png), "is a clusterbake asset", "heatmap ASSET");
+    expect_usage_error(run("report " + cube + " " + asset + " -o " + dir), "is a clusterbake asset", "report ASSET");
+    expect_usage_error(run("report " + cube + " -o " + dir + " --heatmap-size 64"), "--heatmap-size does nothing here",
+                       "--heatmap-size alone");
+    EXPECT_FALSE(std::filesystem::exists(png));
+    EXPECT_FALSE(std::filesystem::exists(dir));
+    // The reference walk takes no traversal.
+    std::string pts = scratch("ignored.txt").string();
+    std::ofstream(pts) << "0 2 0\n";
+    expect_usage_error(run("query " + asset + " --light 0,5,0 --points " + pts + " --reference --traversal trees"),
+                       "--traversal does nothing here", "--reference --traversal");
+    EXPECT_EQ(run("query " + asset + " --light 0,5,0 --points " + pts + " --reference --one-sided").out, "0\n");
+    for (const std::string& f : {asset, all, pts}) std::filesystem::remove(f);
+}
+
+TEST(Cli, OutputsAreCheckedBeforeAnyWork) {
+    const std::string scene = data("default_scene.glb");
+    std::string file = scratch("output_file").string();
+    std::ofstream(file) << "not a folder";
+    // Without -q the sweep would print progress: one line on stderr means it never started.
+    expect_usage_error(run("report " + scene + " -o /dev/null"), "/dev/null: exists and is not a folder", "/dev/null");
+    expect_usage_error(run("report " + scene + " -o " + file), "exists and is not a folder", "a file");
+    expect_usage_error(run("report " + scene + " -o " + file + "/sub"), "cannot make the folder", "under a file");
+    expect_usage_error(run("heatmap " + scene + " -o /dev/null"), "exists and is not a regular file", "heatmap");
+    expect_usage_error(run("heatmap " + scene + " -o " + scratch("no_folder").string() + "/h.png"),
+                       "folder " + scratch("no_folder").string() + " does not exist", "heatmap, no folder");
+    expect_usage_error(run("heatmap " + scene + " -o " + std::filesystem::temp_directory_path().string()),
+                       "exists and is not a regular file", "heatmap, a folder");
+    std::filesystem::remove(file);
+}
+
+TEST(Cli, UsageErrorsAreOneLineWithExitCode2) {
+    const std::string cube = data("small/cube.obj"), scene = data("default_scene.glb");
+    std::string asset = scratch("usage.cbk").string(), pts = scratch("usage.txt").string(),
+                dir = scratch("usage_dir").string(), png = scratch("usage.png").string();
+    ASSERT_EQ(run("bake " + cube + " -o " + asset).code, 0);
+    std::ofstream(pts) << "0 2 0\n";
+    const std::string query = "query " + asset + " --points " + pts + " --light 0,5,0";
+    for (const std::string& args : std::vector<std::string>{
+             "no-such-command",
+             "info",
+             "info --no-such-flag " + cube,
+             "validate",
+             "validate " + asset + " extra",
+             "query " + asset + " --points " + pts,
+             query + " --traversal leaves",
+             query + " --threads many",
+             query + " --fine 8",
+             query + " --reference --traversal scan",
+             "query " + asset + " --points " + pts + " --light 0,5",
+             "stats",
+             "stats " + cube + " --fine 86",
+             "stats " + cube + " --coarse 8 --fine 16",
+             "stats " + asset + " --method kmeans",
+             "stats " + cube + " --lights 3",
+             "heatmap " + cube,
+             "heatmap " + cube + " -o " + png + " --size 2",
+             "heatmap " + cube + " -o " + png + " --obb best",
+             "heatmap " + cube + " -o " + png + " --coarse 8 --fine 16",
+             "heatmap " + asset + " -o " + png,
+             "heatmap " + scene + " -o /dev/null",
+             "report " + cube,
+             "report " + cube + " -o " + dir + " --method kmeans,nope",
+             "report " + cube + " -o " + dir + " --methods kmeans",
+             "report " + cube + " -o " + dir + " --fine 16,86",
+             "report " + cube + " -o " + dir + " --runs 0",
+             "report " + cube + " -o " + dir + " --coarse 0",
+             "report " + cube + " -o " + dir + " --coarse 12 --fine 8,16",
+             "report " + cube + " -o " + dir + " --heatmap --heatmap-size 2",
+             "report " + cube + " -o " + dir + " --heatmap-size 64",
+             "report " + asset + " -o " + dir,
+             "report " + scene + " -o /dev/null",
+         }) {
+        CliRun r = run(args);
+        EXPECT_EQ(r.code, 2) << args << ": " << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << args << ": " << r.err;
+        EXPECT_EQ(r.err.rfind("clusterbake: ", 0), 0u) << args << ": " << r.err;
+        EXPECT_EQ(r.out, "") << args;
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir));
+    EXPECT_FALSE(std::filesystem::exists(png));
+    std::filesystem::remove(asset);
+    std::filesystem::remove(pts);
+}
+
+namespace {
+
+// What `args` prints on stderr when stderr is a terminal: run under script(1), stdout thrown away.
+std::string terminal_stderr(const std::string& args) {
+    std::string cmd = "script -qec '" + std::string(CB_CLI) + " " + args + " 2>&1 >/dev/null' /dev/null";
+    std::string out;
+    FILE* pipe = popen(cmd.c_str(), "r");
+    char buffer[4096];
+    for (size_t n; pipe && (n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0;) out.append(buffer, n);
+    if (pipe) pclose(pipe);
+    return out;
+}
+
+}  // namespace
+
+TEST(Cli, QuietSilencesProgressOnATerminal) {
+    if (!std::filesystem::exists("/usr/bin/script"))
+        GTEST_SKIP() << "script(1) is not installed: no terminal to show progress on";
+    const std::string scene = data("default_scene.glb"), png = scratch("quiet.png").string();
+    EXPECT_NE(terminal_stderr("stats " + scene).find("clustering and fitting"), std::string::npos);
+    EXPECT_EQ(terminal_stderr("stats -q " + scene), "");
+    EXPECT_NE(terminal_stderr("heatmap --size 32 -o " + png + " " + scene).find("heat map: kmeans panel"),
+              std::string::npos);
+    EXPECT_EQ(terminal_stderr("heatmap --size 32 -q -o " + png + " " + scene), "");
+    std::filesystem::remove(png);
 }

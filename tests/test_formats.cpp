@@ -132,6 +132,21 @@ TEST(Formats, PlyAndStlErrors) {
     EXPECT_THROW(load("", cb::FileFormat::stl), cb::LoadError);
 }
 
+TEST(Formats, StlThatIsNeitherKindIsNotAnEmptyMesh) {
+    EXPECT_EQ(error_of("hello world\n", cb::FileFormat::stl),
+              "t: not an STL file: neither binary STL (at least 84 bytes) nor ASCII STL (starts with 'solid')");
+    std::string binary(84 + 50, '\0');
+    binary[80] = 2;  // two facets in the header, one in the file
+    EXPECT_EQ(error_of(binary, cb::FileFormat::stl),
+              "t: not an STL file: neither binary STL (its header's 2 facets need 184 bytes, it has 134) nor ASCII STL "
+              "(starts with 'solid')");
+    binary[80] = 1;
+    const float corners[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    std::memcpy(&binary[84 + 12], corners, sizeof corners);
+    EXPECT_EQ(load(binary, cb::FileFormat::stl).meshes[0].triangle_count(), 1u);
+    EXPECT_EQ(load("  solid empty\nendsolid empty\n", cb::FileFormat::stl).meshes[0].triangle_count(), 0u);
+}
+
 TEST(Formats, PlyFeatures) {
     // Big-endian binary with a double coordinate, an extra property, and tristrips with a restart.
     std::string ply =

@@ -187,14 +187,25 @@ TEST(Gltf, ExternalBufferNextToTheFile) {
         .write(reinterpret_cast<const char*>(w.bin.data()), std::streamsize(w.bin.size()));
     std::ofstream(dir / "tri.gltf") << w.doc.dump();
     EXPECT_EQ(cb::load_scene((dir / "tri.gltf").string()).meshes[0].triangle_count(), 1u);
-    // A missing buffer file is an error naming the file.
+    // A buffer file of another size, and a missing one: errors naming the buffer, its file and where it was
+    // looked for.
+    auto error = [&] {
+        try {
+            cb::load_scene((dir / "tri.gltf").string());
+            ADD_FAILURE();
+        } catch (const cb::LoadError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    std::ofstream(dir / "tri.bin", std::ios::binary) << "short";
+    EXPECT_EQ(error(),
+              (dir / "tri.gltf").string() + ": buffer 0: 'tri.bin': 5 bytes, but its byteLength is " +
+                  std::to_string(w.bin.size()));
     std::filesystem::remove(dir / "tri.bin");
-    try {
-        cb::load_scene((dir / "tri.gltf").string());
-        ADD_FAILURE();
-    } catch (const cb::LoadError& e) {
-        EXPECT_NE(std::string(e.what()).find("tri.bin"), std::string::npos) << e.what();
-    }
+    EXPECT_EQ(error(),
+              (dir / "tri.gltf").string() + ": buffer 0: 'tri.bin': no such file (looked for " +
+                  (dir / "tri.bin").string() + ")");
 }
 
 TEST(Gltf, GlbRoundTripAndTruncation) {
@@ -302,10 +313,31 @@ TEST(Gltf, SignedIndicesRejected) {
 
 TEST(Gltf, EmptyAndGarbageFiles) {
     EXPECT_THROW(load_text(""), cb::LoadError);
-    EXPECT_THROW(load_text("{"), cb::LoadError);
-    EXPECT_THROW(load_text("not json at all"), cb::LoadError);
-    EXPECT_THROW(load_text("[1,2,3]"), cb::LoadError);
+    // Not JSON, or JSON but not glTF: said in those words, never as the JSON library's exception text.
+    const std::string neither = "t.gltf: not a glTF file: neither binary glTF (magic 'glTF') nor JSON text";
+    EXPECT_EQ(error_of("{"), neither + " (parse error at byte 2)");
+    EXPECT_EQ(error_of("hello"), neither + " (parse error at byte 1)");
+    EXPECT_EQ(error_of("{\"asset\": {\"version\": \"2.0\"}} trailing"), neither + " (parse error at byte 33)");
+    const std::string no_asset = "t.gltf: not a glTF file: JSON without an \"asset\" object naming its \"version\"";
+    EXPECT_EQ(error_of("[1,2,3]"), no_asset);
+    EXPECT_EQ(error_of("{}"), no_asset);
+    EXPECT_EQ(error_of("{\"asset\": {}}"), no_asset);
+    EXPECT_EQ(error_of("{\"asset\": {\"version\": \"2.0\"}, \"x\": 1e999}"),
+              "t.gltf: JSON: number overflow parsing '1e999'");
     EXPECT_THROW(load_bytes({'g', 'l', 'T', 'F', 2, 0, 0, 0}), cb::LoadError);
+}
+
+TEST(Gltf, GlbWhoseJsonChunkIsNotJson) {
+    GltfWriter w = one_mesh_scene(triangle());
+    std::vector<uint8_t> glb = w.glb();
+    glb[20] = '[';  // the chunk's opening brace
+    try {
+        load_bytes(glb);
+        ADD_FAILURE();
+    } catch (const cb::LoadError& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("t.glb: GLB JSON chunk is not JSON text (parse error at byte ", 0), 0u)
+            << e.what();
+    }
 }
 
 TEST(Gltf, DracoPrimitiveDecodesThroughTheExtension) {

@@ -106,6 +106,10 @@ TEST(Report, WritesThreeFilesWithOnePointPerConfiguration) {
     EXPECT_EQ(names.size(), configs);
     EXPECT_TRUE(names.count(j["recommended"].get<std::string>()));
     EXPECT_EQ(j["machine"]["cores"].get<unsigned>() > 0, true);
+    EXPECT_EQ(j["tool"].get<std::string>().rfind("clusterbake ", 0), 0u);
+    // The sweep CB_REPORT_OPTIONS asked for with bake's flag names: --method, --fine, --obb.
+    EXPECT_EQ(j["options"]["methods"], nlohmann::json::array({"kmeans", "vco"}));
+    EXPECT_EQ(j["options"]["fine_sizes"], nlohmann::json::array({8, 16}));
     std::string csv = slurp((d / "report.csv").string());
     EXPECT_EQ(count_of(csv, "\n"), configs + 1);
     EXPECT_EQ(count_of(csv, "default_scene,"), configs);
