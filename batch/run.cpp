@@ -19,19 +19,22 @@ std::vector<BakeResult> run_batch(const std::vector<BakeRequest>& requests, cons
     std::atomic<size_t> next{0};
     std::mutex report;
     auto work = [&] {
+        // A worker holds its core from its first file to its last, so that no other file's parallel stage
+        // takes it in between and finds three threads on two cores.
         thread_core_budget() = &budget;
+        bool holding = false;
         for (size_t k; (k = next.fetch_add(1)) < order.size();) {
             size_t i = order[k];
-            budget.take();
+            if (!holding) budget.take(), holding = true;
             {
                 std::lock_guard<std::mutex> lock(report);
                 if (started) started(i);
             }
             results[i] = bake_file(requests[i]);
-            budget.give();
             std::lock_guard<std::mutex> lock(report);
             if (finished) finished(i, results[i]);
         }
+        if (holding) budget.give();
         thread_core_budget() = nullptr;
     };
     std::vector<std::thread> pool;

@@ -18,18 +18,14 @@
 namespace cb::cli {
 namespace {
 
-// What is wrong with the output path, found before any work; empty when nothing is. A scene file's name
-// for an asset is a trap (a later load of it fails, or a source is overwritten), allowed with --force.
+// What is wrong with the output path, found before any work, as "OUT: problem"; empty when nothing is. A
+// scene file's name for an asset is a trap (a later load of it fails, or a source is overwritten), allowed
+// with --force.
 std::string output_problem(const std::string& out, bool force) {
-    namespace fs = std::filesystem;
-    std::error_code ec;
-    fs::file_status status = fs::status(out, ec);
-    if (fs::exists(status) && !fs::is_regular_file(status)) return "exists and is not a regular file";
-    fs::path folder = fs::path(out).parent_path();
-    if (!folder.empty() && !fs::is_directory(folder, ec)) return "folder " + folder.string() + " does not exist";
-    if (!force && cb::format_from_path(out) != cb::FileFormat::unknown)
-        return "named like a scene file; an asset is not one (name it .cbk, or --force)";
-    return {};
+    std::string error = output_file_error(out);
+    if (error.empty() && !force && cb::format_from_path(out) != cb::FileFormat::unknown)
+        error = out + ": named like a scene file; an asset is not one (name it .cbk, or --force)";
+    return error;
 }
 
 // `cluster` (geometry and hierarchy only) and `bake` (with bounds) share this.
@@ -42,11 +38,7 @@ int run_bake(const ClusterArgs& a) {
     }
     request.input = a.file;
     request.output = a.out;
-    std::string problem = output_problem(a.out, a.force);
-    if (!problem.empty()) {
-        std::fprintf(stderr, "clusterbake: %s: %s\n", a.out.c_str(), problem.c_str());
-        return exit_usage;
-    }
+    if (!usage_ok(output_problem(a.out, a.force))) return exit_usage;
 
     // Progress once a bake has taken a second, on a terminal only, overwritten in place on stderr.
     bool shown = false, terminal = !a.quiet && isatty(STDERR_FILENO);
@@ -65,54 +57,43 @@ int run_bake(const ClusterArgs& a) {
     const cb::ClusterOptions& options = request.clustering;
     const cb::BoundsOptions& bounds = request.bounds;
     const cb::BakeStats& stats = r.stats;
+    // What every bake reports, up to date or not; a bake adds what it measured.
+    nlohmann::json j = {{"tool", cb::tool_version()},
+                        {"file", a.file},
+                        {"output", a.out},
+                        {"status", cb::status_name(r.status)},
+                        {"input_bytes", r.input_bytes},
+                        {"triangles", r.triangles},
+                        {"fine_clusters", r.fine_clusters},
+                        {"coarse_clusters", r.coarse_clusters},
+                        {"asset_bytes", r.output_bytes},
+                        {"seconds", r.seconds}};
     if (r.status == cb::BakeStatus::up_to_date) {
-        if (a.json) {
-            nlohmann::json j = {{"tool", cb::tool_version()},
-                                {"file", a.file},
-                                {"output", a.out},
-                                {"status", cb::status_name(r.status)},
-                                {"input_bytes", r.input_bytes},
-                                {"triangles", r.triangles},
-                                {"fine_clusters", r.fine_clusters},
-                                {"coarse_clusters", r.coarse_clusters},
-                                {"asset_bytes", r.output_bytes},
-                                {"seconds", r.seconds}};
+        if (a.json)
             std::cout << j.dump(2) << "\n";
-        } else if (!a.quiet) {
+        else if (!a.quiet)
             std::printf("%s -> %s: up to date (same input bytes, options and tool)\n", a.file.c_str(), a.out.c_str());
-        }
         return 0;
     }
     double load_s = r.load_seconds, write_s = r.write_seconds;
     size_t asset_bytes = r.output_bytes;
     double tps = stats.cluster_seconds > 0 ? double(stats.triangles) / stats.cluster_seconds : 0;
     if (a.json) {
-        nlohmann::json j = {
-            {"tool", cb::tool_version()},
-            {"file", a.file},
-            {"output", a.out},
-            {"status", cb::status_name(r.status)},
-            {"input_bytes", r.input_bytes},
-            {"method", cb::method_name(options.method)},
-            {"coarse_size", options.coarse_size},
-            {"fine_size", options.fine_size},
-            {"meshes", r.meshes},
-            {"instances", r.instances},
-            {"triangles", stats.triangles},
-            {"coarse_clusters", stats.coarse_clusters},
-            {"fine_clusters", stats.fine_clusters},
-            {"fine_min", stats.fine_min},
-            {"fine_max", stats.fine_max},
-            {"fine_below_half", stats.fine_below_half},
-            {"coarse_min", stats.coarse_min},
-            {"coarse_max", stats.coarse_max},
-            {"load_seconds", load_s},
-            {"cluster_seconds", stats.cluster_seconds},
-            {"write_seconds", write_s},
-            {"triangles_per_second", tps},
-            {"asset_bytes", asset_bytes},
-            {"bytes_per_triangle", stats.triangles ? double(asset_bytes) / double(stats.triangles) : 0.0},
-            {"seconds", r.seconds}};
+        j.update({{"method", cb::method_name(options.method)},
+                  {"coarse_size", options.coarse_size},
+                  {"fine_size", options.fine_size},
+                  {"meshes", r.meshes},
+                  {"instances", r.instances},
+                  {"fine_min", stats.fine_min},
+                  {"fine_max", stats.fine_max},
+                  {"fine_below_half", stats.fine_below_half},
+                  {"coarse_min", stats.coarse_min},
+                  {"coarse_max", stats.coarse_max},
+                  {"load_seconds", load_s},
+                  {"cluster_seconds", stats.cluster_seconds},
+                  {"write_seconds", write_s},
+                  {"triangles_per_second", tps},
+                  {"bytes_per_triangle", stats.triangles ? double(asset_bytes) / double(stats.triangles) : 0.0}});
         if (a.fit) {
             j["bounds"] = a.bounds;
             j["fit_seconds"] = stats.fit_seconds;

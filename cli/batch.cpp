@@ -122,11 +122,8 @@ int run_batch_command(const BatchArgs& a) {
     }
 
     // The output tree, made before any work: a path in the way is a usage error, not a failed file.
+    if (!usage_ok(output_folder_error(a.outdir))) return exit_usage;
     std::error_code ec;
-    if (fs::exists(a.outdir, ec) && !fs::is_directory(a.outdir, ec)) {
-        std::fprintf(stderr, "clusterbake: %s: exists and is not a folder\n", a.outdir.c_str());
-        return exit_usage;
-    }
     for (const BatchJob& job : jobs) {
         fs::path folder = fs::path(job.output).parent_path();
         if (fs::create_directories(folder, ec), ec) {
