@@ -21,6 +21,7 @@
 #include "cb_tile.h"
 
 namespace cb {
+inline namespace CB_LANES {
 
 namespace detail {
 
@@ -149,4 +150,5 @@ void occluded_batch(const Shadows* trees, size_t tree_count, const double* point
     occluded_ordered(trees, tree_count, points, order, n, out, scratch + n, stats);
 }
 
+}  // namespace CB_LANES
 }  // namespace cb

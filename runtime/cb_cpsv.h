@@ -31,6 +31,7 @@
 #include "cb_top_tree.h"
 
 namespace cb {
+inline namespace CB_LANES {
 
 class InstanceShadow {
 public:
@@ -112,4 +113,5 @@ private:
     std::variant<ScanTraversal, TopTreeTraversal> held_;
 };
 
+}  // namespace CB_LANES
 }  // namespace cb

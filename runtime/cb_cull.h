@@ -8,8 +8,10 @@
 
 #include "cb_asset.h"
 #include "cb_shadow.h"
+#include "cb_simd.h"
 
 namespace cb {
+inline namespace CB_LANES {
 
 // Convex view volume in world space: a point p is inside when dot(plane[k].xyz, p) + plane[k].w >= 0 for
 // every k < count (the usual 6 planes; any convex set of up to 8 works). `eye` is the camera position.
@@ -116,4 +118,5 @@ inline size_t cull_clusters(const AssetView& v, const Frustum& f, bool backface,
     return count;
 }
 
+}  // namespace CB_LANES
 }  // namespace cb

@@ -10,7 +10,11 @@
 
 #include <cmath>
 
-namespace cb::exact {
+#include "cb_simd.h"
+
+namespace cb {
+inline namespace CB_LANES {
+namespace exact {
 
 // An expansion: `n` doubles of increasing magnitude, pairwise non-overlapping, whose exact sum is the value.
 // The orientation determinant needs at most 192 terms (three products of 2 x 16 two-term products); 256
@@ -136,4 +140,6 @@ inline int orient3d(const double* a, const double* b, const double* c, const dou
     return sign(orient3d_exact(a, b, c, d));
 }
 
-}  // namespace cb::exact
+}  // namespace exact
+}  // namespace CB_LANES
+}  // namespace cb

@@ -18,6 +18,7 @@
 #include "cb_simd.h"
 
 namespace cb {
+inline namespace CB_LANES {
 namespace lit {
 
 // Each determinant below is a sum of products of three differences of doubles, computed with 8 roundings
@@ -523,4 +524,5 @@ inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t 
     return cluster_blocks_points(v, mesh, f, one, 1, light, one_sided, stats, touched) != 0;
 }
 
+}  // namespace CB_LANES
 }  // namespace cb

@@ -9,7 +9,10 @@
 #include <cstring>
 #include <limits>
 
+#include "cb_simd.h"
+
 namespace cb {
+inline namespace CB_LANES {
 namespace math {
 
 // |v|_1.
@@ -58,4 +61,5 @@ inline float round_up(double x) {
 }
 
 }  // namespace math
+}  // namespace CB_LANES
 }  // namespace cb

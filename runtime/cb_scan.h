@@ -20,6 +20,7 @@
 #include "cb_tile.h"
 
 namespace cb {
+inline namespace CB_LANES {
 
 class ScanTraversal : public TraversalBase {
 public:
@@ -306,4 +307,5 @@ private:
     bool spheres_small_ = false;  // every sphere's coordinates and radius, and the light's, below float_safe
 };
 
+}  // namespace CB_LANES
 }  // namespace cb

@@ -12,6 +12,7 @@
 #include "cb_simd.h"
 
 namespace cb {
+inline namespace CB_LANES {
 
 // What the scan traversal (ScanTraversal) reads of one mesh's clusters that does not depend on the light:
 // their boxes, decoded, and the bounding spheres about them. Make them once per asset (make_scan_bounds)
@@ -91,4 +92,5 @@ inline std::vector<ScanBounds> make_scan_bounds(const AssetView& view) {
     return all;
 }
 
+}  // namespace CB_LANES
 }  // namespace cb

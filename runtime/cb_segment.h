@@ -29,8 +29,10 @@
 
 #include "cb_asset.h"
 #include "cb_exact.h"
+#include "cb_simd.h"
 
 namespace cb {
+inline namespace CB_LANES {
 
 // Hits closer to the query point than this fraction of the way to the light are ignored. A power of two,
 // so the exact test scales by it without rounding.
@@ -138,6 +140,9 @@ inline bool light_in_front_cone(const Cone& c, const double* light) {
     return v[0] * a[0] + v[1] * a[1] + v[2] * a[2] > al * vl * (double(c.cos_half_angle) + 1e-9);
 }
 
+}  // namespace CB_LANES
+
+// What queries counted (every traversal, any lanes; outside the lanes' namespace, see cb_simd.h).
 struct QueryStats {
     uint64_t nodes_visited = 0;    // tree nodes (TopTreeTraversal only)
     uint64_t clusters_tested = 0;  // fine clusters whose triangles were tested

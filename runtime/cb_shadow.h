@@ -14,6 +14,7 @@
 #include "cb_shadow_volume.h"
 
 namespace cb {
+inline namespace CB_LANES {
 
 // Reference query: every instance, every fine cluster whose box the segment may touch (all clusters when
 // the asset has no fine boxes), every triangle of those, exactly. Returns true when p is in shadow; one-sided
@@ -38,4 +39,5 @@ inline bool occluded_reference(const AssetView& v, const double* p, const double
     return blocked;
 }
 
+}  // namespace CB_LANES
 }  // namespace cb

@@ -7,8 +7,10 @@
 #include <cstdint>
 
 #include "cb_asset.h"
+#include "cb_simd.h"
 
 namespace cb {
+inline namespace CB_LANES {
 
 // The shadow volume of a box seen from a point light, the building block of the clustered structure
 // (the thesis's figure 2.7): four planes through the light that enclose every ray from the light through
@@ -131,4 +133,5 @@ inline bool inside_shadow_volume(const ShadowVolume& v, const double* light, con
         if (n[0] * e[0] + n[1] * e[1] + n[2] * e[2] < -1e-9 * dist) return false;
     return true;
 }
+}  // namespace CB_LANES
 }  // namespace cb

@@ -3,9 +3,9 @@
 // build gives the same answers. Each lane computes the same IEEE operations in the same order, except that
 // fma(a, b, c) rounds a * b + c once where the target has fused multiply-adds (AVX-512, or FMA) and twice
 // elsewhere: the filters' error bounds hold for both (a fused result's error is at most the unfused one's
-// bound), and every answer a filter leaves open is decided exactly. Every translation unit that includes
-// the runtime must see the same choice (compile them all with the same target flags). Header-only C++17,
-// no dependencies. MIT licensed.
+// bound), and every answer a filter leaves open is decided exactly. The choice follows the target flags of
+// each translation unit (-mavx2 -mfma, -mavx512f); units built for different lanes may share a program
+// (CB_LANES below). Header-only C++17, no dependencies. MIT licensed.
 #pragma once
 
 #include <cmath>
@@ -25,23 +25,30 @@
 #endif
 #endif
 
-namespace cb {
-namespace simd {
-// Each lane type in its own namespace, so that objects built for different ones cannot be mixed up at link time.
+// CB_LANES names the inline namespace of cb that holds every part of the runtime whose code depends on the
+// lanes (all of it but cb_asset.h and the two vocabulary types cb::QueryStats and cb::Traversal). One program
+// may so include the runtime in translation units built for different targets and pick one at run time, as
+// clusterbake's own query library does: their functions never share a symbol, so the linker cannot swap an
+// AVX-512 build of a function in for the SSE2 one.
 #if defined(CB_SIMD_AVX512)
-inline namespace avx512 {
+#define CB_LANES lanes_avx512
 #elif defined(CB_SIMD_AVX)
-inline namespace avx {
+#define CB_LANES lanes_avx
 #elif defined(CB_SIMD_SSE2)
-inline namespace sse2 {
+#define CB_LANES lanes_sse2
 #else
-inline namespace portable {
+#define CB_LANES lanes_portable
 #endif
+
+namespace cb {
+inline namespace CB_LANES {
+namespace simd {
 
 // Comparisons are ordered: a lane holding NaN compares false. min(a, b) and max(a, b) return b when
 // either is NaN, as the x86 instructions do.
 #if defined(CB_SIMD_AVX512)
 constexpr uint32_t width = 16;
+constexpr char name[] = "avx512";
 struct Floats {
     __m512 v;
 };
@@ -72,6 +79,11 @@ inline Mask all_lanes() { return {__mmask16(0xffff)}; }
 inline uint32_t bits(Mask m) { return m.m; }
 #elif defined(CB_SIMD_AVX)
 constexpr uint32_t width = 8;
+#if defined(__AVX2__) && defined(__FMA__)
+constexpr char name[] = "avx2";
+#else
+constexpr char name[] = "avx";
+#endif
 struct Floats {
     __m256 v;
 };
@@ -106,6 +118,7 @@ inline Mask all_lanes() { return {_mm256_castsi256_ps(_mm256_set1_epi32(-1))}; }
 inline uint32_t bits(Mask m) { return uint32_t(_mm256_movemask_ps(m.v)); }
 #elif defined(CB_SIMD_SSE2)
 constexpr uint32_t width = 4;
+constexpr char name[] = "sse2";
 struct Floats {
     __m128 v;
 };
@@ -135,6 +148,7 @@ inline Mask all_lanes() { return {_mm_castsi128_ps(_mm_set1_epi32(-1))}; }
 inline uint32_t bits(Mask m) { return uint32_t(_mm_movemask_ps(m.v)); }
 #else
 constexpr uint32_t width = 4;
+constexpr char name[] = "portable";
 struct Floats {
     float v[width];
 };
@@ -229,8 +243,6 @@ inline void lane_span(uint64_t subset, uint32_t& begin, uint32_t& end) {
 // The bits of lanes [i, i + width) of a 64-bit mask.
 inline uint32_t group(uint64_t mask, uint32_t i) { return uint32_t(mask >> i) & ((1u << width) - 1); }
 
-}  // namespace avx, sse2 or portable
-
 // Asks for the cache line holding p (any address: a prefetch never faults). An asm statement on x86, since
 // GCC deletes calls to a function that does nothing but __builtin_prefetch (it deems it pure).
 inline void prefetch(const void* p) {
@@ -243,4 +255,5 @@ inline void prefetch(const void* p) {
 #endif
 }
 }  // namespace simd
+}  // namespace CB_LANES
 }  // namespace cb

@@ -20,10 +20,8 @@
 
 namespace cb {
 
-struct ScanBounds;    // cb_scan_bounds.h
-struct BuildScratch;  // cb_top_tree.h
-
-// How a query finds the fine clusters whose triangles it tests: one traversal type each.
+// How a query finds the fine clusters whose triangles it tests: one traversal type each. Outside the lanes'
+// namespace (cb_simd.h), as cb::QueryStats is: code built for different lanes shares these two.
 enum class Traversal : uint8_t {
     scan,      // no tree (ScanTraversal): the coarse clusters' bounding spheres are scanned against a tile's
                // pyramid, then each entered one's fine spheres against the pyramid of its points (the default:
@@ -32,6 +30,11 @@ enum class Traversal : uint8_t {
                // coarse cluster's fine clusters (the thesis's two levels)
     one_tree,  // TopTreeTraversal: one tree over all the fine clusters
 };
+
+inline namespace CB_LANES {
+
+struct ScanBounds;    // cb_scan_bounds.h
+struct BuildScratch;  // cb_top_tree.h
 
 // The settings of a traversal's build (InstanceShadow::build).
 struct ShadowBuildOptions {
@@ -509,4 +512,5 @@ protected:
     size_t skipped_ = 0;
 };
 
+}  // namespace CB_LANES
 }  // namespace cb

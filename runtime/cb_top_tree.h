@@ -35,6 +35,7 @@
 #include "cb_tile.h"
 
 namespace cb {
+inline namespace CB_LANES {
 namespace top_tree {
 
 constexpr uint32_t none = TraversalBase::none;
@@ -653,4 +654,5 @@ private:
     uint32_t depth_ = 0;
 };
 
+}  // namespace CB_LANES
 }  // namespace cb
