@@ -11,8 +11,10 @@
 //   (NAME "big": only the big scene; --one-sided 1: our trees in one-sided mode, whose answers equal
 //   two-sided ones outside closed meshes; Embree stays two-sided; T: scan (default), trees or one-tree, how
 //   our trees reach the fine clusters, cb::Traversal; --frames N: no Embree passes, only N of
-//   our frames per light on one thread, their shortest and median time: on a noisy machine the shortest of
-//   many is the steadier figure for comparing two builds of the runtime, run alternately)
+//   our frames per light on one thread, their shortest and median time, each beside a frame through
+//   cb::query_scene, the tools' query library and its run-time choice of lanes: the ratio is what that
+//   dispatch costs against the runtime compiled for this machine. On a noisy machine the shortest of many
+//   is the steadier figure for comparing two builds of the runtime, run alternately)
 #include <embree3/rtcore.h>
 
 #include <cb_cpsv.h>
@@ -36,6 +38,7 @@
 #include "bake.h"
 #include "bench_common.h"
 #include "load.h"
+#include "scene_query.h"
 #include "timing.h"
 
 namespace fs = std::filesystem;
@@ -322,15 +325,22 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             std::this_thread::sleep_for(std::chrono::milliseconds(30));
             return step();
         };
-        if (frames > 0) {  // our frames alone (see the usage above)
-            std::vector<double> f;
+        if (frames > 0) {  // our frames alone (see the usage above), alternately inline and through query_scene
+            std::vector<double> f, q;
+            cb::SceneQueryOptions qo;
+            qo.traversal = level, qo.one_sided = one_sided, qo.threads = 1;
             for (int r = 0; r < frames; ++r) {
                 const double b = build_trees(1);
                 f.push_back(b + ours_pass(1));
+                const cb::SceneQueryResult through = cb::query_scene(asset, light, pts.data(), n, qo);
+                q.push_back(through.build_seconds + through.query_seconds);
+                if (through.shadowed != ours) std::printf("query_scene answers differ from the inline ones\n");
             }
             std::sort(f.begin(), f.end());
-            std::printf("| %-16s | %s | %zu | %.2f ms | %.2f ms |\n", in.name.c_str(), light_names[li], n, f[0] * 1e3,
-                        f[f.size() / 2] * 1e3);
+            std::sort(q.begin(), q.end());
+            std::printf("| %-16s | %s | %zu | %.2f ms | %.2f ms | %.2f ms | %.2f ms | %.3f |\n", in.name.c_str(),
+                        light_names[li], n, f[0] * 1e3, f[f.size() / 2] * 1e3, q[0] * 1e3, q[q.size() / 2] * 1e3,
+                        q[q.size() / 2] / f[f.size() / 2]);
             continue;
         }
         for (int r = 0; r < std::max(1, runs); ++r) {
@@ -387,14 +397,19 @@ static int run(int argc, char** argv) {
     using Level = cb::Traversal;
     Level level = o.level == "trees" ? Level::trees : o.level == "one-tree" ? Level::one_tree : Level::scan;
     if (o.frames > 0) {
+        std::printf("%s, traversal '%s'; %dx%d view; our frames alone (build and queries, one thread), %d per light\n",
+                    o.one_sided ? "one-sided trees" : "two-sided trees",
+                    level == Level::trees          ? "trees"
+                        : level == Level::one_tree ? "one-tree"
+                                                   : "scan",
+                    o.view, o.view, o.frames);
         std::printf(
-            "%s, traversal '%s'; %dx%d view; our frames alone (build and queries, one thread), %d per light\n\n",
-            o.one_sided ? "one-sided trees" : "two-sided trees",
-            level == Level::trees          ? "trees"
-                : level == Level::one_tree ? "one-tree"
-                                           : "scan",
-            o.view, o.view, o.frames);
-        std::printf("| scene | light | points | shortest frame | median frame |\n|---|---|---|---|---|\n");
+            "inline: the runtime compiled into this benchmark (%s lanes); through query_scene: the tools' query "
+            "library, dispatched at run time to %s lanes (its frame also makes the scan's bounds)\n\n",
+            cb::simd::name, cb::query_lanes());
+        std::printf(
+            "| scene | light | points | inline shortest | inline median | query_scene shortest | query_scene median | "
+            "median ratio |\n|---|---|---|---|---|---|---|---|\n");
     } else {
         std::printf(
             "%s, traversal '%s'; %dx%d view; medians of %d rounds; M q/s = million queries per second on 1 / 2 "

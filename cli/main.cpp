@@ -12,12 +12,21 @@
 
 #include "args.h"
 #include "commands.h"
+#include "scene_query.h"
 
 int main(int argc, char** argv) {
     CLI::App app{"clusterbake: clusters triangle scenes, fits bounding volumes and bakes a compact asset"};
     app.require_subcommand(1);
-    app.set_version_flag("--version",
-                         "clusterbake " CB_VERSION " (asset format " + std::to_string(cb::asset_version) + ")");
+    app.set_version_flag("--version", [] {
+        std::string lanes;
+        try {
+            lanes = cb::query_lanes();
+        } catch (const std::exception& e) {
+            lanes = e.what();
+        }
+        return "clusterbake " CB_VERSION " (asset format " + std::to_string(cb::asset_version) +
+            ", shadow queries on " + lanes + " lanes)";
+    });
     using namespace cb::cli;
     const Command commands[] = {add_info(app),   add_cluster(app), add_bake(app),     add_batch(app), add_stats(app),
                                 add_report(app), add_heatmap(app), add_validate(app), add_query(app)};

@@ -89,7 +89,8 @@ bool read_points(const QueryArgs& a, std::vector<double>& pts) {
 }
 
 nlohmann::json stats_json(const QueryArgs& a, const cb::SceneQueryResult& q, size_t n) {
-    nlohmann::json j = {{"query_seconds", q.query_seconds},
+    nlohmann::json j = {{"lanes", cb::query_lanes()},
+                        {"query_seconds", q.query_seconds},
                         {"queries_per_second", n / std::max(q.query_seconds, 1e-9)},
                         {"clusters_tested", q.stats.clusters_tested},
                         {"triangles_tested", q.stats.triangles_tested}};
@@ -127,9 +128,9 @@ void print_stats(const QueryArgs& a, const cb::SceneQueryResult& q, size_t shado
                      "with their box), %zu skipped (one-sided, light in their front cone)\n",
                      q.build_seconds, q.trees, q.nodes, q.always_tested, q.skipped);
     std::fprintf(stderr,
-                 "%zu queries, %zu in shadow, %.3f s (%.0f queries/s); per query %.1f clusters and %.1f triangles "
-                 "tested\n",
-                 n, shadowed, q.query_seconds, n / std::max(q.query_seconds, 1e-9),
+                 "%zu queries, %zu in shadow, %.3f s on %s lanes (%.0f queries/s); per query %.1f clusters and %.1f "
+                 "triangles tested\n",
+                 n, shadowed, q.query_seconds, cb::query_lanes(), n / std::max(q.query_seconds, 1e-9),
                  n ? double(q.stats.clusters_tested) / double(n) : 0.0,
                  n ? double(q.stats.triangles_tested) / double(n) : 0.0);
     if (a.reference)

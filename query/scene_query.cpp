@@ -1,13 +1,79 @@
 #include "scene_query.h"
 
-#include <algorithm>
-#include <chrono>
-#include <thread>
-
-#include "parallel.h"
-#include "timing.h"
+#include <cstdlib>
+#include <stdexcept>
+#include <string>
 
 namespace cb {
+
+// The builds of the query body (scene_query_lanes.cpp): this unit's own lanes, and where query/CMakeLists.txt
+// built them, AVX2's and AVX-512's.
+inline namespace CB_LANES {
+SceneQueryResult query_scene_lanes(const AssetView&, const double*, const double*, size_t, const SceneQueryOptions&);
+}
+#if defined(CB_QUERY_LANES_AVX)
+namespace lanes_avx {
+SceneQueryResult query_scene_lanes(const AssetView&, const double*, const double*, size_t, const SceneQueryOptions&);
+}
+#endif
+#if defined(CB_QUERY_LANES_AVX512)
+namespace lanes_avx512 {
+SceneQueryResult query_scene_lanes(const AssetView&, const double*, const double*, size_t, const SceneQueryOptions&);
+}
+#endif
+
+namespace {
+
+using QueryBody = SceneQueryResult (*)(const AssetView&, const double*, const double*, size_t,
+                                       const SceneQueryOptions&);
+struct Lanes {
+    const char* name;  // as simd::name
+    int rank;          // wider lanes rank higher
+    QueryBody body;
+};
+
+int lanes_rank(const std::string& name) {
+    return name == "avx512" ? 4 : name == "avx2" ? 3 : name == "avx" ? 2 : name == "sse2" ? 1 : 0;
+}
+
+#if defined(CB_QUERY_LANES_AVX) || defined(CB_QUERY_LANES_AVX512)
+bool cpu_has_avx2() { return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"); }
+#endif
+
+// The widest build this processor runs (__builtin_cpu_supports also checks that the operating system saves
+// the wider registers), no wider than CLUSTERBAKE_LANES (sse2, avx2 or avx512) when that is set.
+Lanes pick_lanes() {
+    const Lanes builds[] = {
+        {simd::name, lanes_rank(simd::name), &CB_LANES::query_scene_lanes},
+#if defined(CB_QUERY_LANES_AVX)
+        {"avx2", cpu_has_avx2() ? 3 : -1, &lanes_avx::query_scene_lanes},
+#endif
+#if defined(CB_QUERY_LANES_AVX512)
+        {"avx512", cpu_has_avx2() && __builtin_cpu_supports("avx512f") ? 4 : -1, &lanes_avx512::query_scene_lanes},
+#endif
+    };
+    const char* cap_text = std::getenv("CLUSTERBAKE_LANES");
+    int cap = 4;
+    if (cap_text && *cap_text) {
+        cap = lanes_rank(cap_text);
+        if (cap < 1 || cap == 2)
+            throw std::runtime_error(std::string("CLUSTERBAKE_LANES=") + cap_text + ": expected sse2, avx2 or avx512");
+    }
+    const Lanes* best = nullptr;
+    for (const Lanes& b : builds)
+        if (b.rank >= 0 && b.rank <= cap && (!best || b.rank > best->rank)) best = &b;
+    if (!best)
+        throw std::runtime_error(std::string("CLUSTERBAKE_LANES=") + cap_text + ": this build's narrowest lanes are " +
+                                 simd::name);
+    return *best;
+}
+
+const Lanes& lanes() {
+    static const Lanes picked = pick_lanes();  // once, on first use
+    return picked;
+}
+
+}  // namespace
 
 bool parse_traversal(const std::string& name, Traversal& out) {
     if (name == "scan") return out = Traversal::scan, true;
@@ -16,75 +82,11 @@ bool parse_traversal(const std::string& name, Traversal& out) {
     return false;
 }
 
-SceneQueryResult query_scene(const AssetView& view, const double* light, const double* points, size_t n,
-                             const SceneQueryOptions& o) {
-    SceneQueryResult r;
-    const unsigned thread_count = o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+const char* query_lanes() { return lanes().name; }
 
-    // One structure per instance for this light (none for the reference).
-    auto build_start = std::chrono::steady_clock::now();
-    std::vector<InstanceShadow> trees(o.reference ? 0 : view.instance_count);
-    // The scan's bounds, once per mesh however many instances it has.
-    const std::vector<ScanBounds> bounds =
-        o.traversal == Traversal::scan && !trees.empty() ? make_scan_bounds(view) : std::vector<ScanBounds>{};
-    ShadowBuildOptions build;
-    build.traversal = o.traversal;
-    build.one_sided = o.one_sided;
-    build.threads = thread_count;
-    build.bounds = bounds.empty() ? nullptr : bounds.data();
-    for (uint32_t i = 0; i < trees.size(); ++i) {
-        trees[i].build(view, i, light, build);
-        r.skipped += trees[i].skipped_clusters();
-        r.nodes += trees[i].node_count();
-        r.always_tested += trees[i].always_tested();
-    }
-    r.trees = trees.size();
-    r.build_seconds = seconds_since(build_start);
-
-    // The trees are const: threads take contiguous slices of the points' order by direction from the light
-    // (the order a batch takes them in, so that each slice's tiles are as close as one batch's), each with
-    // its own scratch and counts; the reference, and points asking alone, take slices of the points as given.
-    auto start = std::chrono::steady_clock::now();
-    r.shadowed.assign(n, 0);
-    if (o.per_point) r.point_stats.assign(n, QueryStats{});
-    std::vector<QueryStats> counts(thread_count);
-    std::vector<uint32_t> order;
-    const bool batch = !o.reference && !o.per_point;
-    if (batch) {
-        order.resize(n);
-        std::vector<uint32_t> sort_scratch(batch_order_scratch_size(n));
-        batch_order(light, points, n, order.data(), sort_scratch.data());
-    }
-    size_t stack_size = 0;
-    for (const InstanceShadow& tree : trees) stack_size = std::max(stack_size, tree.stack_size());
-    parallel_for(thread_count, thread_count, [&](size_t t) {
-        size_t first = n * t / thread_count, last = n * (t + 1) / thread_count;
-        if (batch) {
-            std::vector<uint32_t> own(ordered_scratch_size(trees.data(), trees.size()));
-            occluded_ordered(trees.data(), trees.size(), points, order.data() + first, last - first, r.shadowed.data(),
-                             own.data(), &counts[t]);
-            return;
-        }
-        std::vector<uint32_t> stack(stack_size);
-        for (size_t i = first; i < last; ++i) {
-            QueryStats* s = o.per_point ? &r.point_stats[i] : &counts[t];
-            const double* p = &points[i * 3];
-            if (o.reference) {
-                r.shadowed[i] = occluded_reference(view, p, light, o.one_sided, s);
-            } else {
-                for (const InstanceShadow& tree : trees)
-                    if (!r.shadowed[i]) r.shadowed[i] = tree.occluded(p, stack.data(), s);
-            }
-        }
-    });
-    auto add = [&](const QueryStats& c) {
-        r.stats.nodes_visited += c.nodes_visited, r.stats.clusters_tested += c.clusters_tested;
-        r.stats.triangles_tested += c.triangles_tested, r.stats.touching += c.touching;
-    };
-    for (const QueryStats& c : counts) add(c);
-    for (const QueryStats& c : r.point_stats) add(c);
-    r.query_seconds = seconds_since(start);
-    return r;
+SceneQueryResult query_scene(const AssetView& view, const double* light, const double* points, size_t count,
+                             const SceneQueryOptions& options) {
+    return lanes().body(view, light, points, count, options);
 }
 
 }  // namespace cb

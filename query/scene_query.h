@@ -38,8 +38,14 @@ struct SceneQueryResult {
     size_t skipped = 0;           // one-sided: clusters the light sees from their front
 };
 
-// The `count` points (xyz, world) against the light (xyz, world).
+// The `count` points (xyz, world) against the light (xyz, world). The work runs on the widest lanes this
+// processor has among those the build made (query_lanes); every choice gives the same answers.
 SceneQueryResult query_scene(const AssetView& view, const double* light, const double* points, size_t count,
                              const SceneQueryOptions& options = {});
+
+// The lanes query_scene runs on ("avx512", "avx2", "sse2" or "portable", as cb::simd::name), picked on
+// first use: the widest the processor runs, no wider than the environment's CLUSTERBAKE_LANES (sse2, avx2
+// or avx512) when set. Throws std::runtime_error on an unknown CLUSTERBAKE_LANES.
+const char* query_lanes();
 
 }  // namespace cb

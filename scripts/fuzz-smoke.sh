@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang + ASan/UBSan in build-fuzz/ and runs each for a short while,
-# seeded from data/ (and ../shared/data when present). Usage: fuzz-smoke.sh [RUNS_PER_TARGET]
+# seeded from data/ (and ../shared/data when present); then, given the test binary, runs its command-line
+# tests (Cli.*) against the sanitizer build of clusterbake. Usage: fuzz-smoke.sh [RUNS_PER_TARGET [CB_TESTS]]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 runs=${1:-3000}
+cli_tests=${2:-}
 cmake -S . -B build-fuzz -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCLUSTERBAKE_FUZZ=ON -DCLUSTERBAKE_TESTS=OFF -DCLUSTERBAKE_BENCH=OFF >/dev/null
 cmake --build build-fuzz --target fuzz_gltf fuzz_obj fuzz_off fuzz_ply fuzz_stl fuzz_asset clusterbake
@@ -30,3 +32,7 @@ for format in gltf obj off ply stl asset; do
   grep -E "^#[0-9]+ *DONE" "$work/$format.log" || tail -2 "$work/$format.log"
 done
 echo "fuzz smoke: 6 targets, no crash"
+if [ -n "$cli_tests" ]; then
+  echo "command-line tests against the AddressSanitizer + UBSan build of clusterbake:"
+  CB_CLI_UNDER_TEST=$PWD/build-fuzz/cli/clusterbake "$cli_tests" --gtest_filter='Cli.*' --gtest_brief=1
+fi

@@ -7,6 +7,7 @@ packages=(
   nlohmann-json3-dev libcli11-dev libgtest-dev
   libxxhash-dev              # input hashes of incremental batch bakes
   python3-distributed        # scripts/clusterbake-dask and its test (Dask scheduler and workers)
+  qemu-user                  # the portability test runs the binary as older processors
   libmeshoptimizer-dev libembree-dev
   zlib1g-dev                 # PNG heat maps (clusterbake heatmap, report --heatmap)
   libpng-dev chromium chromium-driver   # the report's browser test: headless Chromium renders report.html

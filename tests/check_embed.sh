@@ -3,6 +3,14 @@
 # its shadow answers on the default scene are those of `clusterbake query`. Usage: check_embed.sh BUILD_DIR
 set -euo pipefail
 src=$(cd "$(dirname "$0")/.." && pwd)
+# docs/RUNTIME.md's embedding example is word for word a function of examples/embed/main.cpp, compiled below.
+doc_example() { awk '/^    \/\/ bytes: the asset in memory/ { on = 1 } on { print substr($0, 5) } on && /^    }$/ { exit }' "$1"; }
+code_example() { awk '/^\/\/ bytes: the asset in memory/ { on = 1 } on { print } on && /^}$/ { exit }' "$1"; }
+if ! diff <(doc_example "$src/docs/RUNTIME.md") <(code_example "$src/examples/embed/main.cpp"); then
+  echo "docs/RUNTIME.md's embedding example differs from examples/embed/main.cpp"
+  exit 1
+fi
+[ "$(code_example "$src/examples/embed/main.cpp" | wc -l)" -gt 10 ] || { echo "no embedding example found"; exit 1; }
 build=$(cd "$1" && pwd)
 work=$build/embed_check
 rm -rf "$work"

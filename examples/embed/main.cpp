@@ -17,6 +17,27 @@
 #include <cstdlib>
 #include <vector>
 
+// The embedding example of docs/RUNTIME.md, word for word (tests/check_embed.sh compares the two).
+
+// bytes: the asset in memory, 8-byte aligned; light: xyz; points: n xyz triples; all world space.
+// in_shadow[i] becomes 1 when point i is in shadow, 0 when it is lit.
+bool shadow_answers(const void* bytes, size_t size, const double* light, const double* points, size_t n,
+                    uint8_t* in_shadow) {
+    cb::AssetView view;
+    if (cb::open_asset(bytes, size, &view) != cb::AssetError::ok) return false;
+    // The light-independent bounds, once per asset
+    const std::vector<cb::ScanBounds> bounds = cb::make_scan_bounds(view);
+    // One structure per instance, built for each light
+    std::vector<cb::InstanceShadow> shadows(view.instance_count);
+    // The defaults: scan traversal, two-sided, one thread
+    cb::ShadowBuildOptions options;
+    options.bounds = bounds.data();
+    for (uint32_t i = 0; i < view.instance_count; ++i) shadows[i].build(view, i, light, options);
+    std::vector<uint32_t> scratch(cb::batch_scratch_size(shadows.data(), shadows.size(), n));
+    cb::occluded_batch(shadows.data(), shadows.size(), points, n, in_shadow, scratch.data());
+    return true;
+}
+
 namespace {
 
 // The whole file in memory aligned for any standard type (malloc's guarantee), as the view's doubles need.
@@ -82,16 +103,10 @@ int main(int argc, char** argv) {
     }
     const size_t n = points.size() / 3;
 
-    // Shadows: the light-independent bounds once per asset, then per light one structure per instance, and
-    // one batch query over all the points (the default traversal: a scan of the clusters' spheres).
-    const std::vector<cb::ScanBounds> bounds = cb::make_scan_bounds(view);
-    std::vector<cb::InstanceShadow> shadows(view.instance_count);
-    cb::ShadowBuildOptions options;
-    options.bounds = bounds.data();
-    for (uint32_t i = 0; i < view.instance_count; ++i) shadows[i].build(view, i, light, options);
-    std::vector<uint32_t> scratch(cb::batch_scratch_size(shadows.data(), shadows.size(), n));
+    // Shadows: the light-independent bounds, then per light one structure per instance, and one batch query
+    // over all the points (the default traversal: a scan of the clusters' spheres).
     std::vector<uint8_t> shadowed(n);
-    cb::occluded_batch(shadows.data(), shadows.size(), points.data(), n, shadowed.data(), scratch.data());
+    if (!shadow_answers(bytes, size, light, points.data(), n, shadowed.data())) return 2;
     for (uint8_t s : shadowed) std::printf("%d\n", int(s));
 
     // Culling: the fine clusters a camera at the light, looking at the first instance's first coarse
