@@ -1,7 +1,9 @@
 #include "bake.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <mutex>
 #include <numeric>
 
 #include "parallel.h"
@@ -91,8 +93,8 @@ std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& o
     return meshes;
 }
 
-void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads,
-                      BakeStats& stats) {
+void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats,
+                      const std::function<void(size_t, size_t)>& progress) {
     auto start = std::chrono::steady_clock::now();
     // One work item per cluster: (mesh, level, index, first triangle, triangle count).
     struct Item {
@@ -114,12 +116,22 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
         }
     }
     std::vector<ClusterBounds> fitted(items.size());
+    size_t total = 0;
+    for (const Item& it : items) total += it.count;
+    std::atomic<size_t> done{0};
+    std::mutex reporting;  // one report at a time; a worker finding it taken goes on
     parallel_for(items.size(), threads, [&](size_t i) {
         const Item& it = items[i];
         const AssetMesh& am = meshes[it.mesh];
         fitted[i] =
             fit_bounds(am.positions.data(), am.triangles.data(), ids[it.mesh].data() + it.first, it.count, options);
+        done.fetch_add(it.count);
+        if (progress && reporting.try_lock()) {
+            progress(done.load(), total);  // read under the lock: the reports rise
+            reporting.unlock();
+        }
     });
+    if (progress) progress(total, total);  // the last, whichever worker finished last
 
     for (size_t i = 0; i < items.size(); ++i) {  // in item order: deterministic
         const Item& it = items[i];

@@ -32,7 +32,16 @@ std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& o
                                      const std::function<void(size_t, size_t, size_t, size_t)>& progress = {});
 
 // Fits the volumes in options.mask for every fine and coarse cluster of every mesh, in parallel over
-// clusters (`threads`, 0 = all); the result does not depend on the thread count.
-void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats);
+// clusters (`threads`, 0 = all); the result does not depend on the thread count. `progress(done, total)`,
+// when set, counts the triangles of the clusters fitted so far (a coarse cluster's count again), called
+// from one thread at a time with rising counts, and last with done == total.
+void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats,
+                      const std::function<void(size_t, size_t)>& progress = {});
+
+// What a bake reports as it goes, each when set: cluster_scene's and fit_scene_bounds's progress.
+struct BakeProgress {
+    std::function<void(size_t, size_t, size_t, size_t)> clustering;
+    std::function<void(size_t, size_t)> bounds;
+};
 
 }  // namespace cb

@@ -60,8 +60,7 @@ bool up_to_date(const BakeRequest& r, BakeResult& result) {
     return true;
 }
 
-void bake_unguarded(const BakeRequest& r, const std::function<void(size_t, size_t, size_t, size_t)>& progress,
-                    BakeResult& result) {
+void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResult& result) {
     auto t0 = std::chrono::steady_clock::now();
     Scene scene = load_scene(r.input);
     result.load_seconds = seconds_since(t0);
@@ -69,8 +68,8 @@ void bake_unguarded(const BakeRequest& r, const std::function<void(size_t, size_
     result.meshes = scene.meshes.size();
     result.instances = scene.instances.size();
 
-    std::vector<AssetMesh> meshes = cluster_scene(scene, r.clustering, result.stats, progress);
-    if (r.fit) fit_scene_bounds(meshes, r.bounds, r.clustering.threads, result.stats);
+    std::vector<AssetMesh> meshes = cluster_scene(scene, r.clustering, result.stats, progress.clustering);
+    if (r.fit) fit_scene_bounds(meshes, r.bounds, r.clustering.threads, result.stats, progress.bounds);
 
     auto t1 = std::chrono::steady_clock::now();
     std::vector<uint8_t> bytes =
@@ -105,11 +104,13 @@ std::string options_text(const ClusterOptions& c, const BoundsOptions& b, bool f
     std::string out = fit ? "bake" : "cluster";
     out += std::string(" --method ") + method_name(c.method);
     out += " --coarse " + std::to_string(c.coarse_size) + " --fine " + std::to_string(c.fine_size);
-    out += " --seed " + std::to_string(c.seed) + " --k0 " + std::to_string(c.kmeans_branching);
-    out += " --iterations " + std::to_string(c.kmeans_max_iterations);
-    out += " --presplit " + std::to_string(c.kmeans_presplit);
-    if (!c.kmeans_coarse_from_tree) out += " --coarse-morton";
-    out += " --cache " + std::to_string(c.vco_cache_size);
+    // The method's own options only: the others change nothing, and the command line refuses them.
+    if (c.method == ClusterMethod::kmeans) {
+        out += " --seed " + std::to_string(c.seed) + " --k0 " + std::to_string(c.kmeans_branching);
+        out += " --iterations " + std::to_string(c.kmeans_max_iterations);
+        out += c.kmeans_coarse_from_tree ? " --presplit " + std::to_string(c.kmeans_presplit) : " --coarse-morton";
+    }
+    if (c.method == ClusterMethod::vco) out += " --cache " + std::to_string(c.vco_cache_size);
     if (fit) {
         out += " --bounds " + mask_text(b.mask) + " --obb " + obb_method_name(b.obb);
         out += " --capsule-ratio " + number(b.capsule_ratio);
@@ -126,7 +127,7 @@ std::string source_text(const SourceFiles& source, const ClusterOptions& cluster
     return out;
 }
 
-BakeResult bake_file(const BakeRequest& request, const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
+BakeResult bake_file(const BakeRequest& request, const BakeProgress& progress) {
     auto t0 = std::chrono::steady_clock::now();
     BakeResult result;
     try {

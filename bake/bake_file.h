@@ -39,8 +39,10 @@ struct BakeResult {
     BakeStats stats;                                          // clustering and fitting (baked only)
 };
 
-// The options that shape the asset, as a `bake` (or `cluster`) command line in a fixed order: every
-// clustering and bounds option but the thread count, which changes nothing in the output.
+// The options that shape the asset, as a `bake` (or `cluster`) command line in a fixed order: the method,
+// the cluster sizes, the method's own options (k-means: --seed --k0 --iterations, then --presplit or
+// --coarse-morton; vco: --cache; morton: none) and, when fitting, the bounds options. Not the thread
+// count, which changes nothing in the output, nor another method's options.
 std::string options_text(const ClusterOptions& clustering, const BoundsOptions& bounds, bool fit);
 
 // The source section's text (docs/FORMAT.md): the tool, the options, the input hash and the files.
@@ -48,8 +50,7 @@ std::string source_text(const SourceFiles& source, const ClusterOptions& cluster
                         bool fit);
 
 // Never throws: every failure (bad input, unwritable output, out of memory) comes back as `failed` with
-// its line, and leaves whatever was at the output untouched. `progress` as in cluster_scene.
-BakeResult bake_file(const BakeRequest& request,
-                     const std::function<void(size_t, size_t, size_t, size_t)>& progress = {});
+// its line, and leaves whatever was at the output untouched.
+BakeResult bake_file(const BakeRequest& request, const BakeProgress& progress = {});
 
 }  // namespace cb

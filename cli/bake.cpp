@@ -1,18 +1,19 @@
 // clusterbake cluster and bake: load a scene, cluster it (and fit bounds: bake), write the asset.
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
-
-#include <unistd.h>
+#include <string>
 
 #include "args.h"
 #include "bake_file.h"
 #include "commands.h"
 #include "load.h"
+#include "progress.h"
 #include "timing.h"
 
 namespace cb::cli {
@@ -29,9 +30,9 @@ std::string output_problem(const std::string& out, bool force) {
 }
 
 // `cluster` (geometry and hierarchy only) and `bake` (with bounds) share this.
-int run_bake(const ClusterArgs& a) {
+int run_bake(const CLI::App* c, const ClusterArgs& a) {
     cb::BakeRequest request;
-    if (!parse_request(a, request)) return exit_usage;
+    if (!parse_request(a, request) || refuse_unused_by_method(c, request.clustering.method)) return exit_usage;
     if (a.force && a.if_changed) {
         std::fprintf(stderr, "clusterbake: --force and --if-changed contradict each other\n");
         return exit_usage;
@@ -40,15 +41,27 @@ int run_bake(const ClusterArgs& a) {
     request.output = a.out;
     if (!usage_ok(output_problem(a.out, a.force))) return exit_usage;
 
-    // Progress once a bake has taken a second, on a terminal only, overwritten in place on stderr.
-    bool shown = false, terminal = !a.quiet && isatty(STDERR_FILENO);
+    // Progress once a bake has taken a second, on a terminal only: one line redrawn in place on stderr, a
+    // bar and the time left for each stage (clustering, then bounds fitting).
+    ProgressLine line(!a.quiet);
     auto t0 = std::chrono::steady_clock::now();
-    cb::BakeResult r = cb::bake_file(request, [&](size_t m, size_t mc, size_t c, size_t cc) {
-        if (!terminal || cb::seconds_since(t0) < 1) return;
-        std::fprintf(stderr, "\rclustering mesh %zu/%zu: chunk %zu/%zu   ", m + 1, mc, c, cc);
-        shown = true;
-    });
-    if (shown) std::fprintf(stderr, "\n");
+    bool fitting = false;
+    cb::BakeProgress progress;
+    progress.clustering = [&](size_t m, size_t mc, size_t c, size_t cc) {
+        if (!line.on() || cb::seconds_since(t0) < 1) return;
+        const double fraction = (double(m) + (cc ? double(c) / double(cc) : 1.0)) / double(std::max<size_t>(mc, 1));
+        line.show(fraction, "clustering mesh " + std::to_string(m + 1) + "/" + std::to_string(mc));
+    };
+    progress.bounds = [&](size_t done, size_t total) {
+        if (!line.on()) return;
+        if (!fitting) line.restart(), fitting = true;  // the time left is the fitting's own
+        if (cb::seconds_since(t0) < 1) return;
+        line.show(total ? double(done) / double(total) : 1.0,
+                  "fitting bounds: " + std::to_string(done / 1000) + "k of " + std::to_string(total / 1000) +
+                      "k cluster triangles");
+    };
+    cb::BakeResult r = cb::bake_file(request, progress);
+    line.clear();
     if (r.status == cb::BakeStatus::failed) {
         std::fprintf(stderr, "%s\n", r.error.c_str());
         return exit_bad_input;
@@ -154,7 +167,7 @@ Command add_cluster(CLI::App& app) {
     CLI::App* c = app.add_subcommand("cluster",
                                      "Cluster every mesh into coarse and fine clusters and write an asset (no bounds)");
     add_common(c, *a);
-    return {c, [a] { return run_bake(*a); }};
+    return {c, [c, a] { return run_bake(c, *a); }};
 }
 
 Command add_bake(CLI::App& app) {
@@ -163,7 +176,7 @@ Command add_bake(CLI::App& app) {
     CLI::App* c = app.add_subcommand("bake", "Load, cluster, fit bounding volumes and write the asset");
     add_common(c, *a);
     add_bounds_flags(c, *a);
-    return {c, [a] { return run_bake(*a); }};
+    return {c, [c, a] { return run_bake(c, *a); }};
 }
 
 }  // namespace cb::cli

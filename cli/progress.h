@@ -18,6 +18,9 @@ public:
 
     bool on() const { return on_; }
 
+    // A new stage: the time left is reckoned from now.
+    void restart() { start_ = std::chrono::steady_clock::now(); }
+
     // `fraction` of the work (0 to 1) is done; `text` follows the bar.
     void show(double fraction, const std::string& text, bool force = false) {
         if (!on_) return;

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <filesystem>
 #include <numeric>
 #include <random>
@@ -494,4 +495,36 @@ TEST(Cluster, CityModelAtHugeCoordinates) {
     double mean_extent =
         mean_xy_extent(m.positions.data(), m.indices.data(), h, [](double w, double h) { return std::max(w, h); });
     EXPECT_LT(mean_extent, 40.0) << "fine clusters of a 524 m terrain should span metres, not the whole site";
+}
+
+// Bounds fitting reports its progress by cluster triangles, from one thread at a time, rising to the total
+// (every fine and coarse cluster's triangles), and fits the same volumes as without a report.
+TEST(Cluster, BoundsFittingReportsItsProgress) {
+    cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    cb::ClusterOptions o;
+    cb::BakeStats stats;
+    const std::vector<cb::AssetMesh> clustered = cb::cluster_scene(scene, o, stats);
+    size_t expected = 0;
+    for (const cb::AssetMesh& m : clustered) expected += 2 * m.triangles.size() / 3;  // fine, then coarse
+    for (unsigned threads : {1u, 2u, 4u}) {
+        SCOPED_TRACE(threads);
+        std::vector<cb::AssetMesh> reported = clustered, silent = clustered;
+        std::vector<std::pair<size_t, size_t>> calls;
+        std::atomic<int> inside{0};
+        bool overlapped = false;
+        cb::BoundsOptions b;
+        cb::fit_scene_bounds(reported, b, threads, stats, [&](size_t done, size_t total) {
+            overlapped |= inside.fetch_add(1) != 0;
+            calls.emplace_back(done, total);
+            inside.fetch_sub(1);
+        });
+        cb::fit_scene_bounds(silent, b, threads, stats);
+        EXPECT_FALSE(overlapped);
+        ASSERT_FALSE(calls.empty());
+        for (const auto& c : calls) EXPECT_EQ(c.second, expected);
+        EXPECT_TRUE(std::is_sorted(calls.begin(), calls.end()));
+        EXPECT_EQ(calls.back().first, expected);
+        if (threads == 1) EXPECT_GT(calls.size(), 100u);  // one a cluster
+        EXPECT_EQ(cb::encode_asset(reported, scene.instances), cb::encode_asset(silent, scene.instances));
+    }
 }
