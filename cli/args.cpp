@@ -32,16 +32,24 @@ const std::vector<std::string>& cluster_shape_flags() {
     return names;
 }
 
-bool refuse_unused_by_method(const CLI::App* c, cb::ClusterMethod method) {
+std::string unused_by_method_error(const CLI::App* c, cb::ClusterMethod method) {
     const std::string name = cb::method_name(method);
-    const std::vector<std::string> kmeans = {"--seed", "--k0", "--iterations", "--presplit", "--coarse-morton"};
-    if (method != cb::ClusterMethod::vco && refuse_given(c, {"--cache"}, "an option of vco, and the method is " + name))
-        return true;
-    if (method != cb::ClusterMethod::kmeans &&
-        refuse_given(c, kmeans, "an option of kmeans, and the method is " + name))
-        return true;
-    return !first_given(c, {"--coarse-morton"}).empty() &&
-        refuse_given(c, {"--presplit"}, "with --coarse-morton no k-means tree grows in presplit chunks");
+    auto unused = [&](const std::vector<std::string>& names, const std::string& why) {
+        const std::string given = first_given(c, names);
+        return given.empty() ? given : given + " does nothing here: " + why;
+    };
+    std::string error;
+    if (method != cb::ClusterMethod::vco) error = unused({"--cache"}, "an option of vco, and the method is " + name);
+    if (error.empty() && method != cb::ClusterMethod::kmeans)
+        error = unused({"--seed", "--k0", "--iterations", "--presplit", "--coarse-morton"},
+                       "an option of kmeans, and the method is " + name);
+    if (error.empty() && !first_given(c, {"--coarse-morton"}).empty())
+        error = unused({"--presplit"}, "with --coarse-morton no k-means tree grows in presplit chunks");
+    return error;
+}
+
+bool refuse_unused_by_method(const CLI::App* c, cb::ClusterMethod method) {
+    return !usage_ok(unused_by_method_error(c, method));
 }
 
 std::string threads_help(const std::string& what) {

@@ -35,8 +35,10 @@ void add_clustering_flags(CLI::App* c, ClusterArgs& a);
 const std::vector<std::string>& cluster_shape_flags();
 
 // When an option of another clustering method than `method` was given (--cache is vco's, --seed, --k0,
-// --iterations, --presplit and --coarse-morton k-means'), or --presplit with --coarse-morton: the
-// refuse_given line, and true.
+// --iterations, --presplit and --coarse-morton k-means'), or --presplit with --coarse-morton: "NAME does
+// nothing here: WHY"; otherwise empty. refuse_unused_by_method prints it as refuse_given does, and says
+// whether it did.
+std::string unused_by_method_error(const CLI::App* c, ClusterMethod method);
 bool refuse_unused_by_method(const CLI::App* c, ClusterMethod method);
 
 // The help text of --threads: the same default, all hardware threads, in every command.

@@ -34,13 +34,13 @@ struct BatchArgs {
 };
 
 // The per-file options of a manifest line over the batch's own; the error line, or empty.
-std::string job_request(const BatchArgs& a, const BatchJob& job, BakeRequest& out) {
+std::string job_request(const CLI::App* batch_app, const BatchArgs& a, const BatchJob& job, BakeRequest& out) {
     ClusterArgs args = a.bake;
     args.options.threads = 0;  // the batch's --threads is the cores it shares; a line may cap its own file
+    CLI::App line;
+    add_clustering_flags(&line, args);
+    add_bounds_flags(&line, args);
     if (!job.args.empty()) {
-        CLI::App line;
-        add_clustering_flags(&line, args);
-        add_bounds_flags(&line, args);
         std::vector<std::string> reversed(job.args.rbegin(), job.args.rend());  // CLI11 takes them backwards
         try {
             line.parse(reversed);
@@ -49,6 +49,9 @@ std::string job_request(const BatchArgs& a, const BatchJob& job, BakeRequest& ou
         }
     }
     std::string error = request_error(args, out);
+    // An option of another method than this file's, on its line or the batch's own command line.
+    if (error.empty()) error = unused_by_method_error(&line, out.clustering.method);
+    if (error.empty()) error = unused_by_method_error(batch_app, out.clustering.method);
     if (!error.empty()) return job.origin + ": " + error;
     out.input = job.input;
     out.output = job.output;
@@ -89,7 +92,7 @@ std::string thousands(uint64_t n) {
     return out;
 }
 
-int run_batch_command(const BatchArgs& a) {
+int run_batch_command(const CLI::App* c, const BatchArgs& a) {
     std::vector<BatchJob> jobs;
     try {
         jobs = plan_batch(a.inputs, a.outdir, &std::cin);
@@ -99,7 +102,7 @@ int run_batch_command(const BatchArgs& a) {
     }
     std::vector<BakeRequest> requests(jobs.size());
     for (size_t i = 0; i < jobs.size(); ++i) {
-        std::string error = job_request(a, jobs[i], requests[i]);
+        std::string error = job_request(c, a, jobs[i], requests[i]);
         if (!error.empty()) {
             std::fprintf(stderr, "clusterbake: %s\n", error.c_str());
             return exit_usage;
@@ -269,7 +272,7 @@ Command add_batch(CLI::App& app) {
     c->add_flag("--commands", a->commands, "Bake nothing: print each file's `clusterbake bake` command line");
     c->add_flag("--json", a->json, "Print summary.json on stdout instead of the table");
     c->add_flag("-q,--quiet", a->quiet, "No progress line and no line per file");
-    return {c, [a] { return run_batch_command(*a); }};
+    return {c, [c, a] { return run_batch_command(c, *a); }};
 }
 
 }  // namespace cb::cli

@@ -160,6 +160,18 @@ TEST(BatchSource, OptionsTextNamesWhatShapesTheAssetAndNotTheThreads) {
     other.capsule_ratio = 2.5;
     EXPECT_NE(cb::options_text(a, bounds, true), cb::options_text(a, other, true));
     EXPECT_EQ(cb::options_text(a, bounds, false).find("--bounds"), std::string::npos);
+    // Only the method's own options: another method's would be refused on a bake command line.
+    EXPECT_EQ(cb::options_text(a, bounds, true).find("--cache"), std::string::npos);
+    b = a, b.vco_cache_size = 16;
+    EXPECT_EQ(cb::options_text(a, bounds, true), cb::options_text(b, bounds, true));
+    b.method = cb::ClusterMethod::vco;
+    EXPECT_NE(cb::options_text(b, bounds, true).find("--method vco --coarse 2048 --fine 16 --cache 16 --bounds"),
+              std::string::npos)
+        << cb::options_text(b, bounds, true);
+    b.method = cb::ClusterMethod::morton;
+    EXPECT_EQ(cb::options_text(b, bounds, true).find("--seed"), std::string::npos);
+    a.kmeans_coarse_from_tree = false;
+    EXPECT_NE(cb::options_text(a, bounds, true).find("--iterations 16 --coarse-morton --bounds"), std::string::npos);
 }
 
 TEST(BatchSource, TheHashCoversExternalBuffersAndMatchesARehash) {

@@ -515,7 +515,31 @@ TEST(Cli, OptionsACommandWouldIgnoreAreRefused) {
         std::string last = std::string(option).substr(std::string(option).rfind("--"));
         std::string name = last.substr(0, last.find(' '));
         expect_usage_error(run("stats " + cube + " " + option), name + " does nothing here", option);
+        // The same before any work in the commands that write: nothing is made.
+        const std::string out = scratch("ignored_method.cbk").string(), outdir = scratch("ignored_batch").string();
+        for (const char* command : {"bake ", "cluster "})
+            expect_usage_error(run(command + cube + " -o " + out + " " + option), name + " does nothing here",
+                               command + std::string(option));
+        expect_usage_error(run("batch " + cube + " -o " + outdir + " " + option), name + " does nothing here",
+                           std::string("batch ") + option);
+        EXPECT_FALSE(std::filesystem::exists(out)) << option;
+        EXPECT_FALSE(std::filesystem::exists(outdir)) << option;
     }
+    // A manifest line's method against the batch's own options, and a line's own options.
+    const std::filesystem::path folder = scratch("ignored_manifest");
+    std::filesystem::create_directories(folder);
+    std::filesystem::copy_file(cube, folder / "cube.obj", std::filesystem::copy_options::overwrite_existing);
+    const std::string manifest = (folder / "manifest.txt").string(), outdir = scratch("ignored_batch").string();
+    std::ofstream(manifest) << "cube.obj --method vco\n";
+    expect_usage_error(run("batch " + manifest + " -o " + outdir + " --seed 3"), "--seed does nothing here",
+                       "manifest --method vco, batch --seed");
+    std::ofstream(manifest) << "cube.obj --method morton --cache 8\n";
+    expect_usage_error(run("batch " + manifest + " -o " + outdir), "--cache does nothing here",
+                       "manifest --method morton --cache");
+    EXPECT_FALSE(std::filesystem::exists(outdir));
+    std::ofstream(manifest) << "cube.obj --method vco --cache 8\n";
+    EXPECT_EQ(run("batch " + manifest + " -o " + outdir + " -q").code, 0);
+    std::filesystem::remove_all(outdir), std::filesystem::remove_all(folder);
     // The box fitter and the capsule ratio shape only the volumes the asset does not store.
     EXPECT_EQ(run("stats " + asset + " --obb pca --capsule-ratio 3").code, 0);
     expect_usage_error(run("stats " + all + " --obb pca"), "--obb does nothing here", "all kinds stored");
