@@ -19,8 +19,9 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version",
                          "clusterbake " CB_VERSION " (asset format " + std::to_string(cb::asset_version) + ")");
     using namespace cb::cli;
-    const Command commands[] = {add_info(app),   add_cluster(app), add_bake(app),     add_batch(app), add_stats(app),
-                                add_report(app), add_heatmap(app), add_validate(app), add_query(app)};
+    const Command commands[] = {add_info(app),  add_cluster(app),    add_bake(app),    add_batch(app),
+                                add_stats(app), add_report(app),     add_heatmap(app), add_validate(app),
+                                add_query(app), add_export_gltf(app)};
 
     try {
         app.parse(argc, argv);
