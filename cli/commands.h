@@ -16,11 +16,12 @@ struct Command {
 Command add_info(CLI::App& app);     // info.cpp
 Command add_cluster(CLI::App& app);  // bake.cpp: cluster and bake
 Command add_bake(CLI::App& app);
-Command add_batch(CLI::App& app);     // batch.cpp
-Command add_stats(CLI::App& app);     // stats.cpp
-Command add_report(CLI::App& app);    // report.cpp
-Command add_heatmap(CLI::App& app);   // heatmap.cpp
-Command add_validate(CLI::App& app);  // validate.cpp
-Command add_query(CLI::App& app);     // query.cpp
+Command add_batch(CLI::App& app);        // batch.cpp
+Command add_stats(CLI::App& app);        // stats.cpp
+Command add_report(CLI::App& app);       // report.cpp
+Command add_heatmap(CLI::App& app);      // heatmap.cpp
+Command add_validate(CLI::App& app);     // validate.cpp
+Command add_query(CLI::App& app);        // query.cpp
+Command add_export_gltf(CLI::App& app);  // export_gltf.cpp
 
 }  // namespace cb::cli

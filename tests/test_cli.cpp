@@ -659,3 +659,89 @@ TEST(Cli, QuietSilencesProgressOnATerminal) {
     EXPECT_EQ(terminal_stderr("heatmap --size 32 -q -o " + png + " " + scene), "");
     std::filesystem::remove(png);
 }
+
+namespace {
+
+std::string slurp_binary(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+TEST(Cli, ExportGltfWritesAGlbAndItsSummary) {
+    const std::string asset = scratch("export.cbk").string(), glb = scratch("export.glb").string();
+    ASSERT_EQ(run("bake " + data("default_scene.glb") + " -o " + asset).code, 0);
+    auto counts = nlohmann::json::parse(run("validate --json " + asset).out);
+
+    CliRun r = run("export-gltf " + asset + " -o " + glb + " --boxes --cones --json");
+    ASSERT_EQ(r.code, 0) << r.err;
+    auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["tool"].get<std::string>().rfind("clusterbake ", 0), 0u);
+    EXPECT_EQ(j["level"], "fine");
+    EXPECT_EQ(j["clusters"], counts["fine_clusters"]);
+    EXPECT_EQ(j["triangles"], counts["triangles"]);
+    EXPECT_EQ(j["instances"], counts["instances"]);
+    EXPECT_EQ(j["primitives"].get<size_t>(), j["clusters"].get<size_t>() + j["line_primitives"].get<size_t>());
+    EXPECT_GT(j["line_primitives"].get<size_t>(), 0u);
+    EXPECT_GT(j["cones"].get<size_t>(), 0u);
+    EXPECT_GE(j["colours"].get<size_t>(), 3u);
+    EXPECT_LE(j["colours"].get<size_t>(), 12u);
+    std::string bytes = slurp_binary(glb);
+    EXPECT_EQ(j["bytes"].get<size_t>(), bytes.size());
+    EXPECT_EQ(bytes.substr(0, 4), "glTF");
+
+    CliRun coarse = run("export-gltf " + asset + " -o " + glb + " --level coarse -q --json");
+    ASSERT_EQ(coarse.code, 0) << coarse.err;
+    EXPECT_EQ(coarse.err, "");
+    EXPECT_EQ(nlohmann::json::parse(coarse.out)["clusters"], counts["coarse_clusters"]);
+    CliRun plain = run("export-gltf " + asset + " -o " + glb);
+    EXPECT_EQ(plain.code, 0);
+    EXPECT_NE(plain.out.find(" -> " + glb + ": "), std::string::npos) << plain.out;
+    std::filesystem::remove(asset);
+    std::filesystem::remove(glb);
+}
+
+TEST(Cli, ExportGltfUsageErrorsWriteNothing) {
+    const std::string asset = scratch("export_usage.cbk").string(), glb = scratch("export_usage.glb").string();
+    ASSERT_EQ(run("bake " + data("small/cube.obj") + " -o " + asset).code, 0);  // boxes and cones only
+    auto refused = [&](const std::string& args, const std::string& out, const std::string& says) {
+        CliRun r = run("export-gltf " + args);
+        EXPECT_EQ(r.code, 2) << args;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << args << ": " << r.err;
+        EXPECT_NE(r.err.find(says), std::string::npos) << args << ": " << r.err;
+        EXPECT_EQ(r.out, "") << args;
+        EXPECT_FALSE(std::filesystem::exists(out)) << args;
+    };
+    refused(asset + " -o " + glb + " --level medium", glb, "--level takes fine or coarse");
+    refused(asset + " -o " + glb + " --boxes=cube", glb, "--boxes takes");
+    refused(asset + " -o " + glb + " --boxes=obb,sphere", glb, "no fine spheres");
+    refused(asset + " -o " + glb + " --level coarse --boxes=capsule", glb, "no coarse capsules");
+    refused(asset + " -o /nonexistent-folder/out.glb", "/nonexistent-folder/out.glb", "does not exist");
+    const std::string gltf = scratch("export_usage.gltf").string();
+    refused(asset + " -o " + gltf, gltf, "name it .glb");
+    refused(scratch("missing.cbk").string() + " -o " + glb, glb, "cannot open");
+
+    // A folder as the output: refused, and nothing is written into it.
+    auto folder = scratch("export_folder");
+    std::filesystem::create_directories(folder);
+    CliRun dir = run("export-gltf " + asset + " -o " + folder.string());
+    EXPECT_EQ(dir.code, 2);
+    EXPECT_NE(dir.err.find("not a regular file"), std::string::npos) << dir.err;
+    EXPECT_TRUE(std::filesystem::is_directory(folder));
+    EXPECT_TRUE(std::filesystem::is_empty(folder));
+    std::filesystem::remove_all(folder);
+
+    // An asset at the output path is kept, unless --force.
+    const std::string other = scratch("export_other.cbk").string();
+    std::filesystem::copy_file(asset, other, std::filesystem::copy_options::overwrite_existing);
+    const std::string before = slurp_binary(other);
+    CliRun kept = run("export-gltf " + asset + " -o " + other);
+    EXPECT_EQ(kept.code, 2);
+    EXPECT_NE(kept.err.find("is a clusterbake asset"), std::string::npos) << kept.err;
+    EXPECT_EQ(slurp_binary(other), before);
+    EXPECT_EQ(run("export-gltf " + asset + " -o " + other + " --force").code, 0);
+    EXPECT_EQ(slurp_binary(other).substr(0, 4), "glTF");
+    std::filesystem::remove(other);
+    std::filesystem::remove(asset);
+}
