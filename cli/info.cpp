@@ -40,6 +40,10 @@ int run_info(const std::vector<std::string>& files, bool json) {
                         (unsigned long long)info.unique_triangles, (unsigned long long)info.scene_triangles,
                         (unsigned long long)info.unique_vertices, (unsigned long long)info.scene_vertices);
             std::printf("  degenerate triangles %llu (kept)\n", (unsigned long long)info.degenerate_triangles);
+            if (info.polygons.total)
+                std::printf("  polygons %llu (%llu concave, %llu not simple, %llu degenerate)\n",
+                            (unsigned long long)info.polygons.total, (unsigned long long)info.polygons.concave,
+                            (unsigned long long)info.polygons.not_simple, (unsigned long long)info.polygons.degenerate);
             if (info.unreferenced_meshes)
                 std::printf("  meshes not used by the scene %llu (not loaded)\n",
                             (unsigned long long)info.unreferenced_meshes);

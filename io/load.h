@@ -4,6 +4,8 @@
 //
 // Every loader either returns a Scene whose indices are in range and whose positions are finite, or throws
 // LoadError with one line of the form "FILE: ELEMENT: PROBLEM". Degenerate triangles are kept and counted.
+// Faces of more than three vertices are triangulated in their plane and counted by shape
+// (polygon_triangulate.h).
 #pragma once
 
 #include <cstdint>

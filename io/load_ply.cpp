@@ -1,5 +1,5 @@
-// PLY reader: ASCII, binary little- and big-endian; vertex x/y/z, face lists (fan-triangulated) and
-// tristrips (-1 restarts). Every count is checked against the bytes that remain before anything is
+// PLY reader: ASCII, binary little- and big-endian; vertex x/y/z, face lists (triangulated by
+// polygon_triangulate.h) and tristrips (-1 restarts). Every count is checked against the bytes that remain before anything is
 // allocated, every index against the vertex count.
 //
 // Not OpenMesh's PLY reader, which the fuzzer breaks: it loops forever on a header without end_header,
@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "load.h"
+#include "polygon_triangulate.h"
 #include "text_scan.h"
 
 namespace cb {
@@ -209,6 +210,9 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
     Mesh mesh;
     std::vector<double> values;
     std::vector<uint32_t> list;
+    PolygonTriangulator triangulator;
+    bool vertices_read = false;
+    std::vector<uint32_t> pending;  // faces read before the vertices: count, then indices
     for (const Element& e : elements) {
         // Every record takes at least one byte (ASCII: one digit and a separator, so two): refuse counts the
         // remaining data cannot hold before reserving anything. An element without properties holds nothing.
@@ -246,8 +250,12 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
                 if (!keep) continue;
                 if (e.name == "face") {
                     if (list.size() < 3) body.fail(e.name, r, "face with " + std::to_string(list.size()) + " vertices");
-                    for (size_t i = 1; i + 1 < list.size(); ++i)
-                        mesh.indices.insert(mesh.indices.end(), {list[0], list[i], list[i + 1]});
+                    if (vertices_read) {
+                        triangulator.add(mesh.positions.data(), list.data(), list.size(), mesh.indices);
+                    } else {  // faces before vertices: triangulated once the positions are known
+                        pending.push_back(uint32_t(list.size()));
+                        pending.insert(pending.end(), list.begin(), list.end());
+                    }
                 } else {  // tristrips: runs separated by -1, every other triangle flipped
                     size_t run = 0;
                     for (size_t i = 0; i < list.size(); ++i) {
@@ -272,9 +280,14 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
                 mesh.positions.insert(mesh.positions.end(), {float(xyz[0]), float(xyz[1]), float(xyz[2])});
             }
         }
+        vertices_read = vertices_read || is_vertex;
     }
+    for (size_t at = 0; at < pending.size(); at += 1 + pending[at])
+        triangulator.add(mesh.positions.data(), &pending[at + 1], pending[at], mesh.indices);
 
-    return single_mesh_scene(std::move(mesh), name);
+    Scene scene = single_mesh_scene(std::move(mesh), name);
+    scene.report.polygons = triangulator.counts();
+    return scene;
 }
 
 }  // namespace cb

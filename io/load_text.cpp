@@ -4,12 +4,14 @@
 // faces that repeat a vertex (f 1 1 3), ignores line continuations and skips vertices it cannot parse
 // (inf, nan) so later faces point at the wrong vertex; its OFF reader rejects comments and headers run
 // together with their counts ("OFF8 6 12"). These formats are small enough to read exactly here, with an
-// error naming the line for anything malformed. STL goes through OpenMesh (load_mesh.cpp).
+// error naming the line for anything malformed. STL goes through OpenMesh (load_mesh.cpp). Faces of more
+// than three vertices are triangulated in their plane (polygon_triangulate.h).
 #include <cmath>
 #include <limits>
 #include <string_view>
 
 #include "load.h"
+#include "polygon_triangulate.h"
 #include "text_scan.h"
 
 namespace cb {
@@ -23,9 +25,14 @@ void push_position(Mesh& mesh, const double xyz[3], const std::string& where) {
     mesh.positions.insert(mesh.positions.end(), {float(xyz[0]), float(xyz[1]), float(xyz[2])});
 }
 
-void push_polygon(Mesh& mesh, const std::vector<uint32_t>& poly) {
-    for (size_t i = 1; i + 1 < poly.size(); ++i)
-        mesh.indices.insert(mesh.indices.end(), {poly[0], poly[i], poly[i + 1]});
+void push_polygon(PolygonTriangulator& triangulator, Mesh& mesh, const std::vector<uint32_t>& poly) {
+    triangulator.add(mesh.positions.data(), poly.data(), poly.size(), mesh.indices);
+}
+
+Scene counted_scene(Mesh mesh, const std::string& name, const PolygonTriangulator& triangulator) {
+    Scene scene = single_mesh_scene(std::move(mesh), name);
+    scene.report.polygons = triangulator.counts();
+    return scene;
 }
 
 }  // namespace
@@ -37,6 +44,7 @@ Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name)
     std::string line;
     std::vector<std::string_view> tok;
     std::vector<uint32_t> poly;
+    PolygonTriangulator triangulator;
     bool saw_any = false;
     while (reader.next(line, true)) {
         split(line, tok);
@@ -65,12 +73,12 @@ Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name)
                 poly.push_back(uint32_t(resolved));
             }
             if (poly.size() < 3) throw LoadError(where + ": face with " + std::to_string(poly.size()) + " vertices");
-            push_polygon(mesh, poly);
+            push_polygon(triangulator, mesh, poly);
         }
         // vt, vn, g, o, s, l, p, usemtl, mtllib and the rest carry nothing shadows need.
     }
     if (!saw_any) throw LoadError(name + ": no vertices or faces (not an OBJ file?)");
-    return single_mesh_scene(std::move(mesh), name);
+    return counted_scene(std::move(mesh), name, triangulator);
 }
 
 Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name) {
@@ -122,6 +130,7 @@ Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name)
         push_position(mesh, xyz, where);
     }
     std::vector<uint32_t> poly;
+    PolygonTriangulator triangulator;
     for (long long f = 0; f < nf; ++f) {
         do {
             if (!reader.next(line, false))
@@ -140,9 +149,9 @@ Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name)
                                 " vertices)");
             poly.push_back(uint32_t(i));
         }
-        push_polygon(mesh, poly);  // anything after the indices is a face colour
+        push_polygon(triangulator, mesh, poly);  // anything after the indices is a face colour
     }
-    return single_mesh_scene(std::move(mesh), name);
+    return counted_scene(std::move(mesh), name, triangulator);
 }
 
 }  // namespace cb

@@ -41,6 +41,15 @@ struct Instance {
     std::string node_name;
 };
 
+// The faces of more than three vertices in an OBJ, OFF or PLY file, by how they were triangulated
+// (polygon_triangulate.h).
+struct PolygonCounts {
+    uint64_t total = 0;       // faces of 4 or more vertices
+    uint64_t concave = 0;     // simple but not convex in their plane (or with repeated vertices): ear clipping
+    uint64_t not_simple = 0;  // their projection crosses or touches itself: the fan, as written
+    uint64_t degenerate = 0;  // no area at all: the fan, as written
+};
+
 // Things the loader skipped or noticed; reported by `clusterbake info`, never silently dropped.
 struct LoadReport {
     uint32_t primitives = 0;            // triangle primitives loaded
@@ -48,6 +57,7 @@ struct LoadReport {
     uint32_t draco_primitives = 0;      // decoded from KHR_draco_mesh_compression
     uint64_t degenerate_triangles = 0;  // repeated index or zero area, kept in the mesh
     uint64_t unreferenced_meshes = 0;   // glTF meshes no node of the chosen scene uses
+    PolygonCounts polygons;             // OBJ, OFF and PLY faces of more than three vertices
     SourceFiles source;                 // the files read and their hash (load_scene only)
 };
 

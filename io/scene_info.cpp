@@ -14,6 +14,7 @@ SceneInfo describe(const Scene& scene) {
     info.instances = scene.instances.size();
     info.degenerate_triangles = scene.report.degenerate_triangles;
     info.unreferenced_meshes = scene.report.unreferenced_meshes;
+    info.polygons = scene.report.polygons;
     for (const Mesh& m : scene.meshes) {
         info.unique_triangles += m.triangle_count();
         info.unique_vertices += m.vertex_count();
@@ -48,6 +49,10 @@ nlohmann::json to_json(const SceneInfo& i) {
         {"scene_vertices", i.scene_vertices},
         {"degenerate_triangles", i.degenerate_triangles},
         {"unreferenced_meshes", i.unreferenced_meshes},
+        {"polygons", i.polygons.total},
+        {"concave_polygons", i.polygons.concave},
+        {"not_simple_polygons", i.polygons.not_simple},
+        {"degenerate_polygons", i.polygons.degenerate},
     };
     if (i.empty_bounds)
         j["world_bounds"] = nullptr;

@@ -16,6 +16,7 @@ struct SceneInfo {
     uint64_t scene_triangles = 0, scene_vertices = 0;    // each mesh counted per instance
     uint64_t degenerate_triangles = 0;                   // unique, kept in the meshes
     uint64_t unreferenced_meshes = 0;
+    PolygonCounts polygons;  // OBJ, OFF and PLY faces of more than three vertices, by shape
     std::array<double, 3> world_min{0, 0, 0}, world_max{0, 0, 0};  // exact over every instanced vertex
     bool empty_bounds = true;
 };

@@ -1,0 +1,67 @@
+// Triangles from the polygon faces of OBJ, OFF and PLY files.
+//
+// A polygon is triangulated in a projection onto the coordinate plane its Newell normal (the best-fit
+// plane's normal) points at most along; dropping a coordinate leaves the stored floats unchanged, so every
+// orientation test below is exact on the file's own numbers. Then:
+//   - convex (every turn the same way, the fan from the first vertex without zero-area triangles): the fan
+//     from the first vertex, exactly as written;
+//   - simple but not convex (reflex turns, collinear or repeated vertices): ear clipping, which gives
+//     triangles that cover the polygon and nothing else, none of zero area. Repeated consecutive vertices
+//     (by index or by position) are dropped first, so such a polygon gives fewer than n - 2 triangles.
+//     A polygon that touches itself only at vertices (a ring cut open along a bridge edge to its hole) is
+//     ear-clipped as well;
+//   - not simple (its projection crosses or overlaps itself, as a bow-tie or a non-planar polygon seen
+//     edge-on does, or winds round twice): the fan, as written, and counted;
+//   - degenerate (all vertices on one line or one point, no area at all): the fan, as written, and counted.
+// Every triangle keeps the polygon's winding.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "scene.h"
+
+namespace cb {
+
+enum class PolygonShape : uint8_t { triangle, convex, concave, not_simple, degenerate };
+
+// Holds the scratch space one polygon needs, so a loader's many polygons allocate once, and counts the
+// polygons (faces of 4 or more vertices) by shape.
+class PolygonTriangulator {
+public:
+    // Appends the triangles of the polygon `poly[0..n)` (indices into `xyz`, 3 floats per vertex, every one
+    // in range) to `out`. n < 3 appends nothing.
+    PolygonShape add(const float* xyz, const uint32_t* poly, size_t n, std::vector<uint32_t>& out) {
+        if (n == 3) {
+            out.push_back(poly[0]);
+            out.push_back(poly[1]);
+            out.push_back(poly[2]);
+            return PolygonShape::triangle;
+        }
+        if (n < 3) return PolygonShape::degenerate;
+        PolygonShape shape = add_polygon(xyz, poly, n, out);
+        ++counts_.total;
+        counts_.concave += shape == PolygonShape::concave;
+        counts_.not_simple += shape == PolygonShape::not_simple;
+        counts_.degenerate += shape == PolygonShape::degenerate;
+        return shape;
+    }
+
+    const PolygonCounts& counts() const { return counts_; }
+
+private:
+    PolygonShape add_polygon(const float* xyz, const uint32_t* poly, size_t n, std::vector<uint32_t>& out);
+
+    PolygonCounts counts_;
+    std::vector<uint32_t> ring_;  // the polygon without repeated consecutive vertices
+    std::vector<double> uv_;      // its projection, 2 per vertex
+    std::vector<int> turn_;       // orientation sign at each vertex
+    std::vector<uint32_t> prev_, next_;
+    std::vector<uint32_t> order_;  // edges by least u, then the vertices an ear test looks at
+};
+
+// One polygon, without counting: the shape it was found to have.
+PolygonShape triangulate_polygon(const float* xyz, const uint32_t* poly, size_t n, std::vector<uint32_t>& out);
+
+}  // namespace cb
