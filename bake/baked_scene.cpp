@@ -9,12 +9,12 @@
 namespace cb {
 
 BakedScene bake_in_memory(const Scene& scene, const ClusterOptions& clustering, const BoundsOptions& bounds,
-                          BakeStats* stats) {
+                          BakeStats* stats, const BakeProgress& progress) {
     BakeStats local;
     BakeStats& s = stats ? *stats : local;
     BakedScene out;
-    out.meshes = cluster_scene(scene, clustering, s);
-    fit_scene_bounds(out.meshes, bounds, clustering.threads, s);
+    out.meshes = cluster_scene(scene, clustering, s, progress.clustering);
+    fit_scene_bounds(out.meshes, bounds, clustering.threads, s, progress.bounds);
     out.instances = scene.instances;
     return out;
 }
@@ -47,10 +47,10 @@ std::string mask_text(uint32_t mask) {
 }  // namespace
 
 BakedScene load_baked(const std::string& path, const ClusterOptions& clustering, const BoundsOptions& bounds,
-                      std::string* fitted_note) {
+                      std::string* fitted_note, const BakeProgress& progress) {
     if (!is_asset_file(path)) {
         Scene scene = load_scene(path);  // LoadError is a runtime_error naming the file
-        return bake_in_memory(scene, clustering, bounds);
+        return bake_in_memory(scene, clustering, bounds, nullptr, progress);
     }
     LoadedAsset asset;
     std::string error;
@@ -63,7 +63,7 @@ BakedScene load_baked(const std::string& path, const ClusterOptions& clustering,
         BoundsOptions b = bounds;
         b.mask = missing;
         BakeStats ignored;
-        fit_scene_bounds(fitted, b, clustering.threads, ignored);
+        fit_scene_bounds(fitted, b, clustering.threads, ignored, progress.bounds);
         for (size_t m = 0; m < fitted.size(); ++m)
             for (int level = 0; level < 2; ++level) {
                 LevelVolumes& to = level ? baked.meshes[m].coarse_volumes : baked.meshes[m].fine_volumes;

@@ -10,14 +10,14 @@
 
 namespace cb {
 
-// Clusters and fits the scene in memory (the same calls as `clusterbake bake`).
+// Clusters and fits the scene in memory (the same calls as `clusterbake bake`), reporting to `progress`.
 BakedScene bake_in_memory(const Scene& scene, const ClusterOptions& clustering, const BoundsOptions& bounds,
-                          BakeStats* stats = nullptr);
+                          BakeStats* stats = nullptr, const BakeProgress& progress = {});
 
 // A scene file (clustered and fitted with the options) or an asset (its clusters and stored volumes as they
 // are; the kinds in bounds.mask it does not hold are fitted with `bounds`). Throws std::runtime_error with a
 // one-line message naming the file.
 BakedScene load_baked(const std::string& path, const ClusterOptions& clustering, const BoundsOptions& bounds,
-                      std::string* fitted_note = nullptr);
+                      std::string* fitted_note = nullptr, const BakeProgress& progress = {});
 
 }  // namespace cb

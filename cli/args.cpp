@@ -2,9 +2,12 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 
 namespace cb::cli {
 
@@ -171,6 +174,30 @@ bool load_asset(const std::string& file, cb::LoadedAsset& out) {
     if (cb::read_asset_file(file, out, error)) return true;
     std::fprintf(stderr, "%s\n", error.c_str());
     return false;
+}
+
+BakeProgress bake_progress(ProgressLine& line) {
+    struct State {
+        std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+        bool fitting = false;
+    };
+    auto state = std::make_shared<State>();
+    auto late = [state] { return std::chrono::steady_clock::now() - state->start > std::chrono::seconds(1); };
+    BakeProgress progress;
+    progress.clustering = [&line, late](size_t m, size_t mc, size_t c, size_t cc) {
+        if (!line.on() || !late()) return;
+        const double fraction = (double(m) + (cc ? double(c) / double(cc) : 1.0)) / double(std::max<size_t>(mc, 1));
+        line.show(fraction, "clustering mesh " + std::to_string(m + 1) + "/" + std::to_string(mc));
+    };
+    progress.bounds = [&line, state, late](size_t done, size_t total) {
+        if (!line.on()) return;
+        if (!state->fitting) line.restart(), state->fitting = true;  // the time left is the fitting's own
+        if (!late()) return;
+        line.show(total ? double(done) / double(total) : 1.0,
+                  "fitting bounds: " + std::to_string(done / 1000) + "k of " + std::to_string(total / 1000) +
+                      "k cluster triangles");
+    };
+    return progress;
 }
 
 }  // namespace cb::cli

@@ -12,6 +12,7 @@
 #include "bake_file.h"
 #include "bounds.h"
 #include "cluster.h"
+#include "progress.h"
 
 namespace cb::cli {
 
@@ -80,6 +81,10 @@ bool parse_clustering(const ClusterArgs& a, ClusterOptions& clustering, BoundsOp
 // Leaves the input and output paths empty.
 std::string request_error(const ClusterArgs& a, BakeRequest& out);
 bool parse_request(const ClusterArgs& a, BakeRequest& out);
+
+// What a bake (bake, stats) draws on `line` once it has taken a second: the share of the clustering done,
+// then of the bounds fitting, each stage with its own time left.
+BakeProgress bake_progress(ProgressLine& line);
 
 // "X,Y,Z", three finite numbers; otherwise a one-line error and false.
 bool parse_light(const std::string& text, double* light);

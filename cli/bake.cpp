@@ -41,26 +41,9 @@ int run_bake(const CLI::App* c, const ClusterArgs& a) {
     request.output = a.out;
     if (!usage_ok(output_problem(a.out, a.force))) return exit_usage;
 
-    // Progress once a bake has taken a second, on a terminal only: one line redrawn in place on stderr, a
-    // bar and the time left for each stage (clustering, then bounds fitting).
+    // Progress once a bake has taken a second, on a terminal only: one line redrawn in place on stderr.
     ProgressLine line(!a.quiet);
-    auto t0 = std::chrono::steady_clock::now();
-    bool fitting = false;
-    cb::BakeProgress progress;
-    progress.clustering = [&](size_t m, size_t mc, size_t c, size_t cc) {
-        if (!line.on() || cb::seconds_since(t0) < 1) return;
-        const double fraction = (double(m) + (cc ? double(c) / double(cc) : 1.0)) / double(std::max<size_t>(mc, 1));
-        line.show(fraction, "clustering mesh " + std::to_string(m + 1) + "/" + std::to_string(mc));
-    };
-    progress.bounds = [&](size_t done, size_t total) {
-        if (!line.on()) return;
-        if (!fitting) line.restart(), fitting = true;  // the time left is the fitting's own
-        if (cb::seconds_since(t0) < 1) return;
-        line.show(total ? double(done) / double(total) : 1.0,
-                  "fitting bounds: " + std::to_string(done / 1000) + "k of " + std::to_string(total / 1000) +
-                      "k cluster triangles");
-    };
-    cb::BakeResult r = cb::bake_file(request, progress);
+    cb::BakeResult r = cb::bake_file(request, bake_progress(line));
     line.clear();
     if (r.status == cb::BakeStatus::failed) {
         std::fprintf(stderr, "%s\n", r.error.c_str());

@@ -73,7 +73,7 @@ int run_stats(const CLI::App* c, const ClusterArgs& a, cb::StatsOptions so) {
     cb::BakedScene baked;
     std::string note;
     try {
-        baked = cb::load_baked(a.file, clustering, bounds, &note);
+        baked = cb::load_baked(a.file, clustering, bounds, &note, bake_progress(progress));
     } catch (const std::runtime_error& e) {
         progress.clear();
         std::fprintf(stderr, "%s\n", e.what());

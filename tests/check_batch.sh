@@ -109,13 +109,21 @@ set -e
 rm -rf out1  # the reference again, with the edited file
 "$tool" batch lib -o out1 -q >/dev/null 2>&1 || true
 
-# SIGKILL at any moment: every output present is whole, and the same command finishes the rest.
+# SIGKILL at any moment: every output present is whole, and the same command finishes the rest. The last
+# kill waits for the first output, wherever it lands in time on a loaded machine.
 resumed_some=0
-for delay in 0.05 0.2 0.4 0.7 1.0 1.5; do
+for delay in 0.05 0.2 0.4 0.7 1.0 1.5 first-output; do
   rm -rf out3
   "$tool" batch lib -o out3 -j 2 -q >/dev/null 2>&1 &
   pid=$!
-  sleep "$delay"
+  if [ "$delay" = first-output ]; then
+    for _ in $(seq 6000); do
+      [ -n "$(find out3 -name '*.cbk' 2>/dev/null | head -1)" ] && break
+      sleep 0.01
+    done
+  else
+    sleep "$delay"
+  fi
   kill -9 "$pid" 2>/dev/null || true
   wait "$pid" 2>/dev/null || true
   if [ -d out3 ]; then
