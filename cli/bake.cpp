@@ -1,8 +1,6 @@
 // clusterbake cluster and bake: load a scene, cluster it (and fit bounds: bake), write the asset.
 #include <nlohmann/json.hpp>
 
-#include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -14,7 +12,6 @@
 #include "commands.h"
 #include "load.h"
 #include "progress.h"
-#include "timing.h"
 
 namespace cb::cli {
 namespace {
