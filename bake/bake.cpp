@@ -12,19 +12,37 @@
 namespace cb {
 
 // Every edge used exactly twice, once in each direction: a closed, consistently wound surface, on which
-// one-sided and two-sided shadows agree for points outside the solid.
+// one-sided and two-sided shadows agree for points outside the solid. Linear: each edge is listed under its
+// lower vertex (a counting sort), and each vertex's short list is checked on its own.
 bool is_closed(const Mesh& mesh) {
-    std::vector<uint64_t> edges;
-    edges.reserve(mesh.indices.size());
-    for (size_t t = 0; t < mesh.triangle_count(); ++t)
-        for (int k = 0; k < 3; ++k)
-            edges.push_back(uint64_t(mesh.indices[t * 3 + k]) << 32 | mesh.indices[t * 3 + (k + 1) % 3]);
-    if (edges.empty()) return false;
-    std::sort(edges.begin(), edges.end());
-    for (size_t i = 0; i < edges.size(); ++i) {
-        if (i + 1 < edges.size() && edges[i + 1] == edges[i]) return false;  // the same directed edge twice
-        uint64_t reverse = edges[i] << 32 | edges[i] >> 32;
-        if (!std::binary_search(edges.begin(), edges.end(), reverse)) return false;
+    const size_t vertices = mesh.vertex_count(), edges = mesh.indices.size();
+    if (edges == 0) return false;
+    std::vector<uint32_t> start(vertices + 1, 0);
+    auto each_edge = [&](auto&& f) {
+        for (size_t t = 0; t < edges; t += 3)
+            for (int k = 0; k < 3; ++k) f(mesh.indices[t + k], mesh.indices[t + (k + 1) % 3]);
+    };
+    each_edge([&](uint32_t a, uint32_t b) { ++start[std::min(a, b) + 1]; });
+    for (size_t v = 0; v < vertices; ++v) start[v + 1] += start[v];
+    // Entry: the other end, shifted, and whether the edge leaves the lower vertex. A loop edge (a, a) is its
+    // own reverse and must appear once.
+    std::vector<uint64_t> entry(edges);
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    each_edge([&](uint32_t a, uint32_t b) { entry[fill[std::min(a, b)]++] = uint64_t(std::max(a, b)) << 1 | (a < b); });
+    for (size_t v = 0; v < vertices; ++v) {
+        uint64_t* first = entry.data() + start[v];
+        uint64_t* last = entry.data() + start[v + 1];
+        std::sort(first, last);
+        for (uint64_t* e = first; e < last;) {
+            if (*e >> 1 == v) {  // loop edge
+                if (e + 1 < last && e[1] == e[0]) return false;
+                ++e;
+                continue;
+            }
+            if (last - e < 2 || (*e & 1) != 0 || e[1] != (*e | 1)) return false;  // both directions, once each
+            e += 2;
+            if (e < last && *e >> 1 == e[-1] >> 1) return false;  // a third use of the edge
+        }
     }
     return true;
 }

@@ -24,6 +24,9 @@ struct BakeStats {
     uint64_t valid_cones = 0, capsules = 0;  // fine and coarse clusters together
 };
 
+// Every edge used exactly twice, once in each direction (a closed, consistently wound surface).
+bool is_closed(const Mesh& mesh);
+
 // Mesh `m` of the scene in cluster order, ranges mesh-local.
 AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h);
 

@@ -52,20 +52,26 @@ std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indic
         order[t] = uint32_t(t);
     }
 
-    // Stable LSD radix sort, 16 bits per pass; passes where every key has the same digit are skipped.
-    std::vector<uint32_t> count(1 << 16);
-    for (int shift = 0; shift < 64; shift += 16) {
-        std::fill(count.begin(), count.end(), 0);
-        for (uint64_t k : keys) ++count[(k >> shift) & 0xffff];
-        if (triangle_count == 0 || count[(keys[0] >> shift) & 0xffff] == triangle_count) continue;
+    // Stable LSD radix sort, 11 bits per pass (a 2048-slot count stays in the first-level cache, where
+    // 16-bit digits scatter over 64k places), all six counts made in one read; passes where every key has
+    // the same digit are skipped.
+    constexpr int bits = 11, passes = 6;
+    constexpr uint64_t mask = (1u << bits) - 1;
+    std::vector<uint32_t> count(size_t(passes) << bits, 0);
+    for (uint64_t k : keys)
+        for (int p = 0; p < passes; ++p) ++count[(size_t(p) << bits) + ((k >> (p * bits)) & mask)];
+    for (int p = 0; p < passes && triangle_count > 0; ++p) {
+        uint32_t* c = &count[size_t(p) << bits];
+        const int shift = p * bits;
+        if (c[(keys[0] >> shift) & mask] == triangle_count) continue;
         uint32_t sum = 0;
-        for (uint32_t& c : count) {
-            uint32_t n = c;
-            c = sum;
+        for (size_t d = 0; d <= mask; ++d) {
+            uint32_t n = c[d];
+            c[d] = sum;
             sum += n;
         }
         for (size_t i = 0; i < triangle_count; ++i) {
-            uint32_t slot = count[(keys[i] >> shift) & 0xffff]++;
+            uint32_t slot = c[(keys[i] >> shift) & mask]++;
             keys_tmp[slot] = keys[i];
             order_tmp[slot] = order[i];
         }

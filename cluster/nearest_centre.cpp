@@ -2,6 +2,7 @@
 
 #include <flann/flann.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -13,20 +14,43 @@ const size_t flann_crossover = 40;
 
 size_t assign_nearest_brute(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,
                             float* nearest_d2) {
+    // Blocks of points transposed to one array per coordinate, so the scan over a block runs across points
+    // in vector lanes. Each distance still sums its six terms in coordinate order, and a centre replaces
+    // the best only when strictly nearer: the same floats and the same ties as a point-by-point scan.
+    constexpr size_t block = 64;
+    alignas(64) float x[6][block], best[block];
+    alignas(64) uint32_t best_c[block];
     size_t changed = 0;
-    for (size_t i = 0; i < n; ++i) {
-        const float* p = points + i * 6;
-        float best = INFINITY;
-        uint32_t best_c = 0;
+    for (size_t at = 0; at < n; at += block) {
+        const size_t m = std::min(block, n - at);
+        for (size_t i = 0; i < m; ++i)
+            for (int j = 0; j < 6; ++j) x[j][i] = points[(at + i) * 6 + j];
+        for (size_t i = m; i < block; ++i)
+            for (int j = 0; j < 6; ++j) x[j][i] = 0;
+        for (size_t i = 0; i < block; ++i) best[i] = INFINITY, best_c[i] = 0;
         for (size_t c = 0; c < k; ++c) {
             const float* q = centres + c * 6;
-            float d = 0;
-            for (int j = 0; j < 6; ++j) d += (p[j] - q[j]) * (p[j] - q[j]);
-            if (d < best) best = d, best_c = uint32_t(c);
+            const float q0 = q[0], q1 = q[1], q2 = q[2], q3 = q[3], q4 = q[4], q5 = q[5];
+            const uint32_t id = uint32_t(c);
+            for (size_t i = 0; i < block; ++i) {
+                float d = 0, e;
+                e = x[0][i] - q0, d += e * e;
+                e = x[1][i] - q1, d += e * e;
+                e = x[2][i] - q2, d += e * e;
+                e = x[3][i] - q3, d += e * e;
+                e = x[4][i] - q4, d += e * e;
+                e = x[5][i] - q5, d += e * e;
+                // Branch-free so that the compiler keeps the lanes: an all-ones mask where nearer.
+                const uint32_t nearer = 0u - uint32_t(d < best[i]);
+                best_c[i] = (id & nearer) | (best_c[i] & ~nearer);
+                best[i] = d < best[i] ? d : best[i];
+            }
         }
-        changed += assignment[i] != best_c;
-        assignment[i] = best_c;
-        nearest_d2[i] = best;
+        for (size_t i = 0; i < m; ++i) {
+            changed += assignment[at + i] != best_c[i];
+            assignment[at + i] = best_c[i];
+            nearest_d2[at + i] = best[i];
+        }
     }
     return changed;
 }

@@ -35,7 +35,7 @@ CompactMesh compact(const AssetMesh& m) {
     CompactMesh out;
     const uint32_t unseen = UINT32_MAX;
     std::vector<uint32_t> renumbered(m.positions.size() / 3, unseen);
-    std::vector<uint32_t> list;  // the current cluster's vertex list, in renumbered indices
+    std::vector<uint32_t> reused;  // the current cluster's earlier vertices, in order of first use
     uint32_t next = 0;
     for (const ClusterRange& r : m.fine) {
         if (r.count == 0 || r.count > 255)
@@ -48,7 +48,7 @@ CompactMesh compact(const AssetMesh& m) {
         f.triangle_count = uint8_t(r.count);
         // New vertices first, in order of first use, then reused ones in order of first use. A vertex too far
         // back for a 16-bit reference is stored again (same coordinates, so the same triangles).
-        std::vector<uint32_t> reused;
+        reused.clear();
         for (uint32_t t = r.first; t < r.first + r.count; ++t)
             for (int k = 0; k < 3; ++k) {
                 uint32_t v = m.triangles[size_t(t) * 3 + k];

@@ -336,6 +336,87 @@ TEST(Cluster, NearestCentreStrategiesAgree) {
     EXPECT_GE(std::count_if(a.begin(), a.end(), [&, i = size_t(0)](uint32_t x) mutable { return x == b[i++]; }), 2990);
 }
 
+// The point-by-point scan the blocked one must match bit for bit: the six terms summed in order, the first
+// strictly nearest centre kept.
+TEST(Cluster, BlockedNearestCentreScanMatchesThePlainOne) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-1, 1);
+    for (size_t n : {1, 63, 64, 65, 1000}) {
+        for (size_t k : {1, 2, 8, 13}) {
+            std::vector<float> points(n * 6), centres(k * 6);
+            for (float& p : points) p = u(rng);
+            for (float& c : centres) c = u(rng);
+            if (k > 2) std::copy_n(&centres[0], 6, &centres[(k - 1) * 6]);  // a tie: the lower index wins
+            if (n > 3) std::copy_n(&centres[6], 6, &points[3 * 6]);         // a point on a centre
+            std::vector<uint32_t> got(n, 7), want(n);
+            std::vector<float> got_d(n), want_d(n);
+            cb::assign_nearest_brute(points.data(), n, centres.data(), k, got.data(), got_d.data());
+            for (size_t i = 0; i < n; ++i) {
+                float best = INFINITY;
+                uint32_t best_c = 0;
+                for (size_t c = 0; c < k; ++c) {
+                    float d = 0;
+                    for (int j = 0; j < 6; ++j)
+                        d += (points[i * 6 + j] - centres[c * 6 + j]) * (points[i * 6 + j] - centres[c * 6 + j]);
+                    if (d < best) best = d, best_c = uint32_t(c);
+                }
+                want[i] = best_c, want_d[i] = best;
+            }
+            EXPECT_EQ(got, want) << n << " points, " << k << " centres";
+            EXPECT_EQ(got_d, want_d) << n << " points, " << k << " centres";
+        }
+    }
+}
+
+// The sort-based definition of a closed mesh, against which the linear check is compared.
+bool closed_by_sorting(const cb::Mesh& m) {
+    std::vector<uint64_t> edges;
+    for (size_t t = 0; t < m.triangle_count(); ++t)
+        for (int k = 0; k < 3; ++k)
+            edges.push_back(uint64_t(m.indices[t * 3 + k]) << 32 | m.indices[t * 3 + (k + 1) % 3]);
+    if (edges.empty()) return false;
+    std::sort(edges.begin(), edges.end());
+    for (size_t i = 0; i < edges.size(); ++i) {
+        if (i + 1 < edges.size() && edges[i + 1] == edges[i]) return false;
+        if (!std::binary_search(edges.begin(), edges.end(), edges[i] << 32 | edges[i] >> 32)) return false;
+    }
+    return true;
+}
+
+TEST(Cluster, ClosedMeshCheck) {
+    cb::Mesh cube;  // a unit cube, wound outward
+    for (int i = 0; i < 8; ++i)
+        cube.positions.insert(cube.positions.end(), {float(i & 1), float(i >> 1 & 1), float(i >> 2)});
+    cube.indices = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                    2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+    EXPECT_TRUE(cb::is_closed(cube));
+    EXPECT_TRUE(closed_by_sorting(cube));
+    std::vector<std::pair<const char*, cb::Mesh>> cases;
+    cb::Mesh open = cube;
+    open.indices.resize(open.indices.size() - 3);
+    cases.push_back({"a face missing", open});
+    cb::Mesh flipped = cube;
+    std::swap(flipped.indices[1], flipped.indices[2]);
+    cases.push_back({"a face flipped", flipped});
+    cb::Mesh doubled = cube;
+    doubled.indices.insert(doubled.indices.end(), {0, 2, 1, 0, 1, 2});
+    cases.push_back({"a face and its reverse added", doubled});
+    cb::Mesh loop = cube;
+    loop.indices.insert(loop.indices.end(), {0, 0, 2, 0, 2, 0});
+    cases.push_back({"loop edges, each once", loop});
+    cb::Mesh loop_twice = loop;
+    loop_twice.indices.insert(loop_twice.indices.end(), {0, 0, 2, 0, 2, 0});
+    cases.push_back({"loop edges twice", loop_twice});
+    cases.push_back({"no triangles", cb::Mesh{}});
+    for (const auto& [name, mesh] : cases) EXPECT_EQ(cb::is_closed(mesh), closed_by_sorting(mesh)) << name;
+    if (!fs::exists(CB_SHARED_DATA)) GTEST_SKIP() << "../shared/data is absent: the shared meshes are not checked";
+    for (const char* f : {"scanned/bunny.stl", "scanned/kitten.off", "scanned/horse.ply", "hard/non_manifold_wrap.obj",
+                          "hard/tube.obj", "hard/joined_tetrahedra.obj"}) {
+        cb::Scene s = cb::load_scene((fs::path(CB_SHARED_DATA) / f).string());
+        for (const cb::Mesh& m : s.meshes) EXPECT_EQ(cb::is_closed(m), closed_by_sorting(m)) << f;
+    }
+}
+
 TEST(Cluster, EveryMeshOfEverySharedFile) {
     if (!fs::exists(CB_SHARED_DATA)) GTEST_SKIP() << "../shared/data is absent";
     size_t files = cb::test::for_each_shared_scene([&](const std::string& path, const cb::Scene& scene) {
@@ -524,7 +605,9 @@ TEST(Cluster, BoundsFittingReportsItsProgress) {
         for (const auto& c : calls) EXPECT_EQ(c.second, expected);
         EXPECT_TRUE(std::is_sorted(calls.begin(), calls.end()));
         EXPECT_EQ(calls.back().first, expected);
-        if (threads == 1) EXPECT_GT(calls.size(), 100u);  // one a cluster
+        if (threads == 1) {
+            EXPECT_GT(calls.size(), 100u);  // one a cluster
+        }
         EXPECT_EQ(cb::encode_asset(reported, scene.instances), cb::encode_asset(silent, scene.instances));
     }
 }
