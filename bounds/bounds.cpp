@@ -819,13 +819,19 @@ Sphere ritter_sphere(const double* local, size_t n, const double* origin) {
 ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const uint32_t* triangle_ids, size_t count,
                          const BoundsOptions& options) {
     ClusterBounds out{};
-    // The cluster's distinct vertices, in double, world and local (around the centre of their box).
+    // The cluster's distinct vertices in order of first use, in double, world and local (around the centre
+    // of their box). A vertex is new when its stamp is not this call's: no sort, no clearing between calls.
+    thread_local std::vector<uint32_t> stamp;
+    thread_local uint32_t call = 0;
+    if (++call == 0) std::fill(stamp.begin(), stamp.end(), 0u), call = 1;
     std::vector<uint32_t> ids;
     ids.reserve(count * 3);
     for (size_t i = 0; i < count; ++i)
-        for (int k = 0; k < 3; ++k) ids.push_back(indices[size_t(triangle_ids[i]) * 3 + k]);
-    std::sort(ids.begin(), ids.end());
-    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+        for (int k = 0; k < 3; ++k) {
+            uint32_t v = indices[size_t(triangle_ids[i]) * 3 + k];
+            if (v >= stamp.size()) stamp.resize(size_t(v) + 1 + stamp.size() / 2, 0u);
+            if (stamp[v] != call) stamp[v] = call, ids.push_back(v);
+        }
     size_t n = ids.size();
     std::vector<double> world(n * 3), local(n * 3);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};

@@ -58,8 +58,9 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
 // ---- the building blocks, exposed for tests and benchmarks
 
 // Triangle indices sorted by the 63-bit Morton code of each triangle's box centre within the mesh bounds;
-// ties keep input order.
-std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count);
+// ties keep input order. The same for any thread count (0: all hardware threads).
+std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count,
+                                   unsigned threads = 1);
 
 // Hierarchical k-means++ over the triangles `tris` (reordered in place) with at most `max_size` per leaf;
 // appends the leaf sizes to `leaf_sizes` in order. `boxes` holds 6 floats (min xyz, max xyz) per triangle.

@@ -131,7 +131,7 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
         kmeans_split(boxes.data(), h.order.data(), triangle_count, o.coarse_size, o.kmeans_branching,
                      o.kmeans_max_iterations, o.seed, chunk_sizes);
     } else if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree) {
-        h.order = morton_order(positions, indices, triangle_count);
+        h.order = morton_order(positions, indices, triangle_count, o.threads);
         const size_t part = std::max<size_t>(o.kmeans_presplit, o.coarse_size),
                      parts = (triangle_count + part - 1) / part;
         std::vector<std::vector<uint32_t>> sizes(parts);
@@ -142,7 +142,7 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
         });
         for (const auto& s : sizes) chunk_sizes.insert(chunk_sizes.end(), s.begin(), s.end());
     } else {
-        h.order = morton_order(positions, indices, triangle_count);
+        h.order = morton_order(positions, indices, triangle_count, o.threads);
         for (size_t at = 0; at < triangle_count; at += o.coarse_size)
             chunk_sizes.push_back(uint32_t(std::min<size_t>(o.coarse_size, triangle_count - at)));
     }

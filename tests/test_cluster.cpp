@@ -277,6 +277,21 @@ TEST(Cluster, MortonOrderIsZOrder) {
     for (size_t i = 0; i < 8; ++i) EXPECT_EQ(corner_of_triangle[order[i]], int(i));
 }
 
+TEST(Cluster, MortonOrderIsTheSameInParallelAndStable) {
+    // 320,000 shuffled triangles (several parts of the parallel sort), half of them duplicated in place so
+    // that equal keys must keep their input order.
+    TestMesh m = grid(400, 200, 1, 0, 4);
+    const size_t half = m.indices.size() / 2;
+    m.indices.insert(m.indices.end(), m.indices.begin(), m.indices.begin() + std::ptrdiff_t(half));
+    std::vector<uint32_t> one = cb::morton_order(m.positions.data(), m.indices.data(), m.triangles(), 1);
+    for (unsigned threads : {2u, 3u, 0u})
+        EXPECT_EQ(cb::morton_order(m.positions.data(), m.indices.data(), m.triangles(), threads), one) << threads;
+    // Stable: each copy, with the same key as its original, comes after it.
+    std::vector<uint32_t> position(m.triangles());
+    for (size_t i = 0; i < one.size(); ++i) position[one[i]] = uint32_t(i);
+    for (size_t t = 0; t < half / 3; ++t) EXPECT_LT(position[t], position[t + m.triangles() - half / 3]) << t;
+}
+
 TEST(Cluster, KMeansIsMoreCompactThanMortonSlices) {
     TestMesh m = grid(100, 100, 1, 0, 9);
     auto mean_extent = [&](cb::ClusterMethod method) {
