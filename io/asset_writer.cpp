@@ -37,6 +37,9 @@ CompactMesh compact(const AssetMesh& m) {
     std::vector<uint32_t> renumbered(m.positions.size() / 3, unseen);
     std::vector<uint32_t> reused;  // the current cluster's earlier vertices, in order of first use
     uint32_t next = 0;
+    out.positions.reserve(m.positions.size() + m.positions.size() / 8);  // some vertices are stored twice
+    out.local.reserve(m.triangles.size());
+    out.fine.reserve(m.fine.size());
     for (const ClusterRange& r : m.fine) {
         if (r.count == 0 || r.count > 255)
             throw std::invalid_argument("a fine cluster holds " + std::to_string(r.count) +
@@ -191,6 +194,7 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
         at = aligned(at + p.bytes.size());
     }
     std::vector<uint8_t> out(sizeof(AssetHeader), 0);
+    out.reserve(aligned(at));  // one allocation for the whole file
     append(out, table.data(), table.size());
     for (size_t s = 0; s < sections.size(); ++s) {
         out.resize(table[s].offset, 0);  // zero padding up to the aligned offset
