@@ -71,13 +71,13 @@ void validate_scene(Scene& scene, const std::string& name) {
     scene.report.degenerate_triangles = degenerate;
 }
 
-Scene single_mesh_scene(Mesh mesh, const std::string& name) {
+Scene single_mesh_scene(Mesh mesh, const std::string& name, const Origin& origin) {
     mesh.name = name;
     mesh.primitives.push_back({0, uint32_t(mesh.triangle_count()), false});
     Scene scene;
     scene.report.primitives = 1;
     scene.meshes.push_back(std::move(mesh));
-    scene.instances.push_back({0, identity_transform(), name});
+    scene.instances.push_back({0, with_origin(identity_transform(), origin), name});
     validate_scene(scene, name);
     return scene;
 }

@@ -1,6 +1,7 @@
 // Scene loading: glTF 2.0 (.gltf, .glb, KHR_draco_mesh_compression, KHR_mesh_quantization) through
-// tinygltf and Draco; STL through OpenMesh's reader; OBJ, OFF and PLY through readers of our own, since
-// OpenMesh's lose faces or fail under fuzzing (see load_text.cpp and load_ply.cpp).
+// tinygltf and Draco; binary STL through OpenMesh's reader; OBJ, OFF, PLY and ASCII STL through readers of
+// our own, since OpenMesh's lose faces, precision or fail under fuzzing (see load_text.cpp and load_ply.cpp).
+// Each mesh is stored relative to an origin of its own, carried by its instances (mesh_frame.h).
 //
 // Every loader either returns a Scene whose indices are in range and whose positions are finite, or throws
 // LoadError with one line of the form "FILE: ELEMENT: PROBLEM". Degenerate triangles are kept and counted.
@@ -13,6 +14,7 @@
 #include <string>
 #include <string_view>
 
+#include "mesh_frame.h"
 #include "scene.h"
 #include "source_files.h"
 
@@ -50,9 +52,11 @@ Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name)
 Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name);
 Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name);
 Scene load_stl_memory(const uint8_t* data, size_t size, const std::string& name);
+Scene load_ascii_stl_memory(const uint8_t* data, size_t size, const std::string& name);  // after the 'solid' check
 
-// A scene of one mesh, one identity instance and one single-sided primitive, validated.
-Scene single_mesh_scene(Mesh mesh, const std::string& name);
+// A scene of one mesh, one instance that places the mesh's origin (mesh_frame.h) and one single-sided
+// primitive, validated.
+Scene single_mesh_scene(Mesh mesh, const std::string& name, const Origin& origin = {0, 0, 0});
 
 // Throws LoadError unless every index is in range and every position finite; fills report.degenerate_triangles.
 void validate_scene(Scene& scene, const std::string& name);

@@ -557,7 +557,8 @@ private:
             if (size_t(node.mesh) >= ctx_.model.meshes.size())
                 node_ctx.fail("mesh " + std::to_string(node.mesh) + " does not exist");
             if (scene_.instances.size() >= max_instances) node_ctx.fail("more than 4 million instances");
-            scene_.instances.push_back({mesh_id(node.mesh), world, node.name});
+            uint32_t id = mesh_id(node.mesh);
+            scene_.instances.push_back({id, with_origin(world, origins_[id]), node.name});
         }
         on_path_[node_index] = true;
         for (int child : node.children) visit(child, world);
@@ -575,14 +576,16 @@ private:
             load_primitive(pctx, size_t(gltf_mesh), p, src.primitives[p], mesh, scene_.report);
         }
         mesh_slot_[gltf_mesh] = int(scene_.meshes.size());
+        origins_.push_back(shift_exactly(mesh.positions));  // once per mesh, composed into each of its instances
         scene_.meshes.push_back(std::move(mesh));
         return uint32_t(mesh_slot_[gltf_mesh]);
     }
 
     Context ctx_;
     Scene scene_;
-    std::vector<int> mesh_slot_;  // glTF mesh index -> Scene mesh index, -1 until first used
-    std::vector<bool> on_path_;   // nodes on the current root-to-node path, for cycle detection
+    std::vector<int> mesh_slot_;   // glTF mesh index -> Scene mesh index, -1 until first used
+    std::vector<Origin> origins_;  // per Scene mesh: its frame's origin in the glTF mesh's coordinates
+    std::vector<bool> on_path_;    // nodes on the current root-to-node path, for cycle detection
 };
 
 }  // namespace

@@ -1,4 +1,4 @@
-// STL loading (ASCII and binary) through OpenMesh's reader.
+// Binary STL loading through OpenMesh's reader (ASCII STL is read in double by load_text.cpp).
 //
 // OpenMesh's own mesh kernels are half-edge structures: they drop or split faces that are non-manifold or
 // repeat a vertex. Shadows need every triangle exactly as written, so the readers feed a flat importer
@@ -16,7 +16,6 @@
 #include <sstream>
 
 #include "load.h"
-#include "text_scan.h"
 
 namespace cb {
 namespace {
@@ -129,28 +128,6 @@ void check_stl_kind(const uint8_t* data, size_t size, const std::string& name) {
                     ") nor ASCII STL (starts with 'solid')");
 }
 
-// OpenMesh's ASCII STL reader parses numbers with iostreams, which cannot read inf or nan and then goes on
-// with whatever the stream left behind. Every coordinate it will read is checked here first, so a bad one
-// is reported by line instead of turning into a wrong vertex. (Facet normals are not used, so they may
-// be anything, as real exporters write.)
-void check_ascii_stl(const uint8_t* data, size_t size, const std::string& name) {
-    LineReader reader{std::string_view(reinterpret_cast<const char*>(data), size)};
-    std::string line;
-    std::vector<std::string_view> tok;
-    while (reader.next(line, false)) {
-        split(line, tok);
-        if (tok.empty() || tok[0] != "vertex") continue;
-        if (tok.size() != 4)
-            throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": vertex needs 3 coordinates");
-        for (size_t k = 1; k < 4; ++k) {
-            double v;
-            if (!parse_double(tok[k], v) || !std::isfinite(v))
-                throw LoadError(name + ": line " + std::to_string(reader.line_number) + ": " + quoted(tok[k]) +
-                                " is not a finite number");
-        }
-    }
-}
-
 }  // namespace
 
 Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name) {
@@ -165,6 +142,10 @@ Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, cons
 
 Scene load_stl_memory(const uint8_t* data, size_t size, const std::string& name) {
     if (size == 0) throw LoadError(name + ": empty file");
+    if (!looks_like_binary_stl(data, size)) {
+        check_stl_kind(data, size, name);
+        return load_ascii_stl_memory(data, size, name);
+    }
 
     // OpenMesh reports problems on its own log streams; keep them off the user's terminal. The IO manager
     // is a process-wide singleton, so reads are serialised.
@@ -180,12 +161,7 @@ Scene load_stl_memory(const uint8_t* data, size_t size, const std::string& name)
 
     FlatImporter importer;
     IO::Options options;
-    if (looks_like_binary_stl(data, size)) {
-        options += IO::Options::Binary;
-    } else {
-        check_stl_kind(data, size, name);
-        check_ascii_stl(data, size, name);
-    }
+    options += IO::Options::Binary;
     std::istringstream stream(std::string(reinterpret_cast<const char*>(data), size), std::ios::binary);
     bool ok = IO::IOManager().read(stream, "stl", importer, options);
     if (!importer.error.empty()) throw LoadError(name + ": " + importer.error);
@@ -198,9 +174,10 @@ Scene load_stl_memory(const uint8_t* data, size_t size, const std::string& name)
                             std::to_string(v) + ")");
     }
     Mesh mesh;
-    mesh.positions.assign(importer.points.begin(), importer.points.end());
+    mesh.positions.assign(importer.points.begin(), importer.points.end());  // floats in the file: exact
     mesh.indices = std::move(importer.triangles);
-    return single_mesh_scene(std::move(mesh), name);
+    Origin origin = shift_exactly(mesh.positions);
+    return single_mesh_scene(std::move(mesh), name, origin);
 }
 
 }  // namespace cb

@@ -206,13 +206,19 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
     const uint64_t vertex_count = vertex_el->count;
     if (vertex_count > std::numeric_limits<uint32_t>::max()) throw LoadError(name + ": more than 2^32-1 vertices");
 
+    // Coordinates that are floats in the file keep them exactly (shift_exactly); text and doubles are
+    // centred in double (store_centred).
+    auto float_exact = [](int type) { return type == (float_flag | 4) || std::abs(type) <= 2; };
+    const bool floats = enc != Encoding::ascii && float_exact(vertex_el->properties[size_t(px)].type) &&
+        float_exact(vertex_el->properties[size_t(py)].type) && float_exact(vertex_el->properties[size_t(pz)].type);
+
     Body body(text.substr(reader.pos), enc, name);
     Mesh mesh;
-    std::vector<double> values;
+    std::vector<double> xyz, values;
     std::vector<uint32_t> list;
-    PolygonTriangulator triangulator;
-    bool vertices_read = false;
-    std::vector<uint32_t> pending;  // faces read before the vertices: count, then indices
+    // Faces and strip triangles in file order (count, then indices), triangulated once the positions are
+    // final, whichever element came first.
+    std::vector<uint32_t> pending;
     for (const Element& e : elements) {
         // Every record takes at least one byte (ASCII: one digit and a separator, so two): refuse counts the
         // remaining data cannot hold before reserving anything. An element without properties holds nothing.
@@ -223,7 +229,7 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
         int list_prop = (e.name == "face" || e.name == "tristrips")
             ? std::max(find_property(e, "vertex_indices"), find_property(e, "vertex_index"))
             : -1;
-        if (is_vertex) mesh.positions.reserve(size_t(e.count) * 3);
+        if (is_vertex) xyz.reserve(size_t(e.count) * 3);
         values.resize(e.properties.size());
         for (uint64_t r = 0; r < e.count; ++r) {
             for (size_t p = 0; p < e.properties.size(); ++p) {
@@ -250,12 +256,8 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
                 if (!keep) continue;
                 if (e.name == "face") {
                     if (list.size() < 3) body.fail(e.name, r, "face with " + std::to_string(list.size()) + " vertices");
-                    if (vertices_read) {
-                        triangulator.add(mesh.positions.data(), list.data(), list.size(), mesh.indices);
-                    } else {  // faces before vertices: triangulated once the positions are known
-                        pending.push_back(uint32_t(list.size()));
-                        pending.insert(pending.end(), list.begin(), list.end());
-                    }
+                    pending.push_back(uint32_t(list.size()));
+                    pending.insert(pending.end(), list.begin(), list.end());
                 } else {  // tristrips: runs separated by -1, every other triangle flipped
                     size_t run = 0;
                     for (size_t i = 0; i < list.size(); ++i) {
@@ -266,26 +268,33 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
                         if (++run >= 3) {
                             bool odd = (run - 3) & 1;
                             uint32_t a = list[i - 2], b = list[i - 1];
-                            mesh.indices.insert(mesh.indices.end(), {odd ? b : a, odd ? a : b, list[i]});
+                            pending.insert(pending.end(), {3, odd ? b : a, odd ? a : b, list[i]});
                         }
                     }
                 }
             }
             if (is_vertex) {
-                double xyz[3] = {values[size_t(px)], values[size_t(py)], values[size_t(pz)]};
-                for (double c : xyz)
+                double v[3] = {values[size_t(px)], values[size_t(py)], values[size_t(pz)]};
+                for (double c : v)
                     if (!std::isfinite(c) || std::fabs(c) > std::numeric_limits<float>::max())
                         body.fail("vertex " + std::to_string(r) + ": position is not a finite float (" +
                                   std::to_string(c) + ")");
-                mesh.positions.insert(mesh.positions.end(), {float(xyz[0]), float(xyz[1]), float(xyz[2])});
+                xyz.insert(xyz.end(), {v[0], v[1], v[2]});
             }
         }
-        vertices_read = vertices_read || is_vertex;
     }
+    Origin origin;
+    if (floats) {
+        mesh.positions.assign(xyz.begin(), xyz.end());  // each value a float: exact
+        origin = shift_exactly(mesh.positions);
+    } else {
+        origin = store_centred(xyz, mesh.positions);
+    }
+    PolygonTriangulator triangulator;
     for (size_t at = 0; at < pending.size(); at += 1 + pending[at])
         triangulator.add(mesh.positions.data(), &pending[at + 1], pending[at], mesh.indices);
 
-    Scene scene = single_mesh_scene(std::move(mesh), name);
+    Scene scene = single_mesh_scene(std::move(mesh), name, origin);
     scene.report.polygons = triangulator.counts();
     return scene;
 }

@@ -1,14 +1,18 @@
-// OBJ and OFF readers.
+// OBJ, OFF and ASCII STL readers.
 //
-// OpenMesh's readers for these two text formats lose data that shadows need: its OBJ reader silently drops
+// OpenMesh's readers for these text formats lose data that shadows need: its OBJ reader silently drops
 // faces that repeat a vertex (f 1 1 3), ignores line continuations and skips vertices it cannot parse
 // (inf, nan) so later faces point at the wrong vertex; its OFF reader rejects comments and headers run
-// together with their counts ("OFF8 6 12"). These formats are small enough to read exactly here, with an
-// error naming the line for anything malformed. STL goes through OpenMesh (load_mesh.cpp). Faces of more
-// than three vertices are triangulated in their plane (polygon_triangulate.h).
+// together with their counts ("OFF8 6 12"); its ASCII STL reader parses floats, and merges corners that
+// are equal as floats, which far from the origin are distinct points. These formats are small enough to
+// read exactly here, in double, with an error naming the line for anything malformed. Binary STL goes
+// through OpenMesh (load_mesh.cpp). Faces of more than three vertices are triangulated in their plane
+// (polygon_triangulate.h).
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string_view>
+#include <unordered_map>
 
 #include "load.h"
 #include "polygon_triangulate.h"
@@ -17,20 +21,30 @@
 namespace cb {
 namespace {
 
-// Positions must be finite and representable as float, since that is how they are stored.
-void push_position(Mesh& mesh, const double xyz[3], const std::string& where) {
+// Coordinates must be finite and representable as float, since positions are stored as floats (relative
+// to the mesh's origin, which is nearer still).
+void push_coordinates(std::vector<double>& xyz, const double v[3], const std::string& where) {
     for (int k = 0; k < 3; ++k)
-        if (!std::isfinite(xyz[k]) || std::fabs(xyz[k]) > std::numeric_limits<float>::max())
-            throw LoadError(where + ": position is not a finite float (" + std::to_string(xyz[k]) + ")");
-    mesh.positions.insert(mesh.positions.end(), {float(xyz[0]), float(xyz[1]), float(xyz[2])});
+        if (!std::isfinite(v[k]) || std::fabs(v[k]) > std::numeric_limits<float>::max())
+            throw LoadError(where + ": position is not a finite float (" + std::to_string(v[k]) + ")");
+    xyz.insert(xyz.end(), {v[0], v[1], v[2]});
 }
 
-void push_polygon(PolygonTriangulator& triangulator, Mesh& mesh, const std::vector<uint32_t>& poly) {
-    triangulator.add(mesh.positions.data(), poly.data(), poly.size(), mesh.indices);
+// Faces kept as read (vertex count, then indices) until every position is known: they are triangulated on
+// the floats the mesh ends up with.
+void push_polygon(std::vector<uint32_t>& polygons, const std::vector<uint32_t>& poly) {
+    polygons.push_back(uint32_t(poly.size()));
+    polygons.insert(polygons.end(), poly.begin(), poly.end());
 }
 
-Scene counted_scene(Mesh mesh, const std::string& name, const PolygonTriangulator& triangulator) {
-    Scene scene = single_mesh_scene(std::move(mesh), name);
+// The mesh centred on its box (mesh_frame.h), its polygons triangulated, in one validated scene.
+Scene centred_scene(const std::vector<double>& xyz, const std::vector<uint32_t>& polygons, const std::string& name) {
+    Mesh mesh;
+    Origin origin = store_centred(xyz, mesh.positions);
+    PolygonTriangulator triangulator;
+    for (size_t at = 0; at < polygons.size(); at += 1 + polygons[at])
+        triangulator.add(mesh.positions.data(), &polygons[at + 1], polygons[at], mesh.indices);
+    Scene scene = single_mesh_scene(std::move(mesh), name, origin);
     scene.report.polygons = triangulator.counts();
     return scene;
 }
@@ -40,11 +54,10 @@ Scene counted_scene(Mesh mesh, const std::string& name, const PolygonTriangulato
 Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name) {
     if (size == 0) throw LoadError(name + ": empty file");
     LineReader reader{std::string_view(reinterpret_cast<const char*>(data), size)};
-    Mesh mesh;
+    std::vector<double> xyz;
+    std::vector<uint32_t> poly, polygons;
     std::string line;
     std::vector<std::string_view> tok;
-    std::vector<uint32_t> poly;
-    PolygonTriangulator triangulator;
     bool saw_any = false;
     while (reader.next(line, true)) {
         split(line, tok);
@@ -53,15 +66,14 @@ Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name)
         if (tok[0] == "v") {
             saw_any = true;
             if (tok.size() < 4) throw LoadError(where + ": vertex needs 3 coordinates");
-            double xyz[3];
+            double v[3];
             for (int k = 0; k < 3; ++k)
-                if (!parse_double(tok[1 + k], xyz[k]))
-                    throw LoadError(where + ": bad coordinate " + quoted(tok[1 + k]));
-            push_position(mesh, xyz, where + ": vertex " + std::to_string(mesh.vertex_count() + 1));
+                if (!parse_double(tok[1 + k], v[k])) throw LoadError(where + ": bad coordinate " + quoted(tok[1 + k]));
+            push_coordinates(xyz, v, where + ": vertex " + std::to_string(xyz.size() / 3 + 1));
         } else if (tok[0] == "f") {
             saw_any = true;
             poly.clear();
-            long long count = static_cast<long long>(mesh.vertex_count());
+            long long count = static_cast<long long>(xyz.size() / 3);
             for (size_t k = 1; k < tok.size(); ++k) {
                 std::string_view ref = tok[k].substr(0, tok[k].find('/'));  // v, v/vt, v//vn, v/vt/vn
                 long long i;
@@ -73,12 +85,12 @@ Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name)
                 poly.push_back(uint32_t(resolved));
             }
             if (poly.size() < 3) throw LoadError(where + ": face with " + std::to_string(poly.size()) + " vertices");
-            push_polygon(triangulator, mesh, poly);
+            push_polygon(polygons, poly);
         }
         // vt, vn, g, o, s, l, p, usemtl, mtllib and the rest carry nothing shadows need.
     }
     if (!saw_any) throw LoadError(name + ": no vertices or faces (not an OBJ file?)");
-    return counted_scene(std::move(mesh), name, triangulator);
+    return centred_scene(xyz, polygons, name);
 }
 
 Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name) {
@@ -114,8 +126,8 @@ Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name)
         throw LoadError(name + ": counts " + std::to_string(nv) + " vertices, " + std::to_string(nf) +
                         " faces exceed what the file can hold (truncated?)");
 
-    Mesh mesh;
-    mesh.positions.reserve(size_t(nv) * 3);
+    std::vector<double> xyz;
+    xyz.reserve(size_t(nv) * 3);
     for (long long v = 0; v < nv; ++v) {
         do {
             if (!reader.next(line, false))
@@ -124,13 +136,12 @@ Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name)
         } while (tok.empty());
         std::string where = name + ": line " + std::to_string(reader.line_number) + ": vertex " + std::to_string(v);
         if (tok.size() < 3) throw LoadError(where + ": needs 3 coordinates");
-        double xyz[3];
+        double c[3];
         for (int k = 0; k < 3; ++k)
-            if (!parse_double(tok[k], xyz[k])) throw LoadError(where + ": bad coordinate " + quoted(tok[k]));
-        push_position(mesh, xyz, where);
+            if (!parse_double(tok[k], c[k])) throw LoadError(where + ": bad coordinate " + quoted(tok[k]));
+        push_coordinates(xyz, c, where);
     }
-    std::vector<uint32_t> poly;
-    PolygonTriangulator triangulator;
+    std::vector<uint32_t> poly, polygons;
     for (long long f = 0; f < nf; ++f) {
         do {
             if (!reader.next(line, false))
@@ -149,9 +160,67 @@ Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name)
                                 " vertices)");
             poly.push_back(uint32_t(i));
         }
-        push_polygon(triangulator, mesh, poly);  // anything after the indices is a face colour
+        push_polygon(polygons, poly);  // anything after the indices is a face colour
     }
-    return counted_scene(std::move(mesh), name, triangulator);
+    return centred_scene(xyz, polygons, name);
+}
+
+namespace {
+
+// STL corners merged by exact value, as OpenMesh's reader merges them (-0 equals 0).
+struct CornerKey {
+    uint64_t bits[3];
+    bool operator==(const CornerKey& o) const {
+        return bits[0] == o.bits[0] && bits[1] == o.bits[1] && bits[2] == o.bits[2];
+    }
+};
+
+struct CornerHash {
+    size_t operator()(const CornerKey& k) const {
+        uint64_t h = 0x9e3779b97f4a7c15ULL;
+        for (uint64_t b : k.bits) h = (h ^ b) * 0xff51afd7ed558ccdULL, h ^= h >> 29;
+        return size_t(h);
+    }
+};
+
+CornerKey corner_key(const double v[3]) {
+    CornerKey k;
+    for (int i = 0; i < 3; ++i) {
+        double x = v[i] + 0.0;  // -0 becomes 0
+        std::memcpy(&k.bits[i], &x, 8);
+    }
+    return k;
+}
+
+}  // namespace
+
+Scene load_ascii_stl_memory(const uint8_t* data, size_t size, const std::string& name) {
+    LineReader reader{std::string_view(reinterpret_cast<const char*>(data), size)};
+    std::unordered_map<CornerKey, uint32_t, CornerHash> ids;
+    std::vector<double> xyz;
+    std::vector<uint32_t> polygons, facet;
+    std::string line;
+    std::vector<std::string_view> tok;
+    while (reader.next(line, false)) {
+        split(line, tok);
+        if (tok.empty() || tok[0] != "vertex") continue;  // facet normals are not used: real exporters write anything
+        std::string where = name + ": line " + std::to_string(reader.line_number);
+        if (tok.size() != 4) throw LoadError(where + ": vertex needs 3 coordinates");
+        double v[3];
+        for (int k = 0; k < 3; ++k)
+            if (!parse_double(tok[1 + k], v[k]) || !std::isfinite(v[k]))
+                throw LoadError(where + ": " + quoted(tok[1 + k]) + " is not a finite number");
+        auto [it, added] = ids.try_emplace(corner_key(v), uint32_t(xyz.size() / 3));
+        if (added) push_coordinates(xyz, v, where + ": vertex " + std::to_string(it->second));
+        facet.push_back(it->second);
+        if (facet.size() < 3) continue;
+        // A facet with a repeated corner is dropped, as OpenMesh's reader drops it.
+        if (facet[0] != facet[1] && facet[1] != facet[2] && facet[0] != facet[2]) push_polygon(polygons, facet);
+        facet.clear();
+    }
+    if (!facet.empty())
+        throw LoadError(name + ": truncated: the last facet has " + std::to_string(facet.size()) + " vertices");
+    return centred_scene(xyz, polygons, name);
 }
 
 }  // namespace cb

@@ -18,10 +18,12 @@ struct Primitive {
     bool double_sided = false;
 };
 
-// Geometry in the mesh's own frame. A mesh used by several nodes is stored once.
+// Geometry in the mesh's own frame, whose origin the loader puts near the mesh (mesh_frame.h), so that
+// floats hold it to float precision relative to its size wherever it lies. A mesh used by several nodes is
+// stored once.
 struct Mesh {
     std::string name;
-    std::vector<float> positions;   // x, y, z per vertex
+    std::vector<float> positions;   // x, y, z per vertex, in the mesh's frame
     std::vector<uint32_t> indices;  // 3 per triangle, each < vertex_count()
     std::vector<Primitive> primitives;
 
@@ -35,6 +37,10 @@ using Transform = std::array<double, 16>;
 
 constexpr Transform identity_transform() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }
 
+// `world` maps the mesh's frame to world space: the source's transform (a glTF node's composed chain,
+// identity for the other formats) times the translation to the mesh frame's origin. World positions are
+// transform_point(world, position), in double: the file's coordinates (exactly for float inputs, to float
+// precision relative to the mesh's size for text).
 struct Instance {
     uint32_t mesh = 0;
     Transform world = identity_transform();

@@ -178,8 +178,10 @@ TEST(Formats, PlyFeatures) {
     for (int i : strip) be32(uint32_t(i));
     cb::Scene s = load(ply, cb::FileFormat::ply);
     const cb::Mesh& m = s.meshes[0];
-    EXPECT_EQ(m.positions[3 * 3 + 0], 1.0f);
-    EXPECT_EQ(m.positions[3 * 3 + 1], 1.0f);
+    // A double coordinate: the mesh is centred on its box, and its instance puts it back.
+    auto world = cb::transform_point(s.instances[0].world, m.positions[9], m.positions[10], m.positions[11]);
+    EXPECT_EQ(world, (std::array<double, 3>{1, 1, 0}));
+    EXPECT_EQ(m.positions[3 * 3 + 0], 0.5f);
     // 0 1 2 3 gives (0,1,2) and (2,1,3); after the restart 0 1 2 gives (0,1,2).
     EXPECT_EQ(std::vector<uint32_t>(m.indices.begin(), m.indices.end()),
               (std::vector<uint32_t>{0, 1, 2, 2, 1, 3, 0, 1, 2}));
