@@ -47,9 +47,10 @@ bool is_closed(const Mesh& mesh) {
     return true;
 }
 
-AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h) {
-    AssetMesh out;
-    out.positions = mesh.positions;
+namespace {
+
+// Everything of clustered_mesh but the positions.
+void order_triangles(const Mesh& mesh, const Hierarchy& h, AssetMesh& out) {
     out.triangles.resize(h.order.size() * 3);
     for (size_t i = 0; i < h.order.size(); ++i)
         for (int k = 0; k < 3; ++k) out.triangles[i * 3 + k] = mesh.indices[size_t(h.order[i]) * 3 + k];
@@ -67,11 +68,13 @@ AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h) {
         out.fine.push_back({h.fine_offsets[f], h.fine_offsets[f + 1] - h.fine_offsets[f]});
     for (size_t c = 0; c < h.coarse_count(); ++c)
         out.coarse.push_back({h.coarse_offsets[c], h.coarse_offsets[c + 1] - h.coarse_offsets[c]});
-    return out;
 }
 
-std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& options, BakeStats& stats,
-                                     const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
+// cluster_scene's work; with `release` (the same scene), each mesh's positions move into its clustered mesh
+// and its other arrays are freed once it is clustered.
+std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const ClusterOptions& options,
+                                      BakeStats& stats,
+                                      const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
     auto start = std::chrono::steady_clock::now();
     std::vector<AssetMesh> meshes;
     stats = BakeStats{};
@@ -85,13 +88,23 @@ std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& o
         };
         Hierarchy h = build_hierarchy(mesh.positions.data(), mesh.vertex_count(), mesh.indices.data(),
                                       mesh.triangle_count(), options, &cs, report);
-        AssetMesh am = clustered_mesh(mesh, h);
-        stats.triangles += mesh.triangle_count();
+        const size_t triangles = mesh.triangle_count();
+        AssetMesh am;
+        order_triangles(mesh, h, am);
+        h = Hierarchy{};
+        if (release) {
+            Mesh& owned = release->meshes[m];
+            am.positions = std::move(owned.positions);
+            owned.positions = {}, owned.indices = {}, owned.primitives = {};
+        } else {
+            am.positions = mesh.positions;
+        }
+        stats.triangles += triangles;
         stats.fine_clusters += am.fine.size();
         stats.coarse_clusters += am.coarse.size();
         stats.fine_below_half += cs.fine_below_half;
-        acmr_before += cs.acmr_before * double(mesh.triangle_count());
-        acmr_after += cs.acmr_after * double(mesh.triangle_count());
+        acmr_before += cs.acmr_before * double(triangles);
+        acmr_after += cs.acmr_after * double(triangles);
         for (const ClusterRange& f : am.fine)
             stats.fine_min = std::min(stats.fine_min, f.count), stats.fine_max = std::max(stats.fine_max, f.count);
         for (const ClusterRange& c : am.coarse) {
@@ -111,20 +124,38 @@ std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& o
     return meshes;
 }
 
+}  // namespace
+
+AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h) {
+    AssetMesh out;
+    out.positions = mesh.positions;
+    order_triangles(mesh, h, out);
+    return out;
+}
+
+std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& options, BakeStats& stats,
+                                     const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
+    return cluster_meshes(scene, nullptr, options, stats, progress);
+}
+
+std::vector<AssetMesh> cluster_scene_releasing(Scene& scene, const ClusterOptions& options, BakeStats& stats,
+                                               const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
+    return cluster_meshes(scene, &scene, options, stats, progress);
+}
+
 void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats,
                       const std::function<void(size_t, size_t)>& progress) {
     auto start = std::chrono::steady_clock::now();
-    // One work item per cluster: (mesh, level, index, first triangle, triangle count).
+    // One work item per cluster: (mesh, level, index, first triangle, triangle count). Each writes its own
+    // slots of its level's arrays, sized beforehand: nothing is gathered afterwards, and the result does not
+    // depend on which thread fitted what.
     struct Item {
         uint32_t mesh, fine, index, first, count;
     };
     std::vector<Item> items;
-    std::vector<std::vector<uint32_t>> ids(meshes.size());
+    uint32_t largest = 0;
     for (uint32_t m = 0; m < meshes.size(); ++m) {
         AssetMesh& am = meshes[m];
-        ids[m].resize(am.triangles.size() / 3);
-        std::iota(ids[m].begin(), ids[m].end(), 0u);  // triangles are already in cluster order
-        for (LevelVolumes* v : {&am.fine_volumes, &am.coarse_volumes}) *v = LevelVolumes{};
         for (uint32_t f = 0; f < am.fine.size(); ++f) items.push_back({m, 1, f, am.fine[f].first, am.fine[f].count});
         for (uint32_t c = 0; c < am.coarse.size(); ++c) {
             const ClusterRange& r = am.coarse[c];
@@ -132,17 +163,40 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
                      last = am.fine[r.first + r.count - 1].first + am.fine[r.first + r.count - 1].count;
             items.push_back({m, 0, c, first, last - first});
         }
+        for (bool fine : {true, false}) {
+            LevelVolumes& v = fine ? am.fine_volumes : am.coarse_volumes;
+            const size_t n = fine ? am.fine.size() : am.coarse.size();
+            v = LevelVolumes{};
+            if (options.mask & (bounds_obb | bounds_cone)) v.obbs.resize(n);  // cones are stored relative to boxes
+            if (options.mask & bounds_sphere) v.spheres.resize(n);
+            if (options.mask & bounds_capsule) v.capsules.resize(n);
+            if (options.mask & bounds_cone) v.cones.resize(n);
+            if (options.mask & bounds_slab) v.slabs.resize(n);
+        }
     }
-    std::vector<ClusterBounds> fitted(items.size());
+    for (const Item& it : items) largest = std::max(largest, it.count);
+    // Triangles are already in cluster order: a cluster's are [first, first + count) of its mesh, read
+    // through these ids from its first triangle on.
+    std::vector<uint32_t> ids(largest);
+    std::iota(ids.begin(), ids.end(), 0u);
     size_t total = 0;
     for (const Item& it : items) total += it.count;
     std::atomic<size_t> done{0};
+    std::atomic<uint64_t> valid_cones{0}, capsules{0};
     std::mutex reporting;  // one report at a time; a worker finding it taken goes on
     parallel_for(items.size(), threads, [&](size_t i) {
         const Item& it = items[i];
-        const AssetMesh& am = meshes[it.mesh];
-        fitted[i] =
-            fit_bounds(am.positions.data(), am.triangles.data(), ids[it.mesh].data() + it.first, it.count, options);
+        AssetMesh& am = meshes[it.mesh];
+        ClusterBounds b =
+            fit_bounds(am.positions.data(), am.triangles.data() + size_t(it.first) * 3, ids.data(), it.count, options);
+        LevelVolumes& v = it.fine ? am.fine_volumes : am.coarse_volumes;
+        if (!v.obbs.empty()) v.obbs[it.index] = b.packed_obb;
+        if (!v.spheres.empty()) v.spheres[it.index] = b.sphere;
+        if (!v.capsules.empty()) v.capsules[it.index] = b.capsule;
+        if (!v.cones.empty()) v.cones[it.index] = b.packed_cone;
+        if (!v.slabs.empty()) v.slabs[it.index] = b.slab;
+        valid_cones += b.cone.valid;
+        capsules += b.has_capsule;
         done.fetch_add(it.count);
         if (progress && reporting.try_lock()) {
             progress(done.load(), total);  // read under the lock: the reports rise
@@ -150,20 +204,8 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
         }
     });
     if (progress) progress(total, total);  // the last, whichever worker finished last
-
-    for (size_t i = 0; i < items.size(); ++i) {  // in item order: deterministic
-        const Item& it = items[i];
-        LevelVolumes& v = it.fine ? meshes[it.mesh].fine_volumes : meshes[it.mesh].coarse_volumes;
-        const ClusterBounds& b = fitted[i];
-        if (options.mask & (bounds_obb | bounds_cone))
-            v.obbs.push_back(b.packed_obb);  // cones are stored relative to boxes
-        if (options.mask & bounds_sphere) v.spheres.push_back(b.sphere);
-        if (options.mask & bounds_capsule) v.capsules.push_back(b.capsule);
-        if (options.mask & bounds_cone) v.cones.push_back(b.packed_cone);
-        if (options.mask & bounds_slab) v.slabs.push_back(b.slab);
-        stats.valid_cones += b.cone.valid;
-        stats.capsules += b.has_capsule;
-    }
+    stats.valid_cones += valid_cones.load();
+    stats.capsules += capsules.load();
     stats.fit_seconds = seconds_since(start);
 }
 

@@ -34,6 +34,13 @@ AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h);
 std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& options, BakeStats& stats,
                                      const std::function<void(size_t, size_t, size_t, size_t)>& progress = {});
 
+// The same, for a bake that needs the scene's geometry no longer: each mesh's positions move into its
+// clustered mesh and its indices are freed as soon as it is clustered, so the two never coexist. The scene
+// keeps its instances, names and report.
+std::vector<AssetMesh> cluster_scene_releasing(
+    Scene& scene, const ClusterOptions& options, BakeStats& stats,
+    const std::function<void(size_t, size_t, size_t, size_t)>& progress = {});
+
 // Fits the volumes in options.mask for every fine and coarse cluster of every mesh, in parallel over
 // clusters (`threads`, 0 = all); the result does not depend on the thread count. `progress(done, total)`,
 // when set, counts the triangles of the clusters fitted so far (a coarse cluster's count again), called

@@ -68,7 +68,7 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
     result.meshes = scene.meshes.size();
     result.instances = scene.instances.size();
 
-    std::vector<AssetMesh> meshes = cluster_scene(scene, r.clustering, result.stats, progress.clustering);
+    std::vector<AssetMesh> meshes = cluster_scene_releasing(scene, r.clustering, result.stats, progress.clustering);
     if (r.fit) fit_scene_bounds(meshes, r.bounds, r.clustering.threads, result.stats, progress.bounds);
 
     auto t1 = std::chrono::steady_clock::now();

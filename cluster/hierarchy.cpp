@@ -60,18 +60,27 @@ void connected_patches(const uint32_t* indices, uint32_t* tris, size_t count, st
 
 namespace {
 
-std::vector<float> triangle_boxes(const float* positions, const uint32_t* indices, size_t triangle_count) {
-    std::vector<float> boxes(triangle_count * 6);
-    for (size_t t = 0; t < triangle_count; ++t) {
-        const float* a = positions + size_t(indices[t * 3]) * 3;
-        const float* b = positions + size_t(indices[t * 3 + 1]) * 3;
-        const float* c = positions + size_t(indices[t * 3 + 2]) * 3;
+// k-means over the triangles tris[0..count): their boxes (6 floats each) gathered for this call only, so a
+// bake never holds a box per triangle of the mesh at once; `tris` reordered as the tree orders them.
+void kmeans_tris(const float* positions, const uint32_t* indices, uint32_t* tris, size_t count, uint32_t max_size,
+                 const ClusterOptions& o, uint64_t seed, std::vector<uint32_t>& leaves) {
+    std::vector<float> boxes(count * 6);
+    for (size_t i = 0; i < count; ++i) {
+        const uint32_t* t = indices + size_t(tris[i]) * 3;
+        const float* a = positions + size_t(t[0]) * 3;
+        const float* b = positions + size_t(t[1]) * 3;
+        const float* c = positions + size_t(t[2]) * 3;
         for (int k = 0; k < 3; ++k) {
-            boxes[t * 6 + k] = std::min({a[k], b[k], c[k]});
-            boxes[t * 6 + 3 + k] = std::max({a[k], b[k], c[k]});
+            boxes[i * 6 + k] = std::min({a[k], b[k], c[k]});
+            boxes[i * 6 + 3 + k] = std::max({a[k], b[k], c[k]});
         }
     }
-    return boxes;
+    std::vector<uint32_t> local(count);
+    std::iota(local.begin(), local.end(), 0u);
+    kmeans_split(boxes.data(), local.data(), count, max_size, o.kmeans_branching, o.kmeans_max_iterations, seed,
+                 leaves);
+    for (uint32_t& l : local) l = tris[l];
+    std::copy(local.begin(), local.end(), tris);
 }
 
 // Forsyth order inside one chunk (vertices renumbered locally so the cache state is the chunk's own), then
@@ -96,12 +105,11 @@ void vco_chunk(const uint32_t* indices, uint32_t* tris, size_t count, const Clus
         connected_patches(indices, tris + at, std::min<size_t>(o.fine_size, count - at), sizes);
 }
 
-void split_chunk(const float* boxes, const uint32_t* indices, uint32_t* tris, size_t count, size_t chunk,
+void split_chunk(const float* positions, const uint32_t* indices, uint32_t* tris, size_t count, size_t chunk,
                  const ClusterOptions& o, std::vector<uint32_t>& sizes) {
     switch (o.method) {
         case ClusterMethod::kmeans:
-            kmeans_split(boxes, tris, count, o.fine_size, o.kmeans_branching, o.kmeans_max_iterations,
-                         o.seed * 0x9e3779b97f4a7c15ULL + chunk, sizes);
+            kmeans_tris(positions, indices, tris, count, o.fine_size, o, o.seed * 0x9e3779b97f4a7c15ULL + chunk, sizes);
             break;
         case ClusterMethod::vco: vco_chunk(indices, tris, count, o, sizes); break;
         case ClusterMethod::morton:
@@ -120,25 +128,21 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
     o.fine_size = std::max(1u, o.fine_size);
     o.coarse_size = std::max(o.fine_size, o.coarse_size);
     Hierarchy h;
-    std::vector<float> boxes;
-    if (o.method == ClusterMethod::kmeans) boxes = triangle_boxes(positions, indices, triangle_count);
 
     // Coarse level.
     std::vector<uint32_t> chunk_sizes;
     if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree && o.kmeans_presplit == 0) {
         h.order.resize(triangle_count);
         std::iota(h.order.begin(), h.order.end(), 0u);
-        kmeans_split(boxes.data(), h.order.data(), triangle_count, o.coarse_size, o.kmeans_branching,
-                     o.kmeans_max_iterations, o.seed, chunk_sizes);
+        kmeans_tris(positions, indices, h.order.data(), triangle_count, o.coarse_size, o, o.seed, chunk_sizes);
     } else if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree) {
         h.order = morton_order(positions, indices, triangle_count, o.threads);
         const size_t part = std::max<size_t>(o.kmeans_presplit, o.coarse_size),
                      parts = (triangle_count + part - 1) / part;
         std::vector<std::vector<uint32_t>> sizes(parts);
         parallel_for(parts, o.threads, [&](size_t p) {
-            kmeans_split(boxes.data(), h.order.data() + p * part, std::min(part, triangle_count - p * part),
-                         o.coarse_size, o.kmeans_branching, o.kmeans_max_iterations, splitmix(o.seed ^ (p + 1)),
-                         sizes[p]);
+            kmeans_tris(positions, indices, h.order.data() + p * part, std::min(part, triangle_count - p * part),
+                        o.coarse_size, o, splitmix(o.seed ^ (p + 1)), sizes[p]);
         });
         for (const auto& s : sizes) chunk_sizes.insert(chunk_sizes.end(), s.begin(), s.end());
     } else {
@@ -154,7 +158,7 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
     std::atomic<size_t> done{0};
     const std::thread::id caller = std::this_thread::get_id();  // progress is reported from the caller only
     parallel_for(chunk_sizes.size(), o.threads, [&](size_t c) {
-        split_chunk(boxes.data(), indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
+        split_chunk(positions, indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
         size_t finished = done.fetch_add(1) + 1;
         if (progress && std::this_thread::get_id() == caller) progress(finished, chunk_sizes.size());
     });

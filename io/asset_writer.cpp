@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstring>
 #include <algorithm>
+#include <list>
 #include <filesystem>
 #include <stdexcept>
 #include <type_traits>
@@ -110,10 +111,15 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
         r.first_ref = uint32_t(refs.size());
         r.ref_count = uint32_t(c.refs.size());
         records.push_back(r);
-        positions.insert(positions.end(), c.positions.begin(), c.positions.end());
-        triangles.insert(triangles.end(), c.local.begin(), c.local.end());
-        refs.insert(refs.end(), c.refs.begin(), c.refs.end());
-        fine.insert(fine.end(), c.fine.begin(), c.fine.end());
+        if (meshes.size() == 1) {  // nothing to concatenate: a copy less of the largest arrays
+            positions = std::move(c.positions), triangles = std::move(c.local), refs = std::move(c.refs);
+            fine = std::move(c.fine);
+        } else {
+            positions.insert(positions.end(), c.positions.begin(), c.positions.end());
+            triangles.insert(triangles.end(), c.local.begin(), c.local.end());
+            refs.insert(refs.end(), c.refs.begin(), c.refs.end());
+            fine.insert(fine.end(), c.fine.begin(), c.fine.end());
+        }
         coarse.insert(coarse.end(), m.coarse.begin(), m.coarse.end());
     }
     std::vector<InstanceRecord> inst(instances.size());
@@ -125,18 +131,18 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
                 inst[i].transform[col * 3 + row] = instances[i].world[size_t(col) * 4 + row];
     }
 
+    // Sections point at arrays that live until the file is assembled: this function's, or `owned`.
     struct Pending {
         SectionType type;
         uint32_t element_size;
-        std::vector<uint8_t> bytes;
-        uint64_t count;
+        const uint8_t* bytes;
+        uint64_t size, count;
     };
     std::vector<Pending> sections;
+    std::list<std::vector<uint8_t>> owned;
     auto add = [&](SectionType type, const auto& v, uint32_t element_size) {
-        Pending p{type, element_size, {}, 0};
-        append(p.bytes, v.data(), v.size());
-        p.count = p.bytes.size() / element_size;
-        sections.push_back(std::move(p));
+        uint64_t size = uint64_t(v.size()) * sizeof(v[0]);
+        sections.push_back({type, element_size, reinterpret_cast<const uint8_t*>(v.data()), size, size / element_size});
     };
     add(SectionType::meshes, records, sizeof(MeshRecord));
     add(SectionType::positions, positions, 12);
@@ -165,14 +171,21 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
     // Bounds: a section per volume kind and level that every mesh with clusters carries.
     auto level_section = [&](SectionType type, bool fine, auto member) {
         using Record = typename std::remove_reference_t<decltype(meshes[0].fine_volumes.*member)>::value_type;
-        std::vector<Record> all;
         for (const AssetMesh& m : meshes) {
             const LevelVolumes& v = fine ? m.fine_volumes : m.coarse_volumes;
             size_t clusters = fine ? m.fine.size() : m.coarse.size();
             if ((v.*member).size() != clusters) return false;  // not fitted (for every mesh): no section
-            all.insert(all.end(), (v.*member).begin(), (v.*member).end());
         }
-        add(type, all, sizeof(Record));
+        if (meshes.size() == 1) {  // the mesh's own array
+            add(type, (fine ? meshes[0].fine_volumes : meshes[0].coarse_volumes).*member, sizeof(Record));
+            return true;
+        }
+        owned.emplace_back();
+        for (const AssetMesh& m : meshes) {
+            const LevelVolumes& v = fine ? m.fine_volumes : m.coarse_volumes;
+            append(owned.back(), (v.*member).data(), (v.*member).size());
+        }
+        add(type, owned.back(), sizeof(Record));
         return true;
     };
     for (bool fine : {true, false}) {
@@ -190,15 +203,15 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
     std::vector<SectionEntry> table;
     uint64_t at = aligned(sizeof(AssetHeader) + sections.size() * sizeof(SectionEntry));
     for (const Pending& p : sections) {
-        table.push_back({uint32_t(p.type), p.element_size, at, p.bytes.size(), p.count});
-        at = aligned(at + p.bytes.size());
+        table.push_back({uint32_t(p.type), p.element_size, at, p.size, p.count});
+        at = aligned(at + p.size);
     }
     std::vector<uint8_t> out(sizeof(AssetHeader), 0);
     out.reserve(aligned(at));  // one allocation for the whole file
     append(out, table.data(), table.size());
     for (size_t s = 0; s < sections.size(); ++s) {
         out.resize(table[s].offset, 0);  // zero padding up to the aligned offset
-        out.insert(out.end(), sections[s].bytes.begin(), sections[s].bytes.end());
+        out.insert(out.end(), sections[s].bytes, sections[s].bytes + sections[s].size);
     }
     out.resize(aligned(out.size()), 0);
 
