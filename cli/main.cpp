@@ -1,5 +1,6 @@
 // clusterbake command line: parses arguments, calls the libraries, prints. No algorithm lives here: each
 // subcommand is a file of its own (commands.h).
+#include <malloc.h>
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -15,6 +16,11 @@
 #include "scene_query.h"
 
 int main(int argc, char** argv) {
+#if defined(__GLIBC__)
+    // Arrays of a megabyte or more get pages of their own, given back when freed. glibc otherwise raises
+    // this threshold to the largest block freed so far, and a bake's freed stages stay resident.
+    mallopt(M_MMAP_THRESHOLD, 1 << 20);
+#endif
     CLI::App app{"clusterbake: clusters triangle scenes, fits bounding volumes and bakes a compact asset"};
     app.require_subcommand(1);
     app.set_version_flag("--version", [] {

@@ -35,16 +35,25 @@ struct CompactMesh {
 CompactMesh compact(const AssetMesh& m) {
     CompactMesh out;
     const uint32_t unseen = UINT32_MAX;
-    std::vector<uint32_t> renumbered(m.positions.size() / 3, unseen);
+    const size_t vertices = m.positions.size() / 3;
+    std::vector<uint32_t> renumbered(vertices, unseen);
+    // Per vertex, the fine cluster that last listed it (its index + 1) and its slot there: below `reuse`,
+    // the n-th new vertex; from `reuse` on, the n-th reused one. Linear, where searching the cluster's
+    // list of reused vertices for every corner was not.
+    std::vector<uint32_t> listed(vertices, 0);
+    std::vector<uint16_t> slot(vertices, 0);
+    constexpr uint16_t reuse = 0x100;
     std::vector<uint32_t> reused;  // the current cluster's earlier vertices, in order of first use
     uint32_t next = 0;
     out.positions.reserve(m.positions.size() + m.positions.size() / 8);  // some vertices are stored twice
     out.local.reserve(m.triangles.size());
     out.fine.reserve(m.fine.size());
-    for (const ClusterRange& r : m.fine) {
+    for (size_t c = 0; c < m.fine.size(); ++c) {
+        const ClusterRange& r = m.fine[c];
         if (r.count == 0 || r.count > 255)
             throw std::invalid_argument("a fine cluster holds " + std::to_string(r.count) +
                                         " triangles (1 to 255 can be stored)");
+        const uint32_t mark = uint32_t(c) + 1;
         FineCluster f{};
         f.first_triangle = r.first;
         f.first_vertex = next;
@@ -56,13 +65,15 @@ CompactMesh compact(const AssetMesh& m) {
         for (uint32_t t = r.first; t < r.first + r.count; ++t)
             for (int k = 0; k < 3; ++k) {
                 uint32_t v = m.triangles[size_t(t) * 3 + k];
-                if (renumbered[v] == unseen ||
-                    (renumbered[v] < f.first_vertex && f.first_vertex - renumbered[v] > 65535)) {
+                if (listed[v] == mark) continue;
+                listed[v] = mark;
+                if (renumbered[v] == unseen || f.first_vertex - renumbered[v] > 65535) {
+                    slot[v] = uint16_t(next - f.first_vertex);
                     renumbered[v] = next++;
-                    out.positions.insert(out.positions.end(), &m.positions[size_t(v) * 3],
-                                         &m.positions[size_t(v) * 3] + 3);
-                } else if (renumbered[v] < f.first_vertex &&
-                           std::find(reused.begin(), reused.end(), renumbered[v]) == reused.end()) {
+                    const float* p = &m.positions[size_t(v) * 3];
+                    out.positions.insert(out.positions.end(), {p[0], p[1], p[2]});
+                } else {
+                    slot[v] = uint16_t(reuse + reused.size());
                     reused.push_back(renumbered[v]);
                 }
             }
@@ -74,11 +85,8 @@ CompactMesh compact(const AssetMesh& m) {
         f.ref_count = uint8_t(reused.size());
         for (uint32_t t = r.first; t < r.first + r.count; ++t)
             for (int k = 0; k < 3; ++k) {
-                uint32_t v = renumbered[m.triangles[size_t(t) * 3 + k]];
-                uint32_t local = v >= f.first_vertex
-                    ? v - f.first_vertex
-                    : fresh + uint32_t(std::find(reused.begin(), reused.end(), v) - reused.begin());
-                out.local.push_back(uint8_t(local));
+                uint16_t at = slot[m.triangles[size_t(t) * 3 + k]];
+                out.local.push_back(uint8_t(at < reuse ? at : fresh + (at - reuse)));
             }
         for (uint32_t v : reused) out.refs.push_back(uint16_t(f.first_vertex - v));
         out.fine.push_back(f);
