@@ -200,4 +200,15 @@ BakeProgress bake_progress(ProgressLine& line) {
     return progress;
 }
 
+uint64_t peak_resident_bytes() {
+    std::FILE* f = std::fopen("/proc/self/status", "r");
+    if (!f) return 0;
+    char line[256];
+    unsigned long long kb = 0;
+    while (std::fgets(line, sizeof line, f))
+        if (std::sscanf(line, "VmHWM: %llu kB", &kb) == 1) break;
+    std::fclose(f);
+    return uint64_t(kb) * 1024;
+}
+
 }  // namespace cb::cli

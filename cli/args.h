@@ -92,4 +92,8 @@ bool parse_light(const std::string& text, double* light);
 // The asset file read and opened; otherwise its one-line error on stderr.
 bool load_asset(const std::string& file, LoadedAsset& out);
 
+// This process's peak resident memory in bytes so far (Linux: VmHWM, which counts only this program's
+// image, not its parent's before exec); 0 where unknown.
+uint64_t peak_resident_bytes();
+
 }  // namespace cb::cli

@@ -97,6 +97,7 @@ int run_bake(const CLI::App* c, const ClusterArgs& a) {
             j["acmr_before"] = stats.acmr_before;
             j["acmr_after"] = stats.acmr_after;
         }
+        if (uint64_t peak = peak_resident_bytes()) j["peak_resident_bytes"] = peak;
         std::cout << j.dump(2) << "\n";
         return 0;
     }
