@@ -260,9 +260,9 @@ const std::array<Vec, spread_axes>& spread_directions() {
     return axes;
 }
 
-// The points that are lowest or highest along one of the spread axes (at most 64, in input order). They
-// stand in for the hull's vertices when the frame search would otherwise sweep hundreds of points: a box
-// around them is nearly the box around all, and the stored extents are measured on all points anyway.
+// The points that are lowest or highest along one of the spread axes (at most two an axis, in input order).
+// They stand in for the hull's vertices when the frame search would otherwise sweep hundreds of points: a
+// box around them is nearly the box around all, and the stored extents are measured on all points anyway.
 void extreme_points(const double* pts, size_t n, std::vector<double>& out) {
     thread_local std::vector<uint32_t> keep;
     keep.clear();
