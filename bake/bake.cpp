@@ -153,7 +153,6 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
         uint32_t mesh, fine, index, first, count;
     };
     std::vector<Item> items;
-    uint32_t largest = 0;
     for (uint32_t m = 0; m < meshes.size(); ++m) {
         AssetMesh& am = meshes[m];
         for (uint32_t f = 0; f < am.fine.size(); ++f) items.push_back({m, 1, f, am.fine[f].first, am.fine[f].count});
@@ -174,13 +173,13 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
             if (options.mask & bounds_slab) v.slabs.resize(n);
         }
     }
-    for (const Item& it : items) largest = std::max(largest, it.count);
+    uint32_t largest = 0;
+    size_t total = 0;
+    for (const Item& it : items) largest = std::max(largest, it.count), total += it.count;
     // Triangles are already in cluster order: a cluster's are [first, first + count) of its mesh, read
     // through these ids from its first triangle on.
     std::vector<uint32_t> ids(largest);
     std::iota(ids.begin(), ids.end(), 0u);
-    size_t total = 0;
-    for (const Item& it : items) total += it.count;
     std::atomic<size_t> done{0};
     std::atomic<uint64_t> valid_cones{0}, capsules{0};
     std::mutex reporting;  // one report at a time; a worker finding it taken goes on

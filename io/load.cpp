@@ -2,12 +2,8 @@
 
 #include <algorithm>
 #include <cctype>
-#include <cerrno>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
-#include <cstdio>
-#include <memory>
 #include <new>
 
 namespace cb {
@@ -105,32 +101,15 @@ Scene load_scene(const std::string& path) {
     }
 }
 
-// The file's bytes in one read where its size is known (a regular file), in blocks otherwise (a pipe).
-std::vector<uint8_t> read_whole_file(const std::string& path) {
-    std::FILE* f = std::fopen(path.c_str(), "rb");
-    if (!f) throw LoadError(path + ": cannot open (" + std::strerror(errno) + ")");
-    std::unique_ptr<std::FILE, int (*)(std::FILE*)> closer(f, std::fclose);
-    std::vector<uint8_t> bytes;
-    std::error_code ec;
-    uintmax_t size = std::filesystem::file_size(path, ec);
-    if (!ec && size > 0) {
-        bytes.resize(size_t(size));
-        size_t got = std::fread(bytes.data(), 1, bytes.size(), f);
-        bytes.resize(got);
-    }
-    uint8_t block[1 << 16];
-    for (size_t n; (n = std::fread(block, 1, sizeof block, f)) > 0;) bytes.insert(bytes.end(), block, block + n);
-    if (std::ferror(f)) throw LoadError(path + ": read error");
-    return bytes;
-}
-
 Scene load_scene_unguarded(const std::string& path) {
     FileFormat format = format_from_path(path);
     if (format == FileFormat::unknown)
         throw LoadError(path + ": unknown file type (expected .gltf .glb .obj .ply .off .stl)");
     std::error_code ec;
     if (std::filesystem::is_directory(path, ec)) throw LoadError(path + ": is a directory");
-    std::vector<uint8_t> bytes = read_whole_file(path);
+    std::vector<uint8_t> bytes;
+    std::string error;
+    if (!read_file_bytes(path, bytes, error)) throw LoadError(error);
 
     SourceHasher source;
     source.add(std::filesystem::path(path).filename().string(), bytes.data(), bytes.size());

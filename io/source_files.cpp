@@ -40,6 +40,27 @@ SourceFiles SourceHasher::finish() const {
     return out;
 }
 
+bool read_file_bytes(const std::string& path, std::vector<uint8_t>& bytes, std::string& error) {
+    bytes.clear();
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) {
+        error = path + ": cannot open (" + std::strerror(errno) + ")";
+        return false;
+    }
+    std::error_code ec;
+    uintmax_t size = std::filesystem::file_size(path, ec);
+    if (!ec && size > 0) {
+        bytes.resize(size_t(size));
+        bytes.resize(std::fread(bytes.data(), 1, bytes.size(), f));
+    }
+    uint8_t block[1 << 16];
+    for (size_t n; (n = std::fread(block, 1, sizeof block, f)) > 0;) bytes.insert(bytes.end(), block, block + n);
+    bool failed = std::ferror(f);
+    std::fclose(f);
+    if (failed) error = path + ": read error";
+    return !failed;
+}
+
 bool hash_source_files(const std::string& scene_path, const std::vector<std::string>& names, SourceFiles& out,
                        std::string& error) {
     SourceHasher hasher;
@@ -47,20 +68,7 @@ bool hash_source_files(const std::string& scene_path, const std::vector<std::str
     std::vector<uint8_t> bytes;
     for (size_t i = 0; i < names.size(); ++i) {
         std::string path = i == 0 ? scene_path : (folder / names[i]).string();
-        std::FILE* f = std::fopen(path.c_str(), "rb");
-        if (!f) {
-            error = path + ": cannot open (" + std::strerror(errno) + ")";
-            return false;
-        }
-        bytes.clear();
-        uint8_t block[1 << 16];
-        for (size_t n; (n = std::fread(block, 1, sizeof block, f)) > 0;) bytes.insert(bytes.end(), block, block + n);
-        bool failed = std::ferror(f);
-        std::fclose(f);
-        if (failed) {
-            error = path + ": read error";
-            return false;
-        }
+        if (!read_file_bytes(path, bytes, error)) return false;
         hasher.add(names[i], bytes.data(), bytes.size());
     }
     out = hasher.finish();

@@ -37,6 +37,10 @@ private:
     SourceFiles files_;
 };
 
+// The file's bytes, in one read where its size is known (a regular file), in blocks otherwise (a pipe).
+// False, with "PATH: cannot open (REASON)" or "PATH: read error", when it cannot be read.
+bool read_file_bytes(const std::string& path, std::vector<uint8_t>& bytes, std::string& error);
+
 // Hashes `names` again (the first relative to the working directory, the others to the first one's folder),
 // as a load of them would. False, with a one-line error naming the file, when one cannot be read.
 bool hash_source_files(const std::string& scene_path, const std::vector<std::string>& names, SourceFiles& out,
