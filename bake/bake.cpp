@@ -5,36 +5,41 @@
 #include <chrono>
 #include <mutex>
 #include <numeric>
+#include <thread>
 
 #include "parallel.h"
 #include "timing.h"
 
 namespace cb {
 
-// Every edge used exactly twice, once in each direction: a closed, consistently wound surface, on which
-// one-sided and two-sided shadows agree for points outside the solid. Linear: each edge is listed under its
-// lower vertex (a counting sort), and each vertex's short list is checked on its own.
-bool is_closed(const Mesh& mesh) {
-    const size_t vertices = mesh.vertex_count(), edges = mesh.indices.size();
-    if (edges == 0) return false;
-    std::vector<uint32_t> start(vertices + 1, 0);
+namespace {
+
+// The closed-surface check for the vertices [lo, hi): every edge whose lower vertex lies there, listed under
+// that vertex by a counting sort (entries: the other end, shifted, and whether the edge leaves the lower
+// vertex), then each vertex's short list checked on its own. Entry is uint32_t while vertex numbers fit in
+// 31 bits, halving the largest array of the check.
+template <class Entry>
+bool closed_between(const uint32_t* indices, size_t corners, uint32_t lo, uint32_t hi) {
     auto each_edge = [&](auto&& f) {
-        for (size_t t = 0; t < edges; t += 3)
-            for (int k = 0; k < 3; ++k) f(mesh.indices[t + k], mesh.indices[t + (k + 1) % 3]);
+        for (size_t t = 0; t < corners; t += 3)
+            for (int k = 0; k < 3; ++k) {
+                uint32_t a = indices[t + k], b = indices[t + (k + 1) % 3], low = std::min(a, b);
+                if (low >= lo && low < hi) f(a, b, low - lo);
+            }
     };
-    each_edge([&](uint32_t a, uint32_t b) { ++start[std::min(a, b) + 1]; });
-    for (size_t v = 0; v < vertices; ++v) start[v + 1] += start[v];
-    // Entry: the other end, shifted, and whether the edge leaves the lower vertex. A loop edge (a, a) is its
-    // own reverse and must appear once.
-    std::vector<uint64_t> entry(edges);
+    std::vector<uint32_t> start(size_t(hi - lo) + 1, 0);
+    each_edge([&](uint32_t, uint32_t, uint32_t v) { ++start[v + 1]; });
+    for (size_t v = 0; v + 1 < start.size(); ++v) start[v + 1] += start[v];
+    std::vector<Entry> entry(start.back());
     std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-    each_edge([&](uint32_t a, uint32_t b) { entry[fill[std::min(a, b)]++] = uint64_t(std::max(a, b)) << 1 | (a < b); });
-    for (size_t v = 0; v < vertices; ++v) {
-        uint64_t* first = entry.data() + start[v];
-        uint64_t* last = entry.data() + start[v + 1];
+    each_edge([&](uint32_t a, uint32_t b, uint32_t v) { entry[fill[v]++] = Entry(std::max(a, b)) << 1 | (a < b); });
+    fill = {};
+    for (uint32_t v = 0; v < hi - lo; ++v) {
+        Entry* first = entry.data() + start[v];
+        Entry* last = entry.data() + start[v + 1];
         std::sort(first, last);
-        for (uint64_t* e = first; e < last;) {
-            if (*e >> 1 == v) {  // loop edge
+        for (Entry* e = first; e < last;) {
+            if (*e >> 1 == lo + v) {  // loop edge (a, a): its own reverse, so it must appear once
                 if (e + 1 < last && e[1] == e[0]) return false;
                 ++e;
                 continue;
@@ -47,27 +52,59 @@ bool is_closed(const Mesh& mesh) {
     return true;
 }
 
+}  // namespace
+
+// Every edge used exactly twice, once in each direction: a closed, consistently wound surface, on which
+// one-sided and two-sided shadows agree for points outside the solid. Linear, and split over threads by
+// ranges of the edges' lower vertex, each range read from the whole index array and checked on its own.
+bool is_closed(const uint32_t* indices, size_t corners, size_t vertices, unsigned threads) {
+    if (corners == 0) return false;
+    const size_t parts = std::min<size_t>(threads ? threads : std::max(1u, std::thread::hardware_concurrency()),
+                                          std::max<size_t>(1, corners / 30000));
+    std::atomic<bool> closed{true};
+    parallel_for(parts, unsigned(parts), [&](size_t p) {
+        uint32_t lo = uint32_t(vertices * p / parts), hi = uint32_t(vertices * (p + 1) / parts);
+        bool ok = vertices < (size_t(1) << 31) ? closed_between<uint32_t>(indices, corners, lo, hi)
+                                               : closed_between<uint64_t>(indices, corners, lo, hi);
+        if (!ok) closed = false;
+    });
+    return closed;
+}
+
+bool is_closed(const Mesh& mesh) { return is_closed(mesh.indices.data(), mesh.indices.size(), mesh.vertex_count(), 1); }
+
 namespace {
 
-// Everything of clustered_mesh but the positions.
-void order_triangles(const Mesh& mesh, const Hierarchy& h, AssetMesh& out) {
-    out.triangles.resize(h.order.size() * 3);
-    for (size_t i = 0; i < h.order.size(); ++i)
-        for (int k = 0; k < 3; ++k) out.triangles[i * 3 + k] = mesh.indices[size_t(h.order[i]) * 3 + k];
-    // Sidedness follows each triangle to its place in the cluster order.
-    std::vector<uint8_t> sided(mesh.triangle_count(), 0);
-    for (const Primitive& p : mesh.primitives)
-        if (p.double_sided) std::fill_n(sided.begin() + p.first_triangle, p.triangle_count, 1);
-    bool any = std::find(sided.begin(), sided.end(), 1) != sided.end();
+// Everything of clustered_mesh but the positions and the closed flag: the triangles gathered into cluster
+// order in parallel blocks, sidedness following each triangle to its place.
+void order_triangles(const Mesh& mesh, const Hierarchy& h, unsigned threads, AssetMesh& out) {
+    const size_t n = h.order.size(), block = 1 << 16;
+    out.triangles.resize(n * 3);
+    parallel_for((n + block - 1) / block, threads, [&](size_t b) {
+        for (size_t i = b * block; i < std::min(n, (b + 1) * block); ++i)
+            for (int k = 0; k < 3; ++k) out.triangles[i * 3 + k] = mesh.indices[size_t(h.order[i]) * 3 + k];
+    });
+    bool any = std::any_of(mesh.primitives.begin(), mesh.primitives.end(),
+                           [](const Primitive& p) { return p.double_sided && p.triangle_count; });
     if (any) {
-        out.double_sided.resize(h.order.size());
-        for (size_t i = 0; i < h.order.size(); ++i) out.double_sided[i] = sided[h.order[i]];
+        std::vector<uint8_t> sided(mesh.triangle_count(), 0);
+        for (const Primitive& p : mesh.primitives)
+            if (p.double_sided) std::fill_n(sided.begin() + p.first_triangle, p.triangle_count, 1);
+        out.double_sided.resize(n);
+        for (size_t i = 0; i < n; ++i) out.double_sided[i] = sided[h.order[i]];
     }
-    out.flags = (is_closed(mesh) ? uint32_t(mesh_closed) : 0u) | (any ? uint32_t(mesh_has_double_sided) : 0u);
+    out.flags = any ? uint32_t(mesh_has_double_sided) : 0u;
     for (size_t f = 0; f < h.fine_count(); ++f)
         out.fine.push_back({h.fine_offsets[f], h.fine_offsets[f + 1] - h.fine_offsets[f]});
     for (size_t c = 0; c < h.coarse_count(); ++c)
         out.coarse.push_back({h.coarse_offsets[c], h.coarse_offsets[c + 1] - h.coarse_offsets[c]});
+}
+
+// The closed flag, from the clustered triangles (the same set as the mesh's, so the same answer) once the
+// mesh's own indices may have been freed.
+void flag_closed(AssetMesh& out, unsigned threads) {
+    if (is_closed(out.triangles.data(), out.triangles.size(), out.positions.size() / 3, threads))
+        out.flags |= mesh_closed;
 }
 
 // cluster_scene's work; with `release` (the same scene), each mesh's positions move into its clustered mesh
@@ -90,7 +127,7 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
                                       mesh.triangle_count(), options, &cs, report);
         const size_t triangles = mesh.triangle_count();
         AssetMesh am;
-        order_triangles(mesh, h, am);
+        order_triangles(mesh, h, options.threads, am);
         h = Hierarchy{};
         if (release) {
             Mesh& owned = release->meshes[m];
@@ -99,6 +136,7 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
         } else {
             am.positions = mesh.positions;
         }
+        flag_closed(am, options.threads);
         stats.triangles += triangles;
         stats.fine_clusters += am.fine.size();
         stats.coarse_clusters += am.coarse.size();
@@ -129,7 +167,8 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
 AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h) {
     AssetMesh out;
     out.positions = mesh.positions;
-    order_triangles(mesh, h, out);
+    order_triangles(mesh, h, 1, out);
+    flag_closed(out, 1);
     return out;
 }
 

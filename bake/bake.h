@@ -24,7 +24,9 @@ struct BakeStats {
     uint64_t valid_cones = 0, capsules = 0;  // fine and coarse clusters together
 };
 
-// Every edge used exactly twice, once in each direction (a closed, consistently wound surface).
+// Every edge used exactly twice, once in each direction (a closed, consistently wound surface): the
+// triangles indices[0..corners) over `vertices` vertices, checked on `threads` threads (0 = all).
+bool is_closed(const uint32_t* indices, size_t corners, size_t vertices, unsigned threads);
 bool is_closed(const Mesh& mesh);
 
 // Mesh `m` of the scene in cluster order, ranges mesh-local.

@@ -72,11 +72,10 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
     if (r.fit) fit_scene_bounds(meshes, r.bounds, r.clustering.threads, result.stats, progress.bounds);
 
     auto t1 = std::chrono::steady_clock::now();
-    std::vector<uint8_t> bytes =
-        encode_asset(meshes, scene.instances, source_text(scene.report.source, r.clustering, r.bounds, r.fit));
-    write_file_atomic(r.output, bytes);
+    result.output_bytes =
+        write_asset(r.output, meshes, scene.instances, source_text(scene.report.source, r.clustering, r.bounds, r.fit),
+                    r.clustering.threads);
     result.write_seconds = seconds_since(t1);
-    result.output_bytes = bytes.size();
     result.triangles = result.stats.triangles;
     result.fine_clusters = result.stats.fine_clusters;
     result.coarse_clusters = result.stats.coarse_clusters;

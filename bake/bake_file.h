@@ -14,7 +14,7 @@
 
 namespace cb {
 
-// "clusterbake 0.1.1": the tool version written into every source section.
+// "clusterbake 0.1.2": the tool version written into every source section.
 const char* tool_version();
 
 struct BakeRequest {

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <cstring>
 #include <algorithm>
+#include <atomic>
+#include <thread>
 #include <list>
 #include <filesystem>
 #include <stdexcept>
@@ -94,52 +96,69 @@ CompactMesh compact(const AssetMesh& m) {
     return out;
 }
 
-}  // namespace
+// An asset laid out but not yet assembled: the header (checksum still zero) and section table, and the
+// sections' bytes with their offsets in the file, pointing at arrays that live here or in the meshes.
+struct AssetLayout {
+    std::vector<uint8_t> head;  // header and section table, up to the first section
+    struct Part {
+        const uint8_t* bytes;
+        uint64_t size, offset;
+    };
+    std::vector<Part> parts;
+    uint64_t file_size = 0;
 
-std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances,
-                                  const std::string& source) {
-    // Concatenate every mesh's arrays; records hold each mesh's offsets into them.
     std::vector<MeshRecord> records;
     std::vector<float> positions;
     std::vector<uint8_t> triangles;
     std::vector<uint16_t> refs;
     std::vector<FineCluster> fine;
     std::vector<ClusterRange> coarse;
-    for (const AssetMesh& m : meshes) {
+    std::vector<InstanceRecord> instances;
+    std::vector<uint32_t> sided, flags;
+    std::list<std::vector<uint8_t>> owned;
+};
+
+// Lays out the asset of `meshes`. With `release` (the same meshes), each mesh's positions and triangles are
+// freed as soon as it is compacted: the encoded copy replaces them.
+void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<AssetMesh>* release,
+             const std::vector<Instance>& instances, const std::string& source) {
+    // Concatenate every mesh's arrays; records hold each mesh's offsets into them.
+    for (size_t i = 0; i < meshes.size(); ++i) {
+        const AssetMesh& m = meshes[i];
         CompactMesh c = compact(m);
         MeshRecord r{};
-        r.first_vertex = uint32_t(positions.size() / 3);
+        r.first_vertex = uint32_t(L.positions.size() / 3);
         r.vertex_count = uint32_t(c.positions.size() / 3);
-        r.first_triangle = uint32_t(triangles.size() / 3);
+        r.first_triangle = uint32_t(L.triangles.size() / 3);
         r.triangle_count = uint32_t(m.triangles.size() / 3);
-        r.first_fine = uint32_t(fine.size());
+        r.first_fine = uint32_t(L.fine.size());
         r.fine_count = uint32_t(m.fine.size());
-        r.first_coarse = uint32_t(coarse.size());
+        r.first_coarse = uint32_t(L.coarse.size());
         r.coarse_count = uint32_t(m.coarse.size());
-        r.first_ref = uint32_t(refs.size());
+        r.first_ref = uint32_t(L.refs.size());
         r.ref_count = uint32_t(c.refs.size());
-        records.push_back(r);
+        L.records.push_back(r);
         if (meshes.size() == 1) {  // nothing to concatenate: a copy less of the largest arrays
-            positions = std::move(c.positions), triangles = std::move(c.local), refs = std::move(c.refs);
-            fine = std::move(c.fine);
+            L.positions = std::move(c.positions), L.triangles = std::move(c.local), L.refs = std::move(c.refs);
+            L.fine = std::move(c.fine);
         } else {
-            positions.insert(positions.end(), c.positions.begin(), c.positions.end());
-            triangles.insert(triangles.end(), c.local.begin(), c.local.end());
-            refs.insert(refs.end(), c.refs.begin(), c.refs.end());
-            fine.insert(fine.end(), c.fine.begin(), c.fine.end());
+            L.positions.insert(L.positions.end(), c.positions.begin(), c.positions.end());
+            L.triangles.insert(L.triangles.end(), c.local.begin(), c.local.end());
+            L.refs.insert(L.refs.end(), c.refs.begin(), c.refs.end());
+            L.fine.insert(L.fine.end(), c.fine.begin(), c.fine.end());
         }
-        coarse.insert(coarse.end(), m.coarse.begin(), m.coarse.end());
+        L.coarse.insert(L.coarse.end(), m.coarse.begin(), m.coarse.end());
+        if (release) (*release)[i].positions = {}, (*release)[i].triangles = {};
     }
-    std::vector<InstanceRecord> inst(instances.size());
+    L.instances.resize(instances.size());
     for (size_t i = 0; i < instances.size(); ++i) {
-        inst[i] = InstanceRecord{};
-        inst[i].mesh = instances[i].mesh;
+        InstanceRecord& rec = L.instances[i];
+        rec = InstanceRecord{};
+        rec.mesh = instances[i].mesh;
         for (int col = 0; col < 4; ++col)
-            for (int row = 0; row < 3; ++row)
-                inst[i].transform[col * 3 + row] = instances[i].world[size_t(col) * 4 + row];
+            for (int row = 0; row < 3; ++row) rec.transform[col * 3 + row] = instances[i].world[size_t(col) * 4 + row];
     }
 
-    // Sections point at arrays that live until the file is assembled: this function's, or `owned`.
     struct Pending {
         SectionType type;
         uint32_t element_size;
@@ -147,34 +166,33 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
         uint64_t size, count;
     };
     std::vector<Pending> sections;
-    std::list<std::vector<uint8_t>> owned;
     auto add = [&](SectionType type, const auto& v, uint32_t element_size) {
         uint64_t size = uint64_t(v.size()) * sizeof(v[0]);
         sections.push_back({type, element_size, reinterpret_cast<const uint8_t*>(v.data()), size, size / element_size});
     };
-    add(SectionType::meshes, records, sizeof(MeshRecord));
-    add(SectionType::positions, positions, 12);
-    add(SectionType::triangles, triangles, 3);
-    add(SectionType::vertex_refs, refs, 2);
-    add(SectionType::fine_clusters, fine, sizeof(FineCluster));
-    add(SectionType::coarse_clusters, coarse, sizeof(ClusterRange));
-    add(SectionType::instances, inst, sizeof(InstanceRecord));
+    add(SectionType::meshes, L.records, sizeof(MeshRecord));
+    add(SectionType::positions, L.positions, 12);
+    add(SectionType::triangles, L.triangles, 3);
+    add(SectionType::vertex_refs, L.refs, 2);
+    add(SectionType::fine_clusters, L.fine, sizeof(FineCluster));
+    add(SectionType::coarse_clusters, L.coarse, sizeof(ClusterRange));
+    add(SectionType::instances, L.instances, sizeof(InstanceRecord));
 
     // Sidedness, one bit per triangle of the whole triangle array (only when some triangle is double-sided),
     // and the per-mesh flags.
-    std::vector<uint32_t> sided((triangles.size() / 3 + 31) / 32, 0), flags;
+    L.sided.assign((L.triangles.size() / 3 + 31) / 32, 0);
     bool any_double_sided = false;
     for (size_t m = 0; m < meshes.size(); ++m) {
-        flags.push_back(meshes[m].flags);
+        L.flags.push_back(meshes[m].flags);
         for (size_t t = 0; t < meshes[m].double_sided.size(); ++t)
             if (meshes[m].double_sided[t]) {
-                size_t bit = records[m].first_triangle + t;
-                sided[bit / 32] |= 1u << (bit % 32);
+                size_t bit = L.records[m].first_triangle + t;
+                L.sided[bit / 32] |= 1u << (bit % 32);
                 any_double_sided = true;
             }
     }
-    if (any_double_sided) add(SectionType::double_sided, sided, 4);
-    add(SectionType::mesh_flags, flags, 4);
+    if (any_double_sided) add(SectionType::double_sided, L.sided, 4);
+    add(SectionType::mesh_flags, L.flags, 4);
 
     // Bounds: a section per volume kind and level that every mesh with clusters carries.
     auto level_section = [&](SectionType type, bool fine, auto member) {
@@ -188,12 +206,12 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
             add(type, (fine ? meshes[0].fine_volumes : meshes[0].coarse_volumes).*member, sizeof(Record));
             return true;
         }
-        owned.emplace_back();
+        L.owned.emplace_back();
         for (const AssetMesh& m : meshes) {
             const LevelVolumes& v = fine ? m.fine_volumes : m.coarse_volumes;
-            append(owned.back(), (v.*member).data(), (v.*member).size());
+            append(L.owned.back(), (v.*member).data(), (v.*member).size());
         }
-        add(type, owned.back(), sizeof(Record));
+        add(type, L.owned.back(), sizeof(Record));
         return true;
     };
     for (bool fine : {true, false}) {
@@ -212,26 +230,61 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
     uint64_t at = aligned(sizeof(AssetHeader) + sections.size() * sizeof(SectionEntry));
     for (const Pending& p : sections) {
         table.push_back({uint32_t(p.type), p.element_size, at, p.size, p.count});
+        L.parts.push_back({p.bytes, p.size, at});
         at = aligned(at + p.size);
     }
-    std::vector<uint8_t> out(sizeof(AssetHeader), 0);
-    out.reserve(aligned(at));  // one allocation for the whole file
-    append(out, table.data(), table.size());
-    for (size_t s = 0; s < sections.size(); ++s) {
-        out.resize(table[s].offset, 0);  // zero padding up to the aligned offset
-        out.insert(out.end(), sections[s].bytes, sections[s].bytes + sections[s].size);
-    }
-    out.resize(aligned(out.size()), 0);
+    L.file_size = at;
 
     AssetHeader h{};
     std::memcpy(h.magic, asset_magic, 8);
     h.version = asset_version;
     h.header_size = sizeof(AssetHeader);
     h.section_count = uint32_t(sections.size());
-    h.file_size = out.size();
-    std::memcpy(out.data(), &h, sizeof h);
-    h.checksum = asset_checksum(out.data(), out.size());
-    std::memcpy(out.data() + offsetof(AssetHeader, checksum), &h.checksum, sizeof h.checksum);
+    h.file_size = L.file_size;
+    L.head.resize(sections.empty() ? L.file_size : table[0].offset, 0);
+    std::memcpy(L.head.data(), &h, sizeof h);
+    std::memcpy(L.head.data() + sizeof h, table.data(), table.size() * sizeof(SectionEntry));
+}
+
+constexpr size_t checksum_at = offsetof(AssetHeader, checksum);
+
+// The file's bytes in order, as pieces: the head, then each section preceded by its zero padding.
+template <class Piece>
+void each_piece(const AssetLayout& L, Piece&& piece) {
+    static const uint8_t zeros[asset_alignment] = {};
+    uint64_t at = L.head.size();
+    piece(L.head.data(), L.head.size(), uint64_t(0));
+    for (const AssetLayout::Part& p : L.parts) {
+        if (p.offset > at) piece(zeros, p.offset - at, at);
+        piece(p.bytes, p.size, p.offset);
+        at = p.offset + p.size;
+    }
+    if (L.file_size > at) piece(zeros, L.file_size - at, at);
+}
+
+// FNV-1a over the pieces, skipping the checksum field (asset_checksum, computed as the file is written).
+uint64_t layout_checksum(const AssetLayout& L) {
+    uint64_t h = fnv1a64(L.head.data(), checksum_at);
+    h = fnv1a64(L.head.data() + checksum_at + 8, L.head.size() - checksum_at - 8, h);
+    bool first = true;
+    each_piece(L, [&](const uint8_t* bytes, uint64_t size, uint64_t) {
+        if (!first) h = fnv1a64(bytes, size_t(size), h);
+        first = false;
+    });
+    return h;
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances,
+                                  const std::string& source) {
+    AssetLayout L;
+    lay_out(L, meshes, nullptr, instances, source);
+    std::vector<uint8_t> out;
+    out.reserve(L.file_size);  // one allocation for the whole file
+    each_piece(L, [&](const uint8_t* bytes, uint64_t size, uint64_t) { out.insert(out.end(), bytes, bytes + size); });
+    const uint64_t checksum = asset_checksum(out.data(), out.size());
+    std::memcpy(out.data() + checksum_at, &checksum, sizeof checksum);
     return out;
 }
 
@@ -241,12 +294,14 @@ namespace {
     throw std::runtime_error(path + ": cannot write (" + why + ")");
 }
 
-bool write_all(int fd, const std::vector<uint8_t>& bytes) {
-    for (size_t done = 0; done < bytes.size();) {
-        const ssize_t n = ::write(fd, bytes.data() + done, std::min<size_t>(bytes.size() - done, size_t(1) << 30));
+// Writes size bytes at `offset`; false with errno set on failure.
+bool write_at(int fd, const uint8_t* bytes, uint64_t size, uint64_t offset) {
+    for (uint64_t done = 0; done < size;) {
+        const ssize_t n = ::pwrite(fd, bytes + done, size_t(std::min<uint64_t>(size - done, uint64_t(1) << 30)),
+                                   off_t(offset + done));
         if (n < 0 && errno == EINTR) continue;
         if (n <= 0) return false;
-        done += size_t(n);
+        done += uint64_t(n);
     }
     return true;
 }
@@ -275,6 +330,10 @@ void remove_stale_temporaries(const std::string& path) {
 }  // namespace
 
 void write_file_atomic(const std::string& path, const std::vector<uint8_t>& bytes) {
+    write_file_atomic(path, [&](int fd) { return write_at(fd, bytes.data(), bytes.size(), 0); });
+}
+
+void write_file_atomic(const std::string& path, const std::function<bool(int)>& fill) {
     // Only a regular file (or nothing) is replaced: renaming over a device node, a FIFO or a directory
     // would destroy it.
     struct stat st;
@@ -293,7 +352,7 @@ void write_file_atomic(const std::string& path, const std::vector<uint8_t>& byte
         fd = ::open(tmp.c_str(), O_CREAT | O_TRUNC | O_WRONLY | O_CLOEXEC, 0666);
         if (fd < 0) write_error(path, std::strerror(errno));
     }
-    bool ok = write_all(fd, bytes);
+    bool ok = fill(fd);
     int err = ok ? 0 : errno;
     if (ok && unnamed) {
         const std::string self = "/proc/self/fd/" + std::to_string(fd);
@@ -306,6 +365,39 @@ void write_file_atomic(const std::string& path, const std::vector<uint8_t>& byte
         ::unlink(tmp.c_str());
         write_error(path, std::strerror(err ? err : EIO));
     }
+}
+
+}  // namespace cb
+
+namespace cb {
+
+uint64_t write_asset(const std::string& path, std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances,
+                     const std::string& source, unsigned threads) {
+    AssetLayout L;
+    lay_out(L, meshes, &meshes, instances, source);
+    write_file_atomic(path, [&](int fd) {
+        // The pieces go to the file on a second thread while this one sums them: the checksum, serial by its
+        // definition, then costs no time of its own. The checksum field is written last.
+        std::atomic<bool> written{true};
+        std::atomic<int> error{0};
+        auto write_pieces = [&] {
+            each_piece(L, [&](const uint8_t* bytes, uint64_t size, uint64_t offset) {
+                if (written && !write_at(fd, bytes, size, offset)) written = false, error = errno;
+            });
+        };
+        uint64_t checksum;
+        if ((threads ? threads : std::thread::hardware_concurrency()) > 1) {
+            std::thread writer(write_pieces);
+            checksum = layout_checksum(L);
+            writer.join();
+        } else {
+            write_pieces();
+            checksum = layout_checksum(L);
+        }
+        errno = error;
+        return written && write_at(fd, reinterpret_cast<const uint8_t*>(&checksum), 8, checksum_at);
+    });
+    return L.file_size;
 }
 
 }  // namespace cb

@@ -3,6 +3,7 @@
 
 #include <cb_asset.h>
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -51,5 +52,16 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
 // while writing leaves nothing; temporaries of `path` left by dead processes are removed first. Refuses a
 // `path` that exists and is not a regular file. Throws std::runtime_error naming the path.
 void write_file_atomic(const std::string& path, const std::vector<uint8_t>& bytes);
+
+// The same, with the contents written by `fill(fd)` (from offset 0 of a new, empty file), which returns false
+// with errno set when it fails.
+void write_file_atomic(const std::string& path, const std::function<bool(int fd)>& fill);
+
+// encode_asset's bytes written to `path` by write_file_atomic without assembling them in memory, each
+// mesh's positions and triangles freed once encoded (its volumes are written from where they are). The
+// file goes out on a second thread while the checksum is summed when `threads` (0: all hardware threads)
+// allows. Returns the file's size.
+uint64_t write_asset(const std::string& path, std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances,
+                     const std::string& source, unsigned threads);
 
 }  // namespace cb

@@ -5,6 +5,8 @@
 // Not OpenMesh's PLY reader, which the fuzzer breaks: it loops forever on a header without end_header,
 // writes out of bounds on a property that precedes every element, and grows without bound on a malformed
 // ASCII list.
+#include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -134,6 +136,69 @@ int find_property(const Element& e, const char* name) {
     return -1;
 }
 
+// Binary little-endian files of float vertices and triangle faces, the form scanners and exporters write for
+// large meshes: every record has a fixed size, so they are read straight into the mesh without going
+// through doubles. False, with `mesh` left to be discarded, whenever the file is not exactly that or a
+// record is not as expected (a polygon, an index out of range, a coordinate that is not finite): the general
+// reader then takes the file and words the error. The result is the general reader's, bit for bit.
+bool read_float_triangles(std::string_view body, const std::vector<Element>& elements, const Element& vertex_el,
+                          const int xyz_prop[3], Mesh& mesh) {
+    if constexpr (std::endian::native != std::endian::little) return false;
+    const Element* face_el = nullptr;
+    size_t at = 0, vertex_at = 0, vertex_stride = 0, face_at = 0, index_bytes = 0;
+    size_t xyz_offset[3] = {0, 0, 0};
+    for (const Element& e : elements) {
+        bool scalar = std::none_of(e.properties.begin(), e.properties.end(), [](const Property& p) { return p.list; });
+        size_t stride = 0;
+        if (scalar) {
+            for (size_t p = 0; p < e.properties.size(); ++p) {
+                for (int k = 0; k < 3; ++k)
+                    if (&e == &vertex_el && int(p) == xyz_prop[k]) xyz_offset[k] = stride;
+                stride += type_size(e.properties[p].type);
+            }
+        } else if (e.name == "face" && !face_el && e.properties.size() == 1 &&
+                   type_size(e.properties[0].count_type) == 1 && std::abs(e.properties[0].type) == 4 &&
+                   (e.properties[0].name == "vertex_indices" || e.properties[0].name == "vertex_index")) {
+            face_el = &e, face_at = at, index_bytes = 1 + 3 * 4;
+            stride = index_bytes;
+        } else {
+            return false;
+        }
+        if (&e == &vertex_el) {
+            for (int k = 0; k < 3; ++k)
+                if (e.properties[size_t(xyz_prop[k])].type != (float_flag | 4)) return false;
+            vertex_at = at, vertex_stride = stride;
+        }
+        if (stride && e.count > (body.size() - at) / stride) return false;  // truncated: the general reader says where
+        at += size_t(e.count) * stride;
+    }
+    if (!face_el) return false;
+
+    const size_t vertices = size_t(vertex_el.count), faces = size_t(face_el->count);
+    mesh.positions.resize(vertices * 3);
+    const char* v = body.data() + vertex_at;
+    for (size_t r = 0; r < vertices; ++r, v += vertex_stride)
+        for (int k = 0; k < 3; ++k) {
+            float c;
+            std::memcpy(&c, v + xyz_offset[k], 4);
+            if (!std::isfinite(c)) return false;
+            mesh.positions[r * 3 + k] = c;
+        }
+    const bool signed_index = face_el->properties[0].type < 0;
+    mesh.indices.resize(faces * 3);
+    const char* f = body.data() + face_at;
+    for (size_t r = 0; r < faces; ++r, f += index_bytes) {
+        if (f[0] != 3) return false;
+        for (int k = 0; k < 3; ++k) {
+            uint32_t i;
+            std::memcpy(&i, f + 1 + 4 * k, 4);
+            if ((signed_index && int32_t(i) < 0) || i >= vertices) return false;
+            mesh.indices[r * 3 + k] = i;
+        }
+    }
+    return true;
+}
+
 }  // namespace
 
 Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name) {
@@ -212,8 +277,16 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
     const bool floats = enc != Encoding::ascii && float_exact(vertex_el->properties[size_t(px)].type) &&
         float_exact(vertex_el->properties[size_t(py)].type) && float_exact(vertex_el->properties[size_t(pz)].type);
 
-    Body body(text.substr(reader.pos), enc, name);
     Mesh mesh;
+    const int xyz_prop[3] = {px, py, pz};
+    if (enc == Encoding::little &&
+        read_float_triangles(text.substr(reader.pos), elements, *vertex_el, xyz_prop, mesh)) {
+        Origin origin = shift_exactly(mesh.positions);
+        return single_mesh_scene(std::move(mesh), name, origin);
+    }
+    mesh = Mesh{};
+
+    Body body(text.substr(reader.pos), enc, name);
     std::vector<double> xyz, values;
     std::vector<uint32_t> list;
     // Faces and strip triangles in file order (count, then indices), triangulated once the positions are

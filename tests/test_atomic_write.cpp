@@ -16,6 +16,8 @@
 #include <vector>
 
 #include "asset_writer.h"
+#include "bake.h"
+#include "load.h"
 
 namespace fs = std::filesystem;
 
@@ -105,5 +107,36 @@ TEST(AtomicWrite, RefusesToReplaceWhatIsNotARegularFile) {
     EXPECT_TRUE(S_ISCHR(st.st_mode));
     EXPECT_TRUE(fs::is_fifo(fifo));
     EXPECT_TRUE(fs::is_directory(folder));
+    fs::remove_all(d);
+}
+
+// write_asset streams the asset to its file (a second thread writing while the checksum is summed): the
+// file must hold encode_asset's bytes exactly, for one mesh and many, with and without a source section,
+// and the meshes' geometry is given back once encoded.
+TEST(AtomicWrite, StreamedAssetEqualsTheEncodedOne) {
+    const fs::path d = fresh_dir("stream");
+    cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    ASSERT_GT(scene.meshes.size(), 1u);
+    cb::Scene one;
+    one.meshes.push_back(scene.meshes[0]);
+    one.instances.push_back({0, cb::identity_transform(), "one"});
+    for (const cb::Scene* s : {&scene, &one}) {
+        cb::BakeStats stats;
+        std::vector<cb::AssetMesh> meshes = cb::cluster_scene(*s, {}, stats);
+        cb::BoundsOptions bounds;
+        bounds.mask = cb::bounds_auto;
+        cb::fit_scene_bounds(meshes, bounds, 2, stats);
+        for (const std::string source : {"", "made by a test\n"}) {
+            const std::vector<uint8_t> encoded = cb::encode_asset(meshes, s->instances, source);
+            for (unsigned threads : {1u, 2u}) {
+                std::vector<cb::AssetMesh> copy = meshes;
+                const fs::path out = d / ("asset" + std::to_string(threads) + ".cbk");
+                EXPECT_EQ(cb::write_asset(out.string(), copy, s->instances, source, threads), encoded.size());
+                EXPECT_EQ(read_all(out), encoded) << s->meshes.size() << " meshes, " << threads << " threads";
+                for (const cb::AssetMesh& m : copy) EXPECT_TRUE(m.positions.empty() && m.triangles.empty());
+            }
+        }
+    }
+    EXPECT_EQ(entries(d), 2u);  // the two outputs, no temporary
     fs::remove_all(d);
 }

@@ -379,7 +379,7 @@ std::string help_line(const std::string& help, const std::string& flag) {
     return {};
 }
 
-// "clusterbake 0.1.1", as --version starts.
+// "clusterbake 0.1.2", as --version starts.
 std::string tool_version() {
     std::string v = run("--version").out;
     return v.substr(0, v.find(" ("));

@@ -428,8 +428,43 @@ TEST(Cluster, ClosedMeshCheck) {
     for (const char* f : {"scanned/bunny.stl", "scanned/kitten.off", "scanned/horse.ply", "hard/non_manifold_wrap.obj",
                           "hard/tube.obj", "hard/joined_tetrahedra.obj"}) {
         cb::Scene s = cb::load_scene((fs::path(CB_SHARED_DATA) / f).string());
-        for (const cb::Mesh& m : s.meshes) EXPECT_EQ(cb::is_closed(m), closed_by_sorting(m)) << f;
+        for (const cb::Mesh& m : s.meshes)
+            for (unsigned threads : {1u, 2u, 3u})
+                EXPECT_EQ(cb::is_closed(m.indices.data(), m.indices.size(), m.vertex_count(), threads),
+                          closed_by_sorting(m))
+                    << f << ", " << threads << " threads";
     }
+}
+
+// A torus of quads, closed and wound outward: large enough for is_closed to split its vertices over threads.
+cb::Mesh torus(uint32_t around, uint32_t across) {
+    cb::Mesh m;
+    for (uint32_t i = 0; i < around; ++i)
+        for (uint32_t j = 0; j < across; ++j) {
+            double a = 2 * M_PI * i / around, b = 2 * M_PI * j / across, r = 3 + std::cos(b);
+            m.positions.insert(m.positions.end(), {float(r * std::cos(a)), float(r * std::sin(a)), float(std::sin(b))});
+        }
+    auto at = [&](uint32_t i, uint32_t j) { return (i % around) * across + j % across; };
+    for (uint32_t i = 0; i < around; ++i)
+        for (uint32_t j = 0; j < across; ++j)
+            m.indices.insert(m.indices.end(),
+                             {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+    return m;
+}
+
+TEST(Cluster, ClosedMeshCheckSplitOverThreads) {
+    cb::Mesh closed = torus(120, 90);  // 21,600 triangles
+    cb::Mesh flipped = closed, open = closed, extra = closed;
+    std::swap(flipped.indices[30001], flipped.indices[30002]);  // one triangle in the middle turned over
+    open.indices.erase(open.indices.begin() + 60000, open.indices.begin() + 60003);
+    extra.indices.insert(extra.indices.end(), {5000, 5001, 5002});  // its edges used a third time
+    for (unsigned threads : {1u, 2u, 3u, 7u}) {
+        for (const cb::Mesh* m : {&closed, &flipped, &open, &extra})
+            EXPECT_EQ(cb::is_closed(m->indices.data(), m->indices.size(), m->vertex_count(), threads),
+                      closed_by_sorting(*m))
+                << threads << " threads";
+    }
+    EXPECT_TRUE(closed_by_sorting(closed));
 }
 
 TEST(Cluster, EveryMeshOfEverySharedFile) {

@@ -1,7 +1,9 @@
 // OBJ, OFF, PLY and STL loading: features, the generated cubes in data/small, and broken input.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <cstring>
+#include <limits>
 #include <fstream>
 
 #include "load.h"
@@ -213,4 +215,82 @@ TEST(Formats, PlyErrors) {
     // Binary garbage in an error message is made printable.
     std::string bad = head + std::string("0 0 0\n1 0 \x01\x02zz\n0 1 0\n3 0 1 2\n");
     EXPECT_EQ(error_of(bad, cb::FileFormat::ply), "t: vertex 1: '??zz' is not a number");
+}
+
+namespace {
+
+// A binary PLY of float vertices (with a normal and a colour beside x, y, z) and faces of the given sizes,
+// with an element of no interest between them: little-endian, which the fast reader takes, and the same
+// values big-endian, which only the general reader reads.
+struct PlyPair {
+    std::string little, big;
+};
+
+PlyPair ply_pair(const std::vector<float>& xyz, const std::vector<std::vector<int32_t>>& faces,
+                 const char* index_type = "int") {
+    auto head = [&](const char* format) {
+        return std::string("ply\nformat ") + format + " 1.0\nelement vertex " + std::to_string(xyz.size() / 3) +
+            "\nproperty float nx\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n"
+            "element note 2\nproperty short a\nelement face " +
+            std::to_string(faces.size()) + "\nproperty list uchar " + index_type + " vertex_indices\nend_header\n";
+    };
+    PlyPair p{head("binary_little_endian"), head("binary_big_endian")};
+    auto put = [&](const void* v, size_t n) {
+        const char* c = static_cast<const char*>(v);
+        p.little.append(c, n);
+        for (size_t i = n; i-- > 0;) p.big.push_back(c[i]);
+    };
+    for (size_t v = 0; v < xyz.size() / 3; ++v) {
+        float nx = 0.5f;
+        uint8_t red = 200;
+        put(&nx, 4), put(&xyz[v * 3], 4), put(&xyz[v * 3 + 1], 4), put(&xyz[v * 3 + 2], 4), put(&red, 1);
+    }
+    for (int16_t a : {int16_t(1), int16_t(-2)}) put(&a, 2);
+    for (const auto& f : faces) {
+        uint8_t n = uint8_t(f.size());
+        put(&n, 1);
+        for (int32_t i : f) put(&i, 4);
+    }
+    return p;
+}
+
+}  // namespace
+
+TEST(Formats, BinaryPlyOfTrianglesReadsAsTheGeneralReaderDoes) {
+    // Far from the origin, so that the exact shift of float input is exercised too.
+    std::vector<float> xyz;
+    std::vector<std::vector<int32_t>> tris;
+    for (int i = 0; i < 40; ++i) xyz.insert(xyz.end(), {4e5f + float(i % 7), -3.25f * float(i), 1e-3f * float(i * i)});
+    for (int i = 0; i + 2 < 40; ++i) tris.push_back({i, i + 1, i + 2});
+    for (const char* index_type : {"int", "uint"}) {
+        PlyPair p = ply_pair(xyz, tris, index_type);
+        cb::Scene fast = load(p.little, cb::FileFormat::ply), general = load(p.big, cb::FileFormat::ply);
+        ASSERT_EQ(fast.meshes.size(), 1u);
+        EXPECT_EQ(fast.meshes[0].positions, general.meshes[0].positions) << index_type;
+        EXPECT_EQ(fast.meshes[0].indices, general.meshes[0].indices) << index_type;
+        EXPECT_EQ(fast.instances[0].world, general.instances[0].world) << index_type;
+        EXPECT_EQ(fast.meshes[0].triangle_count(), tris.size());
+        EXPECT_NE(fast.instances[0].world[12], 0) << "the exact shift of far float input";
+    }
+    // A polygon among the triangles: the general reader takes the file and triangulates it.
+    std::vector<std::vector<int32_t>> mixed = tris;
+    mixed[5] = {0, 1, 2, 3};
+    cb::Scene quads = load(ply_pair(xyz, mixed).little, cb::FileFormat::ply);
+    EXPECT_EQ(quads.report.polygons.total, 1u);
+    EXPECT_EQ(quads.meshes[0].triangle_count(), tris.size() + 1);
+    // Records the fast reader refuses get the general reader's errors, naming the element.
+    std::vector<std::vector<int32_t>> out_of_range = tris, negative = tris;
+    out_of_range[3][1] = 40;
+    negative[7][2] = -1;
+    EXPECT_EQ(error_of(ply_pair(xyz, out_of_range).little, cb::FileFormat::ply),
+              "t: face 3: index 40.000000 out of range (40 vertices)");
+    EXPECT_EQ(error_of(ply_pair(xyz, negative).little, cb::FileFormat::ply),
+              "t: face 7: index -1.000000 out of range (40 vertices)");
+    std::vector<float> nan_xyz = xyz;
+    nan_xyz[4] = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_EQ(error_of(ply_pair(nan_xyz, tris).little, cb::FileFormat::ply),
+              "t: vertex 1: position is not a finite float (nan)");
+    std::string cut = ply_pair(xyz, tris).little;
+    cut.resize(cut.size() - 5);
+    EXPECT_EQ(error_of(cut, cb::FileFormat::ply), "t: face 37: unexpected end of data");
 }
