@@ -165,11 +165,13 @@ Frame min_area_rect_frame(const double* pts, size_t n, const Frame& f, int fixed
     // (i), farthest from it (j) and farthest back (k) only move forward, so each edge costs a few steps
     // instead of a pass over the hull. The near side is the edge itself.
     const size_t m = h.size();
-    auto along = [&](size_t v, double c, double s) { return c * h[v % m][0] + s * h[v % m][1]; };
-    auto across = [&](size_t v, double c, double s) { return -s * h[v % m][0] + c * h[v % m][1]; };
+    h.resize(2 * m + 1);  // the hull twice round and once more: the calipers index past the end without wrapping
+    for (size_t v = 0; v <= m; ++v) h[m + v] = h[v];
+    auto along = [&](size_t v, double c, double s) { return c * h[v][0] + s * h[v][1]; };
+    auto across = [&](size_t v, double c, double s) { return -s * h[v][0] + c * h[v][1]; };
     for (size_t e = 0, i = 1, j = 1, k = 1; e < m && m >= 3; ++e) {
         const auto& a = h[e];
-        const auto& b = h[(e + 1) % m];
+        const auto& b = h[e + 1];
         double dx = b[0] - a[0], dy = b[1] - a[1], len = std::sqrt(dx * dx + dy * dy);
         if (!(len > 0)) continue;
         double c = dx / len, s = dy / len;
