@@ -130,8 +130,11 @@ bool area_frame(const float* positions, const uint32_t* indices, const uint32_t*
 // 2-D convex hull (monotone chain) of `p` (sorted in place) into `h`, counter-clockwise, collinear points
 // dropped.
 void hull2d(std::vector<std::array<double, 2>>& p, std::vector<std::array<double, 2>>& h) {
-    std::sort(p.begin(), p.end());
-    p.erase(std::unique(p.begin(), p.end()), p.end());
+    // std::array's own order, spelled out: its generic lexicographic compare was most of this function.
+    std::sort(p.begin(), p.end(),
+              [](const auto& a, const auto& b) { return a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]); });
+    p.erase(std::unique(p.begin(), p.end(), [](const auto& a, const auto& b) { return a[0] == b[0] && a[1] == b[1]; }),
+            p.end());
     if (p.size() < 3) {
         h = p;
         return;
@@ -170,20 +173,22 @@ Frame min_area_rect_frame(const double* pts, size_t n, const Frame& f, int fixed
     auto along = [&](size_t v, double c, double s) { return c * h[v][0] + s * h[v][1]; };
     auto across = [&](size_t v, double c, double s) { return -s * h[v][0] + c * h[v][1]; };
     for (size_t e = 0, i = 1, j = 1, k = 1; e < m && m >= 3; ++e) {
-        const auto& a = h[e];
-        const auto& b = h[e + 1];
-        double dx = b[0] - a[0], dy = b[1] - a[1], len = std::sqrt(dx * dx + dy * dy);
-        if (!(len > 0)) continue;
-        double c = dx / len, s = dy / len;
+        // Along the edge's own vector (dx, dy), not its unit direction: the area is then the product over
+        // dx^2 + dy^2, one division where normalising took a root and two.
+        const double dx = h[e + 1][0] - h[e][0], dy = h[e + 1][1] - h[e][1], len2 = dx * dx + dy * dy;
+        if (!(len2 > 0)) continue;
         i = std::max(i, e + 1);
-        while (i < e + m && along(i + 1, c, s) >= along(i, c, s)) ++i;
+        while (i < e + m && along(i + 1, dx, dy) >= along(i, dx, dy)) ++i;
         j = std::max(j, i);
-        while (j < e + m && across(j + 1, c, s) >= across(j, c, s)) ++j;
+        while (j < e + m && across(j + 1, dx, dy) >= across(j, dx, dy)) ++j;
         k = std::max(k, j);
-        while (k < e + m && along(k + 1, c, s) <= along(k, c, s)) ++k;
-        double lo1 = std::min(across(e, c, s), across(e + 1, c, s));
-        double area = (along(i, c, s) - along(k, c, s)) * (across(j, c, s) - lo1);
-        if (area < best) best = area, best_c = c, best_s = s;
+        while (k < e + m && along(k + 1, dx, dy) <= along(k, dx, dy)) ++k;
+        double lo1 = std::min(across(e, dx, dy), across(e + 1, dx, dy));
+        double area = (along(i, dx, dy) - along(k, dx, dy)) * (across(j, dx, dy) - lo1) / len2;
+        if (area < best) {
+            const double len = std::sqrt(len2);
+            best = area, best_c = dx / len, best_s = dy / len;
+        }
     }
     Frame out = f;
     for (int k = 0; k < 3; ++k) {
