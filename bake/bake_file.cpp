@@ -1,13 +1,17 @@
 #include "bake_file.h"
 
+#include <algorithm>
 #include <chrono>
+#include <exception>
 #include <cstdio>
 #include <filesystem>
 #include <new>
 #include <sstream>
+#include <thread>
 
 #include "asset_file.h"
 #include "load.h"
+#include "parallel.h"
 #include "timing.h"
 
 namespace cb {
@@ -69,12 +73,37 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
     result.instances = scene.instances.size();
 
     std::vector<AssetMesh> meshes = cluster_scene_releasing(scene, r.clustering, result.stats, progress.clustering);
+
+    // The geometry's encoding (vertex renumbering, serial) reads only what fitting reads and writes nothing
+    // fitting reads: on a thread of its own beside the fitting when there is a core for it, taken from the
+    // batch's budget when there is one.
+    std::vector<EncodedMesh> geometry;
+    std::exception_ptr encode_failed;
+    auto encode = [&] {
+        try {
+            geometry = encode_geometry(meshes);
+        } catch (...) {
+            encode_failed = std::current_exception();
+        }
+    };
+    const unsigned threads =
+        r.clustering.threads ? r.clustering.threads : std::max(1u, std::thread::hardware_concurrency());
+    CoreBudget* budget = thread_core_budget();
+    std::thread encoding;
+    if (r.fit && threads > 1 && (!budget || budget->try_take())) encoding = std::thread(encode);
     if (r.fit) fit_scene_bounds(meshes, r.bounds, r.clustering.threads, result.stats, progress.bounds);
 
     auto t1 = std::chrono::steady_clock::now();
+    if (encoding.joinable()) {
+        encoding.join();
+        if (budget) budget->give();
+    } else {
+        encode();
+    }
+    if (encode_failed) std::rethrow_exception(encode_failed);
     result.output_bytes =
-        write_asset(r.output, meshes, scene.instances, source_text(scene.report.source, r.clustering, r.bounds, r.fit),
-                    r.clustering.threads);
+        write_asset(r.output, meshes, std::move(geometry), scene.instances,
+                    source_text(scene.report.source, r.clustering, r.bounds, r.fit), r.clustering.threads);
     result.write_seconds = seconds_since(t1);
     result.triangles = result.stats.triangles;
     result.fine_clusters = result.stats.fine_clusters;

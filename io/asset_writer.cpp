@@ -25,17 +25,8 @@ void append(std::vector<uint8_t>& out, const T* data, size_t count) {
     out.insert(out.end(), p, p + count * sizeof(T));
 }
 
-// The stored geometry of one mesh: vertices renumbered by first use, each fine cluster's corners as 8-bit
-// indices into its list of new vertices followed by reused ones.
-struct CompactMesh {
-    std::vector<float> positions;
-    std::vector<uint8_t> local;
-    std::vector<uint16_t> refs;
-    std::vector<FineCluster> fine;
-};
-
-CompactMesh compact(const AssetMesh& m) {
-    CompactMesh out;
+EncodedMesh encode_mesh(const AssetMesh& m) {
+    EncodedMesh out;
     const uint32_t unseen = UINT32_MAX;
     const size_t vertices = m.positions.size() / 3;
     std::vector<uint32_t> renumbered(vertices, unseen);
@@ -118,14 +109,15 @@ struct AssetLayout {
     std::list<std::vector<uint8_t>> owned;
 };
 
-// Lays out the asset of `meshes`. With `release` (the same meshes), each mesh's positions and triangles are
-// freed as soon as it is compacted: the encoded copy replaces them.
-void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<AssetMesh>* release,
-             const std::vector<Instance>& instances, const std::string& source) {
+// Lays out the asset of `meshes`, whose encode_geometry is `geometry`. With `release` (the same meshes), each
+// mesh's positions and triangles are freed as it is laid out: the encoded copy replaces them.
+void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<EncodedMesh> geometry,
+             std::vector<AssetMesh>* release, const std::vector<Instance>& instances, const std::string& source) {
+    if (geometry.size() != meshes.size()) throw std::invalid_argument("encoded geometry of other meshes");
     // Concatenate every mesh's arrays; records hold each mesh's offsets into them.
     for (size_t i = 0; i < meshes.size(); ++i) {
         const AssetMesh& m = meshes[i];
-        CompactMesh c = compact(m);
+        EncodedMesh& c = geometry[i];
         MeshRecord r{};
         r.first_vertex = uint32_t(L.positions.size() / 3);
         r.vertex_count = uint32_t(c.positions.size() / 3);
@@ -148,6 +140,7 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<A
             L.fine.insert(L.fine.end(), c.fine.begin(), c.fine.end());
         }
         L.coarse.insert(L.coarse.end(), m.coarse.begin(), m.coarse.end());
+        c = EncodedMesh{};
         if (release) (*release)[i].positions = {}, (*release)[i].triangles = {};
     }
     L.instances.resize(instances.size());
@@ -279,7 +272,7 @@ uint64_t layout_checksum(const AssetLayout& L) {
 std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances,
                                   const std::string& source) {
     AssetLayout L;
-    lay_out(L, meshes, nullptr, instances, source);
+    lay_out(L, meshes, encode_geometry(meshes), nullptr, instances, source);
     std::vector<uint8_t> out;
     out.reserve(L.file_size);  // one allocation for the whole file
     each_piece(L, [&](const uint8_t* bytes, uint64_t size, uint64_t) { out.insert(out.end(), bytes, bytes + size); });
@@ -371,10 +364,16 @@ void write_file_atomic(const std::string& path, const std::function<bool(int)>& 
 
 namespace cb {
 
-uint64_t write_asset(const std::string& path, std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances,
-                     const std::string& source, unsigned threads) {
+std::vector<EncodedMesh> encode_geometry(const std::vector<AssetMesh>& meshes) {
+    std::vector<EncodedMesh> out;
+    for (const AssetMesh& m : meshes) out.push_back(encode_mesh(m));
+    return out;
+}
+
+uint64_t write_asset(const std::string& path, std::vector<AssetMesh>& meshes, std::vector<EncodedMesh> geometry,
+                     const std::vector<Instance>& instances, const std::string& source, unsigned threads) {
     AssetLayout L;
-    lay_out(L, meshes, &meshes, instances, source);
+    lay_out(L, meshes, std::move(geometry), &meshes, instances, source);
     write_file_atomic(path, [&](int fd) {
         // The pieces go to the file on a second thread while this one sums them: the checksum, serial by its
         // definition, then costs no time of its own. The checksum field is written last.

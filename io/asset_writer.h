@@ -57,11 +57,24 @@ void write_file_atomic(const std::string& path, const std::vector<uint8_t>& byte
 // with errno set when it fails.
 void write_file_atomic(const std::string& path, const std::function<bool(int fd)>& fill);
 
-// encode_asset's bytes written to `path` by write_file_atomic without assembling them in memory, each
-// mesh's positions and triangles freed once encoded (its volumes are written from where they are). The
-// file goes out on a second thread while the checksum is summed when `threads` (0: all hardware threads)
-// allows. Returns the file's size.
-uint64_t write_asset(const std::string& path, std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances,
-                     const std::string& source, unsigned threads);
+// A mesh's geometry as the asset stores it: vertices renumbered in order of first use (a vertex too far
+// back for a 16-bit reference stored again), each fine cluster's corners as 8-bit indices into its list of
+// new vertices followed by reused ones. It depends on the triangles alone, not on the bounding volumes.
+struct EncodedMesh {
+    std::vector<float> positions;
+    std::vector<uint8_t> local;
+    std::vector<uint16_t> refs;
+    std::vector<FineCluster> fine;
+};
+
+// The encoded geometry of every mesh; throws as encode_asset does.
+std::vector<EncodedMesh> encode_geometry(const std::vector<AssetMesh>& meshes);
+
+// encode_asset's bytes written to `path` by write_file_atomic without assembling them in memory, from the
+// meshes and their encode_geometry; each mesh's positions and triangles are freed once laid out (its
+// volumes are written from where they are). The file goes out on a second thread while the checksum is
+// summed when `threads` (0: all hardware threads) allows. Returns the file's size.
+uint64_t write_asset(const std::string& path, std::vector<AssetMesh>& meshes, std::vector<EncodedMesh> geometry,
+                     const std::vector<Instance>& instances, const std::string& source, unsigned threads);
 
 }  // namespace cb

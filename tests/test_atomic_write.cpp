@@ -131,7 +131,8 @@ TEST(AtomicWrite, StreamedAssetEqualsTheEncodedOne) {
             for (unsigned threads : {1u, 2u}) {
                 std::vector<cb::AssetMesh> copy = meshes;
                 const fs::path out = d / ("asset" + std::to_string(threads) + ".cbk");
-                EXPECT_EQ(cb::write_asset(out.string(), copy, s->instances, source, threads), encoded.size());
+                EXPECT_EQ(cb::write_asset(out.string(), copy, cb::encode_geometry(copy), s->instances, source, threads),
+                          encoded.size());
                 EXPECT_EQ(read_all(out), encoded) << s->meshes.size() << " meshes, " << threads << " threads";
                 for (const cb::AssetMesh& m : copy) EXPECT_TRUE(m.positions.empty() && m.triangles.empty());
             }
