@@ -1,5 +1,6 @@
-// What makes the pictures readable, checked on their output: the bitmap font, and the heat map's titles,
-// light marker and numbered colour bar.
+// What makes the pictures readable, checked on their output: the bitmap font, the heat map's titles, light
+// marker and numbered colour bar, and the SVG plots' log axes, ringed Pareto points, recommended point and
+// labels that overlap nothing.
 #include <gtest/gtest.h>
 #include <png.h>
 
@@ -11,6 +12,10 @@
 #include "bitmap_text.h"
 #include "heatmap.h"
 #include "load.h"
+#include "plot_checks.h"
+#include "svg_plot.h"
+
+using cb::test::expect_labels_clear;
 
 namespace {
 
@@ -171,4 +176,67 @@ TEST_F(HeatmapPicture, LightIsMarkedInBothPanels) {
         // The panels mark the same place.
         EXPECT_EQ(h.layout.light_marks[1].x - h.layout.light_marks[0].x, h.layout.panels[1].x - h.layout.panels[0].x);
     }
+}
+
+TEST(SvgPlot, LogAxisWhereValuesSpanDecades) {
+    cb::Plot wide{"bake", "bake time (ms)", "useless cluster tests per query", {}};
+    for (double x : {1.0, 2.5, 14.0, 90.0, 400.0, 1400.0}) wide.points.push_back({x, 3 + x / 1000, "c", "8"});
+    std::string svg = cb::svg_scatter(wide, {"kmeans"}, {});
+    EXPECT_EQ(count_of(svg, "class=\"axis x-axis log\""), 1u);
+    EXPECT_EQ(count_of(svg, "class=\"axis y-axis\""), 1u);
+    EXPECT_NE(svg.find("bake time (ms) (log scale)"), std::string::npos);
+    // Three decades: numbered at the powers of ten only, so the numbers do not crowd.
+    std::vector<std::string> ticks;
+    std::regex tick("class=\"tick\" x=\"[-0-9.]+\" y=\"[0-9.]+\" font-size=\"11\" text-anchor=\"middle\">([^<]*)<");
+    for (auto it = std::sregex_iterator(svg.begin(), svg.end(), tick); it != std::sregex_iterator(); ++it)
+        ticks.push_back((*it)[1]);
+    EXPECT_EQ(ticks, (std::vector<std::string>{"1", "10", "100", "1000"}));
+
+    cb::Plot narrow = wide;
+    for (auto& p : narrow.points) p.x = 10 + p.x / 100;  // 10 to 24: linear
+    std::string lin = cb::svg_scatter(narrow, {"kmeans"}, {});
+    EXPECT_EQ(count_of(lin, "x-axis log"), 0u);
+    EXPECT_EQ(lin.find("(log scale)"), std::string::npos);
+    EXPECT_TRUE(cb::wants_log_axis({0.9, 1400}));
+    EXPECT_FALSE(cb::wants_log_axis({0, 1400}));  // zero has no place on a log axis
+    EXPECT_FALSE(cb::wants_log_axis({50, 900}));
+}
+
+TEST(SvgPlot, ParetoPointsKeepTheirColourAndTheRecommendedIsMarked) {
+    cb::Plot plot{"frame", "frame ms", "useless cluster tests per query", {}};
+    plot.points.push_back({1, 5, "vco/8/pca", "8", 1, true});  // on the front, hollow, method colour 1
+    plot.points.push_back({2, 2, "kmeans/16/refined", "16", 0, false, true});
+    plot.points.push_back({3, 6, "morton/32/refined", "32", 2});
+    std::string svg = cb::svg_scatter(plot, {"kmeans", "vco", "morton"}, {"obb refined", "obb pca"});
+    std::string legend_free = svg.substr(0, svg.find("<g class=\"legend\">"));
+    size_t vco = legend_free.find("data-config=\"vco/8/pca\"");
+    ASSERT_NE(vco, std::string::npos);
+    std::string vco_group = legend_free.substr(vco, legend_free.find("</g>", vco) - vco);
+    EXPECT_NE(vco_group.find("pareto-ring"), std::string::npos);
+    EXPECT_NE(vco_group.find("stroke=\"#d62728\""), std::string::npos) << "a Pareto point lost its colour";
+    EXPECT_EQ(count_of(legend_free, "class=\"point pareto recommended\""), 1u);
+    EXPECT_EQ(count_of(legend_free, "class=\"recommended-ring\""), 1u);
+    EXPECT_EQ(count_of(legend_free, "class=\"point\""), 1u);  // morton: beaten on both axes
+    EXPECT_NE(legend_free.find(">16, recommended</text>"), std::string::npos);
+    EXPECT_NE(svg.find(">recommended</text>"), std::string::npos) << "the legend names the gold ring";
+    EXPECT_NE(svg.find("useless cluster tests per query"), std::string::npos);
+    EXPECT_EQ(expect_labels_clear(svg), 3u);
+}
+
+TEST(SvgPlot, CrowdedLabelsNeverOverlap) {
+    cb::Plot plot{"crowd", "x", "y", {}};
+    // A tight clump, exact duplicates and a spread-out tail: the labels that fit are placed, apart.
+    for (int i = 0; i < 24; ++i) {
+        double x = i < 8 ? 10 + 0.01 * i : i < 12 ? 10.5 : 10 + i * 0.3, y = i < 12 ? 3 + 0.002 * i : 3 + (i % 5);
+        std::string name = "config ";
+        name += std::to_string(i);
+        plot.points.push_back({x, y, name, std::to_string(8 * (1 + i % 4)), i % 3, i % 2 == 1});
+    }
+    plot.points[5].recommended = true;
+    std::string svg = cb::svg_scatter(plot, {"a", "b", "c"}, {"s", "t"});
+    size_t placed = expect_labels_clear(svg);
+    EXPECT_GE(placed, 14u);
+    EXPECT_LE(placed, 24u);
+    EXPECT_NE(svg.find(", recommended</text>"), std::string::npos) << "the recommended point is labelled first";
+    EXPECT_EQ(cb::svg_scatter(plot, {"a", "b", "c"}, {"s", "t"}), svg) << "placement is deterministic";
 }

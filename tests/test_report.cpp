@@ -1,17 +1,20 @@
-// The report (three files, one point per configuration, recommendation), the PNG writer and the heat map,
-// and report.html as a browser renders it: headless Chromium with no network, a screenshot that is not
-// blank, and a DOM whose plots have axes, labels and one point per configuration.
+// The report (three files, one point per configuration, recommendation, no column of zeros), the PNG
+// writer and the heat map; and report.html as a browser renders it: headless Chromium with no network, a
+// screenshot that is not blank, and a DOM whose plots have axes, labels and one point per configuration.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <regex>
 #include <sstream>
 
+#include "plot_checks.h"
 #include "png_writer.h"
 #include "report.h"
 #include "stats_helpers.h"
+#include "svg_plot.h"
 
 namespace fs = std::filesystem;
 using namespace cb::test;
@@ -50,19 +53,52 @@ std::vector<std::string> plots_of(const std::string& page) {
     return out;
 }
 
-void expect_plots_complete(const std::string& page, size_t scenes) {
+// Every plot of the page complete: axes (log where its values span decades), one point per configuration,
+// the Pareto front ringed, the recommended configuration ringed in gold, labels that overlap nothing.
+void expect_plots_complete(const std::string& page, size_t scenes, size_t points = configs) {
     std::vector<std::string> plots = plots_of(page);
     ASSERT_EQ(plots.size(), 2 * scenes);
     for (const std::string& p : plots) {
-        EXPECT_EQ(count_of(p, "class=\"axis x-axis\""), 1u);
-        EXPECT_EQ(count_of(p, "class=\"axis y-axis\""), 1u);
+        EXPECT_EQ(count_of(p, "class=\"axis x-axis"), 1u);
+        EXPECT_EQ(count_of(p, "class=\"axis y-axis"), 1u);
         EXPECT_EQ(count_of(p, "class=\"axis-label\""), 2u);
-        EXPECT_GE(count_of(p, "class=\"tick\""), 4u);
-        EXPECT_EQ(count_of(p, "class=\"point"), configs);  // "point" and "point pareto"
-        EXPECT_GE(count_of(p, "class=\"point pareto\""), 1u);
+        EXPECT_GE(count_of(p, "class=\"tick\""), 3u);
+        EXPECT_EQ(count_of(p, "class=\"point"), points);  // "point", "point pareto", "point pareto recommended"
+        EXPECT_GE(count_of(p, "class=\"pareto-ring\""), 1u);
         EXPECT_EQ(count_of(p, "class=\"pareto-front\""), 1u);
-        EXPECT_NE(p.find("useless cluster tests per query"), std::string::npos);
+        EXPECT_EQ(count_of(p, "class=\"recommended-ring\""), 1u);
+        EXPECT_NE(p.find("useless cluster tests per query</text>"), std::string::npos);
+        EXPECT_GE(expect_labels_clear(p), 1u);
     }
+}
+
+// Each plot's x values as the page's JSON has them, and whether the plot drew a log x axis: they agree.
+void expect_log_axes_where_values_span_decades(const std::string& page, const nlohmann::json& report) {
+    std::vector<std::string> plots = plots_of(page);
+    ASSERT_EQ(plots.size(), 2 * report["scenes"].size());
+    for (size_t i = 0; i < plots.size(); ++i) {
+        std::vector<double> xs;
+        for (const auto& c : report["scenes"][i / 2]["configs"])
+            xs.push_back(1e3 * c[i % 2 ? "frame_seconds" : "bake_seconds"].get<double>());
+        bool log = plots[i].find("class=\"axis x-axis log\"") != std::string::npos;
+        EXPECT_EQ(log, cb::wants_log_axis(xs)) << "plot " << i;
+        double lo = *std::min_element(xs.begin(), xs.end()), hi = *std::max_element(xs.begin(), xs.end());
+        if (hi > 100 * lo) {
+            EXPECT_TRUE(log) << "plot " << i << ": x from " << lo << " to " << hi;
+        }
+    }
+}
+
+// The <th> texts of a page's configuration tables.
+std::vector<std::string> table_headers(const std::string& page) {
+    std::vector<std::string> out;
+    for (size_t at = page.find("<table class=\"configs\">"); at != std::string::npos;
+         at = page.find("<table class=\"configs\">", at + 1)) {
+        size_t row_end = page.find("</tr>", at);
+        for (size_t th = page.find("<th>", at); th < row_end; th = page.find("<th>", th + 1))
+            out.push_back(page.substr(th + 4, page.find("</th>", th) - th - 4));
+    }
+    return out;
 }
 
 }  // namespace
@@ -151,6 +187,85 @@ TEST(Report, BadInputIsOneLineNamingTheFile) {
     EXPECT_EQ(count_of(r.err, "\n"), 1u) << r.err;
     EXPECT_EQ(run_cli("report " + data("small/cube.obj") + " -o " + out.string() + " --fine 0 -q").code, 2);
     EXPECT_EQ(run_cli("report " + data("small/cube.obj") + " -o " + out.string() + " --obb box -q").code, 2);
+}
+
+TEST(Report, ColumnsOfZerosAreLeftOut) {
+    cb::Report r;
+    r.options.methods = {cb::ClusterMethod::kmeans, cb::ClusterMethod::vco};
+    r.options.fine_sizes = {8};
+    r.options.obbs = {cb::ObbMethod::refined};
+    cb::SceneReport s;
+    s.file = "made-up.glb", s.name = "made-up", s.triangles = 100, s.instances = 1, s.points = 50;
+    s.lights = {0, 10, 0};
+    for (int i = 0; i < 2; ++i) {
+        cb::ConfigResult c;
+        c.method = i ? cb::ClusterMethod::vco : cb::ClusterMethod::kmeans, c.fine_size = 8;
+        c.obb = cb::ObbMethod::refined;
+        c.fine_clusters = 12 + i, c.coarse_clusters = 1, c.bytes_per_triangle = 15;
+        c.cluster_seconds = 0.002 * (i + 1), c.fit_seconds = 0.001, c.obb_volume_relative = 0.4;
+        c.useless_share = 0.3, c.build_seconds = 0.001, c.queries_per_second = 2e6;
+        c.nodes_per_query = 0, c.clusters_per_query = 4, c.useless_per_query = 3 - i, c.triangles_per_query = 40;
+        c.shadowed_share = 0, c.frame_seconds = 0.01 * (2 - i);
+        s.configs.push_back(c);
+    }
+    r.scenes.push_back(s);
+    r.recommended = "vco/8/refined";
+    auto has = [](const std::vector<std::string>& v, const std::string& x) {
+        return std::find(v.begin(), v.end(), x) != v.end();
+    };
+    std::string html = cb::report_html(r);
+    std::vector<std::string> headers = table_headers(html);
+    EXPECT_FALSE(has(headers, "nodes / query"));  // the default traversal walks no tree
+    EXPECT_FALSE(has(headers, "in shadow"));
+    EXPECT_TRUE(has(headers, "clusters / query"));
+    EXPECT_TRUE(has(headers, "frame ms"));
+    EXPECT_NE(html.find("<p class=\"dropped-columns\">"), std::string::npos);
+    EXPECT_NE(html.find("nodes / query (the default traversal"), std::string::npos);
+    // Every row has as many cells as the header.
+    size_t row = html.find("<tr class=\"recommended\">");
+    ASSERT_NE(row, std::string::npos);
+    std::string cells = html.substr(row, html.find("</tr>", row) - row);
+    EXPECT_EQ(count_of(cells, "<td>"), headers.size());
+    expect_plots_complete(html, 1, 2);
+
+    // One non-zero figure keeps its column; the printed table follows the same rule.
+    r.scenes[0].configs[1].nodes_per_query = 1.5;
+    r.scenes[0].configs[0].useless_share = r.scenes[0].configs[1].useless_share = 0;
+    headers = table_headers(cb::report_html(r));
+    EXPECT_TRUE(has(headers, "nodes / query"));
+    EXPECT_FALSE(has(headers, "useless share of shadow-volume samples"));
+    std::string table = cb::report_table(r);
+    EXPECT_EQ(table.find("useless volume share"), std::string::npos) << table;
+    EXPECT_NE(table.find("| useless / query |"), std::string::npos) << table;
+    EXPECT_NE(table.find("| vco/8/refined (recommended) |"), std::string::npos) << table;
+}
+
+TEST(Report, BakeTimesOverDecadesGetALogAxis) {
+    cb::Report r;
+    r.options.methods = {cb::ClusterMethod::kmeans, cb::ClusterMethod::morton};
+    r.options.fine_sizes = {8, 32};
+    r.options.obbs = {cb::ObbMethod::refined};
+    cb::SceneReport s;
+    s.file = "city.obj", s.name = "city", s.lights = {0, 10, 0};
+    // As on the shared city model: morton bakes in about a millisecond, k-means in over a second.
+    const double bake[4] = {1.4, 0.6, 0.0011, 0.0009}, frame[4] = {0.02, 0.025, 0.03, 0.028};
+    for (int i = 0; i < 4; ++i) {
+        cb::ConfigResult c;
+        c.method = i < 2 ? cb::ClusterMethod::kmeans : cb::ClusterMethod::morton, c.fine_size = i % 2 ? 32 : 8;
+        c.obb = cb::ObbMethod::refined;
+        c.cluster_seconds = bake[i], c.frame_seconds = frame[i], c.useless_per_query = 2 + i;
+        c.clusters_per_query = 8, c.queries_per_second = 1e6;
+        s.configs.push_back(c);
+    }
+    r.scenes.push_back(s);
+    r.recommended = "kmeans/8/refined";
+    std::string html = cb::report_html(r);
+    std::vector<std::string> plots = plots_of(html);
+    ASSERT_EQ(plots.size(), 2u);
+    EXPECT_NE(plots[0].find("class=\"axis x-axis log\""), std::string::npos) << "bake times 0.9 to 1400 ms";
+    EXPECT_EQ(plots[1].find("x-axis log"), std::string::npos) << "frame times 20 to 30 ms";
+    expect_plots_complete(html, 1, 4);
+    expect_log_axes_where_values_span_decades(html, cb::report_json(r));
 }
 
 TEST(Heatmap, CommandWritesWhatItPrints) {
