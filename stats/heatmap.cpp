@@ -148,16 +148,20 @@ void compose(Heatmap& h, const std::vector<uint32_t> counts[2], const std::vecto
     const int s = L.text_scale = n >= 200 ? 2 : 1, margin = 5 * s, gap = 8 * s, line_h = (glyph_rows + 2) * s;
     const int width = 2 * n + gap + 2 * margin, inner = width - 2 * margin;
 
+    // Method and mean on one line above each panel when both panels' fit, else on two lines in both.
     const char* methods[2] = {"K-MEANS", "VCO"};
-    size_t title_rows = 1;
+    std::string means[2];
+    bool one_line = true;
     for (int panel = 0; panel < 2; ++panel) {
         char mean[48];
         std::snprintf(mean, sizeof mean, "MEAN %.2f", h.mean_useless[panel]);
-        std::string one = std::string(methods[panel]) + "  " + mean;
-        L.title_lines[panel] =
-            text_width(one, s) <= n ? std::vector<std::string>{one} : std::vector<std::string>{methods[panel], mean};
-        title_rows = std::max(title_rows, L.title_lines[panel].size());
+        means[panel] = mean;
+        one_line = one_line && text_width(std::string(methods[panel]) + "  " + mean, s) <= n;
     }
+    for (int panel = 0; panel < 2; ++panel)
+        L.title_lines[panel] = one_line ? std::vector<std::string>{std::string(methods[panel]) + "  " + means[panel]}
+                                        : std::vector<std::string>{methods[panel], means[panel]};
+    const size_t title_rows = one_line ? 1 : 2;
     const int panel_y = margin + int(title_rows) * line_h + s;
     const int bar_y = panel_y + n + 5 * s, bar_h = 8 * s, labels_y = bar_y + bar_h + 3 * s;
     const int caption_y = labels_y + line_h + 2 * s;
