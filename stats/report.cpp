@@ -530,7 +530,7 @@ std::string report_html(const Report& r) {
         " rounds that each measure every configuration once. "
         "Lower is better on every axis. In the plots, the dashed line joins the Pareto front (the configurations "
         "no other beats on both axes), whose points are ringed; the gold ring marks the recommended default; an "
-        "axis whose values span more than 20 times is logarithmic.</p>\n";
+        "axis whose values span more than a decade is logarithmic.</p>\n";
     if (!r.recommended.empty())
         h += "<p class=\"recommendation\"><b>Recommended default: " + html_escape(r.recommended) + "</b> &mdash; " +
             html_escape(r.recommendation_reason) + ".</p>\n";

@@ -133,7 +133,7 @@ std::vector<Placed> place_labels(const std::vector<PlotPoint>& points, const std
 bool wants_log_axis(const std::vector<double>& values) {
     if (values.empty()) return false;
     double mn = *std::min_element(values.begin(), values.end()), mx = *std::max_element(values.begin(), values.end());
-    return mn > 0 && mx > 20 * mn;
+    return mn > 0 && mx > 10 * mn;
 }
 
 TextBox label_box(double x, double baseline, const std::string& text, double font_size) {

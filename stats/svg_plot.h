@@ -24,7 +24,7 @@ struct Plot {
     bool log_x = false;  // forces a log x axis; either axis is log anyway when wants_log_axis says so
 };
 
-// True when the values are all positive and the largest is more than 20 times the smallest: a linear axis
+// True when the values are all positive and the largest is more than 10 times the smallest: a linear axis
 // would crowd the small ones into its first tick.
 bool wants_log_axis(const std::vector<double>& values);
 

@@ -199,7 +199,8 @@ TEST(SvgPlot, LogAxisWhereValuesSpanDecades) {
     EXPECT_EQ(lin.find("(log scale)"), std::string::npos);
     EXPECT_TRUE(cb::wants_log_axis({0.9, 1400}));
     EXPECT_FALSE(cb::wants_log_axis({0, 1400}));  // zero has no place on a log axis
-    EXPECT_FALSE(cb::wants_log_axis({50, 900}));
+    EXPECT_TRUE(cb::wants_log_axis({50, 900}));
+    EXPECT_FALSE(cb::wants_log_axis({50, 450}));
 }
 
 TEST(SvgPlot, ParetoPointsKeepTheirColourAndTheRecommendedIsMarked) {
