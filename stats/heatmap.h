@@ -22,6 +22,23 @@ struct HeatmapOptions {
     bool one_sided = false;
 };
 
+// A rectangle of the picture, in pixels from its top-left corner.
+struct PixelBox {
+    int x = 0, y = 0, w = 0, h = 0;
+};
+
+// Where the picture's parts are, so that a reader (or a test) can find them.
+struct HeatmapLayout {
+    int text_scale = 1;  // pixels per font cell (bitmap_text.h)
+    PixelBox panels[2];  // k-means, VCO
+    PixelBox titles[2];  // above each panel: its method and mean
+    std::vector<std::string> title_lines[2];
+    PixelBox colour_bar;           // the ramp itself, 0 at its left edge, scale_max at its right
+    std::vector<int> tick_values;  // numbered below the bar; the last is scale_max ("N+")
+    PixelBox light_marks[2];       // the light's marker in each panel (an arrow at the edge when out of view)
+    bool light_in_view = false;
+};
+
 struct Heatmap {
     std::vector<uint8_t> png;
     uint32_t width = 0, height = 0;
@@ -29,11 +46,14 @@ struct Heatmap {
     double mean_useless[2] = {0, 0};  // per covered pixel: k-means, VCO
     uint64_t pixels = 0;              // pixels that see the scene
     double light[3] = {0, 0, 0};
+    HeatmapLayout layout;
     std::string caption() const;
 };
 
-// Left panel k-means, right panel VCO; a colour bar along the bottom (dark: 0, bright: scale_max).
-// Pixels that miss the scene are grey. Each stage of the work is named to `progress` when set.
+// Left panel k-means, right panel VCO, each titled with its method and mean; the light marked in both (an
+// arrow at the panel's edge pointing to it when it is out of view); a numbered colour bar along the bottom
+// (dark: 0, bright: scale_max or more). Pixels that miss the scene are grey, as the key beside the bar
+// says. Each stage of the work is named to `progress` when set.
 Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options,
                        const std::function<void(const std::string&)>& progress = {});
 

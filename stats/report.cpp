@@ -233,6 +233,7 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
             ho.one_sided = o.one_sided;
             Heatmap h = render_heatmap(scene, ho);
             s.heatmap_png = h.png;
+            s.heatmap_width = h.width, s.heatmap_height = h.height;
             s.heatmap_caption = h.caption();
         }
         r.scenes.push_back(std::move(s));
@@ -248,6 +249,62 @@ std::string fixed(double v, int digits) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%.*f", digits, v);
     return buf;
+}
+
+// A figure of the configuration tables: its header in report.html and in the printed Markdown table (empty:
+// not in that table), the figure, its printed form, and why it may be zero for every configuration.
+struct Column {
+    std::string html_header, text_header;
+    double (*value)(const ConfigResult&);
+    double scale;
+    int digits;
+    const char* suffix;
+    const char* why_zero;
+    std::string text(const ConfigResult& c) const { return fixed(value(c) * scale, digits) + suffix; }
+};
+
+const std::vector<Column>& columns() {
+    static const std::vector<Column> all = {
+        {"fine clusters", "fine clusters", [](const ConfigResult& c) { return double(c.fine_clusters); }, 1, 0, "", ""},
+        {"asset bytes / triangle", "bytes / triangle", [](const ConfigResult& c) { return c.bytes_per_triangle; }, 1, 1,
+         "", ""},
+        {"", "bake ms", [](const ConfigResult& c) { return c.bake_seconds(); }, 1e3, 1, "", ""},
+        {"cluster ms", "", [](const ConfigResult& c) { return c.cluster_seconds; }, 1e3, 1, "", ""},
+        {"fit ms", "", [](const ConfigResult& c) { return c.fit_seconds; }, 1e3, 1, "", ""},
+        {"fine OBB volume / scene box", "fine OBB vol / scene",
+         [](const ConfigResult& c) { return c.obb_volume_relative; }, 1, 4, "", ""},
+        {"useless share of shadow-volume samples", "useless volume share",
+         [](const ConfigResult& c) { return c.useless_share; }, 100, 1, "%", ""},
+        {"tree build ms", "build ms", [](const ConfigResult& c) { return c.build_seconds; }, 1e3, 2, "", ""},
+        {"M queries/s", "M queries/s", [](const ConfigResult& c) { return c.queries_per_second; }, 1e-6, 3, "", ""},
+        {"nodes / query", "", [](const ConfigResult& c) { return c.nodes_per_query; }, 1, 1, "",
+         "the default traversal scans the clusters without a tree"},
+        {"clusters / query", "clusters / query", [](const ConfigResult& c) { return c.clusters_per_query; }, 1, 2, "",
+         ""},
+        {"useless / query", "useless / query", [](const ConfigResult& c) { return c.useless_per_query; }, 1, 2, "", ""},
+        {"triangles / query", "triangles / query", [](const ConfigResult& c) { return c.triangles_per_query; }, 1, 1,
+         "", ""},
+        {"in shadow", "", [](const ConfigResult& c) { return c.shadowed_share; }, 100, 1, "%",
+         "no query point is in shadow of the lights"},
+        {"frame ms", "frame ms", [](const ConfigResult& c) { return c.frame_seconds; }, 1e3, 2, "", ""},
+    };
+    return all;
+}
+
+// The columns of one table (HTML or text) that have a non-zero figure for some configuration of the scene:
+// a column of zeros tells nothing. `dropped` gets the others.
+std::vector<const Column*> shown_columns(const SceneReport& s, bool html, std::vector<const Column*>* dropped) {
+    std::vector<const Column*> shown;
+    for (const Column& col : columns()) {
+        if ((html ? col.html_header : col.text_header).empty()) continue;
+        bool any = false;
+        for (const ConfigResult& c : s.configs) any = any || col.value(c) != 0;
+        if (any)
+            shown.push_back(&col);
+        else if (dropped)
+            dropped->push_back(&col);
+    }
+    return shown;
 }
 
 std::string base64(const std::vector<uint8_t>& bytes) {
@@ -269,7 +326,10 @@ struct Fronts {
     std::vector<bool> bake, frame;
 };
 
-std::vector<PlotPoint> plot_points(const SceneReport& s, const ReportOptions& o, bool frame) {
+// One point per configuration: x its bake or frame time in ms, y its useless tests per query, coloured by
+// method, hollow for the second box fitter onward, labelled with its fine size.
+std::vector<PlotPoint> plot_points(const SceneReport& s, const ReportOptions& o, bool frame,
+                                   const std::string& recommended = "") {
     std::vector<PlotPoint> pts;
     for (const ConfigResult& c : s.configs) {
         PlotPoint p;
@@ -279,6 +339,7 @@ std::vector<PlotPoint> plot_points(const SceneReport& s, const ReportOptions& o,
         p.tag = std::to_string(c.fine_size);
         p.colour = int(std::find(o.methods.begin(), o.methods.end(), c.method) - o.methods.begin());
         p.hollow = std::find(o.obbs.begin(), o.obbs.end(), c.obb) != o.obbs.begin();
+        p.recommended = c.name() == recommended;
         pts.push_back(p);
     }
     return pts;
@@ -320,23 +381,21 @@ std::string report_table(const Report& r) {
                       s.file.c_str(), (unsigned long long)s.triangles, (unsigned long long)s.points, r.options.view,
                       r.options.view, r.options.frame_view, r.options.frame_view, r.options.lights);
         out += buf;
-        out +=
-            "| config | fine clusters | bytes / triangle | bake ms | fine OBB vol / scene | useless volume share | "
-            "build ms | M queries/s | "
-            "clusters / query | useless / query | triangles / query | frame ms | Pareto |\n";
-        out += "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        std::vector<const Column*> shown = shown_columns(s, false, nullptr);
+        out += "| config |";
+        for (const Column* col : shown) out += " " + col->text_header + " |";
+        out += " Pareto |\n|---|";
+        for (size_t k = 0; k <= shown.size(); ++k) out += "---|";
+        out += "\n";
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
             std::string pareto = std::string(f.bake[i] ? "bake" : "") + (f.bake[i] && f.frame[i] ? "+" : "") +
                 (f.frame[i] ? "frame" : "");
-            std::snprintf(
-                buf, sizeof buf,
-                "| %s%s | %llu | %.1f | %.1f | %.4f | %.1f%% | %.2f | %.3f | %.2f | %.2f | %.1f | %.2f | %s |\n",
-                c.name().c_str(), c.name() == r.recommended ? " (recommended)" : "",
-                (unsigned long long)c.fine_clusters, c.bytes_per_triangle, c.bake_seconds() * 1e3,
-                c.obb_volume_relative, 100 * c.useless_share, c.build_seconds * 1e3, c.queries_per_second / 1e6,
-                c.clusters_per_query, c.useless_per_query, c.triangles_per_query, frame_of(s, c) * 1e3, pareto.c_str());
-            out += buf;
+            out += "| " + c.name();
+            if (c.name() == r.recommended) out += " (recommended)";
+            out += " |";
+            for (const Column* col : shown) out.append(" ").append(col->text(c)).append(" |");
+            out.append(" ").append(pareto).append(" |\n");
         }
         out += "\n";
     }
@@ -454,6 +513,7 @@ std::string report_html(const Report& r) {
         "td:first-child,th:first-child{text-align:left}\ntr.recommended td{background:#fff6d5;font-weight:bold}\n"
         ".plots{display:flex;flex-wrap:wrap;gap:16px}\n.plot{border:1px solid #ddd}\n"
         "figure{margin:8px 0}\nfigcaption{font-size:13px;color:#444;max-width:900px}\n"
+        ".heatmap img{image-rendering:pixelated}\n"
         "</style>\n</head>\n<body>\n<h1>clusterbake: speed against error</h1>\n";
     h += "<p>Each configuration (clustering method / fine size / box fitter) is baked in memory, timed (median of " +
         std::to_string(o.runs) +
@@ -468,7 +528,9 @@ std::string report_html(const Report& r) {
         "on one thread; runtime timings are the median of " +
         std::to_string(o.query_runs) +
         " rounds that each measure every configuration once. "
-        "Lower is better on every axis; the dashed line joins the Pareto front.</p>\n";
+        "Lower is better on every axis. In the plots, the dashed line joins the Pareto front (the configurations "
+        "no other beats on both axes), whose points are ringed; the gold ring marks the recommended default; an "
+        "axis whose values span more than a decade is logarithmic.</p>\n";
     if (!r.recommended.empty())
         h += "<p class=\"recommendation\"><b>Recommended default: " + html_escape(r.recommended) + "</b> &mdash; " +
             html_escape(r.recommendation_reason) + ".</p>\n";
@@ -504,36 +566,41 @@ std::string report_html(const Report& r) {
             " camera-visible query points, " + std::to_string(s.lights.size() / 3) +
             " light(s).</p>\n<div class=\"plots\">\n";
         Plot bake{s.name + ": bake time against error", "bake time per configuration (ms)",
-                  "useless cluster tests per query", plot_points(s, o, false)};
+                  "useless cluster tests per query", plot_points(s, o, false, r.recommended)};
         Plot frame{s.name + ": runtime cost against error",
                    "frame time: build + queries of a " + std::to_string(o.frame_view) + "x" +
                        std::to_string(o.frame_view) + " view, one light (ms)",
-                   "useless cluster tests per query", plot_points(s, o, true)};
+                   "useless cluster tests per query", plot_points(s, o, true, r.recommended)};
         h += svg_scatter(bake, colours, styles) + svg_scatter(frame, colours, styles) + "</div>\n";
-        if (!s.heatmap_png.empty())
-            h += "<figure class=\"heatmap\"><img alt=\"heat map of useless cluster tests\" "
-                 "src=\"data:image/png;base64," +
-                base64(s.heatmap_png) + "\"><figcaption>" + html_escape(s.heatmap_caption) + "</figcaption></figure>\n";
-        h += "<table class=\"configs\">\n<tr><th>configuration</th><th>fine clusters</th><th>asset bytes / "
-             "triangle</th><th>cluster ms</th><th>fit ms</th>"
-             "<th>fine OBB volume / scene box</th><th>useless share of shadow-volume samples</th><th>tree build ms</th>"
-             "<th>M queries/s</th><th>nodes / query</th><th>clusters / query</th><th>useless / query</th><th>triangles "
-             "/ query</th>"
-             "<th>in shadow</th><th>frame ms</th><th>Pareto</th></tr>\n";
+        if (!s.heatmap_png.empty()) {
+            // A small picture is shown at twice its size, its pixels kept square, so its labels read.
+            uint32_t zoom = s.heatmap_width < 400 ? 2 : 1;
+            h += "<figure class=\"heatmap\"><img alt=\"heat map of useless cluster tests\" width=\"" +
+                std::to_string(zoom * s.heatmap_width) + "\" height=\"" + std::to_string(zoom * s.heatmap_height) +
+                "\" src=\"data:image/png;base64," + base64(s.heatmap_png) + "\"><figcaption>" +
+                html_escape(s.heatmap_caption) + "</figcaption></figure>\n";
+        }
+        std::vector<const Column*> dropped, shown = shown_columns(s, true, &dropped);
+        h += "<table class=\"configs\">\n<tr><th>configuration</th>";
+        for (const Column* col : shown) h += "<th>" + html_escape(col->html_header) + "</th>";
+        h += "<th>Pareto</th></tr>\n";
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
             std::string pareto = std::string(f.bake[i] ? "bake " : "") + (f.frame[i] ? "frame" : "");
             h += std::string("<tr") + (c.name() == r.recommended ? " class=\"recommended\"" : "") + "><td>" +
-                html_escape(c.name()) + "</td><td>" + std::to_string(c.fine_clusters) + "</td><td>" +
-                fixed(c.bytes_per_triangle, 1) + "</td><td>" + fixed(c.cluster_seconds * 1e3, 1) + "</td><td>" +
-                fixed(c.fit_seconds * 1e3, 1) + "</td><td>" + fixed(c.obb_volume_relative, 4) + "</td><td>" +
-                fixed(100 * c.useless_share, 1) + "%</td><td>" + fixed(c.build_seconds * 1e3, 2) + "</td><td>" +
-                fixed(c.queries_per_second / 1e6, 3) + "</td><td>" + fixed(c.nodes_per_query, 1) + "</td><td>" +
-                fixed(c.clusters_per_query, 2) + "</td><td>" + fixed(c.useless_per_query, 2) + "</td><td>" +
-                fixed(c.triangles_per_query, 1) + "</td><td>" + fixed(100 * c.shadowed_share, 1) + "%</td><td>" +
-                fixed(frame_of(s, c) * 1e3, 2) + "</td><td>" + pareto + "</td></tr>\n";
+                html_escape(c.name()) + "</td>";
+            for (const Column* col : shown) h += "<td>" + col->text(c) + "</td>";
+            h += "<td>" + pareto + "</td></tr>\n";
         }
-        h += "</table>\n</section>\n";
+        h += "</table>\n";
+        if (!dropped.empty()) {
+            h += "<p class=\"dropped-columns\">Not shown, as zero for every configuration:";
+            for (size_t k = 0; k < dropped.size(); ++k)
+                h += std::string(k ? ";" : "") + " " + html_escape(dropped[k]->html_header) +
+                    (*dropped[k]->why_zero ? std::string(" (") + dropped[k]->why_zero + ")" : "");
+            h += ".</p>\n";
+        }
+        h += "</section>\n";
     }
     h += "</body>\n</html>\n";
     return h;

@@ -62,6 +62,7 @@ struct SceneReport {
     std::vector<double> lights;
     std::vector<ConfigResult> configs;
     std::vector<uint8_t> heatmap_png;  // empty unless asked for
+    uint32_t heatmap_width = 0, heatmap_height = 0;
     std::string heatmap_caption;
 };
 
