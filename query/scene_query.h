@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,15 @@ struct SceneQueryResult {
 // processor has among those the build made (query_lanes); every choice gives the same answers.
 SceneQueryResult query_scene(const AssetView& view, const double* light, const double* points, size_t count,
                              const SceneQueryOptions& options = {});
+
+// The same `count` points against each of `light_count` lights (xyz triples, world), as query_scene answers
+// them one light at a time, but with the light-independent part made once: the scan's per-asset bounds
+// (make_scan_bounds). Each light's result goes to `on_light` as soon as it is done, in order, so a caller
+// keeps only what it needs of it; its build_seconds leave the shared bounds out. Returns the seconds the
+// shared bounds took (0 for the reference and the tree traversals, which need none).
+double query_scene_lights(const AssetView& view, const double* lights, size_t light_count, const double* points,
+                          size_t count, const SceneQueryOptions& options,
+                          const std::function<void(size_t light, const SceneQueryResult&)>& on_light);
 
 // The lanes query_scene runs on ("avx512", "avx2", "sse2" or "portable", as cb::simd::name), picked on
 // first use: the widest the processor runs, no wider than the environment's CLUSTERBAKE_LANES (sse2, avx2

@@ -12,17 +12,23 @@
 namespace cb {
 inline namespace CB_LANES {
 
-SceneQueryResult query_scene_lanes(const AssetView& view, const double* light, const double* points, size_t n,
-                                   const SceneQueryOptions& o) {
+namespace {
+
+// The scan's bounds, once per mesh however many instances it has; none for the reference or a tree traversal.
+std::vector<ScanBounds> bounds_for(const AssetView& view, const SceneQueryOptions& o) {
+    return o.traversal == Traversal::scan && !o.reference && view.instance_count ? make_scan_bounds(view)
+                                                                                 : std::vector<ScanBounds>{};
+}
+
+// One light's answers with the bounds already made.
+SceneQueryResult answer_light(const AssetView& view, const std::vector<ScanBounds>& bounds, const double* light,
+                              const double* points, size_t n, const SceneQueryOptions& o) {
     SceneQueryResult r;
     const unsigned thread_count = o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
 
     // One structure per instance for this light (none for the reference).
     auto build_start = std::chrono::steady_clock::now();
     std::vector<InstanceShadow> trees(o.reference ? 0 : view.instance_count);
-    // The scan's bounds, once per mesh however many instances it has.
-    const std::vector<ScanBounds> bounds =
-        o.traversal == Traversal::scan && !trees.empty() ? make_scan_bounds(view) : std::vector<ScanBounds>{};
     ShadowBuildOptions build;
     build.traversal = o.traversal;
     build.one_sided = o.one_sided;
@@ -81,6 +87,28 @@ SceneQueryResult query_scene_lanes(const AssetView& view, const double* light, c
     for (const QueryStats& c : r.point_stats) add(c);
     r.query_seconds = seconds_since(start);
     return r;
+}
+
+}  // namespace
+
+SceneQueryResult query_scene_lanes(const AssetView& view, const double* light, const double* points, size_t n,
+                                   const SceneQueryOptions& o) {
+    auto start = std::chrono::steady_clock::now();
+    const std::vector<ScanBounds> bounds = bounds_for(view, o);
+    const double bounds_seconds = seconds_since(start);
+    SceneQueryResult r = answer_light(view, bounds, light, points, n, o);
+    r.build_seconds += bounds_seconds;  // one light: its build includes them
+    return r;
+}
+
+double query_lights_lanes(const AssetView& view, const double* lights, size_t light_count, const double* points,
+                          size_t n, const SceneQueryOptions& o,
+                          const std::function<void(size_t, const SceneQueryResult&)>& on_light) {
+    auto start = std::chrono::steady_clock::now();
+    const std::vector<ScanBounds> bounds = light_count ? bounds_for(view, o) : std::vector<ScanBounds>{};
+    const double bounds_seconds = seconds_since(start);
+    for (size_t l = 0; l < light_count; ++l) on_light(l, answer_light(view, bounds, &lights[l * 3], points, n, o));
+    return bounds_seconds;
 }
 
 }  // namespace CB_LANES
