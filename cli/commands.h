@@ -23,5 +23,6 @@ Command add_heatmap(CLI::App& app);      // heatmap.cpp
 Command add_validate(CLI::App& app);     // validate.cpp
 Command add_query(CLI::App& app);        // query.cpp
 Command add_export_gltf(CLI::App& app);  // export_gltf.cpp
+Command add_render(CLI::App& app);       // render.cpp
 
 }  // namespace cb::cli

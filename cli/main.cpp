@@ -34,9 +34,9 @@ int main(int argc, char** argv) {
             ", shadow queries on " + lanes + " lanes)";
     });
     using namespace cb::cli;
-    const Command commands[] = {add_info(app),  add_cluster(app),    add_bake(app),    add_batch(app),
-                                add_stats(app), add_report(app),     add_heatmap(app), add_validate(app),
-                                add_query(app), add_export_gltf(app)};
+    const Command commands[] = {add_info(app),  add_cluster(app),     add_bake(app),    add_batch(app),
+                                add_stats(app), add_report(app),      add_heatmap(app), add_validate(app),
+                                add_query(app), add_export_gltf(app), add_render(app)};
 
     try {
         app.parse(argc, argv);

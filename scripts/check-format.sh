@@ -9,7 +9,7 @@ if [ $# -gt 0 ]; then
 elif git rev-parse --is-inside-work-tree >/dev/null 2>&1; then
   mapfile -t files < <(git ls-files -- '*.cpp' '*.h')
 else
-  mapfile -t files < <(find bake bench bounds cli cluster data examples fuzz io query runtime stats tests \
+  mapfile -t files < <(find bake bench bounds cli cluster data examples export fuzz io query render runtime stats tests \
     \( -name '*.cpp' -o -name '*.h' \) 2>/dev/null | sort)
 fi
 bad=0

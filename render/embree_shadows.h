@@ -1,0 +1,38 @@
+// The same shadow questions asked of Embree's rays (rtcOccluded1), for comparing pictures: every instance's
+// triangles placed in world space and rounded to float, as an engine would hand them to a ray tracer.
+#pragma once
+
+#include <cb_asset.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace cb {
+
+class EmbreeShadows {
+public:
+    // Builds the Embree scene of the asset's triangles. `one_sided`: a triangle blocks only when the light
+    // is behind it (double-sided ones always), as the runtime's one-sided mode. Throws std::runtime_error
+    // when Embree fails.
+    EmbreeShadows(const AssetView& view, bool one_sided, unsigned threads);
+    ~EmbreeShadows();
+    EmbreeShadows(const EmbreeShadows&) = delete;
+    EmbreeShadows& operator=(const EmbreeShadows&) = delete;
+
+    // Per point (xyz, world), 1 when the ray from it towards `light` hits a triangle at a parameter in
+    // [2^-13, 1], the runtime's self-shadowing policy (cb_segment.h) in Embree's float arithmetic.
+    std::vector<uint8_t> occluded(const double* light, const double* points, size_t count) const;
+
+    double build_seconds() const { return build_seconds_; }
+
+    struct Scene;  // Embree's objects and the triangles they read (embree_shadows.cpp)
+
+private:
+    std::unique_ptr<Scene> scene_;
+    unsigned threads_;
+    double build_seconds_ = 0;
+};
+
+}  // namespace cb

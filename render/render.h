@@ -1,0 +1,67 @@
+// A small CPU renderer for looking at an asset and its shadows: primary visibility from the asset's own
+// clusters (visibility.h), Lambert shading, and shadows from the runtime's exact queries, a point light's
+// hard ones or an area light's soft ones (the fraction of its samples that reach each point). Optionally
+// the same shadows asked of Embree's rays, and a picture of where the two differ.
+#pragma once
+
+#include <cb_asset.h>
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "area_light.h"
+#include "runtime_cost.h"
+
+namespace cb {
+
+struct RenderOptions {
+    uint32_t width = 640, height = 480;
+    // The camera. Default: the eye of default_camera (a diagonal above the world box of every instance),
+    // looking at the box's centre, upright along +y, with the field of view that holds the whole box.
+    bool has_eye = false, has_target = false, has_up = false;
+    double eye[3] = {0, 0, 0}, target[3] = {0, 0, 0}, up[3] = {0, 1, 0};
+    double fov_degrees = 0;  // vertical; 0: the one that frames the box (60 when the eye is inside it)
+    // A point light, or an area light; neither: a point light above the scene, as the report's first light.
+    bool has_light = false, has_area_light = false;
+    double light[3] = {0, 0, 0};
+    AreaLight area_light;    // faces the world box's centre
+    bool one_sided = false;  // one-sided occluders, as query --one-sided
+    bool compare = false;    // also ask Embree, and draw where the answers differ
+    unsigned threads = 0;    // 0: all; the picture does not depend on it
+};
+
+struct CompareCounts {
+    uint64_t pairs = 0;               // point and light pairs asked of both
+    uint64_t runtime_only = 0;        // pairs in shadow by the runtime's answer, lit by Embree's
+    uint64_t embree_only = 0;         // lit by the runtime's, in shadow by Embree's
+    uint64_t ties = 0;                // differing pairs whose exact answer involved a touching contact (cb_segment.h)
+    uint64_t pixels = 0;              // pixels with some differing pair
+    uint64_t pixels_without_tie = 0;  // of those, pixels with a differing pair that is not a tie
+    double build_seconds = 0, query_seconds = 0;  // Embree's scene, and its rays for every light
+};
+
+struct RenderResult {
+    uint32_t width = 0, height = 0;
+    std::vector<uint8_t> rgb;          // the picture, rows top to bottom
+    std::vector<uint8_t> compare_rgb;  // with compare: the picture dimmed, differing pixels marked
+    Camera camera;
+    double fov_degrees = 0;
+    std::vector<double> lights;  // the point lights asked (xyz triples): one, or the area light's samples
+    std::vector<double> points;  // every covered pixel's visible point (xyz), in pixel order
+    uint64_t clusters_drawn = 0, triangles_drawn = 0;
+    uint64_t queries = 0, shadowed = 0;  // point and light pairs, and those in shadow
+    double visibility_seconds = 0;
+    double bounds_seconds = 0;                         // the scan's per-asset bounds, once for every light
+    std::vector<double> build_seconds, query_seconds;  // per light
+    CompareCounts compare;
+};
+
+// What the renderer reports as it goes: the stage, and the share of the lights done (negative: unknown).
+using RenderProgress = std::function<void(const std::string& stage, double fraction)>;
+
+// Throws std::runtime_error when the asset has no vertex to look at, or Embree fails.
+RenderResult render_asset(const AssetView& view, const RenderOptions& options, const RenderProgress& progress = {});
+
+}  // namespace cb
