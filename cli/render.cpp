@@ -187,6 +187,7 @@ void print_json(const RenderArgs& a, const cb::RenderOptions& o, const cb::Rende
                           {"fov", r.fov_degrees}}},
                         {"one_sided", o.one_sided},
                         {"lights", r.lights.size() / 3},
+                        {"light_positions", r.lights},
                         {"pixels_covered", r.points.size() / 3},
                         {"clusters_drawn", r.clusters_drawn},
                         {"triangles_drawn", r.triangles_drawn},
@@ -262,10 +263,9 @@ int run_render(const CLI::App* c, const RenderArgs& a) {
     cb::RenderResult r;
     try {
         r = cb::render_asset(asset.view, options, [&](const std::string& stage, double fraction) {
-            if (fraction < 0)
-                progress.stage(stage);
-            else
-                progress.show(fraction, stage);
+            if (fraction < 0) return progress.stage(stage);
+            if (fraction == 0) progress.restart();  // the time left is the lights'
+            progress.show(fraction, stage);
         });
     } catch (const std::runtime_error& e) {
         progress.clear();
