@@ -215,8 +215,9 @@ void print_json(const RenderArgs& a, const cb::RenderOptions& o, const cb::Rende
                         {"runtime_only", r.compare.runtime_only},
                         {"embree_only", r.compare.embree_only},
                         {"ties", r.compare.ties},
+                        {"near_ties", r.compare.near_ties},
                         {"pixels", r.compare.pixels},
-                        {"pixels_without_tie", r.compare.pixels_without_tie},
+                        {"pixels_other", r.compare.pixels_other},
                         {"embree_build_seconds", r.compare.build_seconds},
                         {"embree_query_seconds", r.compare.query_seconds}};
     std::cout << j.dump(2) << "\n";
@@ -245,12 +246,14 @@ void print_summary(const RenderArgs& a, const cb::RenderOptions& o, const cb::Re
     if (o.compare)
         std::printf(
             "  compare -> %s: %llu pairs, %llu differ (%llu shadowed by the runtime alone, %llu by Embree alone; %llu "
-            "ties); %llu pixels differ, %llu without a tie; Embree %.3f s to build, %.3f s of rays\n",
+            "ties, %llu near ties); %llu pixels differ, %llu other than by a tie or near tie; Embree %.3f s to "
+            "build, %.3f s of rays\n",
             compare_path(a.out).c_str(), (unsigned long long)r.compare.pairs,
             (unsigned long long)(r.compare.runtime_only + r.compare.embree_only),
             (unsigned long long)r.compare.runtime_only, (unsigned long long)r.compare.embree_only,
-            (unsigned long long)r.compare.ties, (unsigned long long)r.compare.pixels,
-            (unsigned long long)r.compare.pixels_without_tie, r.compare.build_seconds, r.compare.query_seconds);
+            (unsigned long long)r.compare.ties, (unsigned long long)r.compare.near_ties,
+            (unsigned long long)r.compare.pixels, (unsigned long long)r.compare.pixels_other, r.compare.build_seconds,
+            r.compare.query_seconds);
     if (!a.write_points.empty()) std::printf("  visible points -> %s\n", a.write_points.c_str());
 }
 

@@ -33,12 +33,15 @@ struct RenderOptions {
 };
 
 struct CompareCounts {
-    uint64_t pairs = 0;               // point and light pairs asked of both
-    uint64_t runtime_only = 0;        // pairs in shadow by the runtime's answer, lit by Embree's
-    uint64_t embree_only = 0;         // lit by the runtime's, in shadow by Embree's
-    uint64_t ties = 0;                // differing pairs whose exact answer involved a touching contact (cb_segment.h)
-    uint64_t pixels = 0;              // pixels with some differing pair
-    uint64_t pixels_without_tie = 0;  // of those, pixels with a differing pair that is not a tie
+    uint64_t pairs = 0;         // point and light pairs asked of both
+    uint64_t runtime_only = 0;  // pairs in shadow by the runtime's answer, lit by Embree's
+    uint64_t embree_only = 0;   // lit by the runtime's, in shadow by Embree's
+    // Of the differing pairs: exact ties, whose exact answer involved a touching contact (cb_segment.h);
+    // and near ties, whose exact answer changes when the point moves by float rounding of the coordinates
+    // (1e-6 of the largest, along its normal or an axis), which Embree's float triangles cannot resolve.
+    uint64_t ties = 0, near_ties = 0;
+    uint64_t pixels = 0;        // pixels with some differing pair
+    uint64_t pixels_other = 0;  // of those, pixels with a differing pair that is neither a tie nor a near tie
     double build_seconds = 0, query_seconds = 0;  // Embree's scene, and its rays for every light
 };
 
