@@ -90,6 +90,7 @@ EmbreeShadows::EmbreeShadows(const AssetView& view, bool one_sided, unsigned thr
     s.device = rtcNewDevice(config.c_str());
     if (!s.device) throw std::runtime_error("Embree: cannot create a device");
     s.scene = rtcNewScene(s.device);
+    rtcSetSceneFlags(s.scene, RTC_SCENE_FLAG_ROBUST);
     if (!s.triangles.empty()) {
         RTCGeometry g = rtcNewGeometry(s.device, RTC_GEOMETRY_TYPE_TRIANGLE);
         // Embree reads the buffers in place (shared); its vertex buffer needs 4 bytes of room past the end.

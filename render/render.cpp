@@ -31,12 +31,39 @@ void background(uint32_t y, uint32_t height, uint8_t* px) {
     for (int k = 0; k < 3; ++k) px[k] = uint8_t(std::lround(top[k] + s * (bottom[k] - top[k])));
 }
 
+// `p` turned about `centre` by the rotation that takes +y to `up` (the shortest one; a half turn about x
+// when `up` is -y): the default eye and light are placed for +y up and turned with --up.
+void turn_to_up(const double* up, const double* centre, double* p) {
+    double u[3] = {up[0], up[1], up[2]}, length = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    for (double& c : u) c /= length;
+    double v[3] = {p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]};
+    const double axis[3] = {u[2], 0, -u[0]};  // +y x up
+    const double sine = std::sqrt(axis[0] * axis[0] + axis[2] * axis[2]), cosine = u[1];
+    double turned[3];
+    if (sine < 1e-12) {
+        const double flip = cosine < 0 ? -1 : 1;  // none, or a half turn about x
+        turned[0] = v[0], turned[1] = flip * v[1], turned[2] = flip * v[2];
+    } else {  // Rodrigues' formula about the unit axis k
+        const double k[3] = {axis[0] / sine, 0, axis[2] / sine};
+        const double kv = k[0] * v[0] + k[2] * v[2];
+        const double cross[3] = {k[1] * v[2] - k[2] * v[1], k[2] * v[0] - k[0] * v[2], k[0] * v[1] - k[1] * v[0]};
+        for (int i = 0; i < 3; ++i) turned[i] = v[i] * cosine + cross[i] * sine + k[i] * kv * (1 - cosine);
+    }
+    for (int i = 0; i < 3; ++i) p[i] = centre[i] + turned[i];
+}
+
 // The camera the options ask for.
 Camera choose_camera(const RenderOptions& o, const double* lo, const double* hi, double& fov) {
-    const Camera framing = default_camera(lo, hi, o.width, o.height);
+    const double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
     double eye[3], target[3];
-    for (int k = 0; k < 3; ++k)
-        eye[k] = o.has_eye ? o.eye[k] : framing.eye[k], target[k] = o.has_target ? o.target[k] : 0.5 * (lo[k] + hi[k]);
+    if (o.has_eye) {
+        std::copy(o.eye, o.eye + 3, eye);
+    } else {
+        const Camera framing = default_camera(lo, hi, o.width, o.height);
+        std::copy(framing.eye, framing.eye + 3, eye);
+        turn_to_up(o.up, centre, eye);
+    }
+    for (int k = 0; k < 3; ++k) target[k] = o.has_target ? o.target[k] : centre[k];
     Camera c = camera_looking_at(eye, target, o.up, 60, o.width, o.height);
     fov = o.fov_degrees > 0 ? o.fov_degrees : framing_fov(c, lo, hi);
     if (!(fov > 0) || fov > 120) fov = 60;  // the eye is in the box, or beside it: a usual lens
@@ -54,38 +81,34 @@ void dot(std::vector<uint8_t>& rgb, uint32_t width, uint32_t height, uint32_t x,
 }
 
 // Tells each differing pair (point index in `differing`, for `light`) apart: an exact tie when the reference
-// walk meets a touching contact, a near tie when the exact answer changes with the point moved by float
-// rounding of the coordinates; counts them and marks their pixels (1 a tie or near tie, 2 the runtime alone
-// shadows, 3 Embree alone).
+// walk meets a touching contact; a near tie when the exact answer changes with the whole segment moved by
+// float rounding of its coordinates (1e-6 of the largest, along the point's normal or an axis, either way:
+// the segment moves by that much at every parameter, wherever it meets its occluder). Counts them and marks
+// their pixels (1 a tie or near tie, 2 the runtime alone shadows, 3 Embree alone).
 void classify(const AssetView& view, const SceneQueryOptions& query, const double* light, const VisibleSurface& surface,
               const std::vector<uint8_t>& shadowed, const std::vector<size_t>& differing, CompareCounts& counts,
               std::vector<uint8_t>& mark) {
-    const size_t moves = 8;  // along the normal and the three axes, either way
-    std::vector<double> points, moved;
+    SceneQueryOptions exact = query;
+    exact.reference = true, exact.per_point = true;
+    exact.threads = 1;  // each call asks one point: no threads to start
     for (size_t i : differing) {
         const double* p = &surface.points[i * 3];
         const double* n = &surface.normals[i * 3];
-        points.insert(points.end(), p, p + 3);
+        const bool tie = query_scene(view, light, p, 1, exact).point_stats[0].touching > 0;
         double size = 0;
         for (int k = 0; k < 3; ++k) size = std::max({size, std::fabs(p[k]), std::fabs(light[k])});
         const double step = 1e-6 * size;
-        for (size_t m = 0; m < moves; ++m) {
-            const double sign = m % 2 ? -1 : 1;
-            for (int k = 0; k < 3; ++k)
-                moved.push_back(p[k] + sign * step * (m < 2 ? n[k] : double(size_t(k) == m / 2 - 1)));
-        }
-    }
-    SceneQueryOptions exact = query;
-    exact.reference = true, exact.per_point = true;
-    const SceneQueryResult walk = query_scene(view, light, points.data(), differing.size(), exact);
-    const SceneQueryResult nearby = query_scene(view, light, moved.data(), moved.size() / 3, query);
-    for (size_t j = 0; j < differing.size(); ++j) {
-        const size_t i = differing[j];
-        const bool tie = walk.point_stats[j].touching > 0;
         bool near = false;
-        for (size_t m = 0; m < moves; ++m) near |= nearby.shadowed[j * moves + m] != shadowed[i];
+        for (int m = 0; m < 8 && !tie && !near; ++m) {  // along the normal and the three axes, either way
+            double moved_point[3], moved_light[3];
+            for (int k = 0; k < 3; ++k) {
+                const double d = (m % 2 ? -step : step) * (m < 2 ? n[k] : double(k == m / 2 - 1));
+                moved_point[k] = p[k] + d, moved_light[k] = light[k] + d;
+            }
+            near = query_scene(view, moved_light, moved_point, 1, exact).shadowed[0] != shadowed[i];
+        }
         (shadowed[i] ? counts.runtime_only : counts.embree_only) += 1;
-        counts.ties += tie, counts.near_ties += !tie && near;
+        counts.ties += tie, counts.near_ties += near;
         const uint8_t kind = tie || near ? 1 : shadowed[i] ? 2 : 3;
         mark[i] = std::max(mark[i], kind);
     }
@@ -108,6 +131,8 @@ RenderResult render_asset(const AssetView& view, const RenderOptions& o, const R
         r.lights.assign(o.light, o.light + 3);
     } else {
         r.lights = report_lights(lo, hi, 1);
+        const double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
+        turn_to_up(o.up, centre, r.lights.data());
     }
     const size_t light_count = r.lights.size() / 3;
 

@@ -19,7 +19,9 @@ namespace cb {
 struct RenderOptions {
     uint32_t width = 640, height = 480;
     // The camera. Default: the eye of default_camera (a diagonal above the world box of every instance),
-    // looking at the box's centre, upright along +y, with the field of view that holds the whole box.
+    // looking at the box's centre, upright along +y, with the field of view that holds the whole box. With
+    // another `up`, the default eye and light are turned about the box's centre by the rotation taking +y
+    // to it, so that a z-up scene is seen and lit as a y-up one.
     bool has_eye = false, has_target = false, has_up = false;
     double eye[3] = {0, 0, 0}, target[3] = {0, 0, 0}, up[3] = {0, 1, 0};
     double fov_degrees = 0;  // vertical; 0: the one that frames the box (60 when the eye is inside it)
@@ -37,8 +39,9 @@ struct CompareCounts {
     uint64_t runtime_only = 0;  // pairs in shadow by the runtime's answer, lit by Embree's
     uint64_t embree_only = 0;   // lit by the runtime's, in shadow by Embree's
     // Of the differing pairs: exact ties, whose exact answer involved a touching contact (cb_segment.h);
-    // and near ties, whose exact answer changes when the point moves by float rounding of the coordinates
-    // (1e-6 of the largest, along its normal or an axis), which Embree's float triangles cannot resolve.
+    // and near ties, whose exact answer changes when the segment moves by float rounding of the coordinates
+    // (1e-6 of the largest, along the point's normal or an axis), which Embree's float triangles cannot
+    // resolve.
     uint64_t ties = 0, near_ties = 0;
     uint64_t pixels = 0;        // pixels with some differing pair
     uint64_t pixels_other = 0;  // of those, pixels with a differing pair that is neither a tie nor a near tie
