@@ -206,6 +206,16 @@ TEST(Render, DefaultSceneShadowsAgreeWithQuery) {
     EXPECT_EQ(query_shadowed(points, light_text(j["light"])), shadowed);
     EXPECT_DOUBLE_EQ(j["shadowed_fraction"].get<double>(), double(shadowed) / double(covered));
 
+    // --up turns the default light with it: a quarter turn about x takes +y to +z.
+    CliRun up =
+        run_cli("render " + default_asset + " -o " + (dir / "z_up.png").string() + " --size 64 --up 0,0,1 --json -q");
+    ASSERT_EQ(up.code, 0) << up.err;
+    const std::vector<double> l = j["light"], turned = nlohmann::json::parse(up.out)["light"];
+    const double centre[3] = {0, 0.5 * (-0.163507044 + 2.19828421), 0};  // the world box's (info)
+    EXPECT_NEAR(turned[0], l[0], 1e-9);
+    EXPECT_NEAR(turned[1] - centre[1], -(l[2] - centre[2]), 1e-6);
+    EXPECT_NEAR(turned[2] - centre[2], l[1] - centre[1], 1e-6);
+
     CliRun one = run_cli("render " + default_asset + " -o " + (dir / "one_sided.png").string() +
                          " --size 320x240 --one-sided --light -4,30,2 --json -q");
     ASSERT_EQ(one.code, 0) << one.err;
