@@ -42,17 +42,17 @@ bool parse_triple(const std::string& name, const std::string& text, double* out)
     return usage_ok(name + " takes X,Y,Z (got '" + text + "')");
 }
 
-// "W" (a square) or "WxH", each 16 to 8192 pixels.
+// "W" (a square) or "WxH", each 16 to 4096 pixels.
 bool parse_size(const std::string& text, uint32_t& width, uint32_t& height) {
     unsigned w = 0, h = 0;
     char extra;
     int got = std::sscanf(text.c_str(), "%ux%u%c", &w, &h, &extra);
     if (got == 1 && text.find('x') == std::string::npos) h = w, got = 2;
-    if (got == 2 && std::isdigit(static_cast<unsigned char>(text[0])) && w >= 16 && h >= 16 && w <= 8192 && h <= 8192) {
+    if (got == 2 && std::isdigit(static_cast<unsigned char>(text[0])) && w >= 16 && h >= 16 && w <= 4096 && h <= 4096) {
         width = w, height = h;
         return true;
     }
-    return usage_ok("--size takes W or WxH, each 16 to 8192 pixels (got '" + text + "')");
+    return usage_ok("--size takes W or WxH, each 16 to 4096 pixels (got '" + text + "')");
 }
 
 // "X,Y,Z,SIZE,N": the centre, a side (or diameter) above zero and 1 to 4096 samples.
@@ -315,7 +315,7 @@ Command add_render(CLI::App& app) {
     c->add_option("--target", a->target, "Point the camera looks at X,Y,Z (default: the scene's centre)");
     c->add_option("--up", a->up, "Direction kept upright in the picture X,Y,Z (default 0,1,0)");
     c->add_option("--fov", a->fov, "Vertical field of view in degrees (default: what holds the whole scene)");
-    c->add_option("--size", a->size, "Picture size W or WxH in pixels, 16 to 8192 (default 640x480)");
+    c->add_option("--size", a->size, "Picture size W or WxH in pixels, 16 to 4096 (default 640x480)");
     c->add_flag("--one-sided", a->one_sided,
                 "One-sided occluders: a triangle blocks only when the light is behind it "
                 "(double-sided glTF primitives stay two-sided)");

@@ -328,6 +328,7 @@ TEST(Render, OptionsAreCheckedBeforeAnyWork) {
     refused(a + " --area-light 1,2,3,1,4 --area-shape circle", "--area-shape");
     refused(a + " --size 8", "--size takes W or WxH");
     refused(a + " --size 100x", "--size takes W or WxH");
+    refused(a + " --size 5000x100", "--size takes W or WxH");
     refused(a + " --fov 170", "--fov takes degrees");
     refused(a + " --eye 1,2,3 --target 1,2,3", "no direction");
     refused(a + " --up 0,0,0", "--up must not be zero");
