@@ -33,7 +33,7 @@ using cb::test::run_cli;
 // The default scene as the build bakes it (tests/CMakeLists.txt, runtime_bake_default_scene).
 const std::string default_asset = CB_DEFAULT_ASSET;
 
-// A folder of this test's own under the build's render_output (kept for looking at the pictures).
+// A folder of this test's own under the build's test-artifacts/render (kept for looking at the pictures).
 fs::path output_dir(const std::string& name) {
     fs::path dir = fs::path(CB_TEST_OUTPUT) / name;
     fs::remove_all(dir);
