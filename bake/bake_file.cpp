@@ -90,16 +90,25 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
         r.clustering.threads ? r.clustering.threads : std::max(1u, std::thread::hardware_concurrency());
     CoreBudget* budget = thread_core_budget();
     std::thread encoding;
+    // Joined however this scope is left (a fitting that throws, out of memory, must not leave it running).
+    struct Joined {
+        std::thread& thread;
+        CoreBudget* budget;
+        void join() {
+            if (!thread.joinable()) return;
+            thread.join();
+            if (budget) budget->give();
+        }
+        ~Joined() { join(); }
+    } joined{encoding, budget};
     if (r.fit && threads > 1 && (!budget || budget->try_take())) encoding = std::thread(encode);
     if (r.fit) fit_scene_bounds(meshes, r.bounds, r.clustering.threads, result.stats, progress.bounds);
 
     auto t1 = std::chrono::steady_clock::now();
-    if (encoding.joinable()) {
-        encoding.join();
-        if (budget) budget->give();
-    } else {
+    if (encoding.joinable())
+        joined.join();
+    else
         encode();
-    }
     if (encode_failed) std::rethrow_exception(encode_failed);
     result.output_bytes =
         write_asset(r.output, meshes, std::move(geometry), scene.instances,
