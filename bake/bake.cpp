@@ -5,7 +5,6 @@
 #include <chrono>
 #include <mutex>
 #include <numeric>
-#include <thread>
 
 #include "parallel.h"
 #include "timing.h"
@@ -59,8 +58,7 @@ bool closed_between(const uint32_t* indices, size_t corners, uint32_t lo, uint32
 // ranges of the edges' lower vertex, each range read from the whole index array and checked on its own.
 bool is_closed(const uint32_t* indices, size_t corners, size_t vertices, unsigned threads) {
     if (corners == 0) return false;
-    const size_t parts = std::min<size_t>(threads ? threads : std::max(1u, std::thread::hardware_concurrency()),
-                                          std::max<size_t>(1, corners / 30000));
+    const size_t parts = std::min<size_t>(threads_or_all(threads), std::max<size_t>(1, corners / 30000));
     std::atomic<bool> closed{true};
     parallel_for(parts, unsigned(parts), [&](size_t p) {
         uint32_t lo = uint32_t(vertices * p / parts), hi = uint32_t(vertices * (p + 1) / parts);

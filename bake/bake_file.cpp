@@ -1,9 +1,8 @@
 #include "bake_file.h"
 
-#include <algorithm>
 #include <chrono>
-#include <exception>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <new>
 #include <sstream>
@@ -86,8 +85,7 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
             encode_failed = std::current_exception();
         }
     };
-    const unsigned threads =
-        r.clustering.threads ? r.clustering.threads : std::max(1u, std::thread::hardware_concurrency());
+    const unsigned threads = threads_or_all(r.clustering.threads);
     CoreBudget* budget = thread_core_budget();
     std::thread encoding;
     // Joined however this scope is left (a fitting that throws, out of memory, must not leave it running).

@@ -12,7 +12,7 @@ namespace cb {
 std::vector<BakeResult> run_batch(const std::vector<BakeRequest>& requests, const std::vector<size_t>& order,
                                   const BatchRun& run, const std::function<void(size_t)>& started,
                                   const std::function<void(size_t, const BakeResult&)>& finished) {
-    unsigned cores = run.cores ? run.cores : std::max(1u, std::thread::hardware_concurrency());
+    unsigned cores = threads_or_all(run.cores);
     unsigned workers = unsigned(std::min<size_t>(run.jobs ? run.jobs : cores, std::max<size_t>(order.size(), 1)));
     CoreBudget budget(cores);
     std::vector<BakeResult> results(requests.size());

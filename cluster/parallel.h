@@ -36,11 +36,16 @@ inline CoreBudget*& thread_core_budget() {
     return budget;
 }
 
+// A thread count as the options give it: `threads`, or every hardware thread for 0.
+inline unsigned threads_or_all(unsigned threads) {
+    return threads ? threads : std::max(1u, std::thread::hardware_concurrency());
+}
+
 // Runs body(i) for every i in [0, n) on `threads` threads (0: all hardware threads; never more than n),
 // or, under a CoreBudget, on as many of them as there are idle cores as it goes.
 template <class Body>
 void parallel_for(size_t n, unsigned threads, Body&& body) {
-    unsigned count = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
+    unsigned count = threads_or_all(threads);
     count = unsigned(std::min<size_t>(count, std::max<size_t>(n, 1)));
     std::atomic<size_t> next{0};
     auto work = [&] {

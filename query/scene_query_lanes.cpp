@@ -24,7 +24,7 @@ std::vector<ScanBounds> bounds_for(const AssetView& view, const SceneQueryOption
 SceneQueryResult answer_light(const AssetView& view, const std::vector<ScanBounds>& bounds, const double* light,
                               const double* points, size_t n, const SceneQueryOptions& o) {
     SceneQueryResult r;
-    const unsigned thread_count = o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+    const unsigned thread_count = threads_or_all(o.threads);
 
     // One structure per instance for this light (none for the reference).
     auto build_start = std::chrono::steady_clock::now();

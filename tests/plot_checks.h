@@ -17,6 +17,13 @@ struct SvgLabel {
     std::string text;
 };
 
+// How many times `what` occurs in `text`, not overlapping.
+inline size_t count_of(const std::string& text, const std::string& what) {
+    size_t n = 0;
+    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + what.size())) ++n;
+    return n;
+}
+
 inline std::vector<SvgLabel> labels_of(const std::string& svg) {
     std::vector<SvgLabel> out;
     std::regex label("<text class=\"config-label\" x=\"([-0-9.]+)\" y=\"([-0-9.]+)\"[^>]*>([^<]*)</text>");

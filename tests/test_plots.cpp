@@ -15,17 +15,12 @@
 #include "plot_checks.h"
 #include "svg_plot.h"
 
+using cb::test::count_of;
 using cb::test::expect_labels_clear;
 
 namespace {
 
 std::string data(const std::string& f) { return std::string(CB_SOURCE_DIR) + "/data/" + f; }
-
-size_t count_of(const std::string& text, const std::string& what) {
-    size_t n = 0;
-    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + what.size())) ++n;
-    return n;
-}
 
 double luminance(cb::Colour c) { return 0.299 * c.r + 0.587 * c.g + 0.114 * c.b; }
 

@@ -26,12 +26,6 @@ namespace {
 
 std::string data(const std::string& f) { return std::string(CB_SOURCE_DIR) + "/data/" + f; }
 
-size_t count_of(const std::string& text, const std::string& what) {
-    size_t n = 0;
-    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + what.size())) ++n;
-    return n;
-}
-
 // One report for every test here: the default scene (12 instances), 2 methods x 2 sizes x 2 box fitters =
 // 8 configurations, with its heat map. ctest makes it once (the stats_report fixture in CMakeLists.txt);
 // run alone, the first test that needs it makes it.
