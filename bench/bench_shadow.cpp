@@ -9,8 +9,9 @@
 //   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--runs 3] [--only NAME] [--one-sided 1] [--traversal T]
 //                [--frames N]
 //   (NAME "big": only the big scene; --one-sided 1: our trees in one-sided mode, whose answers equal
-//   two-sided ones outside closed meshes; Embree stays two-sided; T: scan (default), trees or one-tree, how
-//   our trees reach the fine clusters, cb::Traversal; --frames N: no Embree passes, only N of
+//   two-sided ones outside closed meshes; Embree stays two-sided; T: scan (default), trees, one-tree, mtsv or
+//   mtsv-two, how our trees reach the fine clusters, cb::Traversal, or compare: every traversal and the metric
+//   trees' settings on the same points, one thread, beside Embree; --frames N: no Embree passes, only N of
 //   our frames per light on one thread, their shortest and median time; and the queries of each frame
 //   again through cb::query_scene, the tools' query library and its run-time choice of lanes: the ratio of
 //   their medians is what that dispatch costs against the runtime compiled for this machine. On a noisy
@@ -122,7 +123,84 @@ void flatten(const cb::Scene& s, std::vector<float>& v, std::vector<unsigned>& t
     }
 }
 
-void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal level, int frames) {
+// One row of the comparison (--traversal compare): a traversal and its settings, on the asset with boxes
+// and cones only (what bake writes by default) or with the fitted spheres, capsules and slabs too.
+struct Config {
+    const char* name;
+    cb::Traversal traversal;
+    cb::MetricBuild build;
+    double capsule_ratio;
+    bool fitted;  // the asset baked with --bounds all
+};
+
+const Config configs[] = {
+    {"scan", cb::Traversal::scan, cb::MetricBuild::heuristic, 2, false},
+    {"CPSV two levels (trees)", cb::Traversal::trees, cb::MetricBuild::heuristic, 2, false},
+    {"CPSV one level (one-tree)", cb::Traversal::one_tree, cb::MetricBuild::heuristic, 2, false},
+    {"MTSV heuristic", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 2, true},
+    {"MTSV reference build", cb::Traversal::mtsv, cb::MetricBuild::reference, 2, true},
+    {"MTSV about the boxes", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 2, false},
+    {"MTSV two levels", cb::Traversal::mtsv_two, cb::MetricBuild::heuristic, 2, true},
+    {"MTSV capsules from 1.25", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 1.25, true},
+    {"MTSV capsules from 4", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 4, true},
+    {"MTSV spheres only", cb::Traversal::mtsv, cb::MetricBuild::heuristic, INFINITY, true},
+};
+
+// Every configuration against one light on one thread, the same points, rounds alternating between them
+// (medians), beside Embree's occluded1 on one thread (its build is once per scene, not counted).
+void compare_light(const cb::AssetView& boxes, const cb::AssetView& fitted, const std::vector<cb::ScanBounds>& scan,
+                   const std::vector<double>& pts, const double* light, const char* light_name, const std::string& scene,
+                   int runs, bool one_sided, const std::function<double()>& embree_pass) {
+    const size_t n = pts.size() / 3, count = std::size(configs);
+    std::vector<uint32_t> order(n), order_scratch(cb::batch_order_scratch_size(n));
+    std::vector<std::vector<double>> build(count), query(count);
+    std::vector<double> embree;
+    std::vector<cb::QueryStats> stats(count);
+    std::vector<size_t> bytes(count), nodes(count), capsules(count), shadowed(count), differ(count);
+    std::vector<uint8_t> first, answers(n);
+    for (int r = 0; r < std::max(1, runs); ++r) {
+        for (size_t c = 0; c < count; ++c) {
+            const Config& config = configs[c];
+            const cb::AssetView& view = config.fitted ? fitted : boxes;
+            std::vector<cb::InstanceShadow> trees(view.instance_count);
+            cb::ShadowBuildOptions options;
+            options.traversal = config.traversal, options.one_sided = one_sided, options.threads = 1;
+            options.bounds = config.fitted ? nullptr : scan.data();
+            options.capsule_ratio = config.capsule_ratio, options.metric_build = config.build;
+            auto b0 = std::chrono::steady_clock::now();
+            for (uint32_t i = 0; i < view.instance_count; ++i) trees[i].build(view, i, light, options);
+            build[c].push_back(cb::seconds_since(b0));
+            std::vector<uint32_t> scratch(cb::ordered_scratch_size(trees.data(), trees.size()));
+            cb::QueryStats st;
+            auto q0 = std::chrono::steady_clock::now();
+            cb::batch_order(light, pts.data(), n, order.data(), order_scratch.data());
+            cb::occluded_ordered(trees.data(), trees.size(), pts.data(), order.data(), n, answers.data(),
+                                 scratch.data(), &st);
+            query[c].push_back(cb::seconds_since(q0));
+            stats[c] = st, bytes[c] = nodes[c] = capsules[c] = 0;
+            for (const cb::InstanceShadow& t : trees) bytes[c] += t.memory_bytes(), nodes[c] += t.node_count();
+            shadowed[c] = size_t(std::count(answers.begin(), answers.end(), uint8_t(1)));
+            if (c == 0) first = answers;
+            differ[c] = 0;
+            for (size_t i = 0; i < n; ++i) differ[c] += answers[i] != first[i];
+        }
+        embree.push_back(embree_pass());
+    }
+    const double e = cb::median(embree), cpsv = cb::median(build[2]) + cb::median(query[2]);
+    for (size_t c = 0; c < count; ++c) {
+        const double b = cb::median(build[c]), q = cb::median(query[c]), dn = double(n);
+        std::printf("| %s | %s | %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.1f | %.2f | %.2f | %.1f | %zu | %zu |\n",
+                    scene.c_str(), light_name, configs[c].name, b * 1e3, q * 1e3, (b + q) * 1e3, (b + q) / cpsv,
+                    (b + q) / e, dn / q / 1e6, double(stats[c].nodes_visited) / dn,
+                    double(stats[c].clusters_tested) / dn, double(stats[c].clusters_tested - shadowed[c]) / dn,
+                    double(bytes[c]) / 1024.0, nodes[c], differ[c]);
+    }
+    std::printf("| %s | %s | Embree occluded1 | (once: not counted) | %.2f | %.2f | | 1.00 | %.2f | | | | | | |\n",
+                scene.c_str(), light_name, e * 1e3, e * 1e3, double(n) / e / 1e6);
+    std::fflush(stdout);
+}
+
+void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal level, int frames, bool comparing) {
     Workers workers(2);
     // Bake with the default options and open the asset as the runtime would.
     cb::BakeStats bs;
@@ -134,6 +212,12 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
     cb::LoadedAsset loaded;
     if (cb::open_asset_copy(bytes, loaded) != cb::AssetError::ok) return;
     const cb::AssetView& asset = loaded.view;
+    cb::LoadedAsset fitted;  // --traversal compare: the same clusters with spheres, capsules and slabs too
+    if (comparing) {
+        bo.mask = cb::bounds_all;
+        cb::fit_scene_bounds(meshes, bo, 0, bs);
+        if (cb::open_asset_copy(cb::encode_asset(meshes, in.scene.instances), fitted) != cb::AssetError::ok) return;
+    }
     // The scan's bounds (decoded boxes and bounding spheres): light-independent, made once, like Embree's BVH.
     auto s0 = std::chrono::steady_clock::now();
     const std::vector<cb::ScanBounds> scan_bounds = cb::make_scan_bounds(asset);
@@ -326,6 +410,11 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             std::this_thread::sleep_for(std::chrono::milliseconds(30));
             return step();
         };
+        if (comparing) {
+            compare_light(asset, fitted.view, scan_bounds, pts, light, light_names[li], in.name, runs, one_sided,
+                          [&] { return embree_pass(1, false); });
+            continue;
+        }
         if (frames > 0) {  // our frames alone (see the usage above), alternately inline and through query_scene
             std::vector<double> f, inline_queries, through_queries;
             cb::SceneQueryOptions qo;
@@ -397,14 +486,27 @@ static int run(int argc, char** argv) {
     defaults.runs = 3;
     cb::bench::Options o = cb::bench::parse_options(argc, argv, defaults);
     using Level = cb::Traversal;
-    Level level = o.level == "trees" ? Level::trees : o.level == "one-tree" ? Level::one_tree : Level::scan;
-    if (o.frames > 0) {
+    Level level = o.level == "trees" ? Level::trees
+        : o.level == "one-tree"      ? Level::one_tree
+        : o.level == "mtsv"          ? Level::mtsv
+        : o.level == "mtsv-two"      ? Level::mtsv_two
+                                     : Level::scan;
+    const bool comparing = o.level == "compare";
+    if (comparing) {
+        std::printf(
+            "%s; %dx%d view; every traversal on the same points and lights, one thread, medians of %d rounds "
+            "alternating between them; frame = per-light build + the queries of the view's points (sorted by "
+            "direction, then tiles); 'vs CPSV' = frame / CPSV one level's frame; 'vs Embree' = frame / Embree "
+            "occluded1's queries alone; KB = the per-light structures (the asset is not counted); differ = answers "
+            "unlike the scan's\n\n",
+            o.one_sided ? "one-sided" : "two-sided", o.view, o.view, std::max(1, o.runs));
+        std::printf(
+            "| scene | light | configuration | build ms | queries ms | frame ms | vs CPSV | vs Embree | M q/s | "
+            "nodes/query | clusters/query | useless clusters/query | KB | nodes | differ |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    } else if (o.frames > 0) {
         std::printf("%s, traversal '%s'; %dx%d view; our frames alone (build and queries, one thread), %d per light\n",
-                    o.one_sided ? "one-sided trees" : "two-sided trees",
-                    level == Level::trees          ? "trees"
-                        : level == Level::one_tree ? "one-tree"
-                                                   : "scan",
-                    o.view, o.view, o.frames);
+                    o.one_sided ? "one-sided trees" : "two-sided trees", o.level.c_str(), o.view, o.view, o.frames);
         std::printf(
             "inline: the runtime compiled into this benchmark (%s lanes); query_scene: the same queries (after the "
             "build) through the tools' query library, dispatched at run time to %s lanes\n\n",
@@ -421,11 +523,7 @@ static int run(int argc, char** argv) {
             "are faster), against occluded1, then occluded16 (packets of 16 consecutive pixels); memory: our asset, "
             "scan bounds and "
             "trees + scratch kept between frames (the build's and the two query threads') / Embree's peak\n\n",
-            o.one_sided ? "one-sided trees" : "two-sided trees",
-            level == Level::trees          ? "trees"
-                : level == Level::one_tree ? "one-tree"
-                                           : "scan",
-            o.view, o.view, std::max(1, o.runs));
+            o.one_sided ? "one-sided trees" : "two-sided trees", o.level.c_str(), o.view, o.view, std::max(1, o.runs));
         std::printf(
             "| scene | light | points | in shadow | our build 1 / 2 threads | ours M q/s | Embree occluded1 M q/s | "
             "Embree occluded16 M q/s | "
@@ -445,7 +543,7 @@ static int run(int argc, char** argv) {
         big.instances.push_back({0, cb::identity_transform(), "big"});
         inputs.push_back({std::to_string(o.copies) + "x dragon", std::move(big)});
     }
-    for (const Input& in : inputs) run(in, o.view, o.runs, o.one_sided != 0, level, o.frames);
+    for (const Input& in : inputs) run(in, o.view, o.runs, o.one_sided != 0, level, o.frames, comparing);
     return 0;
 }
 

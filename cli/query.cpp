@@ -18,7 +18,8 @@ namespace cb::cli {
 namespace {
 
 struct QueryArgs {
-    std::string asset, light, points, traversal = "scan", fine;
+    std::string asset, light, points, traversal = "scan", fine, metric_build = "heuristic";
+    double capsule_ratio = 2.0;
     bool binary = false, stats = false, reference = false, one_sided = false, json = false, quiet = false;
     unsigned threads = 0;
 };
@@ -100,6 +101,7 @@ nlohmann::json stats_json(const QueryArgs& a, const cb::SceneQueryResult& q, siz
         j["build_seconds"] = q.build_seconds;
         j["trees"] = q.trees;
         j["nodes"] = q.nodes;
+        j["tree_bytes"] = q.tree_bytes;
         j["always_tested"] = q.always_tested;
         j["skipped"] = q.skipped;
     }
@@ -124,9 +126,9 @@ void print_stats(const QueryArgs& a, const cb::SceneQueryResult& q, size_t shado
     size_t n = q.shadowed.size();
     if (!a.reference)
         std::fprintf(stderr,
-                     "build %.3f s: %zu trees, %zu nodes, %zu clusters tested for every point (light inside or level "
-                     "with their box), %zu skipped (one-sided, light in their front cone)\n",
-                     q.build_seconds, q.trees, q.nodes, q.always_tested, q.skipped);
+                     "build %.3f s: %zu trees, %zu nodes (%.1f KB), %zu clusters tested for every point (light inside "
+                     "or level with their volume), %zu skipped (one-sided, light in their front cone)\n",
+                     q.build_seconds, q.trees, q.nodes, q.tree_bytes / 1024.0, q.always_tested, q.skipped);
     std::fprintf(stderr,
                  "%zu queries, %zu in shadow, %.3f s on %s lanes (%.0f queries/s); per query %.1f clusters and %.1f "
                  "triangles tested\n",
@@ -143,6 +145,13 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
                      "clusters)") ||
         (a.reference && refuse_given(c, {"--traversal"}, "--reference walks every cluster box instead")))
         return exit_usage;
+    if (a.traversal != "mtsv" && a.traversal != "mtsv-two" &&
+        refuse_given(c, {"--capsule-ratio", "--mtsv-build"}, "they set up the metric trees of --traversal mtsv"))
+        return exit_usage;
+    if (!(a.capsule_ratio >= 1)) {  // NaN too
+        std::fprintf(stderr, "clusterbake: --capsule-ratio takes a number of at least 1 (inf: spheres only)\n");
+        return exit_usage;
+    }
     double light[3];
     if (!parse_light(a.light, light)) return exit_usage;
     cb::LoadedAsset asset;
@@ -152,7 +161,9 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
 
     cb::SceneQueryOptions options;
     cb::parse_traversal(a.traversal, options.traversal);  // CLI11 checked the name
+    cb::parse_metric_build(a.metric_build, options.metric_build);  // CLI11 checked the name
     options.one_sided = a.one_sided, options.threads = a.threads, options.reference = a.reference;
+    options.capsule_ratio = a.capsule_ratio;
     cb::SceneQueryResult q = cb::query_scene(asset.view, light, pts.data(), pts.size() / 3, options);
     size_t shadowed = size_t(std::count(q.shadowed.begin(), q.shadowed.end(), uint8_t(1)));
     if (a.json) {
@@ -192,9 +203,18 @@ Command add_query(CLI::App& app) {
     c->add_option("--traversal", a->traversal,
                   "How queries find the clusters: 'scan' (default: no per-light tree; the coarse clusters' "
                   "spheres, then the entered ones' fine spheres), 'trees' (per light, a tree over the coarse "
-                  "clusters and one per coarse cluster over its fine clusters) or 'one-tree' (one tree over "
-                  "the fine clusters); same answers")
-        ->check(CLI::IsMember({"scan", "trees", "one-tree"}));
+                  "clusters and one per coarse cluster over its fine clusters), 'one-tree' (one tree over "
+                  "the fine clusters), 'mtsv' (per light, a metric tree over the fine clusters' sphere and "
+                  "capsule cones, by angle from the light) or 'mtsv-two' (a metric tree over the coarse "
+                  "clusters' cones entering one per coarse cluster); same answers")
+        ->check(CLI::IsMember({"scan", "trees", "one-tree", "mtsv", "mtsv-two"}));
+    c->add_option("--capsule-ratio", a->capsule_ratio,
+                  "mtsv: a cluster's volume is its capsule when that is at least this many times as long as "
+                  "wide, else its sphere (default 2; inf: spheres only)");
+    c->add_option("--mtsv-build", a->metric_build,
+                  "mtsv: 'heuristic' (default: shuffled insertion, split distance halved at each near step) or "
+                  "'reference' (far pivots, median split distances; slower)")
+        ->check(CLI::IsMember({"heuristic", "reference"}));
     c->add_option("--fine", a->fine)->group("");  // refused with a pointer to --traversal
     c->add_flag("--json", a->json,
                 "Print one JSON object: the answers as an array, the counts, and with --stats the timings");

@@ -91,6 +91,14 @@ bool parse_traversal(const std::string& name, Traversal& out) {
     if (name == "scan") return out = Traversal::scan, true;
     if (name == "trees") return out = Traversal::trees, true;
     if (name == "one-tree") return out = Traversal::one_tree, true;
+    if (name == "mtsv") return out = Traversal::mtsv, true;
+    if (name == "mtsv-two") return out = Traversal::mtsv_two, true;
+    return false;
+}
+
+bool parse_metric_build(const std::string& name, MetricBuild& out) {
+    if (name == "heuristic") return out = MetricBuild::heuristic, true;
+    if (name == "reference") return out = MetricBuild::reference, true;
     return false;
 }
 

@@ -16,9 +16,11 @@
 
 namespace cb {
 
-// The traversal (cb::Traversal, runtime/cb_tile.h) named "scan", "trees" or "one-tree"; false on another
-// name. Every traversal gives the same answers.
+// The traversal (cb::Traversal, runtime/cb_tile.h) named "scan", "trees", "one-tree", "mtsv" or "mtsv-two";
+// false on another name. Every traversal gives the same answers.
 bool parse_traversal(const std::string& name, Traversal& out);
+// The metric trees' build (cb::MetricBuild) named "heuristic" or "reference"; false on another name.
+bool parse_metric_build(const std::string& name, MetricBuild& out);
 
 struct SceneQueryOptions {
     Traversal traversal = Traversal::scan;
@@ -26,6 +28,8 @@ struct SceneQueryOptions {
     unsigned threads = 0;    // build and query threads, 0 = all; the answers do not depend on it
     bool reference = false;  // occluded_reference instead: every cluster box the segment may touch, no build
     bool per_point = false;  // each point asks alone and keeps its own counts (a batch's tiles share theirs)
+    double capsule_ratio = 2.0;  // mtsv: capsule-cones for clusters at least this elongated, else cones
+    MetricBuild metric_build = MetricBuild::heuristic;  // mtsv: how the metric trees are built
 };
 
 struct SceneQueryResult {
@@ -35,6 +39,7 @@ struct SceneQueryResult {
     double build_seconds = 0;             // every instance's structure for the light, the scan's bounds included
     double query_seconds = 0;
     size_t trees = 0, nodes = 0;  // one structure per instance (none for the reference)
+    size_t tree_bytes = 0;        // what those structures hold (ShadowBuildOptions' shared bounds not counted)
     size_t always_tested = 0;     // clusters tested for every point (light inside or level with their box)
     size_t skipped = 0;           // one-sided: clusters the light sees from their front
 };

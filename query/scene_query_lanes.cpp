@@ -34,10 +34,13 @@ SceneQueryResult answer_light(const AssetView& view, const std::vector<ScanBound
     build.one_sided = o.one_sided;
     build.threads = thread_count;
     build.bounds = bounds.empty() ? nullptr : bounds.data();
+    build.capsule_ratio = o.capsule_ratio;
+    build.metric_build = o.metric_build;
     for (uint32_t i = 0; i < trees.size(); ++i) {
         trees[i].build(view, i, light, build);
         r.skipped += trees[i].skipped_clusters();
         r.nodes += trees[i].node_count();
+        r.tree_bytes += trees[i].memory_bytes();
         r.always_tested += trees[i].always_tested();
     }
     r.trees = trees.size();

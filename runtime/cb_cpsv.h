@@ -8,6 +8,8 @@
 //   made once per asset) are scanned against each tile's pyramid from the light.
 // - cb_top_tree.h, Traversal::trees and Traversal::one_tree: the thesis's ternary trees of planes through
 //   the light over the clusters' shadow volumes, built per light.
+// - cb_metric_tree.h, Traversal::mtsv and Traversal::mtsv_two: the thesis's second structure, ternary metric
+//   trees over the cones and capsule-cones of the clusters' spheres and capsules, by angle from the light.
 // - cb_tile.h: what they share (the instance's frame, the tile of points, the box filters, the cluster
 //   tests); cb_batch.h: batches of points, sorted by direction and taken in tiles.
 //
@@ -24,6 +26,7 @@
 
 #include "cb_asset.h"
 #include "cb_batch.h"
+#include "cb_metric_tree.h"
 #include "cb_scan.h"
 #include "cb_scan_bounds.h"
 #include "cb_segment.h"
@@ -47,6 +50,8 @@ public:
             case Traversal::scan: return build_as<ScanTraversal>(view, instance, world_light, options);
             case Traversal::trees:
             case Traversal::one_tree: return build_as<TopTreeTraversal>(view, instance, world_light, options);
+            case Traversal::mtsv:
+            case Traversal::mtsv_two: return build_as<MetricTreeTraversal>(view, instance, world_light, options);
         }
     }
 
@@ -103,6 +108,8 @@ private:
     auto visit(F f) const -> decltype(f(std::declval<const ScanTraversal&>())) {
         switch (traversal_) {
             case Traversal::scan: return f(*std::get_if<ScanTraversal>(&held_));
+            case Traversal::mtsv:
+            case Traversal::mtsv_two: return f(*std::get_if<MetricTreeTraversal>(&held_));
             case Traversal::trees:
             case Traversal::one_tree: break;
         }
@@ -110,7 +117,7 @@ private:
     }
 
     Traversal traversal_ = Traversal::scan;
-    std::variant<ScanTraversal, TopTreeTraversal> held_;
+    std::variant<ScanTraversal, TopTreeTraversal, MetricTreeTraversal> held_;
 };
 
 }  // namespace CB_LANES

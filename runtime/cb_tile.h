@@ -29,6 +29,15 @@ enum class Traversal : uint8_t {
     trees,     // TopTreeTraversal: a tree over the coarse clusters whose cluster nodes enter a tree over that
                // coarse cluster's fine clusters (the thesis's two levels)
     one_tree,  // TopTreeTraversal: one tree over all the fine clusters
+    mtsv,      // MetricTreeTraversal: one metric tree over the fine clusters' sphere and capsule cones
+    mtsv_two,  // MetricTreeTraversal: a metric tree over the coarse clusters' cones whose nodes enter a tree
+               // over their fine clusters'
+};
+
+// How MetricTreeTraversal (cb_metric_tree.h) chooses pivots and split distances.
+enum class MetricBuild : uint8_t {
+    heuristic,  // the thesis's: shuffled insertion, delta halved on each near step (the default)
+    reference,  // pivots far from the others, median split distance (to measure the heuristic's trees)
 };
 
 inline namespace CB_LANES {
@@ -54,6 +63,10 @@ struct ShadowBuildOptions {
     // then reuses memory instead of asking the system for fresh pages. The traversal's own arrays are reused
     // the same way when its object is.
     BuildScratch* scratch = nullptr;
+    // Traversal::mtsv and mtsv_two: a cluster's volume is its capsule when that is at least this many times
+    // as long (caps included) as it is wide, else its sphere; and how the metric trees are built.
+    double capsule_ratio = 2.0;
+    MetricBuild metric_build = MetricBuild::heuristic;
 };
 
 // Points a batch query walks together (cb::occluded_batch): with close directions from the light, one

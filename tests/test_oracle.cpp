@@ -134,7 +134,8 @@ static void expect_blocked_by_a_crossing(const cb::test::Baked& b, const double*
     EXPECT_FALSE(exact.touching);
     EXPECT_TRUE(cb::occluded_reference(b.view, p, light, false));
     using cb::Traversal;
-    for (Traversal traversal : {Traversal::scan, Traversal::trees, Traversal::one_tree}) {
+    for (Traversal traversal :
+         {Traversal::scan, Traversal::trees, Traversal::one_tree, Traversal::mtsv, Traversal::mtsv_two}) {
         cb::InstanceShadow tree;
         tree.build(b.view, 0, light, {.traversal = traversal});
         std::vector<uint32_t> stack(tree.stack_size());

@@ -309,16 +309,21 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
             {lo[0] + 0.45 * (hi[0] - lo[0]), lo[1] + 0.55 * (hi[1] - lo[1]), lo[2] + 0.5 * (hi[2] - lo[2])},
             {sv[0], sv[1], sv[2]}};
         const std::vector<cb::ScanBounds> bounds = cb::make_scan_bounds(v);
-        for (int variant = 0; variant < 24; ++variant) {
+        for (int variant = 0; variant < 40; ++variant) {  // scan, trees, one tree, mtsv, mtsv two levels
             const double* light = lights[variant % 4];
             bool one_sided = variant / 4 % 2 == 1;
             auto level = cb::Traversal(variant / 8);
+            const auto build = variant % 3 ? cb::MetricBuild::heuristic : cb::MetricBuild::reference;
             std::vector<cb::InstanceShadow> trees(v.instance_count);
             size_t stack = 0;
             for (uint32_t i = 0; i < v.instance_count; ++i) {  // half the scans share the bounds, half make their own
                 trees[i].build(
                     v, i, light,
-                    {.traversal = level, .one_sided = one_sided, .bounds = variant % 2 == 0 ? bounds.data() : nullptr});
+                    {.traversal = level,
+                     .one_sided = one_sided,
+                     .bounds = variant % 2 == 0 ? bounds.data() : nullptr,
+                     .capsule_ratio = variant % 2 ? 1.0 : 2.0,
+                     .metric_build = build});
                 stack = std::max(stack, trees[i].stack_size());
                 skipped += trees[i].skipped_clusters();
             }
@@ -380,7 +385,8 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
         }
     }
     std::printf(
-        "%zu queries (fine scan, fine trees and one tree; two- and one-sided), %zu in shadow, %zu disagreements; "
+        "%zu queries (fine scan, fine trees, one tree, metric trees of one and two levels; two- and one-sided), %zu "
+        "in shadow, %zu disagreements; "
         "triangles tested per query: tree %.1f, "
         "reference %.1f; one-sided builds skipped %zu clusters (light in their front cone)\n",
         queries, shadowed, disagreements, double(tested_tree) / double(queries),
@@ -511,7 +517,7 @@ TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
     for (size_t k = 0; k < n; ++k) shadowed += reference[k] = cb::occluded_reference(v, &points[k * 3], light);
     EXPECT_GT(shadowed, 50u);
     using Level = cb::Traversal;
-    for (Level level : {Level::scan, Level::trees, Level::one_tree}) {
+    for (Level level : {Level::scan, Level::trees, Level::one_tree, Level::mtsv, Level::mtsv_two}) {
         std::vector<cb::InstanceShadow> trees(v.instance_count);
         for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light, {.traversal = level});
         std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
@@ -653,7 +659,7 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
         WorldSample world = sample_scene(b.scene, 1);
         SceneOracle exact_oracle(b.scene);
         for (const auto& light : c.lights)
-            for (int variant = 0; variant < 6; ++variant) {
+            for (int variant = 0; variant < 10; ++variant) {  // scan, trees, one tree, mtsv, mtsv two levels
                 bool one_sided = variant % 2 == 1;
                 cb::InstanceShadow tree;
                 tree.build(v, 0, light.data(), {.traversal = cb::Traversal(variant / 2), .one_sided = one_sided});

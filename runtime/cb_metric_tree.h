@@ -1,0 +1,755 @@
+// The metric-tree traversal (Traversal::mtsv and Traversal::mtsv_two, the thesis's chapter 3): shadow
+// volumes partitioned by their angular distance from each other as seen from the light, rather than by
+// planes. Each fine cluster's volume is a sphere or a capsule; seen from the light a sphere is a cone (the
+// directions within alpha = asin(r / |c - light|) of its centre) and a capsule a capsule-cone (the
+// directions within alpha of the arc its segment spans, alpha taken where the segment is nearest the light,
+// so the widest). One node per volume (a TOP-tree needs four plane nodes and a cluster node).
+//
+// A node's pivot splits the volumes below it by s(u) = angle(u, pivot's centre) - pivot's alpha, the
+// angular distance of a direction u outside the pivot's cone: the near child holds volumes whose every
+// direction has s <= delta, the far child those whose every direction has s > delta, the overlap child the
+// rest, with the [min, max] of s over its volumes. A query direction u in a volume below a node satisfies
+// that child's bound, so the walk skips the others; it tests the cluster of every volume that holds u,
+// then its slab (two planes across its normal cone's axis, when the asset has slabs), its box (when it
+// has boxes) and its triangles, exactly (cb_lit_triangles.h): the answers are occluded_reference's.
+//
+// Two builds (ShadowBuildOptions::metric_build): the thesis's heuristic inserts the volumes one by one in a
+// shuffled order (fixed seed), each carrying a split distance that starts at the angle of the cone holding
+// the whole scene and halves on each near step, and becomes its delta when it reaches a leaf; the
+// reference picks as pivot the sampled volume farthest from the others and splits at the median distance
+// (slower, to measure the heuristic against). Every node keeps the smallest light distance of its subtree:
+// a point nearer the light skips it. Traversal::mtsv_two walks a tree over the coarse clusters' volumes
+// whose nodes enter a tree over their fine clusters; Traversal::mtsv one tree over all fine clusters.
+//
+// Volumes: the asset's spheres and capsules when it has them (bake --bounds all), otherwise the sphere and
+// capsule about each box. A capsule is used when its length (with its caps) is at least capsule_ratio
+// times its width. Angles are worked out in double from the stored floats; every stored angle is rounded
+// outward with a margin for the directions' rounding to float, and every comparison of the walk has a
+// tolerance of 1e-9 radians, so a volume is never skipped for a point it could block. Header-only C++17,
+// no exceptions; building allocates (std::vector), queries do not. MIT licensed (runtime/LICENSE).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "cb_asset.h"
+#include "cb_math.h"
+#include "cb_tile.h"
+
+namespace cb {
+inline namespace CB_LANES {
+namespace metric_tree {
+
+constexpr uint32_t none = TraversalBase::none;
+constexpr uint32_t coarse_bit = 0x80000000u;  // in Node::cluster: a coarse cluster, whose fine tree is entered
+constexpr double tolerance = 1e-9;            // radians, on every comparison of the walk
+
+// One volume seen from the light, and the split of the volumes inserted below it.
+struct Node {                 // 64 bytes
+    float d0[3];              // direction of the sphere's centre, or of the capsule segment's first end
+    float alpha;              // half-angle of the cone, rounded up
+    float d1[3];              // direction of the capsule segment's other end (d0 for a sphere)
+    float delta;              // split distance of s (see the top of the file)
+    float omin, omax;         // s over the overlap child's volumes, rounded outward (omin > omax: none)
+    float near;               // distance from the light to the volume, rounded down
+    float near_min;           // the smallest near in the subtree rooted here
+    uint32_t child[3];        // near, far, overlap
+    uint32_t cluster;         // fine cluster (mesh-local), or coarse cluster | coarse_bit
+};
+static_assert(sizeof(Node) == 64, "metric tree nodes are 64-byte records (RUNTIME.md)");
+
+// A node's central element in double: a point (a == b) or the minor arc from a to b; n the unit normal of
+// the arc's plane.
+struct Central {
+    double a[3], b[3], n[3];
+    bool arc;
+};
+
+inline void normalize(double* v) {
+    const double l = std::sqrt(math::dot3(v, v));
+    for (int k = 0; k < 3; ++k) v[k] /= l;
+}
+
+// The angle between unit vectors, accurate at every size (atan2 of the sine and the cosine).
+inline double angle(const double* u, const double* v) {
+    double c[3];
+    math::cross3(u, v, c);
+    return std::atan2(std::sqrt(math::dot3(c, c)), math::dot3(u, v));
+}
+
+inline Central central_of(const Node& node) {
+    Central c;
+    for (int k = 0; k < 3; ++k) c.a[k] = node.d0[k], c.b[k] = node.d1[k];
+    normalize(c.a);
+    c.arc = node.d0[0] != node.d1[0] || node.d0[1] != node.d1[1] || node.d0[2] != node.d1[2];
+    if (c.arc) {
+        normalize(c.b);
+        math::cross3(c.a, c.b, c.n);
+        normalize(c.n);
+    } else {
+        for (int k = 0; k < 3; ++k) c.b[k] = c.a[k], c.n[k] = 0;
+    }
+    return c;
+}
+
+// The angle from unit direction u to the central element: to the point, or to the nearest point of the arc
+// (on the arc's plane between its ends: the angle off the plane; otherwise the nearer end).
+inline double distance(const Central& c, const double* u) {
+    if (!c.arc) return angle(u, c.a);
+    double x[3];
+    math::cross3(c.a, u, x);
+    const double after_a = math::dot3(x, c.n);
+    math::cross3(u, c.b, x);
+    const double before_b = math::dot3(x, c.n);
+    if (after_a >= 0 && before_b >= 0) return std::asin(std::min(1.0, std::fabs(math::dot3(u, c.n))));
+    return std::min(angle(u, c.a), angle(u, c.b));
+}
+
+// A volume while the tree is built: the node it becomes, and its central element as a disc on the sphere of
+// directions (midpoint m, every point of the element within `half` of it).
+struct Element {
+    Node node;
+    double m[3], half;
+    double delta;  // the heuristic's split distance, halved on each near step
+};
+
+// The working arrays of a build, kept between builds by reusing the traversal object.
+struct Work {
+    std::vector<Element> elements;
+    std::vector<Central> centrals;  // per node, while building
+    std::vector<uint32_t> order, todo, to;
+    std::vector<Node> built;
+};
+
+}  // namespace metric_tree
+
+class MetricTreeTraversal : public TraversalBase {
+public:
+    using Node = metric_tree::Node;
+
+    // One instance of the asset's meshes, for one light given in world space: two levels when
+    // options.traversal is Traversal::mtsv_two and the asset has coarse volumes, else one tree.
+    void build(const AssetView& view, uint32_t instance, const double* world_light, const ShadowBuildOptions& options) {
+        nodes_.clear(), always_fine_.clear(), always_coarse_.clear(), fine_roots_.clear(), fine_always_.clear();
+        root_ = none, depth_ = 0, capsules_ = 0, top_always_ = {};
+        if (!set_instance(view, instance, world_light, options.one_sided)) return;
+        capsule_ratio_ = options.capsule_ratio;
+        build_ = options.metric_build;
+        slabs_ = view.fine_bounds.slabs != nullptr;
+        const bool two = options.traversal == Traversal::mtsv_two &&
+            (view.coarse_bounds.spheres || view.coarse_bounds.obbs) && mesh_->coarse_count > 0;
+        metric_tree::Work& w = work_;
+        w.built.clear();
+        if (!two) {
+            std::vector<uint32_t> fine(mesh_->fine_count);
+            for (uint32_t f = 0; f < mesh_->fine_count; ++f) fine[f] = f;
+            uint32_t depth = 0;
+            root_ = build_level(view.fine_bounds, mesh_->first_fine, fine, false, always_fine_, depth);
+            top_always_ = {0, uint32_t(always_fine_.size())};
+            depth_ = depth;
+        } else {
+            const uint32_t coarse_count = mesh_->coarse_count;
+            fine_roots_.assign(coarse_count, none);
+            fine_always_.assign(coarse_count, {});
+            std::vector<uint32_t> coarse, fine;
+            uint32_t fine_depth = 0;
+            for (uint32_t c = 0; c < coarse_count; ++c) {
+                const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
+                if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
+                    skipped_ += r.count;
+                    continue;
+                }
+                coarse.push_back(c);
+                fine.resize(r.count);
+                for (uint32_t k = 0; k < r.count; ++k) fine[k] = r.first + k;
+                uint32_t first = uint32_t(always_fine_.size()), depth = 0;
+                fine_roots_[c] = build_level(view.fine_bounds, mesh_->first_fine, fine, false, always_fine_, depth);
+                fine_always_[c] = {first, uint32_t(always_fine_.size()) - first};
+                fine_depth = std::max(fine_depth, depth);
+            }
+            uint32_t coarse_depth = 0;
+            std::vector<uint32_t> around;  // coarse clusters whose volumes hold the light
+            root_ = build_level(view.coarse_bounds, mesh_->first_coarse, coarse, true, around, coarse_depth);
+            always_coarse_ = around;
+            depth_ = coarse_depth + fine_depth + 1;
+        }
+        renumber_in_walk_order();
+    }
+
+    // Entries the query stack needs: pending siblings along the deepest path through both levels.
+    size_t stack_size() const { return size_t(depth_) * 2 + 6; }
+
+    // True when the segment from world point p to the light is blocked by this instance. `stack` holds
+    // stack_size() entries.
+    bool occluded(const double* world_p, uint32_t* stack, QueryStats* stats = nullptr) const {
+        if (!usable_ || !finite3(world_p)) return false;  // a point that is not finite is never in shadow
+        return walk_alone(world_p, stack, stats);
+    }
+
+    // The tile walk: of the `count` world points points + 3 * index[i] (xyz doubles), those set in `alive`
+    // that this instance shadows, as a mask; the same answers as occluded() point by point. The tree is
+    // walked once with the cone from the light about the tile's mean direction that holds every point's
+    // direction: a node is skipped only when no direction in that cone could reach it. Each point is then
+    // tested against the volumes the walk meets. Points over 60 degrees off the mean, at the light, not
+    // finite or beyond 1e30 walk alone. `stack` holds stack_size() entries.
+    uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t* stack,
+                           QueryStats* stats = nullptr, TileCache* cache = nullptr) const {
+        if (!usable_ || alive == 0) return 0;
+        Tile t;
+        uint64_t alone;
+        const uint64_t off = start_tile(t, points, index, count, alive, stats, cache, nullptr, alone);
+        alone |= off;
+        if (t.alive) {
+            Directions d;
+            set_directions(t, d);
+            for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count && t.alive; ++i)
+                test_points(always_fine_[i], slab_points(always_fine_[i], t.alive, t), t);
+            for (uint32_t c : always_coarse_)
+                if (t.alive) enter_coarse(c, t.alive, t, d, stack);
+            if (root_ != none && t.alive) tile_walk(root_, t.alive, t, d, stack);
+            walk_entered(t, d, stack);
+            test_pending(t);
+        }
+        for (uint32_t i = 0; i < count; ++i)
+            if ((alone >> i & 1) && walk_alone(points + size_t(index[i]) * 3, stack, stats))
+                t.shadowed |= uint64_t(1) << i;
+        return t.shadowed;
+    }
+
+    size_t node_count() const { return nodes_.size(); }
+    const std::vector<Node>& nodes() const { return nodes_; }  // in walk order; the roots are not marked
+    // Bytes this traversal holds (the asset it reads, and the build's working arrays, are not counted).
+    size_t memory_bytes() const {
+        return nodes_.capacity() * sizeof(Node) +
+            (always_fine_.capacity() + always_coarse_.capacity() + fine_roots_.capacity()) * sizeof(uint32_t) +
+            fine_always_.capacity() * sizeof(IndexRange);
+    }
+    size_t always_tested() const { return always_fine_.size(); }
+    size_t capsules() const { return capsules_; }  // volumes taken as capsule-cones
+    uint32_t depth() const { return depth_; }
+
+private:
+    using Central = metric_tree::Central;
+    using Element = metric_tree::Element;
+    static constexpr uint32_t coarse_bit = metric_tree::coarse_bit;
+    static constexpr double tol = metric_tree::tolerance;
+
+    // The tile's unit directions from the light, and each one's angle from the tile's mean direction.
+    struct Directions {
+        double u[tile_capacity][3];
+        double off[tile_capacity];
+        double z[3];
+    };
+
+    void set_directions(const Tile& t, Directions& d) const {
+        for (int k = 0; k < 3; ++k) d.z[k] = t.frame[0][k];
+        metric_tree::normalize(d.z);
+        for (uint64_t w = t.alive; w; w &= w - 1) {
+            const uint32_t i = math::lowest_bit(w);
+            for (int k = 0; k < 3; ++k) d.u[i][k] = t.e[i][k] / t.dist[i];
+            metric_tree::normalize(d.u[i]);
+            d.off[i] = metric_tree::angle(d.u[i], d.z);
+        }
+    }
+
+    // ---- building
+
+    // The sphere and, where it is long enough, the capsule of cluster `index` of `level`, in the mesh's
+    // frame; false when the level has no volume to take them from.
+    bool volume_of(const LevelBounds& level, uint32_t index, double* a, double* b, double& r) const {
+        double sr = 0, sc[3], ca[3], cb[3], cr = 0;
+        bool capsule = false;
+        if (level.spheres) {
+            const Sphere& s = level.spheres[index];
+            for (int k = 0; k < 3; ++k) sc[k] = s.center[k];
+            sr = s.radius;
+            if (level.capsules) {
+                const Capsule& c = level.capsules[index];
+                capsule = c.a[0] != c.b[0] || c.a[1] != c.b[1] || c.a[2] != c.b[2];
+                for (int k = 0; k < 3; ++k) ca[k] = c.a[k], cb[k] = c.b[k];
+                cr = c.radius;
+            }
+        } else if (level.obbs) {
+            // About the box: the sphere through its corners, and the capsule along its longest axis whose
+            // radius reaches the corners of its cross-section; 1e-6 more than the axes' departure from unit
+            // and orthogonal (about 1e-7).
+            const Obb box = level.obb(index);
+            double h[3];
+            padded_halves(box, h);
+            const int l = h[0] >= h[1] && h[0] >= h[2] ? 0 : h[1] >= h[2] ? 1 : 2, j = (l + 1) % 3, m = (l + 2) % 3;
+            const double pad = 1e-6 * (h[0] + h[1] + h[2]);
+            for (int k = 0; k < 3; ++k) {
+                sc[k] = box.center[k];
+                ca[k] = box.center[k] - h[l] * box.axis[l][k], cb[k] = box.center[k] + h[l] * box.axis[l][k];
+            }
+            sr = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) + pad;
+            cr = std::sqrt(h[j] * h[j] + h[m] * h[m]) + pad;
+            capsule = true;
+        } else {
+            return false;
+        }
+        if (capsule) {
+            const double d[3] = {cb[0] - ca[0], cb[1] - ca[1], cb[2] - ca[2]};
+            const double length = std::sqrt(math::dot3(d, d));
+            capsule = cr > 0 && length + 2 * cr >= capsule_ratio_ * 2 * cr;
+        }
+        if (capsule) {
+            for (int k = 0; k < 3; ++k) a[k] = ca[k], b[k] = cb[k];
+            r = cr;
+        } else {
+            for (int k = 0; k < 3; ++k) a[k] = b[k] = sc[k];
+            r = sr;
+        }
+        return true;
+    }
+
+    // Cluster `index` of `level` seen from the light, as an element; false when it has no cone: no volume,
+    // or one that holds the light (its cluster is then tested by every point that gets that far).
+    bool element_of(const LevelBounds& level, uint32_t index, uint32_t cluster, Element& e) const {
+        double pa[3], pb[3], r;
+        if (!volume_of(level, index, pa, pb, r)) return false;
+        double A[3], B[3], AB[3];
+        for (int k = 0; k < 3; ++k) A[k] = pa[k] - light_[k], B[k] = pb[k] - light_[k], AB[k] = B[k] - A[k];
+        // The segment's nearest point to the light.
+        const double ab2 = math::dot3(AB, AB);
+        double t = ab2 > 0 ? -math::dot3(A, AB) / ab2 : 0;
+        t = std::min(1.0, std::max(0.0, t));
+        double X[3];
+        for (int k = 0; k < 3; ++k) X[k] = A[k] + t * AB[k];
+        const double dist = std::sqrt(math::dot3(X, X));
+        // Rounding of the differences from the light: 1e-15 of the coordinates.
+        const double err = 1e-15 * (math::l1(pa) + math::l1(pb) + 2 * math::l1(light_)) + 1e-9 * r;
+        if (!(dist > (r + err) * (1 + 1e-9)) || !(dist < 1e30)) return false;
+        double alpha = std::asin(std::min(1.0, (r + err) / dist));
+        double ua[3] = {A[0], A[1], A[2]}, ub[3] = {B[0], B[1], B[2]};
+        metric_tree::normalize(ua), metric_tree::normalize(ub);
+        const double arc = ab2 > 0 ? metric_tree::angle(ua, ub) : 0;
+        Node& n = e.node;
+        if (arc < 1e-5) {  // too short an arc for its plane to be well defined: the cone about its middle
+            double m[3] = {ua[0] + ub[0], ua[1] + ub[1], ua[2] + ub[2]};
+            metric_tree::normalize(m);
+            alpha += std::max(metric_tree::angle(m, ua), metric_tree::angle(m, ub));
+            for (int k = 0; k < 3; ++k) n.d0[k] = n.d1[k] = float(m[k]);
+        } else {
+            for (int k = 0; k < 3; ++k) n.d0[k] = float(ua[k]), n.d1[k] = float(ub[k]);
+            if (n.d0[0] == n.d1[0] && n.d0[1] == n.d1[1] && n.d0[2] == n.d1[2]) n.d1[0] = math::next_float(n.d1[0], true);
+        }
+        // A float direction is within 1.1e-7 radians of the one rounded; 4e-7 more, and a relative 1e-9.
+        n.alpha = math::round_up(alpha * (1 + 1e-9) + 4e-7);
+        n.delta = 0, n.omin = INFINITY, n.omax = -INFINITY;
+        n.near = math::round_down((dist - r - err) * (1 - 1e-9));
+        n.near_min = n.near;
+        for (uint32_t& c : n.child) c = none;
+        n.cluster = cluster;
+        // The disc on the sphere of directions that holds the element as stored.
+        const Central c = metric_tree::central_of(n);
+        for (int k = 0; k < 3; ++k) e.m[k] = c.a[k] + c.b[k];
+        metric_tree::normalize(e.m);
+        e.half = c.arc ? std::max(metric_tree::angle(e.m, c.a), metric_tree::angle(e.m, c.b)) : 0;
+        e.delta = 0;
+        return true;
+    }
+
+    // s over element e's directions against pivot p (central element cp): [lo, hi].
+    static void s_range(const Node& p, const Central& cp, const Element& e, double& lo, double& hi) {
+        const double d = metric_tree::distance(cp, e.m), spread = e.half + double(e.node.alpha);
+        lo = d - spread - double(p.alpha), hi = d + spread - double(p.alpha);
+    }
+
+    // A tree over the clusters `ids` (indices local to the level's range starting at `first`) of one level;
+    // those without a cone go to `always`. Returns the root; `depth` the longest path.
+    uint32_t build_level(const LevelBounds& level, uint32_t first, const std::vector<uint32_t>& ids, bool coarse,
+                         std::vector<uint32_t>& always, uint32_t& depth) {
+        std::vector<Element>& elements = work_.elements;
+        elements.clear();
+        for (uint32_t id : ids) {
+            if (!coarse && skippable_fine(id)) {
+                ++skipped_;
+                continue;
+            }
+            Element e;
+            if (!element_of(level, first + id, coarse ? id | coarse_bit : id, e)) {
+                always.push_back(id);
+                continue;
+            }
+            capsules_ += e.node.d0[0] != e.node.d1[0] || e.node.d0[1] != e.node.d1[1] || e.node.d0[2] != e.node.d1[2];
+            elements.push_back(e);
+        }
+        if (elements.empty()) return none;
+        return build_ == MetricBuild::reference ? build_reference(depth) : build_heuristic(depth);
+    }
+
+    // The thesis's insertion (algorithm 5), in a shuffled order with a fixed seed.
+    uint32_t build_heuristic(uint32_t& depth) {
+        std::vector<Element>& elements = work_.elements;
+        std::vector<Node>& built = work_.built;
+        std::vector<metric_tree::Central>& centrals = work_.centrals;
+        centrals.resize(built.size());  // in step with built: a node's central element at its index
+        // The angle of the cone that holds every element: the split distance each starts with.
+        double mean[3] = {0, 0, 0};
+        for (const Element& e : elements)
+            for (int k = 0; k < 3; ++k) mean[k] += e.m[k];
+        double scene = M_PI;
+        if (math::dot3(mean, mean) > 0) {
+            metric_tree::normalize(mean);
+            scene = 0;
+            for (const Element& e : elements)
+                scene = std::max(scene, metric_tree::angle(mean, e.m) + e.half + e.node.alpha);
+            scene = std::min(scene, M_PI);
+        }
+        shuffle(uint32_t(elements.size()));
+        uint32_t root = none;
+        for (uint32_t index : work_.order) {
+            Element& e = elements[index];
+            e.delta = scene;
+            uint32_t* link = &root;
+            uint32_t d = 1;
+            while (*link != none) {
+                Node& p = built[*link];
+                double lo, hi;
+                s_range(p, centrals[*link], e, lo, hi);
+                p.near_min = std::min(p.near_min, e.node.near);
+                if (hi <= double(p.delta)) {
+                    link = &p.child[0];
+                    e.delta *= 0.5;
+                } else if (lo > double(p.delta)) {
+                    link = &p.child[1];
+                } else {
+                    p.omin = std::min(p.omin, math::round_down(lo)), p.omax = std::max(p.omax, math::round_up(hi));
+                    link = &p.child[2];
+                }
+                ++d;
+            }
+            e.node.delta = float(e.delta);
+            *link = uint32_t(built.size());
+            built.push_back(e.node);
+            centrals.push_back(metric_tree::central_of(e.node));
+            depth = std::max(depth, d);
+        }
+        return root;
+    }
+
+    // The reference build: for each set, the pivot is the one of up to 16 sampled elements whose summed
+    // distance to up to 64 sampled others is largest (after Yianilos), delta the median of the others'
+    // central s (after Uhlmann); sets are split until empty.
+    uint32_t build_reference(uint32_t& depth) {
+        std::vector<Element>& elements = work_.elements;
+        std::vector<Node>& built = work_.built;
+        // Each set is a range of `items`; where its subtree's root goes is a (node, child) slot, an index that
+        // survives the nodes' array growing.
+        shuffle(uint32_t(elements.size()));
+        std::vector<uint32_t> items = work_.order;
+        struct Slot {
+            uint32_t node, child;  // node none: the root
+        };
+        struct Job {
+            uint32_t first, count, depth;
+            Slot slot;
+        };
+        uint32_t root = none;
+        std::vector<Job> jobs{{0, uint32_t(items.size()), 1, {none, 0}}};
+        std::vector<double> keys;
+        std::vector<uint32_t> near_set, far_set, over_set;
+        uint64_t state = 0x2545f4914f6cdd1dULL;
+        auto next = [&state]() {
+            state ^= state << 13, state ^= state >> 7, state ^= state << 17;
+            return state;
+        };
+        while (!jobs.empty()) {
+            const Job job = jobs.back();
+            jobs.pop_back();
+            if (job.count == 0) continue;
+            uint32_t* set = items.data() + job.first;
+            // The pivot.
+            uint32_t best = 0;
+            double best_sum = -1;
+            const uint32_t candidates = std::min<uint32_t>(job.count, 16), others = std::min<uint32_t>(job.count, 64);
+            for (uint32_t k = 0; k < candidates; ++k) {
+                const uint32_t c = job.count <= 16 ? k : uint32_t(next() % job.count);
+                double sum = 0;
+                for (uint32_t j = 0; j < others; ++j) {
+                    const uint32_t o = job.count <= 64 ? j : uint32_t(next() % job.count);
+                    sum += metric_tree::angle(elements[set[c]].m, elements[set[o]].m);
+                }
+                if (sum > best_sum) best_sum = sum, best = c;
+            }
+            std::swap(set[0], set[best]);
+            Element& pe = elements[set[0]];
+            Node pivot = pe.node;
+            const Central cp = metric_tree::central_of(pivot);
+            keys.clear();
+            for (uint32_t j = 1; j < job.count; ++j)
+                keys.push_back(metric_tree::distance(cp, elements[set[j]].m) - double(pivot.alpha));
+            float delta = 0;
+            if (!keys.empty()) {
+                std::nth_element(keys.begin(), keys.begin() + keys.size() / 2, keys.end());
+                delta = float(keys[keys.size() / 2]);
+            }
+            pivot.delta = delta;
+            near_set.clear(), far_set.clear(), over_set.clear();
+            for (uint32_t j = 1; j < job.count; ++j) {
+                const Element& e = elements[set[j]];
+                double lo, hi;
+                s_range(pivot, cp, e, lo, hi);
+                pivot.near_min = std::min(pivot.near_min, e.node.near);
+                if (hi <= double(delta)) {
+                    near_set.push_back(set[j]);
+                } else if (lo > double(delta)) {
+                    far_set.push_back(set[j]);
+                } else {
+                    pivot.omin = std::min(pivot.omin, math::round_down(lo));
+                    pivot.omax = std::max(pivot.omax, math::round_up(hi));
+                    over_set.push_back(set[j]);
+                }
+            }
+            const uint32_t index = uint32_t(built.size());
+            built.push_back(pivot);
+            if (job.slot.node == none)
+                root = index;
+            else
+                built[job.slot.node].child[job.slot.child] = index;
+            depth = std::max(depth, job.depth);
+            // The three sets, back into the range after the pivot.
+            uint32_t at = job.first + 1;
+            const std::vector<uint32_t>* parts[3] = {&near_set, &far_set, &over_set};
+            for (uint32_t k = 0; k < 3; ++k) {
+                const uint32_t begin = at;
+                for (uint32_t v : *parts[k]) items[at++] = v;
+                jobs.push_back({begin, at - begin, job.depth + 1, {index, k}});
+            }
+        }
+        return root;
+    }
+
+    // Insertion order for n items, the same for every build (xorshift with a fixed seed), into work_.order.
+    void shuffle(uint32_t n) {
+        std::vector<uint32_t>& order = work_.order;
+        order.resize(n);
+        for (uint32_t i = 0; i < n; ++i) order[i] = i;
+        uint64_t state = 0x9e3779b97f4a7c15ULL;
+        for (uint32_t i = n; i > 1; --i) {
+            state ^= state << 13, state ^= state >> 7, state ^= state << 17;
+            std::swap(order[i - 1], order[state % i]);
+        }
+    }
+
+    // Lays the built nodes out in the order a walk meets them (depth first, near child next), into nodes_.
+    void renumber_in_walk_order() {
+        const std::vector<Node>& built = work_.built;
+        std::vector<uint32_t>& to = work_.to;
+        std::vector<uint32_t>& todo = work_.todo;
+        to.assign(built.size(), none);
+        nodes_.clear();
+        nodes_.reserve(built.size());
+        auto visit = [&](uint32_t start) {
+            todo.clear();
+            todo.push_back(start);
+            while (!todo.empty()) {
+                const uint32_t ref = todo.back();
+                todo.pop_back();
+                if (ref == none) continue;
+                to[ref] = uint32_t(nodes_.size());
+                nodes_.push_back(built[ref]);
+                const Node& n = built[ref];
+                todo.push_back(n.child[2]), todo.push_back(n.child[1]), todo.push_back(n.child[0]);
+                if (n.cluster & coarse_bit) todo.push_back(fine_roots_[n.cluster & ~coarse_bit]);
+            }
+        };
+        visit(root_);
+        for (uint32_t c : always_coarse_) visit(fine_roots_[c]);
+        for (uint32_t& r : fine_roots_)
+            if (r != none && to[r] == none) visit(r);  // coarse clusters not in the tree (none now; kept safe)
+        auto map = [&](uint32_t ref) { return ref == none ? none : to[ref]; };
+        for (Node& n : nodes_)
+            for (uint32_t& c : n.child) c = map(c);
+        root_ = map(root_);
+        for (uint32_t& r : fine_roots_) r = map(r);
+    }
+
+    // ---- walking
+
+    // The points of `subset` whose segment to the light may cross fine cluster f's slab: the segment's
+    // extent along the slab's axis meets [low, high], with a tolerance far above double's rounding.
+    uint64_t slab_points(uint32_t f, uint64_t subset, const Tile& t) const {
+        if (!slabs_ || !subset) return subset;
+        const Slab& s = view_->fine_bounds.slabs[mesh_->first_fine + f];
+        const double ax[3] = {s.axis[0], s.axis[1], s.axis[2]};
+        const double at_light = math::dot3(light_, ax);
+        const double slack = 1e-9 * (std::fabs(double(s.low)) + std::fabs(double(s.high)) + 2 * math::l1(light_)) + 1e-30;
+        for (uint64_t w = subset; w; w &= w - 1) {
+            const uint32_t i = math::lowest_bit(w);
+            const double at_p = math::dot3(t.p[i], ax), reach = slack + 1e-9 * math::l1(t.p[i]);
+            if (std::max(at_p, at_light) < double(s.low) - reach || std::min(at_p, at_light) > double(s.high) + reach)
+                subset &= ~(uint64_t(1) << i);
+        }
+        return subset;
+    }
+
+    bool slab_may_cross(uint32_t f, const Query& q) const {
+        if (!slabs_) return true;
+        const Slab& s = view_->fine_bounds.slabs[mesh_->first_fine + f];
+        const double ax[3] = {s.axis[0], s.axis[1], s.axis[2]};
+        const double at_light = math::dot3(light_, ax), at_p = math::dot3(q.p, ax);
+        const double reach = 1e-9 * (std::fabs(double(s.low)) + std::fabs(double(s.high)) + 2 * math::l1(light_) +
+                                     math::l1(q.p)) + 1e-30;
+        return !(std::max(at_p, at_light) < double(s.low) - reach || std::min(at_p, at_light) > double(s.high) + reach);
+    }
+
+    // The points of `subset` whose directions lie in the node's cone (or capsule-cone) and that are not
+    // nearer the light than its volume: compared by cosines and sines with a margin (1e-12) far above their
+    // rounding, on top of the walk's tolerance.
+    uint64_t cone_points(const Node& node, const Central& c, uint64_t subset, const Tile& t, const Directions& d) const {
+        const double a = double(node.alpha) + tol;
+        if (a >= 0.5 * M_PI) {  // so wide that the cosine test would not hold: every point beyond near
+            for (uint64_t w = subset; w; w &= w - 1) {
+                const uint32_t i = math::lowest_bit(w);
+                if (t.dist[i] < node.near) subset &= ~(uint64_t(1) << i);
+            }
+            return subset;
+        }
+        const double cos_a = std::cos(a) - 1e-12, sin_a = std::sin(a) + 1e-12;
+        uint64_t in = 0;
+        for (uint64_t w = subset; w; w &= w - 1) {
+            const uint32_t i = math::lowest_bit(w);
+            if (t.dist[i] < node.near) continue;
+            const double* u = d.u[i];
+            bool inside = math::dot3(u, c.a) >= cos_a;
+            if (!inside && c.arc) {
+                double x[3];
+                math::cross3(c.a, u, x);
+                const double after_a = math::dot3(x, c.n);
+                math::cross3(u, c.b, x);
+                const double before_b = math::dot3(x, c.n);
+                // In the lune over the arc (taken a little wider: the angle off the arc's plane is then at most
+                // the angle to the arc), or near the far end.
+                inside = (after_a >= -1e-12 && before_b >= -1e-12 && std::fabs(math::dot3(u, c.n)) <= sin_a) ||
+                    math::dot3(u, c.b) >= cos_a;
+            }
+            if (inside) in |= uint64_t(1) << i;
+        }
+        return in;
+    }
+
+    // The walk for a tile's points `subset` at once: directions within `spread` of d.z, none farther than
+    // `far` from the light.
+    void tile_walk(uint32_t start, uint64_t subset, Tile& t, const Directions& d, uint32_t* stack) const {
+        double spread = 0, far = 0;
+        for (uint64_t w = subset; w; w &= w - 1) {
+            const uint32_t i = math::lowest_bit(w);
+            spread = std::max(spread, d.off[i]), far = std::max(far, t.dist[i]);
+        }
+        spread += tol;
+        size_t top = 0;
+        stack[top++] = start;
+        while (top && (subset & t.alive)) {
+            const Node& node = nodes_[stack[--top]];
+            if (t.stats) ++t.stats->nodes_visited;
+            if (far < node.near_min) continue;
+            const Central c = metric_tree::central_of(node);
+            const double s = metric_tree::distance(c, d.z) - double(node.alpha), lo = s - spread, hi = s + spread;
+            if (node.child[2] != none && hi >= double(node.omin) && lo <= double(node.omax)) stack[top++] = node.child[2];
+            if (node.child[1] != none && hi > double(node.delta)) stack[top++] = node.child[1];
+            if (node.child[0] != none && lo <= double(node.delta)) stack[top++] = node.child[0];
+            if (lo > 0 || far < node.near) continue;
+            const uint64_t in = cone_points(node, c, subset & t.alive, t, d);
+            if (!in) continue;
+            if (node.cluster & coarse_bit) {
+                if (t.entered_count == Tile::entered_capacity) walk_entered(t, d, stack + top);
+                t.entered[t.entered_count++] = {node.near, node.cluster & ~coarse_bit, in};
+            } else {
+                const uint64_t crossing = slab_points(node.cluster, in, t);
+                if (!crossing) continue;
+                if (t.pending_count == Tile::pending_capacity) test_pending(t);
+                t.pending[t.pending_count++] = {node.near, node.cluster, crossing};
+            }
+        }
+    }
+
+    // A coarse cluster entered by the points `in`: its fine clusters without a cone, then its fine tree.
+    void enter_coarse(uint32_t c, uint64_t in, Tile& t, const Directions& d, uint32_t* stack) const {
+        const IndexRange r = fine_always_[c];
+        for (uint32_t k = r.first; k < r.first + r.count && (in & t.alive); ++k)
+            test_points(always_fine_[k], slab_points(always_fine_[k], in & t.alive, t), t);
+        if (fine_roots_[c] != none && (in & t.alive)) tile_walk(fine_roots_[c], in & t.alive, t, d, stack);
+    }
+
+    // The entered coarse clusters, nearest first; each one's pending clusters are tested before the next's.
+    void walk_entered(Tile& t, const Directions& d, uint32_t* stack) const {
+        Tile::Entered* e = t.entered;
+        const uint32_t count = t.entered_count;
+        t.entered_count = 0;
+        sort_by_near(e, count);
+        for (uint32_t i = 0; i < count && t.alive; ++i) {
+            const uint64_t in = e[i].points & t.alive;
+            if (!in) continue;
+            enter_coarse(e[i].id, in, t, d, stack);
+            test_pending(t);
+        }
+    }
+
+    // One point on its own, in double: the tree walk, testing each cluster as its volume is met.
+    bool walk_alone(const double* world_p, uint32_t* stack, QueryStats* stats) const {
+        if (!usable_ || !finite3(world_p)) return false;
+        const Query q = make_query(world_p, stats, nullptr);
+        if (!(q.dist > 0)) return false;  // at the light: the segment is a point, which blocks nothing
+        double u[3] = {q.e[0], q.e[1], q.e[2]};
+        metric_tree::normalize(u);
+        for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count; ++i)
+            if (slab_may_cross(always_fine_[i], q) && test_cluster(always_fine_[i], q)) return true;
+        size_t top = 0;
+        for (uint32_t c : always_coarse_) {
+            const IndexRange r = fine_always_[c];
+            for (uint32_t k = r.first; k < r.first + r.count; ++k)
+                if (slab_may_cross(always_fine_[k], q) && test_cluster(always_fine_[k], q)) return true;
+            if (fine_roots_[c] != none) stack[top++] = fine_roots_[c];
+            if (top && walk(stack, top, q, u)) return true;
+            top = 0;
+        }
+        if (root_ == none) return false;
+        stack[top++] = root_;
+        return walk(stack, top, q, u);
+    }
+
+    bool walk(uint32_t* stack, size_t top, const Query& q, const double* u) const {
+        while (top) {
+            const Node& node = nodes_[stack[--top]];
+            if (q.stats) ++q.stats->nodes_visited;
+            if (q.dist < node.near_min) continue;
+            const Central c = metric_tree::central_of(node);
+            const double s = metric_tree::distance(c, u) - double(node.alpha);
+            if (node.child[2] != none && s + tol >= double(node.omin) && s - tol <= double(node.omax))
+                stack[top++] = node.child[2];
+            if (node.child[1] != none && s + tol > double(node.delta)) stack[top++] = node.child[1];
+            if (node.child[0] != none && s - tol <= double(node.delta)) stack[top++] = node.child[0];
+            if (s > tol || q.dist < node.near) continue;
+            if (node.cluster & coarse_bit) {
+                const uint32_t c = node.cluster & ~coarse_bit;
+                const IndexRange r = fine_always_[c];
+                for (uint32_t k = r.first; k < r.first + r.count; ++k)
+                    if (slab_may_cross(always_fine_[k], q) && test_cluster(always_fine_[k], q)) return true;
+                if (fine_roots_[c] != none) stack[top++] = fine_roots_[c];
+            } else if (slab_may_cross(node.cluster, q) && test_cluster(node.cluster, q)) {
+                return true;
+            }
+        }
+        return false;
+    }
+
+    std::vector<Node> nodes_;
+    std::vector<uint32_t> always_fine_;    // fine clusters without a cone (in ranges per coarse cluster: two levels)
+    std::vector<uint32_t> always_coarse_;  // two levels: coarse clusters without a cone, entered by every point
+    std::vector<uint32_t> fine_roots_;     // two levels: each coarse cluster's fine tree
+    std::vector<IndexRange> fine_always_;  // two levels: each coarse cluster's range of always_fine_
+    IndexRange top_always_;                // one level: always_fine_ whole
+    uint32_t root_ = none, depth_ = 0;
+    size_t capsules_ = 0;
+    double capsule_ratio_ = 2;
+    MetricBuild build_ = MetricBuild::heuristic;
+    bool slabs_ = false;
+    metric_tree::Work work_;  // kept between builds so that a rebuild reuses its memory
+};
+
+}  // namespace CB_LANES
+}  // namespace cb
