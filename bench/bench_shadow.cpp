@@ -137,20 +137,20 @@ const Config configs[] = {
     {"scan", cb::Traversal::scan, cb::MetricBuild::heuristic, 2, false},
     {"CPSV two levels (trees)", cb::Traversal::trees, cb::MetricBuild::heuristic, 2, false},
     {"CPSV one level (one-tree)", cb::Traversal::one_tree, cb::MetricBuild::heuristic, 2, false},
-    {"MTSV heuristic", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 2, true},
-    {"MTSV reference build", cb::Traversal::mtsv, cb::MetricBuild::reference, 2, true},
-    {"MTSV about the boxes", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 2, false},
-    {"MTSV two levels", cb::Traversal::mtsv_two, cb::MetricBuild::heuristic, 2, true},
+    {"MTSV heuristic", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 4, true},
+    {"MTSV reference build", cb::Traversal::mtsv, cb::MetricBuild::reference, 4, true},
+    {"MTSV about the boxes", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 4, false},
+    {"MTSV two levels", cb::Traversal::mtsv_two, cb::MetricBuild::heuristic, 4, true},
     {"MTSV capsules from 1.25", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 1.25, true},
-    {"MTSV capsules from 4", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 4, true},
+    {"MTSV capsules from 2", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 2, true},
     {"MTSV spheres only", cb::Traversal::mtsv, cb::MetricBuild::heuristic, INFINITY, true},
 };
 
 // Every configuration against one light on one thread, the same points, rounds alternating between them
 // (medians), beside Embree's occluded1 on one thread (its build is once per scene, not counted).
 void compare_light(const cb::AssetView& boxes, const cb::AssetView& fitted, const std::vector<cb::ScanBounds>& scan,
-                   const std::vector<double>& pts, const double* light, const char* light_name, const std::string& scene,
-                   int runs, bool one_sided, const std::function<double()>& embree_pass) {
+                   const std::vector<double>& pts, const double* light, const char* light_name,
+                   const std::string& scene, int runs, bool one_sided, const std::function<double()>& embree_pass) {
     const size_t n = pts.size() / 3, count = std::size(configs);
     std::vector<uint32_t> order(n), order_scratch(cb::batch_order_scratch_size(n));
     std::vector<std::vector<double>> build(count), query(count);
@@ -178,7 +178,8 @@ void compare_light(const cb::AssetView& boxes, const cb::AssetView& fitted, cons
                                  scratch.data(), &st);
             query[c].push_back(cb::seconds_since(q0));
             stats[c] = st, bytes[c] = nodes[c] = capsules[c] = 0;
-            for (const cb::InstanceShadow& t : trees) bytes[c] += t.memory_bytes(), nodes[c] += t.node_count();
+            for (const cb::InstanceShadow& t : trees)
+                bytes[c] += t.memory_bytes(), nodes[c] += t.node_count(), capsules[c] += t.capsules();
             shadowed[c] = size_t(std::count(answers.begin(), answers.end(), uint8_t(1)));
             if (c == 0) first = answers;
             differ[c] = 0;
@@ -189,13 +190,15 @@ void compare_light(const cb::AssetView& boxes, const cb::AssetView& fitted, cons
     const double e = cb::median(embree), cpsv = cb::median(build[2]) + cb::median(query[2]);
     for (size_t c = 0; c < count; ++c) {
         const double b = cb::median(build[c]), q = cb::median(query[c]), dn = double(n);
-        std::printf("| %s | %s | %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.1f | %.2f | %.2f | %.1f | %zu | %zu |\n",
-                    scene.c_str(), light_name, configs[c].name, b * 1e3, q * 1e3, (b + q) * 1e3, (b + q) / cpsv,
-                    (b + q) / e, dn / q / 1e6, double(stats[c].nodes_visited) / dn,
-                    double(stats[c].clusters_tested) / dn, double(stats[c].clusters_tested - shadowed[c]) / dn,
-                    double(bytes[c]) / 1024.0, nodes[c], differ[c]);
+        std::printf(
+            "| %s | %s | %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.1f | %.2f | %.2f | %.1f | %zu | %zu | %zu "
+            "|\n",
+            scene.c_str(), light_name, configs[c].name, b * 1e3, q * 1e3, (b + q) * 1e3, (b + q) / cpsv, (b + q) / e,
+            dn / q / 1e6, double(stats[c].nodes_visited) / dn, double(stats[c].clusters_tested) / dn,
+            double(stats[c].clusters_tested - shadowed[c]) / dn, double(bytes[c]) / 1024.0, nodes[c], capsules[c],
+            differ[c]);
     }
-    std::printf("| %s | %s | Embree occluded1 | (once: not counted) | %.2f | %.2f | | 1.00 | %.2f | | | | | | |\n",
+    std::printf("| %s | %s | Embree occluded1 | (once: not counted) | %.2f | %.2f | | 1.00 | %.2f | | | | | | | |\n",
                 scene.c_str(), light_name, e * 1e3, e * 1e3, double(n) / e / 1e6);
     std::fflush(stdout);
 }
@@ -215,6 +218,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
     cb::LoadedAsset fitted;  // --traversal compare: the same clusters with spheres, capsules and slabs too
     if (comparing) {
         bo.mask = cb::bounds_all;
+        bo.capsule_ratio = 1;  // a capsule for every cluster: the runtime's --capsule-ratio chooses
         cb::fit_scene_bounds(meshes, bo, 0, bs);
         if (cb::open_asset_copy(cb::encode_asset(meshes, in.scene.instances), fitted) != cb::AssetError::ok) return;
     }
@@ -502,8 +506,8 @@ static int run(int argc, char** argv) {
             o.one_sided ? "one-sided" : "two-sided", o.view, o.view, std::max(1, o.runs));
         std::printf(
             "| scene | light | configuration | build ms | queries ms | frame ms | vs CPSV | vs Embree | M q/s | "
-            "nodes/query | clusters/query | useless clusters/query | KB | nodes | differ |\n"
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+            "nodes/query | clusters/query | useless clusters/query | KB | nodes | capsule-cones | differ |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     } else if (o.frames > 0) {
         std::printf("%s, traversal '%s'; %dx%d view; our frames alone (build and queries, one thread), %d per light\n",
                     o.one_sided ? "one-sided trees" : "two-sided trees", o.level.c_str(), o.view, o.view, o.frames);

@@ -19,7 +19,7 @@ namespace {
 
 struct QueryArgs {
     std::string asset, light, points, traversal = "scan", fine, metric_build = "heuristic";
-    double capsule_ratio = 2.0;
+    double capsule_ratio = 4.0;
     bool binary = false, stats = false, reference = false, one_sided = false, json = false, quiet = false;
     unsigned threads = 0;
 };
@@ -160,7 +160,7 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     if (!read_points(a, pts)) return exit_bad_input;
 
     cb::SceneQueryOptions options;
-    cb::parse_traversal(a.traversal, options.traversal);  // CLI11 checked the name
+    cb::parse_traversal(a.traversal, options.traversal);           // CLI11 checked the name
     cb::parse_metric_build(a.metric_build, options.metric_build);  // CLI11 checked the name
     options.one_sided = a.one_sided, options.threads = a.threads, options.reference = a.reference;
     options.capsule_ratio = a.capsule_ratio;
@@ -210,7 +210,7 @@ Command add_query(CLI::App& app) {
         ->check(CLI::IsMember({"scan", "trees", "one-tree", "mtsv", "mtsv-two"}));
     c->add_option("--capsule-ratio", a->capsule_ratio,
                   "mtsv: a cluster's volume is its capsule when that is at least this many times as long as "
-                  "wide, else its sphere (default 2; inf: spheres only)");
+                  "wide, else its sphere (default 4; inf: spheres only)");
     c->add_option("--mtsv-build", a->metric_build,
                   "mtsv: 'heuristic' (default: shuffled insertion, split distance halved at each near step) or "
                   "'reference' (far pivots, median split distances; slower)")

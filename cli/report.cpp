@@ -27,7 +27,7 @@ std::vector<std::string> split_commas(const std::string& text) {
 
 struct ReportArgs {
     std::vector<std::string> files;
-    std::string out, methods = "kmeans,vco,morton", fine = "8,16,24,32", obbs = "refined,pca";
+    std::string out, methods = "kmeans,vco,morton", fine = "8,16,24,32", obbs = "refined,pca", traversals = "scan,mtsv";
     cb::ReportOptions options;
     bool quiet = false, json = false;
 };
@@ -59,7 +59,7 @@ bool usable(const CLI::App* c, const ReportArgs& a) {
 
 int run_report(const CLI::App* c, ReportArgs a) {
     cb::ReportOptions& o = a.options;
-    o.methods.clear(), o.fine_sizes.clear(), o.obbs.clear();
+    o.methods.clear(), o.fine_sizes.clear(), o.obbs.clear(), o.traversals.clear();
     auto fine_size = [](const std::string& f, uint32_t& v) {  // the asset's 8-bit local indices, as for bake
         char* end = nullptr;
         unsigned long n = std::strtoul(f.c_str(), &end, 10);
@@ -68,7 +68,9 @@ int run_report(const CLI::App* c, ReportArgs a) {
     };
     if (!parse_list(a.methods, "--method takes a list of kmeans, vco, morton", cb::parse_method, o.methods) ||
         !parse_list(a.fine, "--fine takes a list of sizes from 1 to 85", fine_size, o.fine_sizes) ||
-        !parse_list(a.obbs, "--obb takes a list of refined, pca, pca-area, cgal", cb::parse_obb_method, o.obbs))
+        !parse_list(a.obbs, "--obb takes a list of refined, pca, pca-area, cgal", cb::parse_obb_method, o.obbs) ||
+        !parse_list(a.traversals, "--traversal takes a list of scan, trees, one-tree, mtsv, mtsv-two",
+                    cb::parse_traversal, o.traversals))
         return exit_usage;
     if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.frame_view < 1 || o.lights < 1) {
         std::fprintf(stderr,
@@ -119,6 +121,9 @@ Command add_report(CLI::App& app) {
     c->add_option("--method", a->methods, "Comma list of clustering methods: kmeans, vco, morton (default all three)");
     c->add_option("--fine", a->fine, "Comma list of maximum triangles per fine cluster, 1 to 85 (default 8,16,24,32)");
     c->add_option("--obb", a->obbs, "Comma list of box fitters: refined, pca, pca-area, cgal (default refined,pca)");
+    c->add_option("--traversal", a->traversals,
+                  "Comma list of runtime traversals, each a configuration: scan, trees, one-tree, mtsv, mtsv-two "
+                  "(default scan,mtsv; the metric trees' assets carry spheres, capsules and slabs too)");
     c->add_option("--coarse", a->options.coarse_size, "Triangles per coarse cluster (default 2048)");
     c->add_option("--runs", a->options.runs, "Bake timings are the median of this many runs (default 3)");
     c->add_option(

@@ -96,6 +96,17 @@ bool parse_traversal(const std::string& name, Traversal& out) {
     return false;
 }
 
+const char* traversal_name(Traversal t) {
+    switch (t) {
+        case Traversal::scan: return "scan";
+        case Traversal::trees: return "trees";
+        case Traversal::one_tree: return "one-tree";
+        case Traversal::mtsv: return "mtsv";
+        case Traversal::mtsv_two: return "mtsv-two";
+    }
+    return "scan";
+}
+
 bool parse_metric_build(const std::string& name, MetricBuild& out) {
     if (name == "heuristic") return out = MetricBuild::heuristic, true;
     if (name == "reference") return out = MetricBuild::reference, true;

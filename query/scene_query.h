@@ -19,16 +19,18 @@ namespace cb {
 // The traversal (cb::Traversal, runtime/cb_tile.h) named "scan", "trees", "one-tree", "mtsv" or "mtsv-two";
 // false on another name. Every traversal gives the same answers.
 bool parse_traversal(const std::string& name, Traversal& out);
+// The name parse_traversal reads for a traversal.
+const char* traversal_name(Traversal t);
 // The metric trees' build (cb::MetricBuild) named "heuristic" or "reference"; false on another name.
 bool parse_metric_build(const std::string& name, MetricBuild& out);
 
 struct SceneQueryOptions {
     Traversal traversal = Traversal::scan;
-    bool one_sided = false;  // a triangle blocks only when the light is behind it (double-sided ones always)
-    unsigned threads = 0;    // build and query threads, 0 = all; the answers do not depend on it
-    bool reference = false;  // occluded_reference instead: every cluster box the segment may touch, no build
-    bool per_point = false;  // each point asks alone and keeps its own counts (a batch's tiles share theirs)
-    double capsule_ratio = 2.0;  // mtsv: capsule-cones for clusters at least this elongated, else cones
+    bool one_sided = false;      // a triangle blocks only when the light is behind it (double-sided ones always)
+    unsigned threads = 0;        // build and query threads, 0 = all; the answers do not depend on it
+    bool reference = false;      // occluded_reference instead: every cluster box the segment may touch, no build
+    bool per_point = false;      // each point asks alone and keeps its own counts (a batch's tiles share theirs)
+    double capsule_ratio = 4.0;  // mtsv: capsule-cones for clusters at least this elongated, else cones
     MetricBuild metric_build = MetricBuild::heuristic;  // mtsv: how the metric trees are built
 };
 

@@ -94,6 +94,9 @@ public:
     size_t skipped_clusters() const {  // one-sided: fine clusters the light sees from the front
         return visit([](const auto& t) { return t.skipped_clusters(); });
     }
+    size_t capsules() const {  // metric trees: volumes taken as capsule-cones
+        return visit([](const auto& t) { return t.capsules(); });
+    }
 
 private:
     template <class T>

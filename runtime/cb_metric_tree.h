@@ -8,7 +8,8 @@
 // A node's pivot splits the volumes below it by s(u) = angle(u, pivot's centre) - pivot's alpha, the
 // angular distance of a direction u outside the pivot's cone: the near child holds volumes whose every
 // direction has s <= delta, the far child those whose every direction has s > delta, the overlap child the
-// rest, with the [min, max] of s over its volumes. A query direction u in a volume below a node satisfies
+// rest; each child keeps the range of s over its volumes (the overlap child [min, max], the near child its
+// least, the far child its most). A query direction u in a volume below a node satisfies
 // that child's bound, so the walk skips the others; it tests the cluster of every volume that holds u,
 // then its slab (two planes across its normal cone's axis, when the asset has slabs), its box (when it
 // has boxes) and its triangles, exactly (cb_lit_triangles.h): the answers are occluded_reference's.
@@ -25,7 +26,7 @@
 // capsule about each box. A capsule is used when its length (with its caps) is at least capsule_ratio
 // times its width. Angles are worked out in double from the stored floats; every stored angle is rounded
 // outward with a margin for the directions' rounding to float, and every comparison of the walk has a
-// tolerance of 1e-9 radians, so a volume is never skipped for a point it could block. Header-only C++17,
+// tolerance of 1e-7 radians, so a volume is never skipped for a point it could block. Header-only C++17,
 // no exceptions; building allocates (std::vector), queries do not. MIT licensed (runtime/LICENSE).
 #pragma once
 
@@ -44,21 +45,24 @@ namespace metric_tree {
 
 constexpr uint32_t none = TraversalBase::none;
 constexpr uint32_t coarse_bit = 0x80000000u;  // in Node::cluster: a coarse cluster, whose fine tree is entered
-constexpr double tolerance = 1e-9;            // radians, on every comparison of the walk
+// Radians, on every comparison of the walk: above the error of fast_angle (below 3e-9) and of double
+// rounding, so the walk's angles may come from fast_angle while the build's come from std::atan2.
+constexpr double tolerance = 1e-7;
 
 // One volume seen from the light, and the split of the volumes inserted below it.
-struct Node {                 // 64 bytes
-    float d0[3];              // direction of the sphere's centre, or of the capsule segment's first end
-    float alpha;              // half-angle of the cone, rounded up
-    float d1[3];              // direction of the capsule segment's other end (d0 for a sphere)
-    float delta;              // split distance of s (see the top of the file)
-    float omin, omax;         // s over the overlap child's volumes, rounded outward (omin > omax: none)
-    float near;               // distance from the light to the volume, rounded down
-    float near_min;           // the smallest near in the subtree rooted here
-    uint32_t child[3];        // near, far, overlap
-    uint32_t cluster;         // fine cluster (mesh-local), or coarse cluster | coarse_bit
+struct Node {           // 72 bytes
+    float d0[3];        // direction of the sphere's centre, or of the capsule segment's first end
+    float alpha;        // half-angle of the cone, rounded up
+    float d1[3];        // direction of the capsule segment's other end (d0 for a sphere)
+    float delta;        // split distance of s (see the top of the file)
+    float omin, omax;   // s over the overlap child's volumes, rounded outward (omin > omax: none)
+    float nmin, fmax;   // the least s of the near child's volumes and the most of the far child's, outward
+    float near;         // distance from the light to the volume, rounded down
+    float near_min;     // the smallest near in the subtree rooted here
+    uint32_t child[3];  // near, far, overlap
+    uint32_t cluster;   // fine cluster (mesh-local), or coarse cluster | coarse_bit
 };
-static_assert(sizeof(Node) == 64, "metric tree nodes are 64-byte records (RUNTIME.md)");
+static_assert(sizeof(Node) == 72, "metric tree nodes are 72-byte records (RUNTIME.md)");
 
 // A node's central element in double: a point (a == b) or the minor arc from a to b; n the unit normal of
 // the arc's plane.
@@ -68,8 +72,8 @@ struct Central {
 };
 
 inline void normalize(double* v) {
-    const double l = std::sqrt(math::dot3(v, v));
-    for (int k = 0; k < 3; ++k) v[k] /= l;
+    const double inv = 1 / std::sqrt(math::dot3(v, v));
+    for (int k = 0; k < 3; ++k) v[k] *= inv;
 }
 
 // The angle between unit vectors, accurate at every size (atan2 of the sine and the cosine).
@@ -77,6 +81,34 @@ inline double angle(const double* u, const double* v) {
     double c[3];
     math::cross3(u, v, c);
     return std::atan2(std::sqrt(math::dot3(c, c)), math::dot3(u, v));
+}
+
+// atan(t) for |t| <= tan(pi / 8): its alternating series to t^17, whose remainder is below t^19 / 19 < 3e-9.
+inline double atan_small(double t) {
+    const double t2 = t * t;
+    double sum = 1.0 / 17;
+    for (int k = 15; k >= 1; k -= 2) sum = 1.0 / k - t2 * sum;
+    return t * sum;
+}
+
+// The angle atan2(y, x) in [0, pi] for y >= 0, within 3e-9 radians (plus double rounding) of std::atan2, for
+// a fraction of its time: the walk compares such angles with a tolerance of 1e-7.
+inline double fast_angle(double y, double x) {
+    const double ax = std::fabs(x);
+    if (!(y > 0)) return x < 0 ? M_PI : 0;
+    const bool steep = y > ax;  // then pi / 2 - atan(ax / y)
+    const double r = steep ? ax / y : y / ax;
+    const double tan_eighth = 0.41421356237309503;  // tan(pi / 8), rounded up
+    double a = r > tan_eighth ? 0.25 * M_PI + atan_small((r - 1) / (r + 1)) : atan_small(r);
+    if (steep) a = 0.5 * M_PI - a;
+    return x < 0 ? M_PI - a : a;
+}
+
+// The angle between u and v (unit or not: the angle does not depend on their lengths), by fast_angle.
+inline double fast_angle_between(const double* u, const double* v) {
+    double c[3];
+    math::cross3(u, v, c);
+    return fast_angle(std::sqrt(math::dot3(c, c)), math::dot3(u, v));
 }
 
 inline Central central_of(const Node& node) {
@@ -107,6 +139,38 @@ inline double distance(const Central& c, const double* u) {
     return std::min(angle(u, c.a), angle(u, c.b));
 }
 
+// distance() by fast_angle, for the walk: the same angle within 3e-9 radians. A point's direction is read as
+// stored (fast_angle_between does not need it unit); an arc's normal is made unit.
+struct WalkCentral {
+    double a[3], b[3], n[3];
+    bool arc;
+};
+
+inline WalkCentral walk_central_of(const Node& node) {
+    WalkCentral c;
+    for (int k = 0; k < 3; ++k) c.a[k] = node.d0[k], c.b[k] = node.d1[k];
+    c.arc = node.d0[0] != node.d1[0] || node.d0[1] != node.d1[1] || node.d0[2] != node.d1[2];
+    if (c.arc) {  // a and b stay as stored: the lune's sides are signs, the ends' angles fast_angle_between's
+        math::cross3(c.a, c.b, c.n);
+        normalize(c.n);
+    }
+    return c;
+}
+
+inline double walk_distance(const WalkCentral& c, const double* u) {
+    if (!c.arc) return fast_angle_between(u, c.a);
+    double x[3];
+    math::cross3(c.a, u, x);
+    const double after_a = math::dot3(x, c.n);
+    math::cross3(u, c.b, x);
+    const double before_b = math::dot3(x, c.n);
+    if (after_a >= 0 && before_b >= 0) {
+        const double off = std::min(1.0, std::fabs(math::dot3(u, c.n)));
+        return fast_angle(off, std::sqrt(std::max(0.0, 1 - off * off)));
+    }
+    return std::min(fast_angle_between(u, c.a), fast_angle_between(u, c.b));
+}
+
 // A volume while the tree is built: the node it becomes, and its central element as a disc on the sphere of
 // directions (midpoint m, every point of the element within `half` of it).
 struct Element {
@@ -118,7 +182,7 @@ struct Element {
 // The working arrays of a build, kept between builds by reusing the traversal object.
 struct Work {
     std::vector<Element> elements;
-    std::vector<Central> centrals;  // per node, while building
+    std::vector<WalkCentral> centrals;  // per node, while building
     std::vector<uint32_t> order, todo, to;
     std::vector<Node> built;
 };
@@ -227,11 +291,11 @@ public:
             fine_always_.capacity() * sizeof(IndexRange);
     }
     size_t always_tested() const { return always_fine_.size(); }
-    size_t capsules() const { return capsules_; }  // volumes taken as capsule-cones
     uint32_t depth() const { return depth_; }
 
 private:
     using Central = metric_tree::Central;
+    using WalkCentral = metric_tree::WalkCentral;
     using Element = metric_tree::Element;
     static constexpr uint32_t coarse_bit = metric_tree::coarse_bit;
     static constexpr double tol = metric_tree::tolerance;
@@ -248,9 +312,9 @@ private:
         metric_tree::normalize(d.z);
         for (uint64_t w = t.alive; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            for (int k = 0; k < 3; ++k) d.u[i][k] = t.e[i][k] / t.dist[i];
-            metric_tree::normalize(d.u[i]);
-            d.off[i] = metric_tree::angle(d.u[i], d.z);
+            const double inv = 1 / t.dist[i];
+            for (int k = 0; k < 3; ++k) d.u[i][k] = t.e[i][k] * inv;
+            d.off[i] = metric_tree::fast_angle_between(d.u[i], d.z);
         }
     }
 
@@ -334,11 +398,12 @@ private:
             for (int k = 0; k < 3; ++k) n.d0[k] = n.d1[k] = float(m[k]);
         } else {
             for (int k = 0; k < 3; ++k) n.d0[k] = float(ua[k]), n.d1[k] = float(ub[k]);
-            if (n.d0[0] == n.d1[0] && n.d0[1] == n.d1[1] && n.d0[2] == n.d1[2]) n.d1[0] = math::next_float(n.d1[0], true);
+            if (n.d0[0] == n.d1[0] && n.d0[1] == n.d1[1] && n.d0[2] == n.d1[2])
+                n.d1[0] = math::next_float(n.d1[0], true);
         }
         // A float direction is within 1.1e-7 radians of the one rounded; 4e-7 more, and a relative 1e-9.
         n.alpha = math::round_up(alpha * (1 + 1e-9) + 4e-7);
-        n.delta = 0, n.omin = INFINITY, n.omax = -INFINITY;
+        n.delta = 0, n.omin = n.nmin = INFINITY, n.omax = n.fmax = -INFINITY;
         n.near = math::round_down((dist - r - err) * (1 - 1e-9));
         n.near_min = n.near;
         for (uint32_t& c : n.child) c = none;
@@ -353,8 +418,8 @@ private:
     }
 
     // s over element e's directions against pivot p (central element cp): [lo, hi].
-    static void s_range(const Node& p, const Central& cp, const Element& e, double& lo, double& hi) {
-        const double d = metric_tree::distance(cp, e.m), spread = e.half + double(e.node.alpha);
+    static void s_range(const Node& p, const WalkCentral& cp, const Element& e, double& lo, double& hi) {
+        const double d = metric_tree::walk_distance(cp, e.m), spread = e.half + double(e.node.alpha);
         lo = d - spread - double(p.alpha), hi = d + spread - double(p.alpha);
     }
 
@@ -385,7 +450,7 @@ private:
     uint32_t build_heuristic(uint32_t& depth) {
         std::vector<Element>& elements = work_.elements;
         std::vector<Node>& built = work_.built;
-        std::vector<metric_tree::Central>& centrals = work_.centrals;
+        std::vector<WalkCentral>& centrals = work_.centrals;
         centrals.resize(built.size());  // in step with built: a node's central element at its index
         // The angle of the cone that holds every element: the split distance each starts with.
         double mean[3] = {0, 0, 0};
@@ -412,9 +477,11 @@ private:
                 s_range(p, centrals[*link], e, lo, hi);
                 p.near_min = std::min(p.near_min, e.node.near);
                 if (hi <= double(p.delta)) {
+                    p.nmin = std::min(p.nmin, math::round_down(lo));
                     link = &p.child[0];
                     e.delta *= 0.5;
                 } else if (lo > double(p.delta)) {
+                    p.fmax = std::max(p.fmax, math::round_up(hi));
                     link = &p.child[1];
                 } else {
                     p.omin = std::min(p.omin, math::round_down(lo)), p.omax = std::max(p.omax, math::round_up(hi));
@@ -425,7 +492,7 @@ private:
             e.node.delta = float(e.delta);
             *link = uint32_t(built.size());
             built.push_back(e.node);
-            centrals.push_back(metric_tree::central_of(e.node));
+            centrals.push_back(metric_tree::walk_central_of(e.node));
             depth = std::max(depth, d);
         }
         return root;
@@ -478,10 +545,10 @@ private:
             std::swap(set[0], set[best]);
             Element& pe = elements[set[0]];
             Node pivot = pe.node;
-            const Central cp = metric_tree::central_of(pivot);
+            const WalkCentral cp = metric_tree::walk_central_of(pivot);
             keys.clear();
             for (uint32_t j = 1; j < job.count; ++j)
-                keys.push_back(metric_tree::distance(cp, elements[set[j]].m) - double(pivot.alpha));
+                keys.push_back(metric_tree::walk_distance(cp, elements[set[j]].m) - double(pivot.alpha));
             float delta = 0;
             if (!keys.empty()) {
                 std::nth_element(keys.begin(), keys.begin() + keys.size() / 2, keys.end());
@@ -495,8 +562,10 @@ private:
                 s_range(pivot, cp, e, lo, hi);
                 pivot.near_min = std::min(pivot.near_min, e.node.near);
                 if (hi <= double(delta)) {
+                    pivot.nmin = std::min(pivot.nmin, math::round_down(lo));
                     near_set.push_back(set[j]);
                 } else if (lo > double(delta)) {
+                    pivot.fmax = std::max(pivot.fmax, math::round_up(hi));
                     far_set.push_back(set[j]);
                 } else {
                     pivot.omin = std::min(pivot.omin, math::round_down(lo));
@@ -577,7 +646,32 @@ private:
         const Slab& s = view_->fine_bounds.slabs[mesh_->first_fine + f];
         const double ax[3] = {s.axis[0], s.axis[1], s.axis[2]};
         const double at_light = math::dot3(light_, ax);
-        const double slack = 1e-9 * (std::fabs(double(s.low)) + std::fabs(double(s.high)) + 2 * math::l1(light_)) + 1e-30;
+        if (t.small) {
+            // In float from the light: the segment's extent along the axis, [min(0, e . axis), max(0, e . axis)],
+            // must meet the slab's, [low, high] - light . axis. The float products err by under 3e-7 of
+            // |e| + their size; 2e-6 of both to spare.
+            using simd::Floats;
+            const double lo = double(s.low) - at_light, hi = double(s.high) - at_light;
+            const float spare = float(2e-6 * (std::fabs(lo) + std::fabs(hi)));
+            const Floats low = simd::splat(math::round_down(lo) - spare),
+                         high = simd::splat(math::round_up(hi) + spare), zero = simd::splat(0.0f),
+                         margin = simd::splat(2e-6f);
+            uint32_t begin, end;
+            simd::lane_span(subset, begin, end);
+            uint64_t keep = 0;
+            for (uint32_t i = begin; i < end; i += simd::width) {
+                if (!simd::group(subset, i)) continue;
+                const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i),
+                             slack = simd::load(t.fd + i) * margin;
+                const Floats along = simd::dot(ex, ey, ez, s.axis[0], s.axis[1], s.axis[2]);
+                const simd::Mask meets =
+                    (simd::max(along, zero) + slack >= low) & (simd::min(along, zero) - slack <= high);
+                keep |= uint64_t(simd::bits(meets)) << i;
+            }
+            return subset & keep;
+        }
+        const double slack =
+            1e-9 * (std::fabs(double(s.low)) + std::fabs(double(s.high)) + 2 * math::l1(light_)) + 1e-30;
         for (uint64_t w = subset; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
             const double at_p = math::dot3(t.p[i], ax), reach = slack + 1e-9 * math::l1(t.p[i]);
@@ -592,30 +686,35 @@ private:
         const Slab& s = view_->fine_bounds.slabs[mesh_->first_fine + f];
         const double ax[3] = {s.axis[0], s.axis[1], s.axis[2]};
         const double at_light = math::dot3(light_, ax), at_p = math::dot3(q.p, ax);
-        const double reach = 1e-9 * (std::fabs(double(s.low)) + std::fabs(double(s.high)) + 2 * math::l1(light_) +
-                                     math::l1(q.p)) + 1e-30;
+        const double reach =
+            1e-9 * (std::fabs(double(s.low)) + std::fabs(double(s.high)) + 2 * math::l1(light_) + math::l1(q.p)) +
+            1e-30;
         return !(std::max(at_p, at_light) < double(s.low) - reach || std::min(at_p, at_light) > double(s.high) + reach);
     }
 
     // The points of `subset` whose directions lie in the node's cone (or capsule-cone) and that are not
-    // nearer the light than its volume: compared by cosines and sines with a margin (1e-12) far above their
-    // rounding, on top of the walk's tolerance.
-    uint64_t cone_points(const Node& node, const Central& c, uint64_t subset, const Tile& t, const Directions& d) const {
+    // nearer the light than its volume. A tile within float_safe of the light is tested in float, a vector of
+    // points an instruction; otherwise in double, by cosines with a margin (1e-12) far above their rounding.
+    uint64_t cone_points(const Node& node, const WalkCentral& c, uint64_t subset, const Tile& t,
+                         const Directions& d) const {
         const double a = double(node.alpha) + tol;
-        if (a >= 0.5 * M_PI) {  // so wide that the cosine test would not hold: every point beyond near
+        if (a >= 0.5 * M_PI) {  // so wide that the tests below would not hold: every point beyond near
             for (uint64_t w = subset; w; w &= w - 1) {
                 const uint32_t i = math::lowest_bit(w);
                 if (t.dist[i] < node.near) subset &= ~(uint64_t(1) << i);
             }
             return subset;
         }
+        if (t.small) return cone_points_float(node, c, std::sin(a), subset, t);
         const double cos_a = std::cos(a) - 1e-12, sin_a = std::sin(a) + 1e-12;
+        double ua[3] = {c.a[0], c.a[1], c.a[2]}, ub[3] = {c.b[0], c.b[1], c.b[2]};
+        metric_tree::normalize(ua), metric_tree::normalize(ub);
         uint64_t in = 0;
         for (uint64_t w = subset; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
             if (t.dist[i] < node.near) continue;
             const double* u = d.u[i];
-            bool inside = math::dot3(u, c.a) >= cos_a;
+            bool inside = math::dot3(u, ua) >= cos_a;
             if (!inside && c.arc) {
                 double x[3];
                 math::cross3(c.a, u, x);
@@ -625,11 +724,63 @@ private:
                 // In the lune over the arc (taken a little wider: the angle off the arc's plane is then at most
                 // the angle to the arc), or near the far end.
                 inside = (after_a >= -1e-12 && before_b >= -1e-12 && std::fabs(math::dot3(u, c.n)) <= sin_a) ||
-                    math::dot3(u, c.b) >= cos_a;
+                    math::dot3(u, ub) >= cos_a;
             }
             if (inside) in |= uint64_t(1) << i;
         }
         return in;
+    }
+
+    // cone_points in float over the tile's lanes, for alpha below pi / 2 (sin_a its sine). A direction e (its
+    // length d) is within the angle of unit axis x when e . x >= 0 and |e x x| <= d sin(alpha); of an arc
+    // (unit normal n) when it lies in the lune over the arc and |e . n| <= d sin(alpha). The float products
+    // err by under 6e-7 of d (the directions to float: 1.2e-7 of an angle; e and d: 6e-8 each); every
+    // comparison has 4e-6 of d to spare.
+    uint64_t cone_points_float(const Node& node, const WalkCentral& c, double sin_a, uint64_t subset,
+                               const Tile& t) const {
+        using simd::Floats;
+        const float reach = float(sin_a + 4e-6), near = node.near;
+        const Floats zero = simd::splat(0.0f), margin = simd::splat(4e-6f);
+        float ends[2][3], side[2][3], n[3];
+        int end_count = 1;
+        for (int k = 0; k < 3; ++k) ends[0][k] = node.d0[k];
+        if (c.arc) {
+            end_count = 2;
+            double p[3], q[3];
+            math::cross3(c.n, c.a, p);  // e . p >= 0: on b's side of the plane through a and n
+            math::cross3(c.b, c.n, q);  // e . q >= 0: on a's side of the plane through b and n
+            for (int k = 0; k < 3; ++k)
+                ends[1][k] = node.d1[k], side[0][k] = float(p[k]), side[1][k] = float(q[k]), n[k] = float(c.n[k]);
+        }
+        uint32_t begin, end;
+        simd::lane_span(subset, begin, end);
+        uint64_t in = 0;
+        for (uint32_t i = begin; i < end; i += simd::width) {
+            if (!simd::group(subset, i)) continue;
+            const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i),
+                         dist = simd::load(t.fd + i);
+            const Floats r = dist * simd::splat(reach), slack = dist * margin;
+            const Floats r2 = r * r;
+            uint32_t hit = 0;
+            for (int k = 0; k < end_count; ++k) {
+                const float* x = ends[k];
+                const Floats along = simd::dot(ex, ey, ez, x[0], x[1], x[2]);
+                const Floats cx = simd::fms(ey, simd::splat(x[2]), ez * simd::splat(x[1])),
+                             cy = simd::fms(ez, simd::splat(x[0]), ex * simd::splat(x[2])),
+                             cz = simd::fms(ex, simd::splat(x[1]), ey * simd::splat(x[0]));
+                const Floats cross2 = simd::dot(cx, cy, cz, cx, cy, cz);
+                hit |= simd::bits((along + slack >= zero) & (cross2 <= r2));
+            }
+            if (c.arc) {
+                const Floats after = simd::dot(ex, ey, ez, side[0][0], side[0][1], side[0][2]) + slack,
+                             before = simd::dot(ex, ey, ez, side[1][0], side[1][1], side[1][2]) + slack,
+                             off = simd::abs(simd::dot(ex, ey, ez, n[0], n[1], n[2]));
+                hit |= simd::bits((after >= zero) & (before >= zero) & (off <= r));
+            }
+            hit &= simd::bits(dist >= simd::splat(near));
+            in |= uint64_t(hit) << i;
+        }
+        return in & subset;
     }
 
     // The walk for a tile's points `subset` at once: directions within `spread` of d.z, none farther than
@@ -647,11 +798,14 @@ private:
             const Node& node = nodes_[stack[--top]];
             if (t.stats) ++t.stats->nodes_visited;
             if (far < node.near_min) continue;
-            const Central c = metric_tree::central_of(node);
-            const double s = metric_tree::distance(c, d.z) - double(node.alpha), lo = s - spread, hi = s + spread;
-            if (node.child[2] != none && hi >= double(node.omin) && lo <= double(node.omax)) stack[top++] = node.child[2];
-            if (node.child[1] != none && hi > double(node.delta)) stack[top++] = node.child[1];
-            if (node.child[0] != none && lo <= double(node.delta)) stack[top++] = node.child[0];
+            const metric_tree::WalkCentral c = metric_tree::walk_central_of(node);
+            const double s = metric_tree::walk_distance(c, d.z) - double(node.alpha), lo = s - spread, hi = s + spread;
+            if (node.child[2] != none && hi >= double(node.omin) && lo <= double(node.omax))
+                stack[top++] = node.child[2];
+            if (node.child[1] != none && hi > double(node.delta) && lo <= double(node.fmax))
+                stack[top++] = node.child[1];
+            if (node.child[0] != none && lo <= double(node.delta) && hi >= double(node.nmin))
+                stack[top++] = node.child[0];
             if (lo > 0 || far < node.near) continue;
             const uint64_t in = cone_points(node, c, subset & t.alive, t, d);
             if (!in) continue;
@@ -717,12 +871,13 @@ private:
             const Node& node = nodes_[stack[--top]];
             if (q.stats) ++q.stats->nodes_visited;
             if (q.dist < node.near_min) continue;
-            const Central c = metric_tree::central_of(node);
-            const double s = metric_tree::distance(c, u) - double(node.alpha);
+            const double s = metric_tree::walk_distance(metric_tree::walk_central_of(node), u) - double(node.alpha);
             if (node.child[2] != none && s + tol >= double(node.omin) && s - tol <= double(node.omax))
                 stack[top++] = node.child[2];
-            if (node.child[1] != none && s + tol > double(node.delta)) stack[top++] = node.child[1];
-            if (node.child[0] != none && s - tol <= double(node.delta)) stack[top++] = node.child[0];
+            if (node.child[1] != none && s + tol > double(node.delta) && s - tol <= double(node.fmax))
+                stack[top++] = node.child[1];
+            if (node.child[0] != none && s - tol <= double(node.delta) && s + tol >= double(node.nmin))
+                stack[top++] = node.child[0];
             if (s > tol || q.dist < node.near) continue;
             if (node.cluster & coarse_bit) {
                 const uint32_t c = node.cluster & ~coarse_bit;
@@ -744,7 +899,6 @@ private:
     std::vector<IndexRange> fine_always_;  // two levels: each coarse cluster's range of always_fine_
     IndexRange top_always_;                // one level: always_fine_ whole
     uint32_t root_ = none, depth_ = 0;
-    size_t capsules_ = 0;
     double capsule_ratio_ = 2;
     MetricBuild build_ = MetricBuild::heuristic;
     bool slabs_ = false;

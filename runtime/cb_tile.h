@@ -64,8 +64,10 @@ struct ShadowBuildOptions {
     // the same way when its object is.
     BuildScratch* scratch = nullptr;
     // Traversal::mtsv and mtsv_two: a cluster's volume is its capsule when that is at least this many times
-    // as long (caps included) as it is wide, else its sphere; and how the metric trees are built.
-    double capsule_ratio = 2.0;
+    // as long (caps included) as it is wide, else its sphere; and how the metric trees are built. A capsule-cone
+    // costs more to walk than a cone and, on compact clusters, prunes no better (docs/RUNTIME.md): only
+    // clearly elongated clusters get one by default.
+    double capsule_ratio = 4.0;
     MetricBuild metric_build = MetricBuild::heuristic;
 };
 
@@ -107,6 +109,7 @@ public:
 
     const double* world_light() const { return world_light_; }
     size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the light sees from the front
+    size_t capsules() const { return capsules_; }         // volumes taken as capsule-cones (metric trees)
 
 protected:
     // Sizes (distances, coordinates from the light) below which the float filters cannot overflow: their
@@ -522,7 +525,7 @@ protected:
     const MeshRecord* mesh_ = nullptr;
     double inverse_[12] = {}, light_[3] = {}, world_light_[3] = {};
     bool usable_ = false, one_sided_ = false;
-    size_t skipped_ = 0;
+    size_t skipped_ = 0, capsules_ = 0;
 };
 
 }  // namespace CB_LANES

@@ -35,7 +35,8 @@ std::vector<double> report_lights(const double* lo, const double* hi, uint32_t c
 }
 
 std::string ConfigResult::name() const {
-    return std::string(method_name(method)) + "/" + std::to_string(fine_size) + "/" + obb_method_name(obb);
+    return std::string(method_name(method)) + "/" + std::to_string(fine_size) + "/" + obb_method_name(obb) +
+        (traversal == Traversal::scan ? "" : std::string("/") + traversal_name(traversal));
 }
 
 std::string cpu_model() {
@@ -144,7 +145,7 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
             first_hits(bake_in_memory(scene, base, auto_bounds), default_camera(lo, hi, o.view, o.view), o.threads));
         s.points = points.size() / 3;
 
-        size_t total = o.methods.size() * o.fine_sizes.size() * o.obbs.size(), done = 0;
+        size_t total = o.methods.size() * o.fine_sizes.size() * o.obbs.size() * o.traversals.size(), done = 0;
         // Runtime cost in rounds, every configuration once per round, so that a burst of load on a shared
         // machine hits them all alike; medians over the rounds. The counts are the same every round. That
         // needs every configuration's asset at once: past a memory budget, each is measured alone instead.
@@ -152,7 +153,7 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
         std::vector<std::vector<double>> build_t(total), query_t(total);
         bool interleave = true;
         auto measure_round = [&](size_t i, const AssetView& view) {
-            RuntimeCost cost = measure_runtime(view, s.lights, points, 1, o.one_sided);
+            RuntimeCost cost = measure_runtime(view, s.lights, points, 1, o.one_sided, s.configs[i].traversal);
             build_t[i].push_back(cost.build_seconds), query_t[i].push_back(cost.query_seconds);
             if (build_t[i].size() > 1) return;
             ConfigResult& c = s.configs[i];
@@ -168,14 +169,9 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                 for (ObbMethod obb : o.obbs) {
                     ConfigResult c;
                     c.method = method, c.fine_size = fine, c.obb = obb;
-                    if (progress)
-                        progress(s.name + ": " + c.name() + " (" + std::to_string(++done) + "/" +
-                                 std::to_string(total) + ")");
                     ClusterOptions co = base;
                     co.method = method, co.fine_size = fine;
-                    BoundsOptions bo = auto_bounds;
-                    bo.obb = obb;
-                    std::vector<double> cluster_t, fit_t;
+                    std::vector<double> cluster_t;
                     BakedScene baked;
                     baked.instances = scene.instances;
                     for (int run = 0; run < std::max(1, o.runs); ++run) {
@@ -183,29 +179,50 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                         auto t0 = std::chrono::steady_clock::now();
                         baked.meshes = cluster_scene(scene, co, bs);
                         cluster_t.push_back(seconds_since(t0));
-                        t0 = std::chrono::steady_clock::now();
-                        fit_scene_bounds(baked.meshes, bo, o.threads, bs);
-                        fit_t.push_back(seconds_since(t0));
                     }
-                    c.cluster_seconds = median(cluster_t), c.fit_seconds = median(fit_t);
-                    StatsOptions so = o.stats;
-                    so.threads = o.threads;
-                    SceneStats st = cluster_statistics(baked.meshes, baked.instances, so);
-                    c.fine_clusters = st.fine.clusters, c.coarse_clusters = st.coarse.clusters;
-                    c.obb_volume_relative = st.fine.obb_volume_relative;
-                    c.useless_share = st.fine.useless_share;
-                    LoadedAsset asset;
-                    open_asset_copy(encode_asset(baked.meshes, baked.instances), asset);
-                    uint64_t stored = 0;
-                    for (const AssetMesh& m : baked.meshes) stored += m.triangles.size() / 3;
-                    c.bytes_per_triangle = stored ? double(asset.size) / double(stored) : 0;
-                    s.configs.push_back(c);
-                    if (s.configs.size() == 1) interleave = double(asset.size) * double(total) <= o.memory_budget;
-                    if (interleave) {
-                        assets.push_back(std::move(asset));
-                    } else {
-                        for (int round = 0; round < std::max(1, o.query_runs); ++round)
-                            measure_round(s.configs.size() - 1, asset.view);
+                    c.cluster_seconds = median(cluster_t);
+                    // Each traversal: the bounds it reads fitted onto the same clusters (timed), its asset, and its
+                    // runtime cost; the tightness figures are those of the boxes, the same for every traversal.
+                    bool measured = false;
+                    for (Traversal traversal : o.traversals) {
+                        c.traversal = traversal;
+                        if (progress)
+                            progress(s.name + ": " + c.name() + " (" + std::to_string(++done) + "/" +
+                                     std::to_string(total) + ")");
+                        const bool metric = traversal == Traversal::mtsv || traversal == Traversal::mtsv_two;
+                        BoundsOptions bo = auto_bounds;
+                        bo.obb = obb;
+                        if (metric) bo.mask |= bounds_sphere | bounds_capsule | bounds_slab;
+                        std::vector<double> fit_t;
+                        for (int run = 0; run < std::max(1, o.runs); ++run) {
+                            BakeStats bs;
+                            auto t0 = std::chrono::steady_clock::now();
+                            fit_scene_bounds(baked.meshes, bo, o.threads, bs);
+                            fit_t.push_back(seconds_since(t0));
+                        }
+                        c.fit_seconds = median(fit_t);
+                        if (!measured) {
+                            StatsOptions so = o.stats;
+                            so.threads = o.threads;
+                            SceneStats st = cluster_statistics(baked.meshes, baked.instances, so);
+                            c.fine_clusters = st.fine.clusters, c.coarse_clusters = st.coarse.clusters;
+                            c.obb_volume_relative = st.fine.obb_volume_relative;
+                            c.useless_share = st.fine.useless_share;
+                            measured = true;
+                        }
+                        LoadedAsset asset;
+                        open_asset_copy(encode_asset(baked.meshes, baked.instances), asset);
+                        uint64_t stored = 0;
+                        for (const AssetMesh& m : baked.meshes) stored += m.triangles.size() / 3;
+                        c.bytes_per_triangle = stored ? double(asset.size) / double(stored) : 0;
+                        s.configs.push_back(c);
+                        if (s.configs.size() == 1) interleave = double(asset.size) * double(total) <= o.memory_budget;
+                        if (interleave) {
+                            assets.push_back(std::move(asset));
+                        } else {
+                            for (int round = 0; round < std::max(1, o.query_runs); ++round)
+                                measure_round(s.configs.size() - 1, asset.view);
+                        }
                     }
                 }
         for (int round = 0; interleave && round < std::max(1, o.query_runs); ++round) {
@@ -423,6 +440,7 @@ nlohmann::json report_json(const Report& r) {
                     {"threads", o.threads}};
     for (ClusterMethod m : o.methods) j["options"]["methods"].push_back(method_name(m));
     for (ObbMethod m : o.obbs) j["options"]["obbs"].push_back(obb_method_name(m));
+    for (Traversal t : o.traversals) j["options"]["traversals"].push_back(traversal_name(t));
     j["recommended"] = r.recommended;
     j["recommendation_reason"] = r.recommendation_reason;
     j["scenes"] = nlohmann::json::array();
@@ -438,6 +456,7 @@ nlohmann::json report_json(const Report& r) {
                                      {"method", method_name(c.method)},
                                      {"fine_size", c.fine_size},
                                      {"obb", obb_method_name(c.obb)},
+                                     {"traversal", traversal_name(c.traversal)},
                                      {"fine_clusters", c.fine_clusters},
                                      {"coarse_clusters", c.coarse_clusters},
                                      {"bytes_per_triangle", c.bytes_per_triangle},
@@ -478,7 +497,8 @@ std::string csv_field(const std::string& s) {
 
 std::string report_csv(const Report& r) {
     std::string out =
-        "scene,method,fine_size,obb,fine_clusters,coarse_clusters,bytes_per_triangle,cluster_seconds,fit_seconds,fine_"
+        "scene,method,fine_size,obb,traversal,fine_clusters,coarse_clusters,bytes_per_triangle,cluster_seconds,fit_"
+        "seconds,fine_"
         "obb_volume_relative,"
         "useless_volume_share,build_seconds,queries_per_second,nodes_per_query,clusters_per_query,useless_per_query,"
         "triangles_per_query,shadowed_share,frame_seconds,pareto_bake,pareto_frame\n";
@@ -488,14 +508,14 @@ std::string report_csv(const Report& r) {
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
             out += csv_field(s.name) + ",";
-            std::snprintf(buf, sizeof buf,
-                          "%s,%u,%s,%llu,%llu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%d,%d\n",
-                          method_name(c.method), c.fine_size, obb_method_name(c.obb),
-                          (unsigned long long)c.fine_clusters, (unsigned long long)c.coarse_clusters,
-                          c.bytes_per_triangle, c.cluster_seconds, c.fit_seconds, c.obb_volume_relative,
-                          c.useless_share, c.build_seconds, c.queries_per_second, c.nodes_per_query,
-                          c.clusters_per_query, c.useless_per_query, c.triangles_per_query, c.shadowed_share,
-                          frame_of(s, c), int(f.bake[i]), int(f.frame[i]));
+            std::snprintf(
+                buf, sizeof buf,
+                "%s,%u,%s,%s,%llu,%llu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%d,%d\n",
+                method_name(c.method), c.fine_size, obb_method_name(c.obb), traversal_name(c.traversal),
+                (unsigned long long)c.fine_clusters, (unsigned long long)c.coarse_clusters, c.bytes_per_triangle,
+                c.cluster_seconds, c.fit_seconds, c.obb_volume_relative, c.useless_share, c.build_seconds,
+                c.queries_per_second, c.nodes_per_query, c.clusters_per_query, c.useless_per_query,
+                c.triangles_per_query, c.shadowed_share, frame_of(s, c), int(f.bake[i]), int(f.frame[i]));
             out += buf;
         }
     }

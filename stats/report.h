@@ -14,6 +14,7 @@
 #include "cluster.h"
 #include "cluster_stats.h"
 #include "scene.h"
+#include "scene_query.h"
 
 namespace cb {
 
@@ -21,6 +22,9 @@ struct ReportOptions {
     std::vector<ClusterMethod> methods = {ClusterMethod::kmeans, ClusterMethod::vco, ClusterMethod::morton};
     std::vector<uint32_t> fine_sizes = {8, 16, 24, 32};
     std::vector<ObbMethod> obbs = {ObbMethod::refined, ObbMethod::pca};
+    // How the runtime finds the clusters (cb::Traversal): each one a configuration of its own. A metric tree
+    // (mtsv, mtsv_two) reads an asset baked with its spheres, capsules and slabs too.
+    std::vector<Traversal> traversals = {Traversal::scan, Traversal::mtsv};
     uint32_t coarse_size = 2048;
     int runs = 3;        // bake timings are the median of this many runs
     int query_runs = 7;  // runtime timings: the median of this many rounds over every configuration
@@ -42,6 +46,7 @@ struct ConfigResult {
     ClusterMethod method;
     uint32_t fine_size;
     ObbMethod obb;
+    Traversal traversal = Traversal::scan;
     uint64_t fine_clusters = 0, coarse_clusters = 0;
     double cluster_seconds = 0, fit_seconds = 0;  // medians
     double bytes_per_triangle = 0;                // the asset as io/asset_writer encodes it, boxes and cones
@@ -53,7 +58,7 @@ struct ConfigResult {
     double shadowed_share = 0;
     double frame_seconds = 0;  // one light's build plus a query per visible point of a frame_view frame
     double bake_seconds() const { return cluster_seconds + fit_seconds; }
-    std::string name() const;  // e.g. "kmeans/16/refined"
+    std::string name() const;  // e.g. "kmeans/16/refined", "kmeans/16/refined/mtsv"
 };
 
 struct SceneReport {

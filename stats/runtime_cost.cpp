@@ -144,12 +144,13 @@ std::vector<double> hit_points(const std::vector<double>& hits) {
 }
 
 RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& lights, const std::vector<double>& points,
-                            int runs, bool one_sided) {
+                            int runs, bool one_sided, Traversal traversal) {
     RuntimeCost cost;
     size_t n = points.size() / 3;
     cost.lights = uint32_t(lights.size() / 3);
     SceneQueryOptions options;
     options.one_sided = one_sided;
+    options.traversal = traversal;
     options.threads = 1;  // the rates are per thread
     for (uint32_t l = 0; l < cost.lights; ++l) {
         std::vector<double> build_times, query_times;

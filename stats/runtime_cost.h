@@ -5,6 +5,7 @@
 
 #include <cb_asset.h>
 #include <cb_shadow.h>
+#include <cb_tile.h>
 
 #include <cstdint>
 #include <vector>
@@ -48,9 +49,9 @@ struct RuntimeCost {
 };
 
 // For each light (xyz triples, world), builds every instance's structure and queries every point (xyz,
-// world) on one thread, `runs` times: query_scene with its default traversal, the scan.
+// world) on one thread, `runs` times, through query_scene with the given traversal.
 RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& lights, const std::vector<double>& points,
-                            int runs, bool one_sided = false);
+                            int runs, bool one_sided = false, Traversal traversal = Traversal::scan);
 
 // Per point, the cluster tests whose triangles did not block it (the heat map's figure), on `threads`
 // threads (0: all); the counts do not depend on them.

@@ -412,12 +412,17 @@ TEST(Cli, OneFlagNameHasOneMeaning) {
         run("report " + data("small/cube.obj") + " -o " + scratch("names_report").string() + " --methods kmeans"),
         "--methods", "report --methods");
     CliRun report = run("report " + data("small/cube.obj") + " -o " + scratch("names_report").string() + quick_report +
-                        " --method kmeans,vco --obb refined,pca --json -q");
+                        " --method kmeans,vco --obb refined,pca --traversal scan,trees,mtsv-two --json -q");
     ASSERT_EQ(report.code, 0) << report.err;
     nlohmann::json j = nlohmann::json::parse(report.out);
     EXPECT_EQ(j["options"]["methods"], nlohmann::json::array({"kmeans", "vco"}));
     EXPECT_EQ(j["options"]["obbs"], nlohmann::json::array({"refined", "pca"}));
-    EXPECT_EQ(j["scenes"][0]["configs"].size(), 4u);
+    EXPECT_EQ(j["options"]["traversals"], nlohmann::json::array({"scan", "trees", "mtsv-two"}));
+    EXPECT_EQ(j["scenes"][0]["configs"].size(), 12u);
+    // --traversal is query's name for the same choice; an unknown one is a usage error.
+    expect_usage_error(run("report " + data("small/cube.obj") + " -o " + scratch("names_report").string() +
+                           " --traversal scan,leaves"),
+                       "--traversal takes a list of scan, trees, one-tree, mtsv, mtsv-two", "report --traversal");
     // The shadow-volume sampling lights are --sample-lights in stats as in report; --lights is report's own.
     expect_usage_error(run("stats " + data("small/cube.obj") + " --lights 2"), "--lights", "stats --lights");
     EXPECT_EQ(run("stats " + data("small/cube.obj") + " --sample-lights 2 --samples 4").code, 0);

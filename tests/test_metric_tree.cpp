@@ -49,9 +49,9 @@ Baked bake_mesh(std::vector<float> positions, std::vector<uint32_t> indices, uin
 
 std::vector<std::string> scene_files() {
     std::vector<std::string> files = {std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"};
-    for (const char* f : {"scanned/bunny_npm.obj", "scanned/dragon_vrip_res4.ply", "hard/tube.obj",
-                          "hard/3dfier_testarea/testarea.obj", "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf",
-                          "gltf/SpheresScaledInstances/spheres_scaled_instances.gltf"})
+    for (const char* f :
+         {"scanned/bunny_npm.obj", "scanned/dragon_vrip_res4.ply", "hard/tube.obj", "hard/3dfier_testarea/testarea.obj",
+          "gltf/CesiumMilkTruck/CesiumMilkTruck.gltf", "gltf/SpheresScaledInstances/spheres_scaled_instances.gltf"})
         if (fs::exists(fs::path(CB_SHARED_DATA) / f)) files.push_back((fs::path(CB_SHARED_DATA) / f).string());
     return files;
 }
@@ -87,9 +87,12 @@ struct Variant {
 };
 
 const Variant variants[] = {
-    {cb::Traversal::mtsv, cb::MetricBuild::heuristic, 2.0},  {cb::Traversal::mtsv, cb::MetricBuild::reference, 2.0},
-    {cb::Traversal::mtsv, cb::MetricBuild::heuristic, 1.0},  {cb::Traversal::mtsv, cb::MetricBuild::heuristic, INFINITY},
-    {cb::Traversal::mtsv_two, cb::MetricBuild::heuristic, 2.0}, {cb::Traversal::mtsv_two, cb::MetricBuild::reference, 1.0},
+    {cb::Traversal::mtsv, cb::MetricBuild::heuristic, 2.0},
+    {cb::Traversal::mtsv, cb::MetricBuild::reference, 2.0},
+    {cb::Traversal::mtsv, cb::MetricBuild::heuristic, 1.0},
+    {cb::Traversal::mtsv, cb::MetricBuild::heuristic, INFINITY},
+    {cb::Traversal::mtsv_two, cb::MetricBuild::heuristic, 2.0},
+    {cb::Traversal::mtsv_two, cb::MetricBuild::reference, 1.0},
 };
 
 // Counts disagreements of every variant's batch and per-point walk with the exact answers, for one light.
@@ -163,9 +166,10 @@ TEST(MetricTree, AnswersAreTheExactOraclesOnSharedScenes) {
         }
         ++scenes;
     }
-    std::printf("%zu queries on %zu scenes (6 metric-tree variants, 2 volume sources, both modes), %zu in shadow; "
-                "disagreements: batch %zu, walk %zu\n",
-                all.queries, scenes, all.shadowed, all.bad_batch, all.bad_walk);
+    std::printf(
+        "%zu queries on %zu scenes (6 metric-tree variants, 2 volume sources, both modes), %zu in shadow; "
+        "disagreements: batch %zu, walk %zu\n",
+        all.queries, scenes, all.shadowed, all.bad_batch, all.bad_walk);
     EXPECT_EQ(all.bad_batch, 0u);
     EXPECT_EQ(all.bad_walk, 0u);
     EXPECT_GT(all.shadowed, all.queries / 10);
@@ -189,24 +193,28 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
     for (double offset : {0.0, 1e6}) {
         Case flat{"flat grid", {}, {}, {}};
         for (int j = 0; j <= 8; ++j)
-            for (int i = 0; i <= 8; ++i) flat.positions.insert(flat.positions.end(), {float(offset + i), float(offset + j), 0.0f});
+            for (int i = 0; i <= 8; ++i)
+                flat.positions.insert(flat.positions.end(), {float(offset + i), float(offset + j), 0.0f});
         for (uint32_t j = 0; j < 8; ++j)
             for (uint32_t i = 0; i < 8; ++i) {
                 uint32_t a = j * 9 + i;
                 flat.indices.insert(flat.indices.end(), {a, a + 1, a + 9, a + 1, a + 10, a + 9});
             }
-        flat.lights = {{offset + 4.3, offset + 3.7, 6}, {offset + 4, offset + 4, 0}, {offset - 3, offset + 4.5, 0},
-                       {offset + 2.5, offset + 2.5, 0}, {offset + 4.2, offset + 3.9, 2e9}};
+        flat.lights = {{offset + 4.3, offset + 3.7, 6},
+                       {offset + 4, offset + 4, 0},
+                       {offset - 3, offset + 4.5, 0},
+                       {offset + 2.5, offset + 2.5, 0},
+                       {offset + 4.2, offset + 3.9, 2e9}};
         cases.push_back(flat);
     }
     Case needles{"needles", {}, {}, {{0.1, 0.05, 0.02}, {30, 5, 2}}};
     for (int i = 0; i < 40; ++i) {
         double a = i * 0.157;
         uint32_t b = uint32_t(needles.positions.size() / 3);
-        needles.positions.insert(needles.positions.end(),
-                                 {0.0f, 0.0f, float(0.01 * i), float(20 * std::cos(a)), float(20 * std::sin(a)),
-                                  float(0.01 * i), float(20 * std::cos(a + 1e-3)), float(20 * std::sin(a + 1e-3)),
-                                  float(0.01 * i + 0.05)});
+        needles.positions.insert(
+            needles.positions.end(),
+            {0.0f, 0.0f, float(0.01 * i), float(20 * std::cos(a)), float(20 * std::sin(a)), float(0.01 * i),
+             float(20 * std::cos(a + 1e-3)), float(20 * std::sin(a + 1e-3)), float(0.01 * i + 0.05)});
         needles.indices.insert(needles.indices.end(), {b, b + 1, b + 2});
     }
     cases.push_back(needles);
@@ -216,7 +224,8 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
         const uint32_t base = uint32_t(tiny.positions.size() / 3), n = layer == 0 ? 10 : 5;
         for (uint32_t j = 0; j <= n; ++j)
             for (uint32_t i = 0; i <= n; ++i) {
-                double x = layer == 0 ? i : 2.5 + i, y = layer == 0 ? j : 2.5 + j, z = 4.0 * layer + 0.3 * std::sin(1.7 * i + 2.3 * j);
+                double x = layer == 0 ? i : 2.5 + i, y = layer == 0 ? j : 2.5 + j,
+                       z = 4.0 * layer + 0.3 * std::sin(1.7 * i + 2.3 * j);
                 tiny.positions.insert(tiny.positions.end(), {float(x * scale), float(y * scale), float(z * scale)});
             }
         for (uint32_t j = 0; j < n; ++j)
@@ -231,7 +240,8 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
     Case ribbon{"ribbon", {}, {}, {{-5, 0.2, 0.3}, {100, 0.25, 3}, {100, 0.25, 0.05}}};
     for (int i = 0; i <= 400; ++i)
         for (int j = 0; j <= 1; ++j)
-            ribbon.positions.insert(ribbon.positions.end(), {float(0.5 * i), float(0.5 * j), float(0.2 * std::sin(0.3 * i))});
+            ribbon.positions.insert(ribbon.positions.end(),
+                                    {float(0.5 * i), float(0.5 * j), float(0.2 * std::sin(0.3 * i))});
     for (uint32_t i = 0; i < 400; ++i) {
         uint32_t a = i * 2;
         ribbon.indices.insert(ribbon.indices.end(), {a, a + 2, a + 1, a + 1, a + 2, a + 3});
@@ -277,8 +287,8 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
             }
         }
     }
-    std::printf("%zu hard-case queries, %zu in shadow; disagreements: batch %zu, walk %zu\n", all.queries,
-                all.shadowed, all.bad_batch, all.bad_walk);
+    std::printf("%zu hard-case queries, %zu in shadow; disagreements: batch %zu, walk %zu\n", all.queries, all.shadowed,
+                all.bad_batch, all.bad_walk);
     EXPECT_EQ(all.bad_batch, 0u);
     EXPECT_EQ(all.bad_walk, 0u);
     EXPECT_GT(all.shadowed, all.queries / 20);
@@ -286,7 +296,7 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
 
 // Every fine cluster's node: each vertex's direction from the light is within its cone (the walk's
 // tolerance aside) and no nearer than its `near`; and every node's split holds the vertices of every volume
-// below it: near child at s <= delta, far child at s > delta, overlap child within [omin, omax].
+// below it: near child within [nmin, delta], far child within (delta, fmax], overlap child within [omin, omax].
 TEST(MetricTree, ConesAndSplitsHoldTheirClusters) {
     std::vector<std::string> files = scene_files();
     size_t vertices = 0, outside = 0, split_misses = 0, capsules = 0, nodes_checked = 0;
@@ -334,8 +344,8 @@ TEST(MetricTree, ConesAndSplitsHoldTheirClusters) {
                                 if (at == cb::metric_tree::none) continue;
                                 ++nodes_checked;
                                 each_s(at, nodes[k], [&](double s, double) {
-                                    const bool held = child == 0 ? s <= nodes[k].delta + tol
-                                        : child == 1             ? s > nodes[k].delta - tol
+                                    const bool held = child == 0 ? s <= nodes[k].delta + tol && s >= nodes[k].nmin - tol
+                                        : child == 1             ? s > nodes[k].delta - tol && s <= nodes[k].fmax + tol
                                                                  : s >= nodes[k].omin - tol && s <= nodes[k].omax + tol;
                                     split_misses += !held;
                                 });
@@ -347,16 +357,17 @@ TEST(MetricTree, ConesAndSplitsHoldTheirClusters) {
                 }
         }
     }
-    std::printf("%zu vertices checked against their cones, %zu outside; %zu subtree nodes against their ancestors' "
-                "splits, %zu vertices outside; %zu capsule-cones\n",
-                vertices, outside, nodes_checked, split_misses, capsules);
+    std::printf(
+        "%zu vertices checked against their cones, %zu outside; %zu subtree nodes against their ancestors' "
+        "splits, %zu vertices outside; %zu capsule-cones\n",
+        vertices, outside, nodes_checked, split_misses, capsules);
     EXPECT_GT(vertices, 1000u);
     EXPECT_EQ(outside, 0u);
     EXPECT_EQ(split_misses, 0u);
     EXPECT_GT(capsules, 0u);
 }
 
-// The thesis's memory claim, on our trees: one 64-byte node per volume against a TOP-tree's four plane
+// The thesis's memory claim, on our trees: one 72-byte node per volume against a TOP-tree's four plane
 // nodes and a cluster node of 32 bytes each.
 TEST(MetricTree, TakesAtMostHalfTheTopTreesBytes) {
     for (const std::string& file : scene_files()) {
@@ -371,4 +382,28 @@ TEST(MetricTree, TakesAtMostHalfTheTopTreesBytes) {
         EXPECT_LE(2 * metric.memory_bytes(), top.memory_bytes())
             << "metric " << metric.memory_bytes() << " B, TOP-tree " << top.memory_bytes() << " B";
     }
+}
+
+// The walk takes its angles from fast_angle and compares them with a tolerance of 1e-7 radians: its error
+// must stay far below that, at every angle and scale (small angles, near pi, axes, huge and tiny values).
+TEST(MetricTree, FastAngleStaysWithinItsBound) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-1, 1), e(-30, 30);
+    double worst = 0;
+    auto check = [&](double y, double x) {
+        const double error = std::fabs(cb::metric_tree::fast_angle(y, x) - std::atan2(y, x));
+        worst = std::max(worst, error);
+    };
+    for (int k = 0; k < 2000000; ++k) {
+        const double scale = std::pow(10.0, e(rng));
+        check(std::fabs(u(rng)) * scale, u(rng) * scale);
+    }
+    for (double t = 1e-12; t < M_PI; t *= 1.001) {  // along the whole range, ratios near 0, 1 and infinity
+        check(std::sin(t), std::cos(t));
+        check(t, 1), check(1, t), check(t, -1), check(1, -t);
+    }
+    for (double x : {0.0, 1.0, -1.0, 1e-300, -1e300}) check(0, x), check(1, x), check(1e-300, x);
+    std::printf("fast_angle's largest error against std::atan2: %.3g radians\n", worst);
+    EXPECT_LT(worst, 1e-8);
+    EXPECT_LT(worst, cb::metric_tree::tolerance / 10);
 }

@@ -9,8 +9,10 @@
 #include <algorithm>
 #include <cstdlib>
 #include <iostream>
+#include <map>
 #include <filesystem>
 #include <regex>
+#include <set>
 #include <sstream>
 
 #include "plot_checks.h"
@@ -26,10 +28,10 @@ namespace {
 
 std::string data(const std::string& f) { return std::string(CB_SOURCE_DIR) + "/data/" + f; }
 
-// One report for every test here: the default scene (12 instances), 2 methods x 2 sizes x 2 box fitters =
-// 8 configurations, with its heat map. ctest makes it once (the stats_report fixture in CMakeLists.txt);
+// One report for every test here: the default scene (12 instances), 2 methods x 2 sizes x 2 box fitters x 2
+// traversals = 16 configurations, with its heat map. ctest makes it once (the stats_report fixture in CMakeLists.txt);
 // run alone, the first test that needs it makes it.
-constexpr size_t configs = 8;
+constexpr size_t configs = 16;  // CB_REPORT_OPTIONS: 2 methods x 2 fine sizes x 2 box fitters x 2 traversals
 const fs::path& report_dir() {
     static fs::path dir = [] {
         fs::path d = fs::path(CB_TEST_OUTPUT) / "report";
@@ -172,6 +174,19 @@ TEST(Report, WritesThreeFilesWithOnePointPerConfiguration) {
     // The sweep CB_REPORT_OPTIONS asked for with bake's flag names: --method, --fine, --obb.
     EXPECT_EQ(j["options"]["methods"], nlohmann::json::array({"kmeans", "vco"}));
     EXPECT_EQ(j["options"]["fine_sizes"], nlohmann::json::array({8, 16}));
+    // The default traversals: the scan and the metric tree, each configuration twice, with the same answers.
+    EXPECT_EQ(j["options"]["traversals"], nlohmann::json::array({"scan", "mtsv"}));
+    std::map<std::string, double> shadowed;
+    for (const auto& c : scene["configs"]) {
+        std::string name = c["name"].get<std::string>();
+        const bool metric = c["traversal"] == "mtsv";
+        EXPECT_EQ(metric, name.size() > 5 && name.substr(name.size() - 5) == "/mtsv") << name;
+        if (metric) name.resize(name.size() - 5);
+        auto [at, fresh] = shadowed.emplace(name, c["shadowed_share"].get<double>());
+        if (!fresh) EXPECT_EQ(at->second, c["shadowed_share"].get<double>()) << name;
+        if (metric) EXPECT_GT(c["bytes_per_triangle"].get<double>(), 0);
+    }
+    EXPECT_EQ(shadowed.size(), configs / 2);
     std::string csv = slurp((d / "report.csv").string());
     EXPECT_EQ(count_of(csv, "\n"), configs + 1);
     EXPECT_EQ(count_of(csv, "default_scene,"), configs);
@@ -189,6 +204,7 @@ TEST(Report, OverTheMemoryBudgetConfigurationsAreMeasuredOneAtATime) {
     o.methods = {cb::ClusterMethod::kmeans, cb::ClusterMethod::vco};
     o.fine_sizes = {16};
     o.obbs = {cb::ObbMethod::pca};
+    o.traversals = {cb::Traversal::scan};
     o.runs = 1, o.query_runs = 2, o.view = 48;
     cb::Report rounds = cb::run_report({data("default_scene.glb")}, o);
     o.memory_budget = 0;
@@ -299,9 +315,9 @@ TEST(Report, SharedCityModel) {
     if (d.empty()) GTEST_SKIP() << "../shared/data is absent: the city model's report is not checked";
     nlohmann::json j = nlohmann::json::parse(slurp((d / "report.json").string()));
     ASSERT_EQ(j["scenes"].size(), 1u);
-    ASSERT_EQ(j["scenes"][0]["configs"].size(), 6u);
+    ASSERT_EQ(j["scenes"][0]["configs"].size(), 12u);  // 3 methods x 2 sizes x 1 fitter x 2 traversals
     std::string html = slurp((d / "report.html").string());
-    expect_plots_complete(html, 1, 6);
+    expect_plots_complete(html, 1, 12);
     expect_log_axes_where_values_span_decades(html, j);
     bool any_nodes = false;
     for (const auto& c : j["scenes"][0]["configs"]) any_nodes = any_nodes || c["nodes_per_query"].get<double>() != 0;
@@ -397,5 +413,5 @@ TEST(ReportBrowser, SharedCityModel) {
     fs::path d = city_report();
     if (d.empty()) GTEST_SKIP() << "../shared/data is absent: the city model's report is not rendered";
     std::string dom = render_report(chromium, d, "report-testarea.png");
-    expect_plots_complete(dom, 1, 6);
+    expect_plots_complete(dom, 1, 12);
 }

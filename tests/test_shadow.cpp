@@ -317,13 +317,12 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
             std::vector<cb::InstanceShadow> trees(v.instance_count);
             size_t stack = 0;
             for (uint32_t i = 0; i < v.instance_count; ++i) {  // half the scans share the bounds, half make their own
-                trees[i].build(
-                    v, i, light,
-                    {.traversal = level,
-                     .one_sided = one_sided,
-                     .bounds = variant % 2 == 0 ? bounds.data() : nullptr,
-                     .capsule_ratio = variant % 2 ? 1.0 : 2.0,
-                     .metric_build = build});
+                trees[i].build(v, i, light,
+                               {.traversal = level,
+                                .one_sided = one_sided,
+                                .bounds = variant % 2 == 0 ? bounds.data() : nullptr,
+                                .capsule_ratio = variant % 2 ? 1.0 : 2.0,
+                                .metric_build = build});
                 stack = std::max(stack, trees[i].stack_size());
                 skipped += trees[i].skipped_clusters();
             }
@@ -417,25 +416,30 @@ TEST(Shadow, PointsAndLightsThatAreNotFiniteAreNeverInShadow) {
     const double bad[4][3] = {{NAN, 0, 0}, {0, INFINITY, 0}, {-INFINITY, 1, 2}, {1e308, -1e308, NAN}};
     for (const auto& p : bad) points.insert(points.end(), p, p + 3);
     const size_t n = points.size() / 3;
-    std::vector<cb::InstanceShadow> trees(v.instance_count);
-    for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light);
-    std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
-    std::vector<uint8_t> out(n);
-    cb::occluded_batch(trees.data(), trees.size(), points.data(), n, out.data(), scratch.data());
-    size_t shadowed = 0;
-    for (size_t k = 0; k < n; ++k) shadowed += out[k];
-    EXPECT_GT(shadowed, 0u);  // the finite points are really answered
-    for (size_t k = n - 4; k < n; ++k) {
-        EXPECT_EQ(out[k], 0) << k;
-        EXPECT_FALSE(cb::occluded_reference(v, &points[k * 3], light));
-        for (const cb::InstanceShadow& t : trees) EXPECT_FALSE(t.occluded(&points[k * 3], scratch.data()));
+    using cb::Traversal;
+    for (Traversal traversal :
+         {Traversal::scan, Traversal::trees, Traversal::one_tree, Traversal::mtsv, Traversal::mtsv_two}) {
+        SCOPED_TRACE(int(traversal));
+        std::vector<cb::InstanceShadow> trees(v.instance_count);
+        for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light, {.traversal = traversal});
+        std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
+        std::vector<uint8_t> out(n);
+        cb::occluded_batch(trees.data(), trees.size(), points.data(), n, out.data(), scratch.data());
+        size_t shadowed = 0;
+        for (size_t k = 0; k < n; ++k) shadowed += out[k];
+        EXPECT_GT(shadowed, 0u);  // the finite points are really answered
+        for (size_t k = n - 4; k < n; ++k) {
+            EXPECT_EQ(out[k], 0) << k;
+            EXPECT_FALSE(cb::occluded_reference(v, &points[k * 3], light));
+            for (const cb::InstanceShadow& t : trees) EXPECT_FALSE(t.occluded(&points[k * 3], scratch.data()));
+        }
+        const double nan_light[3] = {0, NAN, 0};
+        cb::InstanceShadow dark;
+        dark.build(v, 0, nan_light, {.traversal = traversal});
+        EXPECT_EQ(dark.node_count(), 0u);
+        EXPECT_FALSE(dark.occluded(&points[0], scratch.data()));
+        EXPECT_FALSE(cb::occluded_reference(v, &points[0], nan_light));
     }
-    const double nan_light[3] = {0, NAN, 0};
-    cb::InstanceShadow dark;
-    dark.build(v, 0, nan_light);
-    EXPECT_EQ(dark.node_count(), 0u);
-    EXPECT_FALSE(dark.occluded(&points[0], scratch.data()));
-    EXPECT_FALSE(cb::occluded_reference(v, &points[0], nan_light));
 }
 
 TEST(Shadow, ParallelBuildGivesTheSameTree) {
