@@ -45,9 +45,10 @@ namespace metric_tree {
 
 constexpr uint32_t none = TraversalBase::none;
 constexpr uint32_t coarse_bit = 0x80000000u;  // in Node::cluster: a coarse cluster, whose fine tree is entered
-// Radians, on every comparison of the walk: above the error of fast_angle (below 3e-9) and of double
-// rounding, so the walk's angles may come from fast_angle while the build's come from std::atan2.
+// Radians, on every comparison of the walk: far above the error of fast_angle (below 3e-9) and of double
+// rounding, which the build's and the walk's angles both carry.
 constexpr double tolerance = 1e-7;
+constexpr double pi = 3.14159265358979323846;  // M_PI is POSIX, not C++
 
 // One volume seen from the light, and the split of the volumes inserted below it.
 struct Node {           // 72 bytes
@@ -95,13 +96,13 @@ inline double atan_small(double t) {
 // a fraction of its time: the walk compares such angles with a tolerance of 1e-7.
 inline double fast_angle(double y, double x) {
     const double ax = std::fabs(x);
-    if (!(y > 0)) return x < 0 ? M_PI : 0;
+    if (!(y > 0)) return x < 0 ? pi : 0;
     const bool steep = y > ax;  // then pi / 2 - atan(ax / y)
     const double r = steep ? ax / y : y / ax;
     const double tan_eighth = 0.41421356237309503;  // tan(pi / 8), rounded up
-    double a = r > tan_eighth ? 0.25 * M_PI + atan_small((r - 1) / (r + 1)) : atan_small(r);
-    if (steep) a = 0.5 * M_PI - a;
-    return x < 0 ? M_PI - a : a;
+    double a = r > tan_eighth ? 0.25 * pi + atan_small((r - 1) / (r + 1)) : atan_small(r);
+    if (steep) a = 0.5 * pi - a;
+    return x < 0 ? pi - a : a;
 }
 
 // The angle between u and v (unit or not: the angle does not depend on their lengths), by fast_angle.
@@ -197,6 +198,7 @@ public:
     // options.traversal is Traversal::mtsv_two and the asset has coarse volumes, else one tree.
     void build(const AssetView& view, uint32_t instance, const double* world_light, const ShadowBuildOptions& options) {
         nodes_.clear(), always_fine_.clear(), always_coarse_.clear(), fine_roots_.clear(), fine_always_.clear();
+        coarse_boxes_.clear();
         root_ = none, depth_ = 0, capsules_ = 0, top_always_ = {};
         if (!set_instance(view, instance, world_light, options.one_sided)) return;
         capsule_ratio_ = options.capsule_ratio;
@@ -217,6 +219,13 @@ public:
             const uint32_t coarse_count = mesh_->coarse_count;
             fine_roots_.assign(coarse_count, none);
             fine_always_.assign(coarse_count, {});
+            // The coarse boxes set up for this light: a coarse cone is loose (a sphere about a large cluster),
+            // so the points that enter it are kept to those whose segment may meet its box.
+            if (view.coarse_bounds.obbs) {
+                coarse_boxes_.resize(coarse_count);
+                for (uint32_t c = 0; c < coarse_count; ++c)
+                    coarse_boxes_[c] = box_filter(view.coarse_bounds.obb(mesh_->first_coarse + c));
+            }
             std::vector<uint32_t> coarse, fine;
             uint32_t fine_depth = 0;
             for (uint32_t c = 0; c < coarse_count; ++c) {
@@ -242,8 +251,10 @@ public:
         renumber_in_walk_order();
     }
 
-    // Entries the query stack needs: pending siblings along the deepest path through both levels.
-    size_t stack_size() const { return size_t(depth_) * 2 + 6; }
+    // Entries the query stack needs: pending siblings along the deepest path through both levels (a walk
+    // that enters a coarse cluster leaves up to three of its node's children waiting while its fine tree is
+    // walked).
+    size_t stack_size() const { return size_t(depth_) * 3 + 6; }
 
     // True when the segment from world point p to the light is blocked by this instance. `stack` holds
     // stack_size() entries.
@@ -288,7 +299,7 @@ public:
     size_t memory_bytes() const {
         return nodes_.capacity() * sizeof(Node) +
             (always_fine_.capacity() + always_coarse_.capacity() + fine_roots_.capacity()) * sizeof(uint32_t) +
-            fine_always_.capacity() * sizeof(IndexRange);
+            fine_always_.capacity() * sizeof(IndexRange) + coarse_boxes_.capacity() * sizeof(BoxFilter);
     }
     size_t always_tested() const { return always_fine_.size(); }
     uint32_t depth() const { return depth_; }
@@ -456,13 +467,13 @@ private:
         double mean[3] = {0, 0, 0};
         for (const Element& e : elements)
             for (int k = 0; k < 3; ++k) mean[k] += e.m[k];
-        double scene = M_PI;
+        double scene = metric_tree::pi;
         if (math::dot3(mean, mean) > 0) {
             metric_tree::normalize(mean);
             scene = 0;
             for (const Element& e : elements)
                 scene = std::max(scene, metric_tree::angle(mean, e.m) + e.half + e.node.alpha);
-            scene = std::min(scene, M_PI);
+            scene = std::min(scene, metric_tree::pi);
         }
         shuffle(uint32_t(elements.size()));
         uint32_t root = none;
@@ -698,7 +709,7 @@ private:
     uint64_t cone_points(const Node& node, const WalkCentral& c, uint64_t subset, const Tile& t,
                          const Directions& d) const {
         const double a = double(node.alpha) + tol;
-        if (a >= 0.5 * M_PI) {  // so wide that the tests below would not hold: every point beyond near
+        if (a >= 0.5 * metric_tree::pi) {  // so wide that the tests below would not hold: every point beyond near
             for (uint64_t w = subset; w; w &= w - 1) {
                 const uint32_t i = math::lowest_bit(w);
                 if (t.dist[i] < node.near) subset &= ~(uint64_t(1) << i);
@@ -783,6 +794,20 @@ private:
         return in & subset;
     }
 
+    // The points of `in` whose segment to the light may meet coarse cluster c's box (all of them without
+    // boxes): in float where the box's set-up and the tile allow, otherwise in double.
+    uint64_t coarse_box_points(uint32_t c, uint64_t in, const Tile& t) const {
+        if (coarse_boxes_.empty() || !in) return in;
+        const BoxFilter& b = coarse_boxes_[c];
+        if (b.usable && t.small) return box_points(b, in, t);
+        const Obb box = view_->coarse_bounds.obb(mesh_->first_coarse + c);
+        for (uint64_t w = in; w; w &= w - 1) {
+            const uint32_t i = math::lowest_bit(w);
+            if (!segment_may_touch_box(box, t.p[i], light_)) in &= ~(uint64_t(1) << i);
+        }
+        return in;
+    }
+
     // The walk for a tile's points `subset` at once: directions within `spread` of d.z, none farther than
     // `far` from the light.
     void tile_walk(uint32_t start, uint64_t subset, Tile& t, const Directions& d, uint32_t* stack) const {
@@ -810,8 +835,11 @@ private:
             const uint64_t in = cone_points(node, c, subset & t.alive, t, d);
             if (!in) continue;
             if (node.cluster & coarse_bit) {
+                const uint32_t c = node.cluster & ~coarse_bit;
+                const uint64_t meeting = coarse_box_points(c, in, t);
+                if (!meeting) continue;
                 if (t.entered_count == Tile::entered_capacity) walk_entered(t, d, stack + top);
-                t.entered[t.entered_count++] = {node.near, node.cluster & ~coarse_bit, in};
+                t.entered[t.entered_count++] = {node.near, c, meeting};
             } else {
                 const uint64_t crossing = slab_points(node.cluster, in, t);
                 if (!crossing) continue;
@@ -881,6 +909,9 @@ private:
             if (s > tol || q.dist < node.near) continue;
             if (node.cluster & coarse_bit) {
                 const uint32_t c = node.cluster & ~coarse_bit;
+                if (!coarse_boxes_.empty() &&
+                    !segment_may_touch_box(view_->coarse_bounds.obb(mesh_->first_coarse + c), q.p, light_))
+                    continue;
                 const IndexRange r = fine_always_[c];
                 for (uint32_t k = r.first; k < r.first + r.count; ++k)
                     if (slab_may_cross(always_fine_[k], q) && test_cluster(always_fine_[k], q)) return true;
@@ -897,6 +928,7 @@ private:
     std::vector<uint32_t> always_coarse_;  // two levels: coarse clusters without a cone, entered by every point
     std::vector<uint32_t> fine_roots_;     // two levels: each coarse cluster's fine tree
     std::vector<IndexRange> fine_always_;  // two levels: each coarse cluster's range of always_fine_
+    std::vector<BoxFilter> coarse_boxes_;  // two levels: each coarse box set up for the light (none without boxes)
     IndexRange top_always_;                // one level: always_fine_ whole
     uint32_t root_ = none, depth_ = 0;
     double capsule_ratio_ = 2;

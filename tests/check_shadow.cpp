@@ -48,12 +48,14 @@ struct Answer {
     cb::test::OracleAnswer exact;
     // Tiled batches (fine scan, fine trees, one tree); walks per point (fine scan, fine trees); the reference walk.
     bool scan = false, tree2 = false, tree1 = false, walk = false, walk2 = false, reference = false;
+    // Metric trees (one level, two levels: batches; one level: walks per point), on the fitted volumes.
+    bool metric = false, metric2 = false, metric_walk = false;
     bool brute_checked = false, brute_agrees = true;
 };
 
 struct Tally {
     size_t queries = 0, shadowed = 0, touching = 0, only_touching = 0, bad_scan = 0, bad_tree2 = 0, bad_tree1 = 0,
-           bad_walk = 0, bad_walk2 = 0, bad_reference = 0;
+           bad_walk = 0, bad_walk2 = 0, bad_reference = 0, bad_metric = 0;
     size_t missed_shadow = 0;  // some runtime answer says lit where the oracle says shadow
     size_t bad_touching = 0;   // disagreements on queries the oracle calls touching
     size_t brute_checked = 0, brute_bad = 0;
@@ -61,12 +63,14 @@ struct Tally {
     void add(const Tally& t) {
         queries += t.queries, shadowed += t.shadowed, touching += t.touching, only_touching += t.only_touching;
         bad_scan += t.bad_scan, bad_tree2 += t.bad_tree2, bad_tree1 += t.bad_tree1, bad_walk += t.bad_walk,
-            bad_walk2 += t.bad_walk2;
+            bad_walk2 += t.bad_walk2, bad_metric += t.bad_metric;
         bad_reference += t.bad_reference;
         missed_shadow += t.missed_shadow, bad_touching += t.bad_touching, brute_checked += t.brute_checked,
             brute_bad += t.brute_bad;
     }
-    size_t bad() const { return bad_scan + bad_tree2 + bad_tree1 + bad_walk + bad_walk2 + bad_reference + brute_bad; }
+    size_t bad() const {
+        return bad_scan + bad_tree2 + bad_tree1 + bad_walk + bad_walk2 + bad_reference + bad_metric + brute_bad;
+    }
 };
 
 constexpr size_t max_reports = 20;  // disagreements printed in full per scene
@@ -201,26 +205,35 @@ void parallel(size_t n, unsigned threads, F&& f) {
 std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle, const Light& light, bool one_sided,
                                const std::vector<Point>& points, unsigned threads, size_t brute_every) {
     using cb::Traversal;
-    std::vector<cb::InstanceShadow> scan(v.instance_count), two(v.instance_count), one(v.instance_count);
+    std::vector<cb::InstanceShadow> scan(v.instance_count), two(v.instance_count), one(v.instance_count),
+        metric(v.instance_count), metric2(v.instance_count);
     for (uint32_t i = 0; i < v.instance_count; ++i) {
         scan[i].build(v, i, light.at.data(), {.traversal = Traversal::scan, .one_sided = one_sided});
         two[i].build(v, i, light.at.data(), {.traversal = Traversal::trees, .one_sided = one_sided});
         one[i].build(v, i, light.at.data(), {.traversal = Traversal::one_tree, .one_sided = one_sided});
+        metric[i].build(v, i, light.at.data(), {.traversal = Traversal::mtsv, .one_sided = one_sided});
+        metric2[i].build(v, i, light.at.data(), {.traversal = Traversal::mtsv_two, .one_sided = one_sided});
     }
     std::vector<Answer> answers(points.size());
     parallel(points.size(), threads, [&](size_t begin, size_t end) {
         // Batches: the tiled walks over this thread's slice of the points, as callers use them.
         size_t n = end - begin;
-        std::vector<uint32_t> scratch(std::max({cb::batch_scratch_size(scan.data(), scan.size(), n),
-                                                cb::batch_scratch_size(two.data(), two.size(), n),
-                                                cb::batch_scratch_size(one.data(), one.size(), n)}));
-        std::vector<uint8_t> ts(n), t2(n), t1(n);
+        std::vector<uint32_t> scratch(std::max(
+            {cb::batch_scratch_size(scan.data(), scan.size(), n), cb::batch_scratch_size(two.data(), two.size(), n),
+             cb::batch_scratch_size(one.data(), one.size(), n), cb::batch_scratch_size(metric.data(), metric.size(), n),
+             cb::batch_scratch_size(metric2.data(), metric2.size(), n)}));
+        std::vector<uint8_t> ts(n), t2(n), t1(n), tm(n), tm2(n);
+        cb::occluded_batch(metric.data(), metric.size(), points[begin].data(), n, tm.data(), scratch.data());
+        cb::occluded_batch(metric2.data(), metric2.size(), points[begin].data(), n, tm2.data(), scratch.data());
         cb::occluded_batch(scan.data(), scan.size(), points[begin].data(), n, ts.data(), scratch.data());
         cb::occluded_batch(two.data(), two.size(), points[begin].data(), n, t2.data(), scratch.data());
         cb::occluded_batch(one.data(), one.size(), points[begin].data(), n, t1.data(), scratch.data());
         for (size_t k = begin; k < end; ++k) {
             const double* p = points[k].data();
             answers[k].scan = ts[k - begin], answers[k].tree2 = t2[k - begin], answers[k].tree1 = t1[k - begin];
+            answers[k].metric = tm[k - begin], answers[k].metric2 = tm2[k - begin];
+            for (const cb::InstanceShadow& tree : metric)
+                answers[k].metric_walk = answers[k].metric_walk || tree.occluded(p, scratch.data());
             for (const cb::InstanceShadow& tree : scan)
                 answers[k].walk = answers[k].walk || tree.occluded(p, scratch.data());
             for (const cb::InstanceShadow& tree : two)
@@ -244,6 +257,7 @@ void report(const std::string& scene, const Light& light, bool one_sided, const 
         "scan %d, fine trees %d, one tree %d, scan walk %d, fine trees walk %d, reference %d\n",
         scene.c_str(), light.kind, light.at[0], light.at[1], light.at[2], one_sided ? "one-sided" : "two-sided", p[0],
         p[1], p[2], a.exact.blocked, a.exact.touching, a.scan, a.tree2, a.tree1, a.walk, a.walk2, a.reference);
+    std::printf("  metric tree %d, two levels %d, walk %d\n", a.metric, a.metric2, a.metric_walk);
 }
 
 Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points, const std::string& scene,
@@ -256,9 +270,13 @@ Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points
         t.bad_scan += a.scan != exact, t.bad_tree2 += a.tree2 != exact, t.bad_tree1 += a.tree1 != exact,
             t.bad_walk += a.walk != exact;
         t.bad_walk2 += a.walk2 != exact, t.bad_reference += a.reference != exact;
-        bool wrong = a.scan != exact || a.tree2 != exact || a.tree1 != exact || a.walk != exact || a.walk2 != exact ||
-            a.reference != exact;
-        t.missed_shadow += exact && !(a.scan && a.tree2 && a.tree1 && a.walk && a.walk2 && a.reference);
+        const bool metric_wrong = a.metric != exact || a.metric2 != exact || a.metric_walk != exact;
+        t.bad_metric += metric_wrong;
+        bool wrong = metric_wrong || a.scan != exact || a.tree2 != exact || a.tree1 != exact || a.walk != exact ||
+            a.walk2 != exact || a.reference != exact;
+        t.missed_shadow += exact &&
+            !(a.scan && a.tree2 && a.tree1 && a.walk && a.walk2 && a.reference && a.metric && a.metric2 &&
+              a.metric_walk);
         t.bad_touching += a.exact.touching && wrong;
         t.brute_checked += a.brute_checked, t.brute_bad += !a.brute_agrees;
         if (!a.brute_agrees)
@@ -271,7 +289,7 @@ Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points
 
 // One scene: bake, the oracle, the lights and points, every light in both modes.
 Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget, const Options& o, std::string& note) {
-    cb::test::Baked b = cb::test::bake_scene(scene);
+    cb::test::Baked b = cb::test::bake_scene(scene, {}, cb::bounds_all);  // the metric trees read the fitted volumes
     if (b.view.mesh_count == 0 && !scene.meshes.empty()) {
         note += " bake-failed";
         return {};
@@ -298,10 +316,11 @@ Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget
             if (v.bad())
                 std::printf(
                     "disagreements %s: light %s, %s: scan %zu, tree2 %zu, tree1 %zu, walk %zu, walk2 %zu, reference "
-                    "%zu of %zu "
+                    "%zu, metric trees %zu of %zu "
                     "queries; %zu said lit in shadow, %zu touching\n",
                     name.c_str(), lights[l].kind, one_sided ? "one-sided" : "two-sided", v.bad_scan, v.bad_tree2,
-                    v.bad_tree1, v.bad_walk, v.bad_walk2, v.bad_reference, v.queries, v.missed_shadow, v.bad_touching);
+                    v.bad_tree1, v.bad_walk, v.bad_walk2, v.bad_reference, v.bad_metric, v.queries, v.missed_shadow,
+                    v.bad_touching);
             t.add(v);
         }
     }
@@ -316,9 +335,9 @@ size_t triangles_in_scene(const cb::Scene& s) {
 }
 
 void print_row(const std::string& name, size_t triangles, const Tally& t, double seconds, const std::string& note) {
-    std::printf("%-58s %9zu %9zu %9zu %9zu %7zu %6zu %6zu %6zu %6zu %6zu %6zu %8.1f %s\n", name.c_str(), triangles,
+    std::printf("%-58s %9zu %9zu %9zu %9zu %7zu %6zu %6zu %6zu %6zu %6zu %6zu %6zu %8.1f %s\n", name.c_str(), triangles,
                 t.queries, t.shadowed, t.touching, t.only_touching, t.bad_scan, t.bad_tree2, t.bad_tree1, t.bad_walk,
-                t.bad_walk2, t.bad_reference, seconds, note.c_str());
+                t.bad_walk2, t.bad_reference, t.bad_metric, seconds, note.c_str());
     std::fflush(stdout);
 }
 
@@ -370,8 +389,8 @@ int main(int argc, char** argv) {
     if (scenes.empty()) return std::printf("no scene loaded\n"), 2;
     size_t budget = (o.queries + scenes.size() - 1) / scenes.size();
     std::printf("%zu scenes, %zu queries each (lights x both modes), %u threads\n", scenes.size(), budget, o.threads);
-    std::printf("%-58s %9s %9s %9s %9s %7s %6s %6s %6s %6s %6s %6s %8s\n", "scene", "triangles", "queries", "in shadow",
-                "touching", "t-only", "scan", "tree2", "tree1", "walk", "walk2", "ref", "seconds");
+    std::printf("%-58s %9s %9s %9s %9s %7s %6s %6s %6s %6s %6s %6s %6s %8s\n", "scene", "triangles", "queries",
+                "in shadow", "touching", "t-only", "scan", "tree2", "tree1", "walk", "walk2", "ref", "mtsv", "seconds");
     Tally total;
     size_t total_triangles = 0;
     auto start = std::chrono::steady_clock::now();
@@ -393,7 +412,8 @@ int main(int argc, char** argv) {
         "disagreements "
         "with it of the tiled batches with fine scans (the default), fine trees and one tree, of walks point by point "
         "with fine "
-        "scans and with fine trees, and of the reference walk\n");
+        "scans and with fine trees, and of the reference walk; mtsv: queries where a metric tree (its batch of one "
+        "and of two levels, or its walk) disagrees\n");
     std::printf("queries the oracle calls touching: %zu of %zu; disagreements among them: %zu\n", total.touching,
                 total.queries, total.bad_touching);
     if (o.brute_every)
