@@ -65,8 +65,9 @@ struct Node {           // 72 bytes
 };
 static_assert(sizeof(Node) == 72, "metric tree nodes are 72-byte records (RUNTIME.md)");
 
-// A node's central element in double: a point (a == b) or the minor arc from a to b; n the unit normal of
-// the arc's plane.
+// A node's central element in double: a point (a == b), or the minor arc from a to b with n the unit normal of
+// its plane. a and b are read as stored (unit to float precision): every angle below is atan2 of a sine and
+// a cosine, which does not depend on their lengths, and the lune's sides are signs.
 struct Central {
     double a[3], b[3], n[3];
     bool arc;
@@ -77,7 +78,7 @@ inline void normalize(double* v) {
     for (int k = 0; k < 3; ++k) v[k] *= inv;
 }
 
-// The angle between unit vectors, accurate at every size (atan2 of the sine and the cosine).
+// The angle between u and v (unit or not), accurate at every size (atan2 of the sine and the cosine).
 inline double angle(const double* u, const double* v) {
     double c[3];
     math::cross3(u, v, c);
@@ -114,52 +115,23 @@ inline double fast_angle_between(const double* u, const double* v) {
 
 inline Central central_of(const Node& node) {
     Central c;
-    for (int k = 0; k < 3; ++k) c.a[k] = node.d0[k], c.b[k] = node.d1[k];
-    normalize(c.a);
+    for (int k = 0; k < 3; ++k) c.a[k] = node.d0[k], c.b[k] = node.d1[k], c.n[k] = 0;
     c.arc = node.d0[0] != node.d1[0] || node.d0[1] != node.d1[1] || node.d0[2] != node.d1[2];
     if (c.arc) {
-        normalize(c.b);
         math::cross3(c.a, c.b, c.n);
         normalize(c.n);
-    } else {
-        for (int k = 0; k < 3; ++k) c.b[k] = c.a[k], c.n[k] = 0;
     }
     return c;
 }
 
 // The angle from unit direction u to the central element: to the point, or to the nearest point of the arc
-// (on the arc's plane between its ends: the angle off the plane; otherwise the nearer end).
+// (on the arc's plane between its ends: the angle off the plane; otherwise the nearer end). `fast`: by
+// fast_angle, within 3e-9 radians of the exact angle (the build and the walk); otherwise by std::atan2 and
+// std::asin (the tests' reference).
+template <bool fast>
 inline double distance(const Central& c, const double* u) {
-    if (!c.arc) return angle(u, c.a);
-    double x[3];
-    math::cross3(c.a, u, x);
-    const double after_a = math::dot3(x, c.n);
-    math::cross3(u, c.b, x);
-    const double before_b = math::dot3(x, c.n);
-    if (after_a >= 0 && before_b >= 0) return std::asin(std::min(1.0, std::fabs(math::dot3(u, c.n))));
-    return std::min(angle(u, c.a), angle(u, c.b));
-}
-
-// distance() by fast_angle, for the walk: the same angle within 3e-9 radians. A point's direction is read as
-// stored (fast_angle_between does not need it unit); an arc's normal is made unit.
-struct WalkCentral {
-    double a[3], b[3], n[3];
-    bool arc;
-};
-
-inline WalkCentral walk_central_of(const Node& node) {
-    WalkCentral c;
-    for (int k = 0; k < 3; ++k) c.a[k] = node.d0[k], c.b[k] = node.d1[k];
-    c.arc = node.d0[0] != node.d1[0] || node.d0[1] != node.d1[1] || node.d0[2] != node.d1[2];
-    if (c.arc) {  // a and b stay as stored: the lune's sides are signs, the ends' angles fast_angle_between's
-        math::cross3(c.a, c.b, c.n);
-        normalize(c.n);
-    }
-    return c;
-}
-
-inline double walk_distance(const WalkCentral& c, const double* u) {
-    if (!c.arc) return fast_angle_between(u, c.a);
+    auto between = [](const double* x, const double* y) { return fast ? fast_angle_between(x, y) : angle(x, y); };
+    if (!c.arc) return between(u, c.a);
     double x[3];
     math::cross3(c.a, u, x);
     const double after_a = math::dot3(x, c.n);
@@ -167,9 +139,9 @@ inline double walk_distance(const WalkCentral& c, const double* u) {
     const double before_b = math::dot3(x, c.n);
     if (after_a >= 0 && before_b >= 0) {
         const double off = std::min(1.0, std::fabs(math::dot3(u, c.n)));
-        return fast_angle(off, std::sqrt(std::max(0.0, 1 - off * off)));
+        return fast ? fast_angle(off, std::sqrt(std::max(0.0, 1 - off * off))) : std::asin(off);
     }
-    return std::min(fast_angle_between(u, c.a), fast_angle_between(u, c.b));
+    return std::min(between(u, c.a), between(u, c.b));
 }
 
 // A volume while the tree is built: the node it becomes, and its central element as a disc on the sphere of
@@ -183,7 +155,7 @@ struct Element {
 // The working arrays of a build, kept between builds by reusing the traversal object.
 struct Work {
     std::vector<Element> elements;
-    std::vector<WalkCentral> centrals;  // per node, while building
+    std::vector<Central> centrals;  // per node, while building
     std::vector<uint32_t> order, todo, to;
     std::vector<Node> built;
 };
@@ -306,7 +278,6 @@ public:
 
 private:
     using Central = metric_tree::Central;
-    using WalkCentral = metric_tree::WalkCentral;
     using Element = metric_tree::Element;
     static constexpr uint32_t coarse_bit = metric_tree::coarse_bit;
     static constexpr double tol = metric_tree::tolerance;
@@ -420,17 +391,18 @@ private:
         for (uint32_t& c : n.child) c = none;
         n.cluster = cluster;
         // The disc on the sphere of directions that holds the element as stored.
-        const Central c = metric_tree::central_of(n);
-        for (int k = 0; k < 3; ++k) e.m[k] = c.a[k] + c.b[k];
+        double da[3] = {n.d0[0], n.d0[1], n.d0[2]}, db[3] = {n.d1[0], n.d1[1], n.d1[2]};
+        metric_tree::normalize(da), metric_tree::normalize(db);
+        for (int k = 0; k < 3; ++k) e.m[k] = da[k] + db[k];
         metric_tree::normalize(e.m);
-        e.half = c.arc ? std::max(metric_tree::angle(e.m, c.a), metric_tree::angle(e.m, c.b)) : 0;
+        e.half = std::max(metric_tree::angle(e.m, da), metric_tree::angle(e.m, db));
         e.delta = 0;
         return true;
     }
 
     // s over element e's directions against pivot p (central element cp): [lo, hi].
-    static void s_range(const Node& p, const WalkCentral& cp, const Element& e, double& lo, double& hi) {
-        const double d = metric_tree::walk_distance(cp, e.m), spread = e.half + double(e.node.alpha);
+    static void s_range(const Node& p, const Central& cp, const Element& e, double& lo, double& hi) {
+        const double d = metric_tree::distance<true>(cp, e.m), spread = e.half + double(e.node.alpha);
         lo = d - spread - double(p.alpha), hi = d + spread - double(p.alpha);
     }
 
@@ -461,7 +433,7 @@ private:
     uint32_t build_heuristic(uint32_t& depth) {
         std::vector<Element>& elements = work_.elements;
         std::vector<Node>& built = work_.built;
-        std::vector<WalkCentral>& centrals = work_.centrals;
+        std::vector<Central>& centrals = work_.centrals;
         centrals.resize(built.size());  // in step with built: a node's central element at its index
         // The angle of the cone that holds every element: the split distance each starts with.
         double mean[3] = {0, 0, 0};
@@ -503,7 +475,7 @@ private:
             e.node.delta = float(e.delta);
             *link = uint32_t(built.size());
             built.push_back(e.node);
-            centrals.push_back(metric_tree::walk_central_of(e.node));
+            centrals.push_back(metric_tree::central_of(e.node));
             depth = std::max(depth, d);
         }
         return root;
@@ -556,10 +528,10 @@ private:
             std::swap(set[0], set[best]);
             Element& pe = elements[set[0]];
             Node pivot = pe.node;
-            const WalkCentral cp = metric_tree::walk_central_of(pivot);
+            const Central cp = metric_tree::central_of(pivot);
             keys.clear();
             for (uint32_t j = 1; j < job.count; ++j)
-                keys.push_back(metric_tree::walk_distance(cp, elements[set[j]].m) - double(pivot.alpha));
+                keys.push_back(metric_tree::distance<true>(cp, elements[set[j]].m) - double(pivot.alpha));
             float delta = 0;
             if (!keys.empty()) {
                 std::nth_element(keys.begin(), keys.begin() + keys.size() / 2, keys.end());
@@ -681,32 +653,31 @@ private:
             }
             return subset & keep;
         }
-        const double slack =
-            1e-9 * (std::fabs(double(s.low)) + std::fabs(double(s.high)) + 2 * math::l1(light_)) + 1e-30;
         for (uint64_t w = subset; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            const double at_p = math::dot3(t.p[i], ax), reach = slack + 1e-9 * math::l1(t.p[i]);
-            if (std::max(at_p, at_light) < double(s.low) - reach || std::min(at_p, at_light) > double(s.high) + reach)
-                subset &= ~(uint64_t(1) << i);
+            if (!segment_may_cross(s, t.p[i])) subset &= ~(uint64_t(1) << i);
         }
         return subset;
     }
 
-    bool slab_may_cross(uint32_t f, const Query& q) const {
-        if (!slabs_) return true;
-        const Slab& s = view_->fine_bounds.slabs[mesh_->first_fine + f];
+    // In double: the segment from p to the light may cross slab s (its extent along the axis meets [low,
+    // high], with a tolerance far above double's rounding).
+    bool segment_may_cross(const Slab& s, const double* p) const {
         const double ax[3] = {s.axis[0], s.axis[1], s.axis[2]};
-        const double at_light = math::dot3(light_, ax), at_p = math::dot3(q.p, ax);
+        const double at_light = math::dot3(light_, ax), at_p = math::dot3(p, ax);
         const double reach =
-            1e-9 * (std::fabs(double(s.low)) + std::fabs(double(s.high)) + 2 * math::l1(light_) + math::l1(q.p)) +
-            1e-30;
+            1e-9 * (std::fabs(double(s.low)) + std::fabs(double(s.high)) + 2 * math::l1(light_) + math::l1(p)) + 1e-30;
         return !(std::max(at_p, at_light) < double(s.low) - reach || std::min(at_p, at_light) > double(s.high) + reach);
+    }
+
+    bool slab_may_cross(uint32_t f, const Query& q) const {
+        return !slabs_ || segment_may_cross(view_->fine_bounds.slabs[mesh_->first_fine + f], q.p);
     }
 
     // The points of `subset` whose directions lie in the node's cone (or capsule-cone) and that are not
     // nearer the light than its volume. A tile within float_safe of the light is tested in float, a vector of
     // points an instruction; otherwise in double, by cosines with a margin (1e-12) far above their rounding.
-    uint64_t cone_points(const Node& node, const WalkCentral& c, uint64_t subset, const Tile& t,
+    uint64_t cone_points(const Node& node, const Central& c, uint64_t subset, const Tile& t,
                          const Directions& d) const {
         const double a = double(node.alpha) + tol;
         if (a >= 0.5 * metric_tree::pi) {  // so wide that the tests below would not hold: every point beyond near
@@ -747,8 +718,7 @@ private:
     // (unit normal n) when it lies in the lune over the arc and |e . n| <= d sin(alpha). The float products
     // err by under 6e-7 of d (the directions to float: 1.2e-7 of an angle; e and d: 6e-8 each); every
     // comparison has 4e-6 of d to spare.
-    uint64_t cone_points_float(const Node& node, const WalkCentral& c, double sin_a, uint64_t subset,
-                               const Tile& t) const {
+    uint64_t cone_points_float(const Node& node, const Central& c, double sin_a, uint64_t subset, const Tile& t) const {
         using simd::Floats;
         const float reach = float(sin_a + 4e-6), near = node.near;
         const Floats zero = simd::splat(0.0f), margin = simd::splat(4e-6f);
@@ -823,8 +793,8 @@ private:
             const Node& node = nodes_[stack[--top]];
             if (t.stats) ++t.stats->nodes_visited;
             if (far < node.near_min) continue;
-            const metric_tree::WalkCentral c = metric_tree::walk_central_of(node);
-            const double s = metric_tree::walk_distance(c, d.z) - double(node.alpha), lo = s - spread, hi = s + spread;
+            const metric_tree::Central c = metric_tree::central_of(node);
+            const double s = metric_tree::distance<true>(c, d.z) - double(node.alpha), lo = s - spread, hi = s + spread;
             if (node.child[2] != none && hi >= double(node.omin) && lo <= double(node.omax))
                 stack[top++] = node.child[2];
             if (node.child[1] != none && hi > double(node.delta) && lo <= double(node.fmax))
@@ -899,7 +869,7 @@ private:
             const Node& node = nodes_[stack[--top]];
             if (q.stats) ++q.stats->nodes_visited;
             if (q.dist < node.near_min) continue;
-            const double s = metric_tree::walk_distance(metric_tree::walk_central_of(node), u) - double(node.alpha);
+            const double s = metric_tree::distance<true>(metric_tree::central_of(node), u) - double(node.alpha);
             if (node.child[2] != none && s + tol >= double(node.omin) && s - tol <= double(node.omax))
                 stack[top++] = node.child[2];
             if (node.child[1] != none && s + tol > double(node.delta) && s - tol <= double(node.fmax))

@@ -326,7 +326,7 @@ TEST(MetricTree, ConesAndSplitsHoldTheirClusters) {
                             const double d = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
                             if (!(d > 0)) return;
                             for (double& x : e) x /= d;
-                            visit(cb::metric_tree::distance(c, e) - double(p.alpha), d);
+                            visit(cb::metric_tree::distance<false>(c, e) - double(p.alpha), d);
                         });
                     };
                     const double tol = cb::metric_tree::tolerance;
