@@ -189,16 +189,20 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
     struct Item {
         uint32_t mesh, fine, index, first, count;
     };
+    // Coarse clusters first: the largest items, so that none is left alone for one thread at the end.
     std::vector<Item> items;
     for (uint32_t m = 0; m < meshes.size(); ++m) {
         AssetMesh& am = meshes[m];
-        for (uint32_t f = 0; f < am.fine.size(); ++f) items.push_back({m, 1, f, am.fine[f].first, am.fine[f].count});
         for (uint32_t c = 0; c < am.coarse.size(); ++c) {
             const ClusterRange& r = am.coarse[c];
             uint32_t first = am.fine[r.first].first,
                      last = am.fine[r.first + r.count - 1].first + am.fine[r.first + r.count - 1].count;
             items.push_back({m, 0, c, first, last - first});
         }
+    }
+    for (uint32_t m = 0; m < meshes.size(); ++m) {
+        AssetMesh& am = meshes[m];
+        for (uint32_t f = 0; f < am.fine.size(); ++f) items.push_back({m, 1, f, am.fine[f].first, am.fine[f].count});
         for (bool fine : {true, false}) {
             LevelVolumes& v = fine ? am.fine_volumes : am.coarse_volumes;
             const size_t n = fine ? am.fine.size() : am.coarse.size();
@@ -217,23 +221,33 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
     // through these ids from its first triangle on.
     std::vector<uint32_t> ids(largest);
     std::iota(ids.begin(), ids.end(), 0u);
+    // Items go to the threads in blocks, and the counters are summed per block: one shared atomic per
+    // item, on a line both cores write, costs as much as fitting a fine cluster.
+    constexpr size_t block = 64;
     std::atomic<size_t> done{0};
     std::atomic<uint64_t> valid_cones{0}, capsules{0};
     std::mutex reporting;  // one report at a time; a worker finding it taken goes on
-    parallel_for(items.size(), threads, [&](size_t i) {
-        const Item& it = items[i];
-        AssetMesh& am = meshes[it.mesh];
-        ClusterBounds b =
-            fit_bounds(am.positions.data(), am.triangles.data() + size_t(it.first) * 3, ids.data(), it.count, options);
-        LevelVolumes& v = it.fine ? am.fine_volumes : am.coarse_volumes;
-        if (!v.obbs.empty()) v.obbs[it.index] = b.packed_obb;
-        if (!v.spheres.empty()) v.spheres[it.index] = b.sphere;
-        if (!v.capsules.empty()) v.capsules[it.index] = b.capsule;
-        if (!v.cones.empty()) v.cones[it.index] = b.packed_cone;
-        if (!v.slabs.empty()) v.slabs[it.index] = b.slab;
-        valid_cones += b.cone.valid;
-        capsules += b.has_capsule;
-        done.fetch_add(it.count);
+    parallel_for((items.size() + block - 1) / block, threads, [&](size_t b) {
+        size_t block_done = 0;
+        uint64_t block_cones = 0, block_capsules = 0;
+        for (size_t i = b * block; i < std::min(items.size(), (b + 1) * block); ++i) {
+            const Item& it = items[i];
+            AssetMesh& am = meshes[it.mesh];
+            ClusterBounds fitted = fit_bounds(am.positions.data(), am.triangles.data() + size_t(it.first) * 3,
+                                              ids.data(), it.count, options);
+            LevelVolumes& v = it.fine ? am.fine_volumes : am.coarse_volumes;
+            if (!v.obbs.empty()) v.obbs[it.index] = fitted.packed_obb;
+            if (!v.spheres.empty()) v.spheres[it.index] = fitted.sphere;
+            if (!v.capsules.empty()) v.capsules[it.index] = fitted.capsule;
+            if (!v.cones.empty()) v.cones[it.index] = fitted.packed_cone;
+            if (!v.slabs.empty()) v.slabs[it.index] = fitted.slab;
+            block_cones += fitted.cone.valid;
+            block_capsules += fitted.has_capsule;
+            block_done += it.count;
+        }
+        valid_cones += block_cones;
+        capsules += block_capsules;
+        done.fetch_add(block_done);
         if (progress && reporting.try_lock()) {
             progress(done.load(), total);  // read under the lock: the reports rise
             reporting.unlock();

@@ -8,13 +8,15 @@
 // The bake runs as its own process, as a user runs it, and reports its own peak resident memory (`--json`'s
 // peak_resident_bytes; a spawned child's ru_maxrss would count this process's memory before the exec).
 // --keep DIR keeps the generated PLY files there (and reuses them on the next run).
-// Prints tables; asserts nothing. Times are medians of --runs runs.
+// Prints tables; asserts nothing. Times are medians of --runs rounds, each round running every thread count
+// in turn; "vs 1 thread" is the median of the rounds' ratios to the first thread count.
 #include <meshoptimizer.h>
 #include <fcntl.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -193,7 +195,7 @@ int run(int argc, char** argv) {
 
     std::printf(
         "clusterbake bake (load, k-means, bounds auto, write) of N copies of %s (%zu triangles), "
-        "median of %d runs; peak = the bake process's peak resident memory\n\n",
+        "median of %d rounds alternating the thread counts; peak = the bake process's peak resident memory\n\n",
         base_file.filename().string().c_str(), base.triangle_count(), o.runs);
     std::printf(
         "| triangles | threads | load s | cluster s | bounds s | write s | wall s | M tri/s | peak MB | "
@@ -212,22 +214,28 @@ int run(int argc, char** argv) {
         double meshopt = meshopt_seconds(mesh, o.runs);
         double tris = double(mesh.triangle_count());
         mesh = cb::Mesh{};  // the bake process gets the memory
-        double one_thread = 0;
-        std::string reference;
-        for (unsigned t : o.threads) {
-            std::vector<Run> runs;
-            for (int r = 0; r < o.runs; ++r) runs.push_back(bake(o, ply, dir, t));
-            Run m = median_run(runs);
+        // Rounds alternate the thread counts, so that a slow spell of this shared machine falls on all of them;
+        // the ratio to the first count is the median of the rounds' own ratios.
+        std::vector<std::vector<Run>> runs(o.threads.size());
+        for (int r = 0; r < o.runs; ++r)
+            for (size_t t = 0; t < o.threads.size(); ++t) runs[t].push_back(bake(o, ply, dir, o.threads[t]));
+        const std::string reference = runs[0][0].asset_bytes;
+        for (size_t t = 0; t < o.threads.size(); ++t) {
+            Run m = median_run(runs[t]);
             bool same = true;
-            for (const Run& r : runs) same = same && r.asset_bytes == runs[0].asset_bytes;
-            if (reference.empty()) reference = m.asset_bytes;
-            same = same && m.asset_bytes == reference;
-            if (t == o.threads.front()) one_thread = m.wall;
+            std::vector<double> ratios;
+            for (int r = 0; r < o.runs; ++r) {
+                same = same && runs[t][size_t(r)].asset_bytes == reference;
+                ratios.push_back(runs[0][size_t(r)].wall / runs[t][size_t(r)].wall);
+            }
+            std::sort(ratios.begin(), ratios.end());
+            const double ratio = ratios.size() % 2 ? ratios[ratios.size() / 2]
+                                                   : 0.5 * (ratios[ratios.size() / 2 - 1] + ratios[ratios.size() / 2]);
             std::printf("| %.0f | %u | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %.0f | %.2f | %s | %.2f |\n",
-                        tris, t, m.load, m.cluster, m.fit, m.write, m.wall, tris / m.wall / 1e6, m.peak_mb,
-                        m.peak_mb * 1024 * 1024 / tris, one_thread / m.wall, same ? "yes" : "NO", tris / meshopt / 1e6);
+                        tris, o.threads[t], m.load, m.cluster, m.fit, m.write, m.wall, tris / m.wall / 1e6, m.peak_mb,
+                        m.peak_mb * 1024 * 1024 / tris, ratio, same ? "yes" : "NO", tris / meshopt / 1e6);
             std::fflush(stdout);
-            scaling.push_back({tris, m.wall, t});
+            scaling.push_back({tris, m.wall, o.threads[t]});
         }
         if (o.keep.empty()) fs::remove(ply);
     }

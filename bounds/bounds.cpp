@@ -308,16 +308,43 @@ const std::array<Vec, spread_axes>& spread_directions() {
 // box around them is nearly the box around all, and the stored extents are measured on all points anyway.
 void extreme_points(const double* pts, size_t n, std::vector<double>& out) {
     thread_local std::vector<uint32_t> keep;
+    thread_local std::vector<double> soa;
     keep.clear();
+    soa.resize(n * 3);
+    const double *x = soa.data(), *y = x + n, *z = y + n;
+    for (size_t v = 0; v < n; ++v) soa[v] = pts[v * 3], soa[n + v] = pts[v * 3 + 1], soa[2 * n + v] = pts[v * 3 + 2];
     for (const Vec& a : spread_directions()) {
+        // The first point of the lowest and of the highest projection, as a scan keeping strict improvements
+        // finds them: two points a step in SSE2 lanes, each lane keeping its own first, ties then going to the
+        // lower index.
         double lo = INFINITY, hi = -INFINITY;
-        uint32_t at_lo = 0, at_hi = 0;
-        for (size_t v = 0; v < n; ++v) {
-            double d = a[0] * pts[v * 3] + a[1] * pts[v * 3 + 1] + a[2] * pts[v * 3 + 2];
-            if (d < lo) lo = d, at_lo = uint32_t(v);
-            if (d > hi) hi = d, at_hi = uint32_t(v);
+        size_t at_lo = 0, at_hi = 0, v = 0;
+#if defined(__SSE2__)
+        const __m128d ax = _mm_set1_pd(a[0]), ay = _mm_set1_pd(a[1]), az = _mm_set1_pd(a[2]), two = _mm_set1_pd(2);
+        __m128d vlo = _mm_set1_pd(INFINITY), vhi = _mm_set1_pd(-INFINITY), lo_at = _mm_setzero_pd(),
+                hi_at = _mm_setzero_pd(), index = _mm_set_pd(1, 0);
+        for (; v + 2 <= n; v += 2, index = _mm_add_pd(index, two)) {
+            __m128d d = _mm_add_pd(_mm_add_pd(_mm_mul_pd(ax, _mm_loadu_pd(x + v)), _mm_mul_pd(ay, _mm_loadu_pd(y + v))),
+                                   _mm_mul_pd(az, _mm_loadu_pd(z + v)));
+            __m128d below = _mm_cmplt_pd(d, vlo), above = _mm_cmpgt_pd(d, vhi);
+            vlo = _mm_or_pd(_mm_and_pd(below, d), _mm_andnot_pd(below, vlo));
+            lo_at = _mm_or_pd(_mm_and_pd(below, index), _mm_andnot_pd(below, lo_at));
+            vhi = _mm_or_pd(_mm_and_pd(above, d), _mm_andnot_pd(above, vhi));
+            hi_at = _mm_or_pd(_mm_and_pd(above, index), _mm_andnot_pd(above, hi_at));
         }
-        keep.push_back(at_lo), keep.push_back(at_hi);
+        double l[2], h[2], li[2], hj[2];
+        _mm_storeu_pd(l, vlo), _mm_storeu_pd(h, vhi), _mm_storeu_pd(li, lo_at), _mm_storeu_pd(hj, hi_at);
+        for (int k = 0; k < 2 && v > 0; ++k) {
+            if (l[k] < lo || (l[k] == lo && size_t(li[k]) < at_lo)) lo = l[k], at_lo = size_t(li[k]);
+            if (h[k] > hi || (h[k] == hi && size_t(hj[k]) < at_hi)) hi = h[k], at_hi = size_t(hj[k]);
+        }
+#endif
+        for (; v < n; ++v) {
+            double d = a[0] * x[v] + a[1] * y[v] + a[2] * z[v];
+            if (d < lo) lo = d, at_lo = v;
+            if (d > hi) hi = d, at_hi = v;
+        }
+        keep.push_back(uint32_t(at_lo)), keep.push_back(uint32_t(at_hi));
     }
     std::sort(keep.begin(), keep.end());
     keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
@@ -751,7 +778,8 @@ PackedCone fit_cone(const float* positions, const uint32_t* indices, const uint3
     PackedCone none{};
     none.cos_half_angle = 2;  // no valid cone
     normal[0] = normal[1] = normal[2] = 0;
-    std::vector<Plane> planes;
+    thread_local std::vector<Plane> planes;  // scratch: no allocation per cluster
+    planes.clear();
     Vec sum{0, 0, 0};
     for (size_t i = 0; i < count; ++i) {
         double p[3][3];

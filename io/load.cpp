@@ -107,9 +107,9 @@ Scene load_scene_unguarded(const std::string& path) {
         throw LoadError(path + ": unknown file type (expected .gltf .glb .obj .ply .off .stl)");
     std::error_code ec;
     if (std::filesystem::is_directory(path, ec)) throw LoadError(path + ": is a directory");
-    std::vector<uint8_t> bytes;
+    FileBytes bytes;
     std::string error;
-    if (!read_file_bytes(path, bytes, error)) throw LoadError(error);
+    if (!bytes.read(path, error)) throw LoadError(error);
 
     SourceHasher source;
     source.add(std::filesystem::path(path).filename().string(), bytes.data(), bytes.size());

@@ -37,9 +37,27 @@ private:
     SourceFiles files_;
 };
 
-// The file's bytes, in one read where its size is known (a regular file), in blocks otherwise (a pipe).
-// False, with "PATH: cannot open (REASON)" or "PATH: read error", when it cannot be read.
-bool read_file_bytes(const std::string& path, std::vector<uint8_t>& bytes, std::string& error);
+// A file's bytes. A large regular file is mapped read-only, so that loading it neither zeroes a buffer of
+// its size nor copies it there; a small one is read in one call, a pipe in blocks.
+class FileBytes {
+public:
+    FileBytes() = default;
+    ~FileBytes();
+    FileBytes(const FileBytes&) = delete;
+    FileBytes& operator=(const FileBytes&) = delete;
+
+    // Replaces the bytes held with the file's. False, with "PATH: cannot open (REASON)" or "PATH: read error",
+    // when it cannot be read.
+    bool read(const std::string& path, std::string& error);
+    const uint8_t* data() const { return mapped_ ? mapped_ : copy_.data(); }
+    size_t size() const { return mapped_ ? mapped_size_ : copy_.size(); }
+
+private:
+    void release();
+    const uint8_t* mapped_ = nullptr;
+    size_t mapped_size_ = 0;
+    std::vector<uint8_t> copy_;
+};
 
 // Hashes `names` again (the first relative to the working directory, the others to the first one's folder),
 // as a load of them would. False, with a one-line error naming the file, when one cannot be read.

@@ -2,6 +2,7 @@
 // incremental, bake_file's statuses, and the shared cores.
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -16,6 +17,7 @@
 #include "parallel.h"
 #include "plan.h"
 #include "run.h"
+#include "source_files.h"
 
 namespace fs = std::filesystem;
 
@@ -195,6 +197,37 @@ TEST(BatchSource, TheHashCoversExternalBuffersAndMatchesARehash) {
     fs::remove(d / "tri.bin");
     EXPECT_FALSE(cb::hash_source_files((d / "tri.gltf").string(), s.names, again, error));
     EXPECT_EQ(error.find((d / "tri.bin").string() + ": cannot open"), 0u) << error;
+    fs::remove_all(d);
+}
+
+// A large file is mapped, a small one read and a pipe read in blocks: the same bytes each way, and one
+// FileBytes read again holds the new file's bytes alone.
+TEST(BatchSource, FileBytesAreTheFilesWhetherMappedReadOrPiped) {
+    fs::path d = fresh_dir("bytes");
+    std::string large(3u << 20, '\0'), little = "ply\nformat ascii 1.0\n";
+    for (size_t i = 0; i < large.size(); ++i) large[i] = char((i * 2654435761u) >> 13);
+    write(d / "large.bin", large);
+    write(d / "little.bin", little);
+    cb::FileBytes bytes;
+    std::string error;
+    auto text = [&] { return std::string(reinterpret_cast<const char*>(bytes.data()), bytes.size()); };
+    ASSERT_TRUE(bytes.read((d / "large.bin").string(), error)) << error;
+    EXPECT_EQ(text(), large);
+    ASSERT_TRUE(bytes.read((d / "little.bin").string(), error)) << error;
+    EXPECT_EQ(text(), little);
+    ASSERT_TRUE(bytes.read((d / "large.bin").string(), error)) << error;
+    EXPECT_EQ(text(), large);
+
+    const fs::path fifo = d / "pipe";
+    ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+    std::thread writer([&] { std::ofstream(fifo, std::ios::binary) << large; });
+    const bool read_pipe = bytes.read(fifo.string(), error);
+    writer.join();
+    ASSERT_TRUE(read_pipe) << error;
+    EXPECT_EQ(text(), large);
+
+    EXPECT_FALSE(bytes.read((d / "missing.bin").string(), error));
+    EXPECT_EQ(error.find((d / "missing.bin").string() + ": cannot open"), 0u) << error;
     fs::remove_all(d);
 }
 
