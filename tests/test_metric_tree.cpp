@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "baked.h"
+#include "hard_cases.h"
 #include "scene_oracle.h"
 
 namespace fs = std::filesystem;
@@ -183,61 +184,10 @@ TEST(MetricTree, AnswersAreTheExactOraclesOnSharedScenes) {
 // fanned about a light among them, two layers at 1e-12, a long thin ribbon (capsules) seen along its
 // length: the cases where cones are widest, arcs shortest or angles smallest.
 TEST(MetricTree, HardCasesAgreeWithTheOracle) {
-    struct Case {
-        const char* name;
-        std::vector<float> positions;
-        std::vector<uint32_t> indices;
-        std::vector<std::array<double, 3>> lights;
-    };
-    std::vector<Case> cases;
-    for (double offset : {0.0, 1e6}) {
-        Case flat{"flat grid", {}, {}, {}};
-        for (int j = 0; j <= 8; ++j)
-            for (int i = 0; i <= 8; ++i)
-                flat.positions.insert(flat.positions.end(), {float(offset + i), float(offset + j), 0.0f});
-        for (uint32_t j = 0; j < 8; ++j)
-            for (uint32_t i = 0; i < 8; ++i) {
-                uint32_t a = j * 9 + i;
-                flat.indices.insert(flat.indices.end(), {a, a + 1, a + 9, a + 1, a + 10, a + 9});
-            }
-        flat.lights = {{offset + 4.3, offset + 3.7, 6},
-                       {offset + 4, offset + 4, 0},
-                       {offset - 3, offset + 4.5, 0},
-                       {offset + 2.5, offset + 2.5, 0},
-                       {offset + 4.2, offset + 3.9, 2e9}};
-        cases.push_back(flat);
-    }
-    Case needles{"needles", {}, {}, {{0.1, 0.05, 0.02}, {30, 5, 2}}};
-    for (int i = 0; i < 40; ++i) {
-        double a = i * 0.157;
-        uint32_t b = uint32_t(needles.positions.size() / 3);
-        needles.positions.insert(
-            needles.positions.end(),
-            {0.0f, 0.0f, float(0.01 * i), float(20 * std::cos(a)), float(20 * std::sin(a)), float(0.01 * i),
-             float(20 * std::cos(a + 1e-3)), float(20 * std::sin(a + 1e-3)), float(0.01 * i + 0.05)});
-        needles.indices.insert(needles.indices.end(), {b, b + 1, b + 2});
-    }
-    cases.push_back(needles);
-    Case tiny{"two layers at 1e-12", {}, {}, {}};
-    const double scale = 1e-12;
-    for (int layer = 0; layer < 2; ++layer) {
-        const uint32_t base = uint32_t(tiny.positions.size() / 3), n = layer == 0 ? 10 : 5;
-        for (uint32_t j = 0; j <= n; ++j)
-            for (uint32_t i = 0; i <= n; ++i) {
-                double x = layer == 0 ? i : 2.5 + i, y = layer == 0 ? j : 2.5 + j,
-                       z = 4.0 * layer + 0.3 * std::sin(1.7 * i + 2.3 * j);
-                tiny.positions.insert(tiny.positions.end(), {float(x * scale), float(y * scale), float(z * scale)});
-            }
-        for (uint32_t j = 0; j < n; ++j)
-            for (uint32_t i = 0; i < n; ++i) {
-                uint32_t a = base + j * (n + 1) + i;
-                tiny.indices.insert(tiny.indices.end(), {a, a + 1, a + n + 1, a + 1, a + n + 2, a + n + 1});
-            }
-    }
-    tiny.lights = {{5.1 * scale, 4.9 * scale, 9 * scale}, {-6 * scale, 5 * scale, 4 * scale}};
-    cases.push_back(tiny);
+    std::vector<cb::test::HardCase> cases = {cb::test::flat_grid(0), cb::test::flat_grid(1e6), cb::test::needles(),
+                                             cb::test::two_layers(1e-12)};
     // A ribbon 200 long and 0.5 wide, wavy, with a wall behind it: its fine clusters are long capsules.
-    Case ribbon{"ribbon", {}, {}, {{-5, 0.2, 0.3}, {100, 0.25, 3}, {100, 0.25, 0.05}}};
+    cb::test::HardCase ribbon{"ribbon", {}, {}, {{-5, 0.2, 0.3}, {100, 0.25, 3}, {100, 0.25, 0.05}}};
     for (int i = 0; i <= 400; ++i)
         for (int j = 0; j <= 1; ++j)
             ribbon.positions.insert(ribbon.positions.end(),
@@ -254,7 +204,7 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
     Tally all;
     std::mt19937 rng(37);
     std::uniform_real_distribution<double> u(-1, 1);
-    for (const Case& c : cases) {
+    for (const cb::test::HardCase& c : cases) {
         SCOPED_TRACE(c.name);
         for (uint32_t bounds : {all_volumes, cb::bounds_auto}) {
             Baked b = bake_mesh(c.positions, c.indices, bounds);

@@ -14,6 +14,7 @@
 #include <random>
 
 #include "bake.h"
+#include "hard_cases.h"
 #include "load.h"
 #include "scene_oracle.h"
 #include "shadow_oracle.h"
@@ -591,71 +592,12 @@ Baked bumpy_grid(double offset, double dx, double dy, double height, double wave
 TEST(Shadow, HardCasesAgreeWithTheOracle) {
     std::mt19937 rng(31);
     std::uniform_real_distribution<double> u(-1, 1);
-    struct Case {
-        const char* name;
-        std::vector<float> positions;
-        std::vector<uint32_t> indices;
-        std::vector<std::array<double, 3>> lights;
-    };
-    std::vector<Case> cases;
-    for (double offset : {0.0, 1e6}) {
-        // A flat, zero-thickness grid (coplanar clusters, flat boxes) at z = 0 around (offset, offset).
-        Case flat{offset == 0 ? "flat grid" : "flat grid at 1e6", {}, {}, {}};
-        for (int j = 0; j <= 8; ++j)
-            for (int i = 0; i <= 8; ++i)
-                flat.positions.insert(flat.positions.end(), {float(offset + i), float(offset + j), 0.0f});
-        for (uint32_t j = 0; j < 8; ++j)
-            for (uint32_t i = 0; i < 8; ++i) {
-                uint32_t a = j * 9 + i;
-                flat.indices.insert(flat.indices.end(), {a, a + 1, a + 9, a + 1, a + 10, a + 9});
-            }
-        // Lights: above, exactly in the plane (on the grid and beside it), inside a flat box, and 2e9 above
-        // (beyond float_safe, where the runtime's float filters give way to double tests).
-        flat.lights = {{offset + 4.3, offset + 3.7, 6},
-                       {offset + 4, offset + 4, 0},
-                       {offset - 3, offset + 4.5, 0},
-                       {offset + 2.5, offset + 2.5, 0},
-                       {offset + 4.2, offset + 3.9, 2e9}};
-        cases.push_back(flat);
-    }
-    // Two bumpy layers at scales where float squares vanish (1e-23: squares near 1e-46) or where
-    // products of four sizes do (1e-12), the light above both, beside and between them.
-    for (double scale : {1e-12, 1e-23}) {
-        Case tiny{scale == 1e-12 ? "two layers at 1e-12" : "two layers at 1e-23", {}, {}, {}};
-        for (int layer = 0; layer < 2; ++layer) {
-            const uint32_t base = uint32_t(tiny.positions.size() / 3), n = layer == 0 ? 10 : 5;
-            for (uint32_t j = 0; j <= n; ++j)
-                for (uint32_t i = 0; i <= n; ++i) {
-                    double x = layer == 0 ? i : 2.5 + i, y = layer == 0 ? j : 2.5 + j,
-                           z = 4.0 * layer + 0.3 * std::sin(1.7 * i + 2.3 * j);
-                    tiny.positions.insert(tiny.positions.end(), {float(x * scale), float(y * scale), float(z * scale)});
-                }
-            for (uint32_t j = 0; j < n; ++j)
-                for (uint32_t i = 0; i < n; ++i) {
-                    uint32_t a = base + j * (n + 1) + i;
-                    tiny.indices.insert(tiny.indices.end(), {a, a + 1, a + n + 1, a + 1, a + n + 2, a + n + 1});
-                }
-        }
-        tiny.lights = {{5.1 * scale, 4.9 * scale, 9 * scale},
-                       {-6 * scale, 5 * scale, 4 * scale},
-                       {5.2 * scale, 4.7 * scale, 2 * scale}};
-        cases.push_back(tiny);
-    }
-    // Needles: long, thin triangles fanned around the origin, and a light among them (inside their boxes).
-    Case needles{"needles", {}, {}, {{0.1, 0.05, 0.02}, {30, 5, 2}}};
-    for (int i = 0; i < 40; ++i) {
-        double a = i * 0.157;
-        uint32_t b = uint32_t(needles.positions.size() / 3);
-        needles.positions.insert(
-            needles.positions.end(),
-            {0.0f, 0.0f, float(0.01 * i), float(20 * std::cos(a)), float(20 * std::sin(a)), float(0.01 * i),
-             float(20 * std::cos(a + 1e-3)), float(20 * std::sin(a + 1e-3)), float(0.01 * i + 0.05)});
-        needles.indices.insert(needles.indices.end(), {b, b + 1, b + 2});
-    }
-    cases.push_back(needles);
+    const std::vector<cb::test::HardCase> cases = {cb::test::flat_grid(0), cb::test::flat_grid(1e6),
+                                                   cb::test::two_layers(1e-12), cb::test::two_layers(1e-23),
+                                                   cb::test::needles()};
 
     size_t queries = 0, disagreements = 0, tree_disagreements = 0, batch_disagreements = 0, touching = 0;
-    for (const Case& c : cases) {
+    for (const cb::test::HardCase& c : cases) {
         SCOPED_TRACE(c.name);
         Baked b = bake_mesh(c.positions, c.indices);
         ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
