@@ -2,7 +2,8 @@
 
 #include <cstring>
 #include <fstream>
-#include <iterator>
+
+#include "source_files.h"
 
 namespace cb {
 
@@ -17,12 +18,8 @@ AssetError open_asset_copy(const void* bytes, size_t size, LoadedAsset& out) {
 }
 
 bool read_asset_file(const std::string& path, LoadedAsset& out, std::string& error) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-        error = path + ": cannot open";
-        return false;
-    }
-    std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    FileBytes raw;
+    if (!raw.read(path, error)) return false;
     AssetError e = open_asset_copy(raw.data(), raw.size(), out);
     if (e != AssetError::ok) {
         error = path + ": " + asset_error_text(e);
