@@ -16,7 +16,6 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -228,9 +227,7 @@ int run(int argc, char** argv) {
                 same = same && runs[t][size_t(r)].asset_bytes == reference;
                 ratios.push_back(runs[0][size_t(r)].wall / runs[t][size_t(r)].wall);
             }
-            std::sort(ratios.begin(), ratios.end());
-            const double ratio = ratios.size() % 2 ? ratios[ratios.size() / 2]
-                                                   : 0.5 * (ratios[ratios.size() / 2 - 1] + ratios[ratios.size() / 2]);
+            const double ratio = cb::median(ratios);
             std::printf("| %.0f | %u | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %.0f | %.2f | %s | %.2f |\n",
                         tris, o.threads[t], m.load, m.cluster, m.fit, m.write, m.wall, tris / m.wall / 1e6, m.peak_mb,
                         m.peak_mb * 1024 * 1024 / tris, ratio, same ? "yes" : "NO", tris / meshopt / 1e6);

@@ -37,8 +37,10 @@ private:
     SourceFiles files_;
 };
 
-// A file's bytes. A large regular file is mapped read-only, so that loading it neither zeroes a buffer of
-// its size nor copies it there; a small one is read in one call, a pipe in blocks.
+// A file's bytes. A regular file of a megabyte or more is mapped read-only, so that loading it neither
+// zeroes a buffer of its size nor copies it there; a smaller one, or a pipe, is read in blocks. (A mapped
+// file cut short by another process while it is held would stop this one: inputs are held only while they
+// are parsed.)
 class FileBytes {
 public:
     FileBytes() = default;

@@ -628,8 +628,9 @@ TEST(Cluster, CityModelAtHugeCoordinates) {
     EXPECT_LT(mean_extent, 40.0) << "fine clusters of a 524 m terrain should span metres, not the whole site";
 }
 
-// Bounds fitting reports its progress by cluster triangles, a block of clusters at a time, from one thread at a time, rising to the total
-// (every fine and coarse cluster's triangles), and fits the same volumes as without a report.
+// Bounds fitting reports its progress by cluster triangles, a block of clusters at a time, from one thread
+// at a time, rising to the total (every fine and coarse cluster's triangles), and fits the same volumes as
+// without a report.
 TEST(Cluster, BoundsFittingReportsItsProgress) {
     cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
     cb::ClusterOptions o;
