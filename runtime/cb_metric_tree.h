@@ -39,6 +39,13 @@
 #include "cb_math.h"
 #include "cb_tile.h"
 
+// The angle helpers sit in the walk's inner loop, where a call costs as much as their arithmetic.
+#if defined(__GNUC__)
+#define CB_METRIC_INLINE inline __attribute__((always_inline))
+#else
+#define CB_METRIC_INLINE inline
+#endif
+
 namespace cb {
 inline namespace CB_LANES {
 namespace metric_tree {
@@ -88,7 +95,7 @@ inline double angle(const double* u, const double* v) {
 // atan(t) for |t| <= tan(pi / 8): its alternating series to t^17, whose remainder is below t^19 / 19 < 3e-9.
 // The polynomial in t^2 is summed in Estrin's order (pairs, then pairs of pairs): a quarter of Horner's chain
 // of dependent products, and the same error to within double rounding.
-inline double atan_small(double t) {
+CB_METRIC_INLINE double atan_small(double t) {
     const double x = t * t, x2 = x * x, x4 = x2 * x2;
     const double p01 = 1.0 - x * (1.0 / 3), p23 = 1.0 / 5 - x * (1.0 / 7), p45 = 1.0 / 9 - x * (1.0 / 11),
                  p67 = 1.0 / 13 - x * (1.0 / 15);
@@ -100,7 +107,7 @@ inline double atan_small(double t) {
 // a fraction of its time: the walk compares such angles with a tolerance of 1e-7. One division: the ratio of
 // the smaller to the larger of y and |x|, or beyond tan(pi / 8) their difference over their sum (the tangent
 // of the angle's distance from pi / 4).
-inline double fast_angle(double y, double x) {
+CB_METRIC_INLINE double fast_angle(double y, double x) {
     const double ax = std::fabs(x);
     if (!(y > 0)) return x < 0 ? pi : 0;
     const bool steep = y > ax;  // then pi / 2 - atan(ax / y)
@@ -111,14 +118,31 @@ inline double fast_angle(double y, double x) {
     return x < 0 ? pi - a : a;
 }
 
+// An upper bound of the angle between u and v (unit or not), for the tile walk's spread: below 45 degrees
+// the tangent (within its cube over 3 of the angle: a division instead of fast_angle's series), otherwise
+// fast_angle.
+inline double angle_above(const double* u, const double* v) {
+    double c[3];
+    math::cross3(u, v, c);
+    const double sine = std::sqrt(math::dot3(c, c)), cosine = math::dot3(u, v);
+    return sine < cosine ? sine / cosine : fast_angle(sine, cosine);
+}
+
+// An upper bound of sin(a) for a in [0, pi / 2] (to double rounding), within a^7 / 5040 of it (its series
+// cut after a term that adds): for the cone filters, which add a margin far above that rounding.
+inline double sine_above(double a) {
+    const double x = a * a;
+    return a * (1 - x * (1.0 / 6 - x * (1.0 / 120)));
+}
+
 // The angle between u and v (unit or not: the angle does not depend on their lengths), by fast_angle.
-inline double fast_angle_between(const double* u, const double* v) {
+CB_METRIC_INLINE double fast_angle_between(const double* u, const double* v) {
     double c[3];
     math::cross3(u, v, c);
     return fast_angle(std::sqrt(math::dot3(c, c)), math::dot3(u, v));
 }
 
-inline Central central_of(const Node& node) {
+CB_METRIC_INLINE Central central_of(const Node& node) {
     Central c;
     for (int k = 0; k < 3; ++k) c.a[k] = node.d0[k], c.b[k] = node.d1[k], c.n[k] = 0;
     c.arc = node.d0[0] != node.d1[0] || node.d0[1] != node.d1[1] || node.d0[2] != node.d1[2];
@@ -134,9 +158,8 @@ inline Central central_of(const Node& node) {
 // fast_angle, within 3e-9 radians of the exact angle (the build and the walk); otherwise by std::atan2 and
 // std::asin (the tests' reference).
 template <bool fast>
-inline double distance(const Central& c, const double* u) {
-    auto between = [](const double* x, const double* y) { return fast ? fast_angle_between(x, y) : angle(x, y); };
-    if (!c.arc) return between(u, c.a);
+CB_METRIC_INLINE double distance(const Central& c, const double* u) {
+    if (!c.arc) return fast ? fast_angle_between(u, c.a) : angle(u, c.a);
     double x[3];
     math::cross3(c.a, u, x);
     const double after_a = math::dot3(x, c.n);
@@ -146,7 +169,8 @@ inline double distance(const Central& c, const double* u) {
         const double off = std::min(1.0, std::fabs(math::dot3(u, c.n)));
         return fast ? fast_angle(off, std::sqrt(std::max(0.0, 1 - off * off))) : std::asin(off);
     }
-    return std::min(between(u, c.a), between(u, c.b));
+    return fast ? std::min(fast_angle_between(u, c.a), fast_angle_between(u, c.b))
+                : std::min(angle(u, c.a), angle(u, c.b));
 }
 
 // A volume while the tree is built: the node it becomes, and its central element as a disc on the sphere of
@@ -301,12 +325,7 @@ private:
             const uint32_t i = math::lowest_bit(w);
             const double inv = 1 / t.dist[i];
             for (int k = 0; k < 3; ++k) d.u[i][k] = t.e[i][k] * inv;
-            // Below 45 degrees (every point of a tile but its outliers) the tangent bounds the angle from above,
-            // within its cube over 3: a division instead of fast_angle's series.
-            double c[3];
-            math::cross3(d.u[i], d.z, c);
-            const double sine = std::sqrt(math::dot3(c, c)), cosine = math::dot3(d.u[i], d.z);
-            d.off[i] = sine < cosine ? sine / cosine : metric_tree::fast_angle(sine, cosine);
+            d.off[i] = metric_tree::angle_above(d.u[i], d.z);
         }
     }
 
@@ -383,7 +402,9 @@ private:
         metric_tree::normalize(ua), metric_tree::normalize(ub);
         const double arc = ab2 > 0 ? metric_tree::angle(ua, ub) : 0;
         Node& n = e.node;
-        if (arc < 1e-5) {  // too short an arc for its plane to be well defined: the cone about its middle
+        if (ab2 == 0) {  // a sphere: the cone about its centre's direction
+            for (int k = 0; k < 3; ++k) n.d0[k] = n.d1[k] = float(ua[k]);
+        } else if (arc < 1e-5) {  // too short an arc for its plane to be well defined: the cone about its middle
             double m[3] = {ua[0] + ub[0], ua[1] + ub[1], ua[2] + ub[2]};
             metric_tree::normalize(m);
             alpha += std::max(metric_tree::angle(m, ua), metric_tree::angle(m, ub));
@@ -402,10 +423,16 @@ private:
         n.cluster = cluster;
         // The disc on the sphere of directions that holds the element as stored.
         double da[3] = {n.d0[0], n.d0[1], n.d0[2]}, db[3] = {n.d1[0], n.d1[1], n.d1[2]};
-        metric_tree::normalize(da), metric_tree::normalize(db);
-        for (int k = 0; k < 3; ++k) e.m[k] = da[k] + db[k];
-        metric_tree::normalize(e.m);
-        e.half = std::max(metric_tree::angle(e.m, da), metric_tree::angle(e.m, db));
+        metric_tree::normalize(da);
+        if (n.d0[0] == n.d1[0] && n.d0[1] == n.d1[1] && n.d0[2] == n.d1[2]) {  // a point: the disc is the point
+            for (int k = 0; k < 3; ++k) e.m[k] = da[k];
+            e.half = 0;
+        } else {
+            metric_tree::normalize(db);
+            for (int k = 0; k < 3; ++k) e.m[k] = da[k] + db[k];
+            metric_tree::normalize(e.m);
+            e.half = std::max(metric_tree::angle(e.m, da), metric_tree::angle(e.m, db));
+        }
         e.delta = 0;
         return true;
     }
@@ -454,7 +481,7 @@ private:
             metric_tree::normalize(mean);
             scene = 0;
             for (const Element& e : elements)
-                scene = std::max(scene, metric_tree::angle(mean, e.m) + e.half + e.node.alpha);
+                scene = std::max(scene, metric_tree::fast_angle_between(mean, e.m) + e.half + e.node.alpha);
             scene = std::min(scene, metric_tree::pi);
         }
         shuffle(uint32_t(elements.size()));
@@ -697,7 +724,7 @@ private:
             }
             return subset;
         }
-        if (t.small) return cone_points_float(node, c, std::sin(a), subset, t);
+        if (t.small) return cone_points_float(node, c, metric_tree::sine_above(a), subset, t);
         const double cos_a = std::cos(a) - 1e-12, sin_a = std::sin(a) + 1e-12;
         double ua[3] = {c.a[0], c.a[1], c.a[2]}, ub[3] = {c.b[0], c.b[1], c.b[2]};
         metric_tree::normalize(ua), metric_tree::normalize(ub);
@@ -780,21 +807,26 @@ private:
         if (coarse_boxes_.empty() || !in) return in;
         const BoxFilter& b = coarse_boxes_[c];
         if (b.usable && t.small) return box_points(b, in, t);
-        const Obb box = view_->coarse_bounds.obb(mesh_->first_coarse + c);
         for (uint64_t w = in; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            if (!segment_may_touch_box(box, t.p[i], light_)) in &= ~(uint64_t(1) << i);
+            if (!coarse_box_may_touch(c, t.p[i])) in &= ~(uint64_t(1) << i);
         }
         return in;
+    }
+
+    // In double: the segment from p to the light may touch coarse cluster c's box (always, without boxes).
+    bool coarse_box_may_touch(uint32_t c, const double* p) const {
+        return coarse_boxes_.empty() ||
+            segment_may_touch_box(view_->coarse_bounds.obb(mesh_->first_coarse + c), p, light_);
     }
 
     // The walk for a tile's points `subset` at once: directions within `spread` of d.z, none farther than
     // `far` from the light.
     void tile_walk(uint32_t start, uint64_t subset, Tile& t, const Directions& d, uint32_t* stack) const {
-        double spread = 0, far = 0;
+        double spread = 0, far = 0, close = INFINITY;
         for (uint64_t w = subset; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            spread = std::max(spread, d.off[i]), far = std::max(far, t.dist[i]);
+            spread = std::max(spread, d.off[i]), far = std::max(far, t.dist[i]), close = std::min(close, t.dist[i]);
         }
         spread += tol;
         size_t top = 0;
@@ -805,14 +837,17 @@ private:
             if (far < node.near_min) continue;
             const metric_tree::Central c = metric_tree::central_of(node);
             const double s = metric_tree::distance<true>(c, d.z) - double(node.alpha), lo = s - spread, hi = s + spread;
+            // The far and overlap children lie away from this node in walk order: fetched while it is tested.
             if (node.child[2] != none && hi >= double(node.omin) && lo <= double(node.omax))
-                stack[top++] = node.child[2];
+                simd::prefetch(&nodes_[stack[top++] = node.child[2]]);
             if (node.child[1] != none && hi > double(node.delta) && lo <= double(node.fmax))
-                stack[top++] = node.child[1];
+                simd::prefetch(&nodes_[stack[top++] = node.child[1]]);
             if (node.child[0] != none && lo <= double(node.delta) && hi >= double(node.nmin))
                 stack[top++] = node.child[0];
             if (lo > 0 || far < node.near) continue;
-            const uint64_t in = cone_points(node, c, subset & t.alive, t, d);
+            // The tile's whole cone inside the node's, and no point nearer the light: no point to test.
+            const uint64_t in =
+                hi <= 0 && close >= node.near ? subset & t.alive : cone_points(node, c, subset & t.alive, t, d);
             if (!in) continue;
             if (node.cluster & coarse_bit) {
                 const uint32_t c = node.cluster & ~coarse_bit;
@@ -889,9 +924,7 @@ private:
             if (s > tol || q.dist < node.near) continue;
             if (node.cluster & coarse_bit) {
                 const uint32_t c = node.cluster & ~coarse_bit;
-                if (!coarse_boxes_.empty() &&
-                    !segment_may_touch_box(view_->coarse_bounds.obb(mesh_->first_coarse + c), q.p, light_))
-                    continue;
+                if (!coarse_box_may_touch(c, q.p)) continue;
                 const IndexRange r = fine_always_[c];
                 for (uint32_t k = r.first; k < r.first + r.count; ++k)
                     if (slab_may_cross(always_fine_[k], q) && test_cluster(always_fine_[k], q)) return true;

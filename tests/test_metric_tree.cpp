@@ -357,3 +357,30 @@ TEST(MetricTree, FastAngleStaysWithinItsBound) {
     EXPECT_LT(worst, 1e-8);
     EXPECT_LT(worst, cb::metric_tree::tolerance / 10);
 }
+
+// The cone filters take these as bounds from above: a value below the true one would drop a point from a
+// cone it lies in.
+TEST(MetricTree, AngleAndSineBoundsHoldFromAbove) {
+    std::mt19937 rng(6);
+    std::uniform_real_distribution<double> u(-1, 1);
+    double below = 0, loosest = 0;
+    for (int k = 0; k < 1000000; ++k) {
+        double a[3] = {u(rng), u(rng), u(rng)}, b[3] = {u(rng), u(rng), u(rng)};
+        if (k % 2) {  // nearby directions, as in a tile
+            const double near = std::pow(10.0, -1 - 6 * std::fabs(u(rng)));
+            for (int j = 0; j < 3; ++j) b[j] = a[j] + near * b[j];
+        }
+        const double exact = cb::metric_tree::angle(a, b), above = cb::metric_tree::angle_above(a, b);
+        below = std::max(below, exact - above);
+        if (exact > 1e-3 && exact < M_PI / 4)
+            loosest = std::max(loosest, (above - exact) / std::max(exact * exact * exact, 1e-300));
+    }
+    std::printf("angle_above: at most %.3g below the angle; above it by up to %.3g of its cube\n", below, loosest);
+    EXPECT_LT(below, 1e-8);    // fast_angle's error beyond 45 degrees, far inside the walk's tolerance
+    EXPECT_LT(loosest, 0.45);  // (tan(a) - a) / a^3 grows from 1/3 to 0.443 at 45 degrees
+    for (double a = 0; a <= M_PI / 2; a += 1e-5) {
+        const double s = cb::metric_tree::sine_above(a);
+        EXPECT_GE(s, std::sin(a) * (1 - 4e-16)) << a;  // the same within double rounding at small angles
+        EXPECT_LE(s - std::sin(a), std::pow(a, 7) / 5040 + 1e-16) << a;
+    }
+}
