@@ -344,7 +344,7 @@ struct Fronts {
 };
 
 // One point per configuration: x its bake or frame time in ms, y its useless tests per query, coloured by
-// method, hollow for the second box fitter onward, labelled with its fine size.
+// method, hollow for the second box fitter onward, shaped by traversal, labelled with its fine size.
 std::vector<PlotPoint> plot_points(const SceneReport& s, const ReportOptions& o, bool frame,
                                    const std::string& recommended = "") {
     std::vector<PlotPoint> pts;
@@ -356,6 +356,7 @@ std::vector<PlotPoint> plot_points(const SceneReport& s, const ReportOptions& o,
         p.tag = std::to_string(c.fine_size);
         p.colour = int(std::find(o.methods.begin(), o.methods.end(), c.method) - o.methods.begin());
         p.hollow = std::find(o.obbs.begin(), o.obbs.end(), c.obb) != o.obbs.begin();
+        p.shape = int(std::find(o.traversals.begin(), o.traversals.end(), c.traversal) - o.traversals.begin());
         p.recommended = c.name() == recommended;
         pts.push_back(p);
     }
@@ -577,6 +578,9 @@ std::string report_html(const Report& r) {
     std::vector<std::string> colours, styles;
     for (ClusterMethod m : o.methods) colours.push_back(method_name(m));
     for (ObbMethod m : o.obbs) styles.push_back(std::string("obb ") + obb_method_name(m));
+    std::vector<std::string> shapes;  // one traversal needs no legend entry
+    if (o.traversals.size() > 1)
+        for (Traversal t : o.traversals) shapes.push_back(std::string("traversal ") + traversal_name(t));
     for (const SceneReport& s : r.scenes) {
         Fronts f = fronts(s, o);
         h += "<section class=\"scene\" data-scene=\"" + html_escape(s.name) + "\">\n<h2>" + html_escape(s.name) +
@@ -591,7 +595,7 @@ std::string report_html(const Report& r) {
                    "frame time: build + queries of a " + std::to_string(o.frame_view) + "x" +
                        std::to_string(o.frame_view) + " view, one light (ms)",
                    "useless cluster tests per query", plot_points(s, o, true, r.recommended)};
-        h += svg_scatter(bake, colours, styles) + svg_scatter(frame, colours, styles) + "</div>\n";
+        h += svg_scatter(bake, colours, styles, shapes) + svg_scatter(frame, colours, styles, shapes) + "</div>\n";
         if (!s.heatmap_png.empty()) {
             // A small picture is shown at twice its size, its pixels kept square, so its labels read.
             uint32_t zoom = s.heatmap_width < 400 ? 2 : 1;

@@ -75,6 +75,25 @@ std::string circle(double x, double y, double r, const std::string& fill, const 
         "\" r=\"" + num(r) + "\" fill=\"" + fill + "\" stroke=\"" + stroke + "\" stroke-width=\"" + num(width) + "\"/>";
 }
 
+// A point's marker: a circle of radius marker_r, or a square, diamond or triangle within a circle a little
+// larger (their areas then look alike), for the plots' third style.
+std::string marker(double x, double y, int shape, const std::string& fill, const std::string& stroke, double width) {
+    if (shape <= 0 || shape > 3) return circle(x, y, marker_r, fill, stroke, width);
+    const double r = marker_r + 0.5, h = r / std::sqrt(2.0);
+    std::string d;
+    if (shape == 1)
+        d = "M" + num(x - h) + " " + num(y - h) + "H" + num(x + h) + "V" + num(y + h) + "H" + num(x - h) + "Z";
+    else if (shape == 2)
+        d = "M" + num(x) + " " + num(y - r) + "L" + num(x + r) + " " + num(y) + "L" + num(x) + " " + num(y + r) + "L" +
+            num(x - r) + " " + num(y) + "Z";
+    else
+        d = "M" + num(x) + " " + num(y - r) + "L" + num(x + r * 0.866) + " " + num(y + r * 0.5) + "L" +
+            num(x - r * 0.866) + " " + num(y + r * 0.5) + "Z";
+    return "<path class=\"marker\" data-cx=\"" + num(x) + "\" data-cy=\"" + num(y) + "\" data-r=\"" + num(r) +
+        "\" d=\"" + d + "\" fill=\"" + fill + "\" stroke=\"" + stroke + "\" stroke-width=\"" + num(width) +
+        "\" stroke-linejoin=\"round\"/>";
+}
+
 // A label's place: its box, and whether it sits far enough from its marker to need a leader line.
 struct Placed {
     TextBox box;
@@ -171,7 +190,8 @@ std::vector<size_t> pareto_front(const std::vector<PlotPoint>& p) {
 }
 
 std::string svg_scatter(const Plot& plot, const std::vector<std::string>& colour_names,
-                        const std::vector<std::string>& style_names, int width, int height) {
+                        const std::vector<std::string>& style_names, const std::vector<std::string>& shape_names,
+                        int width, int height) {
     const double left = 70, right = width - 150, top = 34, bottom = height - 52;
     std::string s = "<svg class=\"plot\" xmlns=\"http://www.w3.org/2000/svg\" width=\"" + std::to_string(width) +
         "\" height=\"" + std::to_string(height) + "\" viewBox=\"0 0 " + std::to_string(width) + " " +
@@ -239,7 +259,7 @@ std::string svg_scatter(const Plot& plot, const std::vector<std::string>& colour
             (p.recommended ? " (recommended)" : "") + "</title>";
         if (p.recommended) s += circle(px[i], py[i], recommended_r, "none", gold, 3, "recommended-ring");
         if (on_front[i]) s += circle(px[i], py[i], pareto_r, "none", "#222", 1.5, "pareto-ring");
-        s += circle(px[i], py[i], marker_r, p.hollow ? "#fff" : c, c, p.hollow ? 2 : 1.5);
+        s += marker(px[i], py[i], p.shape, p.hollow ? "#fff" : c, c, p.hollow ? 2 : 1.5);
         s += "</g>\n";
     }
     std::vector<Placed> labels =
@@ -273,6 +293,7 @@ std::string svg_scatter(const Plot& plot, const std::vector<std::string>& colour
         entry(circle(lx, ly, marker_r, palette[i % 6], palette[i % 6], 1.5), colour_names[i]);
     for (size_t i = 0; i < style_names.size(); ++i)
         entry(circle(lx, ly, marker_r, i ? "#fff" : "#888", "#888", i ? 2 : 1.5), style_names[i]);
+    for (size_t i = 0; i < shape_names.size(); ++i) entry(marker(lx, ly, int(i), "#888", "#888", 1.5), shape_names[i]);
     entry("<line x1=\"" + num(lx - 10) + "\" y1=\"" + num(ly) + "\" x2=\"" + num(lx + 10) + "\" y2=\"" + num(ly) +
               "\" stroke=\"#444\" stroke-dasharray=\"4 3\"/>" + circle(lx, ly, pareto_r, "none", "#222", 1.5),
           "Pareto front");

@@ -1,7 +1,7 @@
 // Scatter plots as inline SVG for the HTML report, drawn by our own code: axes with ticks and labels (log
-// scale where the values span decades), one marker per point in its method's colour, the Pareto front
-// (lower is better on both axes) joined by a line and ringed, the recommended point marked, and labels
-// placed where they cover no other label or marker.
+// scale where the values span decades), one marker per point in its method's colour (filled or hollow, of
+// four shapes), the Pareto front (lower is better on both axes) joined by a line and ringed, the
+// recommended point marked, and labels placed where they cover no other label or marker.
 #pragma once
 
 #include <string>
@@ -16,6 +16,7 @@ struct PlotPoint {
     int colour = 0;            // index into the plot palette
     bool hollow = false;       // a second marker style
     bool recommended = false;  // ringed in gold and labelled "recommended"
+    int shape = 0;             // a third: 0 circle, 1 square, 2 diamond, 3 triangle
 };
 
 struct Plot {
@@ -42,9 +43,12 @@ TextBox label_box(double x, double baseline, const std::string& text, double fon
 // The font size of point labels; each is a <text class="point-label"> start-anchored at its box's x.
 constexpr double point_label_font = 9;
 
-// A self-contained <svg> element, `width` x `height` pixels. Legend entries name the colours and styles.
+// A self-contained <svg> element, `width` x `height` pixels. Legend entries name the colours, the styles
+// (filled, hollow) and the shapes. A marker other than a circle is a <path class="marker"> whose data-cx,
+// data-cy and data-r give the circle that holds it.
 std::string svg_scatter(const Plot& plot, const std::vector<std::string>& colour_names,
-                        const std::vector<std::string>& style_names, int width = 600, int height = 420);
+                        const std::vector<std::string>& style_names, const std::vector<std::string>& shape_names = {},
+                        int width = 600, int height = 420);
 
 // Escapes &, <, >, " for HTML and SVG text.
 std::string html_escape(const std::string& s);

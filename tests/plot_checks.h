@@ -36,11 +36,16 @@ struct SvgCircle {
     double x, y, r;
 };
 
+// The circles, and the circles that hold the other markers (squares, diamonds, triangles).
 inline std::vector<SvgCircle> circles_of(const std::string& svg) {
     std::vector<SvgCircle> out;
-    std::regex circle("<circle[^>]* cx=\"([-0-9.]+)\" cy=\"([-0-9.]+)\" r=\"([-0-9.]+)\"");
-    for (auto it = std::sregex_iterator(svg.begin(), svg.end(), circle); it != std::sregex_iterator(); ++it)
-        out.push_back({std::stod((*it)[1]), std::stod((*it)[2]), std::stod((*it)[3])});
+    for (const char* pattern :
+         {"<circle[^>]* cx=\"([-0-9.]+)\" cy=\"([-0-9.]+)\" r=\"([-0-9.]+)\"",
+          "<path class=\"marker\" data-cx=\"([-0-9.]+)\" data-cy=\"([-0-9.]+)\" data-r=\"([-0-9.]+)\""}) {
+        std::regex shape(pattern);
+        for (auto it = std::sregex_iterator(svg.begin(), svg.end(), shape); it != std::sregex_iterator(); ++it)
+            out.push_back({std::stod((*it)[1]), std::stod((*it)[2]), std::stod((*it)[3])});
+    }
     return out;
 }
 

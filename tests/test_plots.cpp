@@ -219,6 +219,22 @@ TEST(SvgPlot, ParetoPointsKeepTheirColourAndTheRecommendedIsMarked) {
     EXPECT_EQ(expect_labels_clear(svg), 3u);
 }
 
+TEST(SvgPlot, ShapesTellATraversalApartAndKeepLabelsClear) {
+    cb::Plot plot{"frame", "frame ms", "useless", {}};
+    for (int i = 0; i < 12; ++i) {  // four shapes, close together: the labels keep clear of every one
+        cb::PlotPoint p{10 + 0.05 * i, 3 + 0.01 * (i % 5), "config " + std::to_string(i), std::to_string(8 * i), i % 3};
+        p.shape = i % 4;
+        plot.points.push_back(p);
+    }
+    std::string svg = cb::svg_scatter(plot, {"a", "b", "c"}, {}, {"traversal scan", "traversal mtsv"});
+    std::string legend_free = svg.substr(0, svg.find("<g class=\"legend\">"));
+    EXPECT_EQ(count_of(legend_free, "<path class=\"marker\""), 9u);  // squares, diamonds, triangles
+    EXPECT_EQ(count_of(legend_free, "class=\"point"), 12u);
+    EXPECT_NE(svg.find(">traversal mtsv</text>"), std::string::npos) << "the legend names the shapes";
+    EXPECT_EQ(cb::test::circles_of(legend_free).size(), 12u + cb::pareto_front(plot.points).size());
+    EXPECT_GE(expect_labels_clear(svg), 6u);
+}
+
 TEST(SvgPlot, CrowdedLabelsNeverOverlap) {
     cb::Plot plot{"crowd", "x", "y", {}};
     // A tight clump, exact duplicates and a spread-out tail: the labels that fit are placed, apart.

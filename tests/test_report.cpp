@@ -192,6 +192,12 @@ TEST(Report, WritesThreeFilesWithOnePointPerConfiguration) {
     EXPECT_EQ(count_of(csv, "default_scene,"), configs);
     std::string html = slurp((d / "report.html").string());
     expect_plots_complete(html, 1);
+    for (const std::string& p : plots_of(html)) {  // the metric tree's points are squares, the scan's circles
+        const std::string points = p.substr(0, p.find("<g class=\"legend\">"));
+        EXPECT_EQ(count_of(points, "<path class=\"marker\""), configs / 2);
+        EXPECT_NE(p.find(">traversal scan</text>"), std::string::npos);
+        EXPECT_NE(p.find(">traversal mtsv</text>"), std::string::npos);
+    }
     // Self-contained: no scripts, nothing fetched (the SVG namespace is a name, never loaded).
     EXPECT_EQ(html.find("<script"), std::string::npos);
     EXPECT_EQ(std::regex_search(html, std::regex("(src|href)=\"(https?:)?//")), false);
