@@ -184,7 +184,6 @@ struct Element {
 // The working arrays of a build, kept between builds by reusing the traversal object.
 struct Work {
     std::vector<Element> elements;
-    std::vector<Central> centrals;  // per node, while building
     std::vector<uint32_t> order, todo, to;
     std::vector<Node> built;
 };
@@ -438,7 +437,7 @@ private:
     }
 
     // s over element e's directions against pivot p (central element cp): [lo, hi].
-    static void s_range(const Node& p, const Central& cp, const Element& e, double& lo, double& hi) {
+    CB_METRIC_INLINE static void s_range(const Node& p, const Central& cp, const Element& e, double& lo, double& hi) {
         const double d = metric_tree::distance<true>(cp, e.m), spread = e.half + double(e.node.alpha);
         lo = d - spread - double(p.alpha), hi = d + spread - double(p.alpha);
     }
@@ -470,8 +469,6 @@ private:
     uint32_t build_heuristic(uint32_t& depth) {
         std::vector<Element>& elements = work_.elements;
         std::vector<Node>& built = work_.built;
-        std::vector<Central>& centrals = work_.centrals;
-        centrals.resize(built.size());  // in step with built: a node's central element at its index
         // The angle of the cone that holds every element: the split distance each starts with.
         double mean[3] = {0, 0, 0};
         for (const Element& e : elements)
@@ -494,7 +491,9 @@ private:
             while (*link != none) {
                 Node& p = built[*link];
                 double lo, hi;
-                s_range(p, centrals[*link], e, lo, hi);
+                // The pivot's central element made again at each step: kept beside the nodes, it would cost more
+                // in cache misses than a point's conversion to double.
+                s_range(p, metric_tree::central_of(p), e, lo, hi);
                 p.near_min = std::min(p.near_min, e.node.near);
                 if (hi <= double(p.delta)) {
                     p.nmin = std::min(p.nmin, math::round_down(lo));
@@ -512,7 +511,6 @@ private:
             e.node.delta = float(e.delta);
             *link = uint32_t(built.size());
             built.push_back(e.node);
-            centrals.push_back(metric_tree::central_of(e.node));
             depth = std::max(depth, d);
         }
         return root;
