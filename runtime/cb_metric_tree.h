@@ -950,3 +950,5 @@ private:
 
 }  // namespace CB_LANES
 }  // namespace cb
+
+#undef CB_METRIC_INLINE
