@@ -27,16 +27,23 @@ struct QueryArgs {
 // How errors name the points' source.
 std::string points_name(const std::string& path) { return path == "-" ? "standard input" : path; }
 
+// Raw float32 triples, a block at a time: no copy of the whole input beside the points.
 bool read_binary_points(std::istream& in, const std::string& name, std::vector<double>& pts) {
-    std::vector<char> raw((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (raw.size() % 12 != 0) {
-        std::fprintf(stderr, "%s: %zu bytes is not a whole number of float32 triples\n", name.c_str(), raw.size());
-        return false;
+    char block[1 << 16];  // whole floats: a read comes up short only at the end of the input
+    size_t bytes = 0;
+    while (in) {
+        in.read(block, sizeof block);
+        const size_t n = size_t(in.gcount());
+        bytes += n;
+        for (size_t i = 0; i + 4 <= n; i += 4) {
+            float f;
+            std::memcpy(&f, block + i, 4);
+            pts.push_back(f);
+        }
     }
-    for (size_t i = 0; i < raw.size(); i += 4) {
-        float f;
-        std::memcpy(&f, raw.data() + i, 4);
-        pts.push_back(f);
+    if (bytes % 12 != 0) {
+        std::fprintf(stderr, "%s: %zu bytes is not a whole number of float32 triples\n", name.c_str(), bytes);
+        return false;
     }
     return true;
 }
