@@ -8,9 +8,9 @@
 
 namespace cb {
 
-// The tree wins from about 40 centres (bench_nearest_centre; figures in docs/PERFORMANCE.md). The default
-// k0 = 8 never gets there; larger --k0 does.
-const size_t flann_crossover = 40;
+// The tree wins from about 256 centres (bench_nearest_centre; figures in docs/PERFORMANCE.md): below, the
+// blocked scan's vector lanes beat its search. The default k0 = 8 never gets there; a large --k0 does.
+const size_t flann_crossover = 256;
 
 size_t assign_nearest_brute(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,
                             float* nearest_d2) {

@@ -7,7 +7,7 @@
 namespace cb {
 
 // The centre count from which FLANN's exact k-d tree beats the brute-force scan (bench_nearest_centre
-// measures both; the figures are in nearest_centre.cpp).
+// measures both; the figures are in docs/PERFORMANCE.md).
 extern const size_t flann_crossover;
 
 // Sets assignment[i] to the index of the centre nearest points[i] (ties: lowest index) and nearest_d2[i]
