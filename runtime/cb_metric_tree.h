@@ -398,7 +398,8 @@ private:
         if (!(dist > (r + err) * (1 + 1e-9)) || !(dist < 1e30)) return false;
         double alpha = std::asin(std::min(1.0, (r + err) / dist));
         double ua[3] = {A[0], A[1], A[2]}, ub[3] = {B[0], B[1], B[2]};
-        metric_tree::normalize(ua), metric_tree::normalize(ub);
+        metric_tree::normalize(ua);
+        if (ab2 > 0) metric_tree::normalize(ub);  // a sphere needs only ua
         const double arc = ab2 > 0 ? metric_tree::angle(ua, ub) : 0;
         Node& n = e.node;
         if (ab2 == 0) {  // a sphere: the cone about its centre's direction
@@ -805,18 +806,15 @@ private:
         if (coarse_boxes_.empty() || !in) return in;
         const BoxFilter& b = coarse_boxes_[c];
         if (b.usable && t.small) return box_points(b, in, t);
+        const Obb box = coarse_obb(c);  // decoded once for all the points
         for (uint64_t w = in; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            if (!coarse_box_may_touch(c, t.p[i])) in &= ~(uint64_t(1) << i);
+            if (!segment_may_touch_box(box, t.p[i], light_)) in &= ~(uint64_t(1) << i);
         }
         return in;
     }
 
-    // In double: the segment from p to the light may touch coarse cluster c's box (always, without boxes).
-    bool coarse_box_may_touch(uint32_t c, const double* p) const {
-        return coarse_boxes_.empty() ||
-            segment_may_touch_box(view_->coarse_bounds.obb(mesh_->first_coarse + c), p, light_);
-    }
+    Obb coarse_obb(uint32_t c) const { return view_->coarse_bounds.obb(mesh_->first_coarse + c); }
 
     // The walk for a tile's points `subset` at once: directions within `spread` of d.z, none farther than
     // `far` from the light.
@@ -922,7 +920,7 @@ private:
             if (s > tol || q.dist < node.near) continue;
             if (node.cluster & coarse_bit) {
                 const uint32_t c = node.cluster & ~coarse_bit;
-                if (!coarse_box_may_touch(c, q.p)) continue;
+                if (!coarse_boxes_.empty() && !segment_may_touch_box(coarse_obb(c), q.p, light_)) continue;
                 const IndexRange r = fine_always_[c];
                 for (uint32_t k = r.first; k < r.first + r.count; ++k)
                     if (slab_may_cross(always_fine_[k], q) && test_cluster(always_fine_[k], q)) return true;
