@@ -5,6 +5,8 @@
 #include <chrono>
 #include <thread>
 
+#include <cb_level.h>
+
 #include "parallel.h"
 #include "scene_query.h"
 #include "timing.h"
@@ -14,64 +16,90 @@ inline namespace CB_LANES {
 
 namespace {
 
-// The scan's bounds, once per mesh however many instances it has; none for the reference or a tree traversal.
-std::vector<ScanBounds> bounds_for(const AssetView& view, const SceneQueryOptions& o) {
-    return o.traversal == Traversal::scan && !o.reference && view.instance_count ? make_scan_bounds(view)
-                                                                                 : std::vector<ScanBounds>{};
+// The asset's instances as baked, in a runtime scene (light-independent: made once for every light), with
+// the scan's bounds when the scan reads them.
+struct BakedLevel {
+    Level level;
+    explicit BakedLevel(const AssetView& view, const SceneQueryOptions& o) {
+        level.add_baked(level.add_asset(view, o.traversal == Traversal::scan && !o.reference));
+        level.commit();
+    }
+};
+
+void add_stats(QueryStats& to, const QueryStats& c) {
+    to.nodes_visited += c.nodes_visited, to.clusters_tested += c.clusters_tested;
+    to.triangles_tested += c.triangles_tested, to.touching += c.touching;
 }
 
-// One light's answers with the bounds already made.
-SceneQueryResult answer_light(const AssetView& view, const std::vector<ScanBounds>& bounds, const double* light,
-                              const double* points, size_t n, const SceneQueryOptions& o) {
-    SceneQueryResult r;
-    const unsigned thread_count = threads_or_all(o.threads);
-
-    // One structure per instance for this light (none for the reference).
-    auto build_start = std::chrono::steady_clock::now();
-    std::vector<InstanceShadow> trees(o.reference ? 0 : view.instance_count);
+ShadowBuildOptions build_options(const SceneQueryOptions& o) {
     ShadowBuildOptions build;
     build.traversal = o.traversal;
     build.one_sided = o.one_sided;
-    build.threads = thread_count;
-    build.bounds = bounds.empty() ? nullptr : bounds.data();
     build.capsule_ratio = o.capsule_ratio;
     build.metric_build = o.metric_build;
+    return build;
+}
+
+// A batch through the scene: tiles of points by direction culled against the instances' hierarchy, the
+// instances met set up for the light, then the tiles answered; each step in ranges over the threads.
+void answer_batch(const Level& level, const double* light, const double* points, size_t n, const SceneQueryOptions& o,
+                  unsigned thread_count, SceneQueryResult& r) {
+    auto build_start = std::chrono::steady_clock::now();
+    LevelShadow shadow;
+    shadow.begin(level, light, points, n, build_options(o));
+    const size_t tiles = shadow.tile_count();
+    const size_t chunk = 64;  // tiles a culling job takes
+    parallel_for((tiles + chunk - 1) / chunk, thread_count,
+                 [&](size_t c) { shadow.cull(c * chunk, std::min(tiles, (c + 1) * chunk)); });
+    const size_t built = shadow.gather();
+    std::vector<BuildScratch> scratch(thread_count);
+    parallel_for(thread_count, thread_count, [&](size_t t) {
+        shadow.build(built * t / thread_count, built * (t + 1) / thread_count, &scratch[t]);
+    });
+    for (size_t i = 0; i < built; ++i) {
+        const InstanceShadow& s = shadow.built(i);
+        r.skipped += s.skipped_clusters(), r.nodes += s.node_count(), r.tree_bytes += s.memory_bytes();
+        r.always_tested += s.always_tested();
+    }
+    r.trees = built;
+    r.build_seconds = seconds_since(build_start);
+
+    auto start = std::chrono::steady_clock::now();
+    r.shadowed.assign(n, 0);
+    std::vector<QueryStats> counts(thread_count);
+    parallel_for(thread_count, thread_count, [&](size_t t) {
+        std::vector<uint32_t> own(shadow.scratch_size());
+        shadow.occluded(tiles * t / thread_count, tiles * (t + 1) / thread_count, r.shadowed.data(), own.data(),
+                        &counts[t]);
+    });
+    for (const QueryStats& c : counts) add_stats(r.stats, c);
+    r.query_seconds = seconds_since(start);
+}
+
+// Each point on its own, with its own counts (per_point), or the reference query.
+void answer_points(const AssetView& view, const Level& level, const double* light, const double* points, size_t n,
+                   const SceneQueryOptions& o, unsigned thread_count, SceneQueryResult& r) {
+    auto build_start = std::chrono::steady_clock::now();
+    std::vector<InstanceShadow> trees(o.reference ? 0 : view.instance_count);
+    ShadowBuildOptions build = build_options(o);
     for (uint32_t i = 0; i < trees.size(); ++i) {
+        build.bounds = level.scan_bounds(0);
         trees[i].build(view, i, light, build);
-        r.skipped += trees[i].skipped_clusters();
-        r.nodes += trees[i].node_count();
-        r.tree_bytes += trees[i].memory_bytes();
-        r.always_tested += trees[i].always_tested();
+        r.skipped += trees[i].skipped_clusters(), r.nodes += trees[i].node_count();
+        r.tree_bytes += trees[i].memory_bytes(), r.always_tested += trees[i].always_tested();
     }
     r.trees = trees.size();
     r.build_seconds = seconds_since(build_start);
 
-    // The trees are const: threads take contiguous slices of the points' order by direction from the light
-    // (the order a batch takes them in, so that each slice's tiles are as close as one batch's), each with
-    // its own scratch and counts; the reference, and points asking alone, take slices of the points as given.
     auto start = std::chrono::steady_clock::now();
     r.shadowed.assign(n, 0);
     if (o.per_point) r.point_stats.assign(n, QueryStats{});
     std::vector<QueryStats> counts(thread_count);
-    std::vector<uint32_t> order;
-    const bool batch = !o.reference && !o.per_point;
-    if (batch) {
-        order.resize(n);
-        std::vector<uint32_t> sort_scratch(batch_order_scratch_size(n));
-        batch_order(light, points, n, order.data(), sort_scratch.data());
-    }
     size_t stack_size = 0;
     for (const InstanceShadow& tree : trees) stack_size = std::max(stack_size, tree.stack_size());
     parallel_for(thread_count, thread_count, [&](size_t t) {
-        size_t first = n * t / thread_count, last = n * (t + 1) / thread_count;
-        if (batch) {
-            std::vector<uint32_t> own(ordered_scratch_size(trees.data(), trees.size()));
-            occluded_ordered(trees.data(), trees.size(), points, order.data() + first, last - first, r.shadowed.data(),
-                             own.data(), &counts[t]);
-            return;
-        }
         std::vector<uint32_t> stack(stack_size);
-        for (size_t i = first; i < last; ++i) {
+        for (size_t i = n * t / thread_count; i < n * (t + 1) / thread_count; ++i) {
             QueryStats* s = o.per_point ? &r.point_stats[i] : &counts[t];
             const double* p = &points[i * 3];
             if (o.reference) {
@@ -82,13 +110,20 @@ SceneQueryResult answer_light(const AssetView& view, const std::vector<ScanBound
             }
         }
     });
-    auto add = [&](const QueryStats& c) {
-        r.stats.nodes_visited += c.nodes_visited, r.stats.clusters_tested += c.clusters_tested;
-        r.stats.triangles_tested += c.triangles_tested, r.stats.touching += c.touching;
-    };
-    for (const QueryStats& c : counts) add(c);
-    for (const QueryStats& c : r.point_stats) add(c);
+    for (const QueryStats& c : counts) add_stats(r.stats, c);
+    for (const QueryStats& c : r.point_stats) add_stats(r.stats, c);
     r.query_seconds = seconds_since(start);
+}
+
+// One light's answers over the level already made.
+SceneQueryResult answer_light(const AssetView& view, const Level& level, const double* light, const double* points,
+                              size_t n, const SceneQueryOptions& o) {
+    SceneQueryResult r;
+    const unsigned thread_count = threads_or_all(o.threads);
+    if (!o.reference && !o.per_point)
+        answer_batch(level, light, points, n, o, thread_count, r);
+    else
+        answer_points(view, level, light, points, n, o, thread_count, r);
     return r;
 }
 
@@ -97,10 +132,10 @@ SceneQueryResult answer_light(const AssetView& view, const std::vector<ScanBound
 SceneQueryResult query_scene_lanes(const AssetView& view, const double* light, const double* points, size_t n,
                                    const SceneQueryOptions& o) {
     auto start = std::chrono::steady_clock::now();
-    const std::vector<ScanBounds> bounds = bounds_for(view, o);
-    const double bounds_seconds = seconds_since(start);
-    SceneQueryResult r = answer_light(view, bounds, light, points, n, o);
-    r.build_seconds += bounds_seconds;  // one light: its build includes them
+    const BakedLevel baked(view, o);
+    const double level_seconds = seconds_since(start);
+    SceneQueryResult r = answer_light(view, baked.level, light, points, n, o);
+    r.build_seconds += level_seconds;  // one light: its build includes the level
     return r;
 }
 
@@ -108,10 +143,10 @@ double query_lights_lanes(const AssetView& view, const double* lights, size_t li
                           size_t n, const SceneQueryOptions& o,
                           const std::function<void(size_t, const SceneQueryResult&)>& on_light) {
     auto start = std::chrono::steady_clock::now();
-    const std::vector<ScanBounds> bounds = light_count ? bounds_for(view, o) : std::vector<ScanBounds>{};
-    const double bounds_seconds = seconds_since(start);
-    for (size_t l = 0; l < light_count; ++l) on_light(l, answer_light(view, bounds, &lights[l * 3], points, n, o));
-    return bounds_seconds;
+    const BakedLevel baked(view, o);
+    const double level_seconds = seconds_since(start);
+    for (size_t l = 0; l < light_count; ++l) on_light(l, answer_light(view, baked.level, &lights[l * 3], points, n, o));
+    return level_seconds;
 }
 
 }  // namespace CB_LANES

@@ -44,14 +44,19 @@ public:
     // Without coarse boxes in the asset, every traversal is one tree.
     void build(const AssetView& view, uint32_t instance, const double* world_light,
                const ShadowBuildOptions& options = {}) {
+        build(view, placement_of(view, instance), world_light, options);
+    }
+
+    // The same for a mesh of the asset placed by the caller (a runtime scene's instance, cb_scene.h).
+    void build(const AssetView& view, Placement at, const double* world_light, const ShadowBuildOptions& options = {}) {
         traversal_ =
             options.traversal == Traversal::scan && !view.coarse_bounds.obbs ? Traversal::one_tree : options.traversal;
         switch (traversal_) {
-            case Traversal::scan: return build_as<ScanTraversal>(view, instance, world_light, options);
+            case Traversal::scan: return build_as<ScanTraversal>(view, at, world_light, options);
             case Traversal::trees:
-            case Traversal::one_tree: return build_as<TopTreeTraversal>(view, instance, world_light, options);
+            case Traversal::one_tree: return build_as<TopTreeTraversal>(view, at, world_light, options);
             case Traversal::mtsv:
-            case Traversal::mtsv_two: return build_as<MetricTreeTraversal>(view, instance, world_light, options);
+            case Traversal::mtsv_two: return build_as<MetricTreeTraversal>(view, at, world_light, options);
         }
     }
 
@@ -100,10 +105,9 @@ public:
 
 private:
     template <class T>
-    void build_as(const AssetView& view, uint32_t instance, const double* world_light,
-                  const ShadowBuildOptions& options) {
+    void build_as(const AssetView& view, Placement at, const double* world_light, const ShadowBuildOptions& options) {
         if (!std::holds_alternative<T>(held_)) held_.template emplace<T>();  // same type: its arrays are reused
-        std::get_if<T>(&held_)->build(view, instance, world_light, options);
+        std::get_if<T>(&held_)->build(view, at, world_light, options);
     }
 
     // f(the traversal held): one switch per call, then direct, inlinable calls.

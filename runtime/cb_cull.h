@@ -70,51 +70,59 @@ inline bool any_double_sided(const AssetView& v, const MeshRecord& m, uint32_t f
 
 }  // namespace cull_detail
 
+// One instance's part of cull_clusters: the visible fine clusters of mesh `at.mesh` of `v` placed by
+// `at.transform`, written from out[count] as {id, fine} (while below `capacity`); returns count plus how
+// many there are.
+inline size_t cull_instance(const AssetView& v, Placement at, uint32_t id, const Frustum& f, bool backface,
+                            VisibleCluster* out, size_t capacity, size_t count, CullStats* stats = nullptr) {
+    if (!v.fine_bounds.obbs) return count;
+    const MeshRecord& mesh = v.meshes[at.mesh];
+    const double* m = at.transform;
+    double inv[12], eye[3], planes[8][4];
+    if (!invert_instance(m, inv)) return count;
+    apply_instance(inv, f.eye, eye);
+    // A world plane n.p + d >= 0 with p = M l + t becomes (M^T n).l + (n.t + d) >= 0 in the mesh frame.
+    for (int k = 0; k < f.count; ++k) {
+        const double* n = f.plane[k];
+        for (int j = 0; j < 3; ++j) planes[k][j] = m[j * 3] * n[0] + m[j * 3 + 1] * n[1] + m[j * 3 + 2] * n[2];
+        planes[k][3] = n[0] * m[9] + n[1] * m[10] + n[2] * m[11] + n[3];
+    }
+    for (uint32_t c = 0; c < mesh.coarse_count; ++c) {
+        const ClusterRange& range = v.coarse[mesh.first_coarse + c];
+        if (v.coarse_bounds.obbs &&
+            !cull_detail::box_in_frustum(v.coarse_bounds.obb(mesh.first_coarse + c), planes, f.count)) {
+            if (stats) ++stats->coarse_culled;
+            continue;
+        }
+        for (uint32_t k = range.first; k < range.first + range.count; ++k) {
+            uint32_t fine = mesh.first_fine + k;
+            if (stats) ++stats->fine_tested;
+            if (!cull_detail::box_in_frustum(v.fine_bounds.obb(fine), planes, f.count)) {
+                if (stats) ++stats->frustum_culled;
+                continue;
+            }
+            if (backface && v.fine_bounds.cones && cull_detail::eye_in_back_cone(v.fine_bounds.cone(fine), eye) &&
+                !cull_detail::any_double_sided(v, mesh, v.fine[fine].first_triangle, v.fine[fine].triangle_count)) {
+                if (stats) ++stats->backface_culled;
+                continue;
+            }
+            if (count < capacity) out[count] = {id, fine};
+            ++count;
+        }
+    }
+    return count;
+}
+
 // Writes the visible fine clusters of every instance to `out` (at most `capacity`) and returns how many
 // there are (which may exceed capacity: call again with more room). Needs the fine boxes; coarse boxes
 // and cones are used when present. With `backface` true, clusters whose single-sided triangles all face
-// away from the eye are left out.
+// away from the eye are left out. A runtime scene (cb_scene.h) culls its instances through its hierarchy
+// first.
 inline size_t cull_clusters(const AssetView& v, const Frustum& f, bool backface, VisibleCluster* out, size_t capacity,
                             CullStats* stats = nullptr) {
     size_t count = 0;
-    if (!v.fine_bounds.obbs) return 0;
-    for (uint32_t i = 0; i < v.instance_count; ++i) {
-        const InstanceRecord& inst = v.instances[i];
-        const MeshRecord& mesh = v.meshes[inst.mesh];
-        const double* m = inst.transform;
-        double inv[12], eye[3], planes[8][4];
-        if (!invert_instance(m, inv)) continue;
-        apply_instance(inv, f.eye, eye);
-        // A world plane n.p + d >= 0 with p = M l + t becomes (M^T n).l + (n.t + d) >= 0 in the mesh frame.
-        for (int k = 0; k < f.count; ++k) {
-            const double* n = f.plane[k];
-            for (int j = 0; j < 3; ++j) planes[k][j] = m[j * 3] * n[0] + m[j * 3 + 1] * n[1] + m[j * 3 + 2] * n[2];
-            planes[k][3] = n[0] * m[9] + n[1] * m[10] + n[2] * m[11] + n[3];
-        }
-        for (uint32_t c = 0; c < mesh.coarse_count; ++c) {
-            const ClusterRange& range = v.coarse[mesh.first_coarse + c];
-            if (v.coarse_bounds.obbs &&
-                !cull_detail::box_in_frustum(v.coarse_bounds.obb(mesh.first_coarse + c), planes, f.count)) {
-                if (stats) ++stats->coarse_culled;
-                continue;
-            }
-            for (uint32_t k = range.first; k < range.first + range.count; ++k) {
-                uint32_t fine = mesh.first_fine + k;
-                if (stats) ++stats->fine_tested;
-                if (!cull_detail::box_in_frustum(v.fine_bounds.obb(fine), planes, f.count)) {
-                    if (stats) ++stats->frustum_culled;
-                    continue;
-                }
-                if (backface && v.fine_bounds.cones && cull_detail::eye_in_back_cone(v.fine_bounds.cone(fine), eye) &&
-                    !cull_detail::any_double_sided(v, mesh, v.fine[fine].first_triangle, v.fine[fine].triangle_count)) {
-                    if (stats) ++stats->backface_culled;
-                    continue;
-                }
-                if (count < capacity) out[count] = {i, fine};
-                ++count;
-            }
-        }
-    }
+    for (uint32_t i = 0; i < v.instance_count; ++i)
+        count = cull_instance(v, placement_of(v, i), i, f, backface, out, capacity, count, stats);
     return count;
 }
 

@@ -197,10 +197,14 @@ public:
     // One instance of the asset's meshes, for one light given in world space: two levels when
     // options.traversal is Traversal::mtsv_two and the asset has coarse volumes, else one tree.
     void build(const AssetView& view, uint32_t instance, const double* world_light, const ShadowBuildOptions& options) {
+        build(view, placement_of(view, instance), world_light, options);
+    }
+    // The same for a mesh of the asset placed by the caller (a runtime scene's instance).
+    void build(const AssetView& view, Placement at, const double* world_light, const ShadowBuildOptions& options) {
         nodes_.clear(), always_fine_.clear(), always_coarse_.clear(), fine_roots_.clear(), fine_always_.clear();
         coarse_boxes_.clear();
         root_ = none, depth_ = 0, capsules_ = 0, top_always_ = {};
-        if (!set_instance(view, instance, world_light, options.one_sided)) return;
+        if (!set_instance(view, at, world_light, options.one_sided)) return;
         capsule_ratio_ = options.capsule_ratio;
         build_ = options.metric_build;
         slabs_ = view.fine_bounds.slabs != nullptr;
@@ -809,7 +813,7 @@ private:
         const Obb box = coarse_obb(c);  // decoded once for all the points
         for (uint64_t w = in; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            if (!segment_may_touch_box(box, t.p[i], light_)) in &= ~(uint64_t(1) << i);
+            if (!segment_may_touch_box(box, t.p[i], light_, blocking_from)) in &= ~(uint64_t(1) << i);
         }
         return in;
     }
@@ -920,7 +924,8 @@ private:
             if (s > tol || q.dist < node.near) continue;
             if (node.cluster & coarse_bit) {
                 const uint32_t c = node.cluster & ~coarse_bit;
-                if (!coarse_boxes_.empty() && !segment_may_touch_box(coarse_obb(c), q.p, light_)) continue;
+                if (!coarse_boxes_.empty() && !segment_may_touch_box(coarse_obb(c), q.p, light_, blocking_from))
+                    continue;
                 const IndexRange r = fine_always_[c];
                 for (uint32_t k = r.first; k < r.first + r.count; ++k)
                     if (slab_may_cross(always_fine_[k], q) && test_cluster(always_fine_[k], q)) return true;

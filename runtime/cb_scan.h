@@ -27,12 +27,16 @@ public:
     // One instance of the asset's meshes, for one light given in world space (options.traversal is not read:
     // the asset must have coarse boxes, otherwise the clusters are found by TopTreeTraversal).
     void build(const AssetView& view, uint32_t instance, const double* world_light, const ShadowBuildOptions& options) {
+        build(view, placement_of(view, instance), world_light, options);
+    }
+    // The same for a mesh of the asset placed by the caller (a runtime scene's instance).
+    void build(const AssetView& view, Placement at, const double* world_light, const ShadowBuildOptions& options) {
         shared_bounds_ = nullptr;
         coarse_boxes_.clear();
         coarse_skipped_.clear();
-        if (!set_instance(view, instance, world_light, options.one_sided)) return;
+        if (!set_instance(view, at, world_light, options.one_sided)) return;
         const uint32_t coarse_count = mesh_->coarse_count;
-        const uint32_t m = view.instances[instance].mesh;
+        const uint32_t m = at.mesh;
         const ScanBounds* bounds = options.bounds;
         shared_bounds_ = bounds && bounds[m].made_from(view, *mesh_) ? &bounds[m] : nullptr;
         if (!shared_bounds_) own_bounds_.make(view, m);

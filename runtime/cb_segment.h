@@ -38,6 +38,11 @@ inline namespace CB_LANES {
 // so the exact test scales by it without rounding.
 constexpr double self_shadow_fraction = 1.0 / 8192.0;
 
+// Where the filters start the segment (as a fraction of the way from the point): half of
+// self_shadow_fraction, far beyond their rounding, so that a point lying on a flat cluster, whose segment
+// leaves that cluster's thin box well before any contact could count, does not test its triangles.
+constexpr double blocking_from = self_shadow_fraction / 2;
+
 struct SegmentTest {
     bool blocks = false;
     bool touching = false;  // boundary contact (see above), whether or not it blocks
@@ -81,6 +86,18 @@ inline SegmentTest segment_triangle(const double* p, const double* q, const doub
     return r;
 }
 
+// Where one instance of a mesh stands: the mesh's index in the asset and its world transform (affine,
+// column-major 3x4 doubles: the x, y, z axes, then the translation). An asset's InstanceRecord gives one
+// (placement_of); a runtime scene (cb_scene.h) gives its own. Read only while a traversal is built.
+struct Placement {
+    uint32_t mesh;
+    const double* transform;
+};
+
+inline Placement placement_of(const AssetView& view, uint32_t instance) {
+    return {view.instances[instance].mesh, view.instances[instance].transform};
+}
+
 // The affine inverse of an instance transform (column-major 3x4: x, y, z axes, translation). False when
 // the transform is singular: such an instance is flat and blocks nothing.
 inline bool invert_instance(const double* m, double* inv) {
@@ -103,11 +120,12 @@ inline void apply_instance(const double* m, const double* p, double* out) {
     for (int k = 0; k < 3; ++k) out[k] = m[k] * p[0] + m[3 + k] * p[1] + m[6 + k] * p[2] + m[9 + k];
 }
 
-// Conservative: false only when the segment p-q certainly misses the box. Clips the segment's parameter
-// range against each of the box's three slabs (the box is their intersection), each slab widened by a
-// margin far above the rounding of the dot products and divisions, relative to the inputs' size.
-inline bool segment_may_touch_box(const Obb& box, const double* p, const double* q) {
-    double t0 = 0, t1 = 1;
+// Conservative: false only when the part of the segment p-q from parameter `from` to q (p + t (q - p),
+// from <= t <= 1) certainly misses the box. Clips that parameter range against each of the box's three
+// slabs (the box is their intersection), each slab widened by a margin far above the rounding of the dot
+// products and divisions, relative to the inputs' size. Shadow queries pass blocking_from.
+inline bool segment_may_touch_box(const Obb& box, const double* p, const double* q, double from = 0) {
+    double t0 = from, t1 = 1;
     double pc[3] = {p[0] - box.center[0], p[1] - box.center[1], p[2] - box.center[2]};
     double qc[3] = {q[0] - box.center[0], q[1] - box.center[1], q[2] - box.center[2]};
     double size =

@@ -31,7 +31,9 @@ inline bool occluded_reference(const AssetView& v, const double* p, const double
         apply_instance(inv, light, ll);
         const MeshRecord& mesh = v.meshes[inst.mesh];
         for (uint32_t f = 0; f < mesh.fine_count && !blocked; ++f) {
-            if (v.fine_bounds.obbs && !segment_may_touch_box(v.fine_bounds.obb(mesh.first_fine + f), lp, ll)) continue;
+            if (v.fine_bounds.obbs &&
+                !segment_may_touch_box(v.fine_bounds.obb(mesh.first_fine + f), lp, ll, blocking_from))
+                continue;
             blocked = cluster_blocks(v, mesh, f, lp, ll, one_sided, stats, &touched);
         }
     }

@@ -274,15 +274,15 @@ protected:
     // The instance's frame for a light in world space, and the build's common settings; false when the
     // instance can block nothing: a singular transform flattens the mesh, and a light that is not finite
     // lights nothing.
-    bool set_instance(const AssetView& view, uint32_t instance, const double* world_light, bool one_sided) {
+    bool set_instance(const AssetView& view, Placement at, const double* world_light, bool one_sided) {
         view_ = &view;
         one_sided_ = one_sided;
         skipped_ = 0;
         for (int k = 0; k < 3; ++k) world_light_[k] = world_light[k];
-        usable_ = invert_instance(view.instances[instance].transform, inverse_) && finite3(world_light);
+        usable_ = invert_instance(at.transform, inverse_) && finite3(world_light);
         if (!usable_) return false;
         apply_instance(inverse_, world_light, light_);
-        mesh_ = &view.meshes[view.instances[instance].mesh];
+        mesh_ = &view.meshes[at.mesh];
         return true;
     }
 
@@ -389,7 +389,8 @@ protected:
         return cache.box[slot];
     }
 
-    // The points of `subset` whose segment to the light may touch the box of `b` (usable, and the tile small):
+    // The points of `subset` whose segment to the light may touch the box of `b` (usable, and the tile small)
+    // where a contact could block (from the light to blocking_from of the way from the point, cb_segment.h):
     // separating axis tests in float over the subset's lanes, on the box's 3 axes and on the segment's
     // direction crossed with each.
     static uint64_t box_points(const BoxFilter& b, uint64_t subset, const Tile& t) {
@@ -399,10 +400,12 @@ protected:
         simd::lane_span(subset, begin, end);
         uint64_t keep = 0;
         // Per lane, the smallest margin of the 9 checks (>= 0: no separating axis): on box axis k, the segment's
-        // shadow [min(0, g), max(0, g)] must meet [lo, hi]; on e x axis k, where the segment projects to 0, the
-        // box's centre projects to e . (axis k x c) = e . w[k], and its support is hf[j] |g[m]| + hf[m] |g[j]|.
+        // shadow [min(0, s g), max(0, s g)] (s = reach, the blocking part) must meet [lo, hi]; on e x axis k,
+        // where the segment projects to 0, the box's centre projects to e . (axis k x c) = e . w[k], and its
+        // support is hf[j] |g[m]| + hf[m] |g[j]|. The slack (1e-6 of the distance) holds s's rounding.
         using simd::Floats;
-        const Floats zero = simd::splat(0.0f), micro = simd::splat(1e-6f), vtol = simd::splat(tol);
+        const Floats zero = simd::splat(0.0f), micro = simd::splat(1e-6f), vtol = simd::splat(tol),
+                     reach = simd::splat(float(1 - blocking_from));
         for (uint32_t i = begin; i < end; i += simd::width) {
             if (!simd::group(subset, i)) continue;  // no point in these lanes (the subset is often sparse)
             const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i),
@@ -413,8 +416,9 @@ protected:
                                  simd::dot(ex, ey, ez, ax[2][0], ax[2][1], ax[2][2])};
             Floats m = simd::splat(INFINITY);
             for (int k = 0; k < 3; ++k) {
-                m = simd::min(m, (simd::splat(hi[k]) + slack) - simd::min(g[k], zero));
-                m = simd::min(m, (simd::max(g[k], zero) + slack) - simd::splat(lo[k]));
+                const Floats gk = g[k] * reach;
+                m = simd::min(m, (simd::splat(hi[k]) + slack) - simd::min(gk, zero));
+                m = simd::min(m, (simd::max(gk, zero) + slack) - simd::splat(lo[k]));
             }
             const Floats a[3] = {simd::abs(g[0]), simd::abs(g[1]), simd::abs(g[2])};
             const Floats td = vtol * d;
@@ -443,7 +447,7 @@ protected:
         const Obb box = fine_obb(f, t.fine_obbs);
         for (uint64_t w = subset; w; w &= w - 1) {
             uint32_t i = math::lowest_bit(w);
-            if (!segment_may_touch_box(box, t.p[i], light_)) subset &= ~(uint64_t(1) << i);
+            if (!segment_may_touch_box(box, t.p[i], light_, blocking_from)) subset &= ~(uint64_t(1) << i);
         }
         return subset;
     }
@@ -517,7 +521,8 @@ protected:
     // A cluster's triangles, unless the segment certainly misses its box (a volume only says the point
     // is in the box's shadow cone, which a 4-plane outline makes wider than the box).
     bool test_cluster(uint32_t f, const Query& q) const {
-        if (view_->fine_bounds.obbs && !segment_may_touch_box(fine_obb(f, q.fine_obbs), q.p, light_)) return false;
+        if (view_->fine_bounds.obbs && !segment_may_touch_box(fine_obb(f, q.fine_obbs), q.p, light_, blocking_from))
+            return false;
         return cluster_blocks(*view_, *mesh_, f, q.p, light_, one_sided_, q.stats);
     }
 

@@ -105,6 +105,10 @@ public:
     // One instance of the asset's meshes, for one light given in world space: two levels unless
     // options.traversal is Traversal::one_tree or the asset has no coarse boxes.
     void build(const AssetView& view, uint32_t instance, const double* world_light, const ShadowBuildOptions& options) {
+        build(view, placement_of(view, instance), world_light, options);
+    }
+    // The same for a mesh of the asset placed by the caller (a runtime scene's instance).
+    void build(const AssetView& view, Placement at, const double* world_light, const ShadowBuildOptions& options) {
         BuildScratch own;
         BuildScratch& work = options.scratch ? *options.scratch : own;
         planes_.clear();
@@ -114,7 +118,7 @@ public:
         root_ = none;
         depth_ = 0;
         top_always_ = {};
-        if (!set_instance(view, instance, world_light, options.one_sided)) return;
+        if (!set_instance(view, at, world_light, options.one_sided)) return;
         const bool two = options.traversal != Traversal::one_tree && view.coarse_bounds.obbs;
         Nodes& all = work.built;
         all.planes.clear();

@@ -6,6 +6,7 @@
 #include <cb_cpsv.h>
 #include <cb_cull.h>
 #include <cb_exact.h>
+#include <cb_level.h>
 #include <cb_shadow.h>
 
 #include <cstdio>
@@ -31,6 +32,15 @@ int main(int argc, char** argv) {
     const double light[3] = {-4, 30, 2}, under[3] = {-4, 0.05, 2}, above[3] = {-4, 5, 2};
     bool a = cb::occluded_reference(view, under, light), b = cb::occluded_reference(view, above, light);
     std::printf("under the blob: %s, above it: %s\n", a ? "shadow" : "lit", b ? "shadow" : "lit");
+    // The same two points through a level holding the asset's instances as baked.
+    cb::Level level;
+    level.add_baked(level.add_asset(view));
+    level.commit();
+    const double points[6] = {under[0], under[1], under[2], above[0], above[1], above[2]};
+    uint8_t through[2] = {2, 2};
+    cb::LevelShadow shadow;
+    shadow.occluded_batch(level, light, points, 2, through);
+    std::printf("through a level: %s, %s\n", through[0] ? "shadow" : "lit", through[1] ? "shadow" : "lit");
     std::free(bytes);
-    return a && !b ? 0 : 1;
+    return a && !b && through[0] == 1 && through[1] == 0 ? 0 : 1;
 }

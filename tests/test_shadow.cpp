@@ -1188,28 +1188,31 @@ TEST(Shadow, SegmentBoxFilterNeverMissesATouch) {
                            double(a[0]) * b[1] - double(a[1]) * b[0]};
             for (int k = 0; k < 3; ++k) p[k] = box.center[k] + a[k] * (coeff[face] / a2), q[k] = p[k] + len * w[k];
         }
-        // Exact clipping.
-        FT t0 = 0, t1 = 1;
-        bool meets = true;
-        for (int i = 0; i < 3 && meets; ++i) {
-            FT dp = 0, dq = 0;
-            for (int k = 0; k < 3; ++k) {
-                dp += (FT(p[k]) - FT(box.center[k])) * FT(box.axis[i][k]);
-                dq += (FT(q[k]) - FT(box.center[k])) * FT(box.axis[i][k]);
+        // Exact clipping of the whole segment, and of its part from self_shadow_fraction on (where a contact
+        // can block: the filter clipped at blocking_from must keep those).
+        for (double from : {0.0, cb::self_shadow_fraction}) {
+            FT t0 = from, t1 = 1;
+            bool meets = true;
+            for (int i = 0; i < 3 && meets; ++i) {
+                FT dp = 0, dq = 0;
+                for (int k = 0; k < 3; ++k) {
+                    dp += (FT(p[k]) - FT(box.center[k])) * FT(box.axis[i][k]);
+                    dq += (FT(q[k]) - FT(box.center[k])) * FT(box.axis[i][k]);
+                }
+                FT h = box.half[i], d = dq - dp;
+                if (d == 0) {
+                    meets = CGAL::abs(dp) <= h;
+                    continue;
+                }
+                FT ta = (-h - dp) / d, tb = (h - dp) / d;
+                if (ta > tb) std::swap(ta, tb);
+                t0 = CGAL::max(t0, ta), t1 = CGAL::min(t1, tb);
+                meets = t0 <= t1;
             }
-            FT h = box.half[i], d = dq - dp;
-            if (d == 0) {
-                meets = CGAL::abs(dp) <= h;
-                continue;
-            }
-            FT ta = (-h - dp) / d, tb = (h - dp) / d;
-            if (ta > tb) std::swap(ta, tb);
-            t0 = CGAL::max(t0, ta), t1 = CGAL::min(t1, tb);
-            meets = t0 <= t1;
+            ++tests;
+            touching += meets;
+            if (meets && !cb::segment_may_touch_box(box, p, q, from == 0 ? 0.0 : cb::blocking_from)) ++missed;
         }
-        ++tests;
-        touching += meets;
-        if (meets && !cb::segment_may_touch_box(box, p, q)) ++missed;
     }
     std::printf("%zu segments, %zu meet their box exactly; filter said 'misses' for %zu of those\n", tests, touching,
                 missed);

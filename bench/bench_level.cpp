@@ -1,0 +1,370 @@
+// Whole-level shadow benchmark: the runtime's level (cb_level.h: instances culled per tile through a
+// world-space hierarchy) against Embree 3's rtcOccluded1 on the same points, one thread, with Embree given
+// both one flattened BVH of every instance's triangles and its own two-level instancing (the faster counts).
+// Scenes: every scene of ../shared/data, data/default_scene.glb, and generated cities (a ground plane and
+// instances of 20 buildings, random yaw, every seventh mirrored) of 10 to 100,000 buildings. Points: the
+// first hits of a W x W view looking down at the scene's centre from a diagonal; lights: beside and above
+// the scene (outside), overhead, grazing the ground, and inside the bounds. Ours per light counts everything
+// a frame costs: ordering the points, culling the tiles, setting the instances met up for the light, and
+// the queries. Medians of --runs rounds, each running ours then Embree's. Also the cost of moving 1,000
+// instances and committing (a refit). Asserts nothing.
+//
+//   bench_level [--data DIR] [--view 512] [--runs 3] [--cities 10,100,1000,10000,100000] [--only NAME]
+//               [--traversal scan|trees|one-tree|mtsv|mtsv-two] [--one-sided 1]
+#include <embree3/rtcore.h>
+
+#include <cb_level.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "asset_file.h"
+#include "bake.h"
+#include "city.h"
+#include "load.h"
+#include "scene_query.h"
+#include "timing.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::atomic<long long> embree_bytes{0}, embree_peak{0};
+bool monitor(void*, ssize_t bytes, bool) {
+    long long now = embree_bytes += bytes;
+    long long peak = embree_peak.load();
+    while (now > peak && !embree_peak.compare_exchange_weak(peak, now)) {}
+    return true;
+}
+
+struct Settings {
+    int view = 512, runs = 3;
+    std::vector<uint32_t> cities = {10, 100, 1000, 10000, 100000};
+    std::string only;
+    cb::ShadowBuildOptions options;
+};
+
+std::vector<double> ratios;
+
+// Embree scenes over the same triangles: one flattened BVH (when the level has at most `flat_limit`
+// triangles in it), and two levels (a BVH per mesh, instanced).
+struct EmbreeScenes {
+    RTCDevice device = nullptr;
+    RTCScene flat = nullptr, instanced = nullptr;
+    std::vector<RTCScene> meshes;
+    size_t flat_bytes = 0, instanced_bytes = 0;
+    ~EmbreeScenes() {
+        for (RTCScene s : meshes) rtcReleaseScene(s);
+        if (flat) rtcReleaseScene(flat);
+        if (instanced) rtcReleaseScene(instanced);
+        if (device) rtcReleaseDevice(device);
+    }
+};
+
+RTCScene triangles(RTCDevice device, const std::vector<float>& v, const std::vector<unsigned>& t) {
+    RTCScene scene = rtcNewScene(device);
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    std::memcpy(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, std::max<size_t>(1, v.size() / 3)),
+        v.data(), v.size() * 4);
+    std::memcpy(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, std::max<size_t>(1, t.size() / 3)),
+        t.data(), t.size() * 4);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(scene);
+    return scene;
+}
+
+void build_embree(const cb::Scene& s, EmbreeScenes& e, size_t flat_limit) {
+    e.device = rtcNewDevice("threads=1");
+    rtcSetDeviceMemoryMonitorFunction(e.device, monitor, nullptr);
+    size_t in_scene = 0;
+    for (const cb::Instance& inst : s.instances) in_scene += s.meshes[inst.mesh].triangle_count();
+    if (in_scene <= flat_limit) {
+        embree_bytes = 0;
+        std::vector<float> v;
+        std::vector<unsigned> t;
+        for (const cb::Instance& inst : s.instances) {
+            const cb::Mesh& m = s.meshes[inst.mesh];
+            const unsigned base = unsigned(v.size() / 3);
+            for (size_t k = 0; k < m.vertex_count(); ++k) {
+                auto w =
+                    cb::transform_point(inst.world, m.positions[k * 3], m.positions[k * 3 + 1], m.positions[k * 3 + 2]);
+                v.insert(v.end(), {float(w[0]), float(w[1]), float(w[2])});
+            }
+            for (uint32_t i : m.indices) t.push_back(base + i);
+        }
+        e.flat = triangles(e.device, v, t);
+        e.flat_bytes = size_t(std::max(0LL, embree_bytes.load()));
+    }
+    embree_bytes = 0;
+    for (const cb::Mesh& m : s.meshes) {
+        std::vector<unsigned> t(m.indices.begin(), m.indices.end());
+        e.meshes.push_back(triangles(e.device, m.positions, t));
+    }
+    e.instanced = rtcNewScene(e.device);
+    for (const cb::Instance& inst : s.instances) {
+        RTCGeometry g = rtcNewGeometry(e.device, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(g, e.meshes[inst.mesh]);
+        float m[12];
+        for (int col = 0; col < 4; ++col)
+            for (int row = 0; row < 3; ++row) m[col * 3 + row] = float(inst.world[size_t(col) * 4 + row]);
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, m);
+        rtcCommitGeometry(g);
+        rtcAttachGeometry(e.instanced, g);
+        rtcReleaseGeometry(g);
+    }
+    rtcCommitScene(e.instanced);
+    e.instanced_bytes = size_t(std::max(0LL, embree_bytes.load()));
+}
+
+// rtcOccluded1 for every point, segment from self_shadow_fraction of the way to the light.
+double embree_pass(RTCScene scene, const std::vector<double>& pts, const double* light, std::vector<uint8_t>& out) {
+    RTCIntersectContext c;
+    rtcInitIntersectContext(&c);
+    const size_t n = pts.size() / 3;
+    auto t0 = std::chrono::steady_clock::now();
+    for (size_t i = 0; i < n; ++i) {
+        RTCRay r{};
+        r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
+        r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]),
+        r.dir_z = float(light[2] - pts[i * 3 + 2]);
+        r.tnear = float(cb::self_shadow_fraction), r.tfar = 1.0f, r.mask = 0xffffffff;
+        rtcOccluded1(scene, &c, &r);
+        out[i] = r.tfar < 0;
+    }
+    return cb::seconds_since(t0);
+}
+
+void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
+    cb::BakeStats bs;
+    std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, {}, bs);
+    cb::BoundsOptions bo;
+    bo.mask = cb::bounds_auto;
+    cb::fit_scene_bounds(meshes, bo, 1, bs);
+    cb::LoadedAsset loaded;
+    if (cb::open_asset_copy(cb::encode_asset(meshes, scene.instances), loaded) != cb::AssetError::ok) return;
+    const cb::AssetView& asset = loaded.view;
+
+    auto l0 = std::chrono::steady_clock::now();
+    cb::Level level;
+    level.add_baked(level.add_asset(asset, s.options.traversal == cb::Traversal::scan));
+    level.commit();
+    const double level_seconds = cb::seconds_since(l0);
+
+    EmbreeScenes e;
+    build_embree(scene, e, 20'000'000);
+
+    // The bounds of the world triangles, and the camera's first hits.
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (const cb::Instance& inst : scene.instances) {
+        const cb::Mesh& m = scene.meshes[inst.mesh];
+        for (size_t k = 0; k < m.vertex_count(); ++k) {
+            auto w =
+                cb::transform_point(inst.world, m.positions[k * 3], m.positions[k * 3 + 1], m.positions[k * 3 + 2]);
+            for (int j = 0; j < 3; ++j) lo[j] = std::min(lo[j], w[j]), hi[j] = std::max(hi[j], w[j]);
+        }
+    }
+    const double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+    const double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
+    // Up is the axis the scene is thinnest along (z for the cities, y for most glTF scenes).
+    int up_axis = 0;
+    for (int k = 1; k < 3; ++k)
+        if (hi[k] - lo[k] < hi[up_axis] - lo[up_axis]) up_axis = k;
+    const int a1 = (up_axis + 1) % 3, a2 = (up_axis + 2) % 3;
+    double eye[3], fw[3], right[3], up[3] = {0, 0, 0}, len = 0;
+    eye[a1] = centre[a1] + 0.9 * size, eye[a2] = centre[a2] + 0.6 * size, eye[up_axis] = centre[up_axis] + 0.8 * size;
+    up[up_axis] = 1;
+    for (int k = 0; k < 3; ++k) fw[k] = centre[k] - eye[k], len += fw[k] * fw[k];
+    for (double& x : fw) x /= std::sqrt(len);
+    cb::math::cross3(fw, up, right);
+    len = std::sqrt(cb::math::dot3(right, right));
+    for (double& x : right) x /= len;
+    cb::math::cross3(right, fw, up);
+    RTCScene any = e.flat ? e.flat : e.instanced;
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    std::vector<double> pts;
+    for (int y = 0; y < s.view; ++y)
+        for (int x = 0; x < s.view; ++x) {
+            const double sx = (x + 0.5) / s.view * 2 - 1, sy = (y + 0.5) / s.view * 2 - 1;
+            RTCRayHit rh{};
+            rh.ray.org_x = float(eye[0]), rh.ray.org_y = float(eye[1]), rh.ray.org_z = float(eye[2]);
+            rh.ray.dir_x = float(fw[0] + 0.6 * (sx * right[0] + sy * up[0]));
+            rh.ray.dir_y = float(fw[1] + 0.6 * (sx * right[1] + sy * up[1]));
+            rh.ray.dir_z = float(fw[2] + 0.6 * (sx * right[2] + sy * up[2]));
+            rh.ray.tnear = 0, rh.ray.tfar = INFINITY, rh.ray.mask = 0xffffffff;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(any, &ctx, &rh);
+            if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+            pts.insert(
+                pts.end(),
+                {rh.ray.org_x + double(rh.ray.tfar) * rh.ray.dir_x, rh.ray.org_y + double(rh.ray.tfar) * rh.ray.dir_y,
+                 rh.ray.org_z + double(rh.ray.tfar) * rh.ray.dir_z});
+        }
+    const size_t n = pts.size() / 3;
+    if (n == 0) return;
+
+    double lights[4][3];
+    for (int k = 0; k < 3; ++k) {
+        lights[0][k] = centre[k], lights[1][k] = centre[k], lights[2][k] = centre[k], lights[3][k] = centre[k];
+    }
+    lights[0][a1] -= 0.7 * size, lights[0][a2] += 0.4 * size, lights[0][up_axis] = hi[up_axis] + 0.8 * size;  // outside
+    lights[1][a1] += 0.05 * size, lights[1][up_axis] = hi[up_axis] + 0.5 * size;  // overhead
+    lights[2][a1] -= 1.5 * size,
+        lights[2][up_axis] = lo[up_axis] + 0.02 * (hi[up_axis] - lo[up_axis]) + 1e-3 * size;  // grazing
+    lights[3][a1] += 0.1 * size, lights[3][a2] -= 0.07 * size,
+        lights[3][up_axis] = lo[up_axis] + 0.3 * (hi[up_axis] - lo[up_axis]);  // inside
+    const char* light_names[4] = {"outside", "overhead", "grazing", "inside"};
+
+    uint32_t in_scene = 0;
+    for (const cb::Instance& inst : scene.instances) in_scene += uint32_t(scene.meshes[inst.mesh].triangle_count());
+    cb::LevelShadow shadow;
+    std::vector<uint8_t> ours(n), flat(n), inst(n);
+    for (int li = 0; li < 4; ++li) {
+        const double* light = lights[li];
+        std::vector<double> our_t, flat_t, inst_t;
+        size_t met = 0, built = 0, bytes = 0;
+        cb::QueryStats stats;
+        for (int r = 0; r < std::max(1, s.runs); ++r) {
+            auto t0 = std::chrono::steady_clock::now();
+            shadow.begin(level, light, pts.data(), n, s.options);
+            shadow.cull(0, shadow.tile_count());
+            shadow.build(0, shadow.gather());
+            std::vector<uint32_t> scratch(shadow.scratch_size());
+            stats = {};
+            shadow.occluded(0, shadow.tile_count(), ours.data(), scratch.data(), &stats);
+            our_t.push_back(cb::seconds_since(t0));
+            met = shadow.instances_met(), built = shadow.build_count(), bytes = shadow.memory_bytes();
+            if (e.flat) flat_t.push_back(embree_pass(e.flat, pts, light, flat));
+            inst_t.push_back(embree_pass(e.instanced, pts, light, inst));
+        }
+        const double o = cb::median(our_t), f = e.flat ? cb::median(flat_t) : INFINITY, i = cb::median(inst_t);
+        const double best = std::min(f, i);
+        size_t differ = 0, dark = 0;
+        const std::vector<uint8_t>& ref = e.flat ? flat : inst;
+        for (size_t k = 0; k < n; ++k) differ += ours[k] != ref[k], dark += ours[k];
+        ratios.push_back(o / best);
+        char flat_text[32] = "-";
+        if (e.flat) std::snprintf(flat_text, sizeof flat_text, "%.2f", f * 1e3);
+        std::printf(
+            "| %s | %zu / %zu / %u | %s | %zu | %.1f%% | %.2f | %s | %.2f | **%.2f** | %.2f | %zu | %.1f | %.1f / %.1f "
+            "| %zu |\n",
+            name.c_str(), scene.meshes.size(), scene.instances.size(), in_scene, light_names[li], n, 100.0 * dark / n,
+            o * 1e3, flat_text, i * 1e3, o / best, double(n) / o / 1e6, built,
+            double(met) / double(shadow.tile_count()), double(level.memory_bytes() + bytes) / (1 << 20),
+            double(e.flat ? e.flat_bytes : e.instanced_bytes) / (1 << 20), differ);
+        std::fflush(stdout);
+    }
+    // Moving 1,000 instances (or all, when fewer) and committing: a refit.
+    std::mt19937_64 rng(5);
+    std::vector<double> move_t;
+    const uint32_t movers = std::min<uint32_t>(1000, level.instance_count());
+    for (int r = 0; r < 5; ++r) {
+        auto t0 = std::chrono::steady_clock::now();
+        for (uint32_t k = 0; k < movers; ++k) {
+            const uint32_t h = uint32_t(rng() % level.handle_limit());
+            double m[12];
+            std::copy(level.transform_of(h), level.transform_of(h) + 12, m);
+            m[9] += 0.01, m[10] -= 0.01;
+            level.move(h, m);
+        }
+        level.commit();
+        move_t.push_back(cb::seconds_since(t0));
+    }
+    std::printf("| %s | level made in %.2f ms; moving %u instances and committing: %.3f ms (median of 5) |\n",
+                name.c_str(), level_seconds * 1e3, movers, cb::median(move_t) * 1e3);
+    std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    Settings s;
+    fs::path data = CB_SHARED_DATA;
+    for (int i = 1; i + 1 < argc; i += 2) {
+        const std::string a = argv[i], v = argv[i + 1];
+        if (a == "--data")
+            data = v;
+        else if (a == "--view")
+            s.view = std::stoi(v);
+        else if (a == "--runs")
+            s.runs = std::stoi(v);
+        else if (a == "--only")
+            s.only = v;
+        else if (a == "--one-sided")
+            s.options.one_sided = v == "1";
+        else if (a == "--traversal") {
+            if (!cb::parse_traversal(v, s.options.traversal))
+                return std::fprintf(stderr, "unknown traversal %s\n", v.c_str()), 2;
+        } else if (a == "--cities") {
+            s.cities.clear();
+            for (size_t at = 0; at < v.size();) {
+                size_t comma = v.find(',', at);
+                s.cities.push_back(uint32_t(std::stoul(v.substr(at, comma - at))));
+                at = comma == std::string::npos ? v.size() : comma + 1;
+            }
+        } else {
+            std::fprintf(stderr, "unknown option %s\n", a.c_str());
+            return 2;
+        }
+    }
+    std::printf(
+        "One thread, %s traversal%s, view %d x %d, medians of %d rounds. Ours: order + cull + set-up + "
+        "queries per light; Embree: rtcOccluded1 (flat: one BVH of every instance's triangles; inst: "
+        "two-level instancing), BVH builds not counted. ratio = ours / the faster Embree.\n\n",
+        cb::traversal_name(s.options.traversal), s.options.one_sided ? ", one-sided" : "", s.view, s.view, s.runs);
+    std::printf(
+        "| scene | meshes / instances / triangles in scene | light | points | shadowed | ours ms | Embree flat ms | "
+        "Embree inst ms | ratio | our M points/s | instances set up | instances met per tile | memory MB ours / Embree "
+        "| answers differing |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    auto wanted = [&](const std::string& name) { return s.only.empty() || name.find(s.only) != std::string::npos; };
+    for (uint32_t c : s.cities) {
+        const std::string name = "city " + std::to_string(c);
+        if (wanted(name)) run(name, cb::generate::city(c, 1), s);
+    }
+    std::vector<fs::path> files;
+    const fs::path here = fs::path(CB_SOURCE_DIR) / "data" / "default_scene.glb";
+    if (fs::exists(here)) files.push_back(here);
+    if (fs::exists(data)) {
+        for (const auto& entry : fs::recursive_directory_iterator(data)) {
+            const std::string ext = entry.path().extension().string();
+            if (ext == ".gltf" || ext == ".glb" || ext == ".obj" || ext == ".ply" || ext == ".off" || ext == ".stl" ||
+                ext == ".STL")
+                files.push_back(entry.path());
+        }
+    } else {
+        std::printf("(no %s: the shared scenes are skipped)\n", data.string().c_str());
+    }
+    std::sort(files.begin() + (files.empty() ? 0 : 1), files.end());
+    for (const fs::path& f : files) {
+        const std::string name = f.filename().string();
+        if (!wanted(name)) continue;
+        cb::Scene scene;
+        try {
+            scene = cb::load_scene(f.string());
+        } catch (const std::exception& ex) {
+            continue;  // the shared data holds broken files on purpose
+        }
+        if (scene.instances.empty()) continue;
+        run(name, scene, s);
+    }
+    if (!ratios.empty()) {
+        std::vector<double> sorted = ratios;
+        std::sort(sorted.begin(), sorted.end());
+        std::printf("\nratio ours / Embree over %zu scene-lights: median %.2f, worst %.2f, best %.2f\n", sorted.size(),
+                    cb::median(ratios), sorted.back(), sorted.front());
+    }
+    return 0;
+}

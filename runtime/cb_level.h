@@ -1,0 +1,679 @@
+// A whole level at run time: instances of meshes from one or several opened assets, each placed by a world
+// transform the caller gives and may change between frames, over a light-independent hierarchy of their
+// world boxes. Shadow queries for a light (LevelShadow) cull the instances against each tile's pyramid from
+// the light before any per-instance work, so that a tile's cost follows the instances its pyramid meets, not
+// how many the level holds; only the instances some tile meets are set up for the light. Camera culling
+// (cull_clusters over a Level) walks the same hierarchy.
+//
+// Work is split into ranges for the caller's job system; the runtime starts no thread. Building and
+// committing allocate (std::vector); answering does not, is const, and may run from many threads at once.
+// Header-only C++17, no exceptions. MIT licensed (runtime/LICENSE).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <new>
+#include <vector>
+
+#include "cb_asset.h"
+#include "cb_batch.h"
+#include "cb_cpsv.h"
+#include "cb_cull.h"
+#include "cb_math.h"
+#include "cb_scan_bounds.h"
+#include "cb_segment.h"
+#include "cb_tile.h"
+
+namespace cb {
+inline namespace CB_LANES {
+
+namespace level_detail {
+
+// An axis-aligned box in world space, in double; empty when lo > hi (it meets nothing).
+struct Box {
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    bool empty() const { return !(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2]); }
+    void add(const Box& b) {
+        for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], b.lo[k]), hi[k] = std::max(hi[k], b.hi[k]);
+    }
+};
+
+// The world box of the mesh-frame box `local` under `m` (column-major 3x4): centre moved, half extents
+// through |M|, then widened by 1e-9 of its size and distance from the origin, far above the rounding of
+// these sums and of the inverse transform that the queries apply (so a contact the exact mesh-frame test
+// finds lies inside it). Empty when the transform is singular or not finite (such an instance blocks
+// nothing) or the mesh has no vertex.
+inline Box transform_box(const Box& local, const double* m) {
+    Box out;
+    double inverse[12];
+    if (local.empty() || !invert_instance(m, inverse)) return out;
+    double c[3], h[3];
+    for (int k = 0; k < 3; ++k) c[k] = 0.5 * (local.lo[k] + local.hi[k]), h[k] = 0.5 * (local.hi[k] - local.lo[k]);
+    double wc[3], wh[3], size = 0;
+    apply_instance(m, c, wc);
+    for (int k = 0; k < 3; ++k) {
+        wh[k] = std::fabs(m[k]) * h[0] + std::fabs(m[3 + k]) * h[1] + std::fabs(m[6 + k]) * h[2];
+        size += std::fabs(wc[k]) + wh[k] + std::fabs(m[9 + k]);
+    }
+    const double pad = 1e-9 * size;
+    if (!(pad < INFINITY)) return out;  // beyond double's range: nothing there can be tested exactly anyway
+    for (int k = 0; k < 3; ++k) out.lo[k] = wc[k] - wh[k] - pad, out.hi[k] = wc[k] + wh[k] + pad;
+    return out;
+}
+
+// Composes affine transforms (column-major 3x4): out = a x b.
+inline void compose(const double* a, const double* b, double* out) {
+    for (int col = 0; col < 4; ++col)
+        for (int k = 0; k < 3; ++k)
+            out[col * 3 + k] =
+                a[k] * b[col * 3] + a[3 + k] * b[col * 3 + 1] + a[6 + k] * b[col * 3 + 2] + (col == 3 ? a[9 + k] : 0.0);
+}
+
+// False only when the segment from p to q certainly misses the box (slabs, in double, widened by 1e-9 of
+// the sizes involved).
+inline bool segment_meets_box(const double* p, const double* q, const Box& b) {
+    if (b.empty()) return false;
+    double t0 = 0, t1 = 1;
+    for (int k = 0; k < 3; ++k) {
+        const double margin = 1e-9 * (std::fabs(p[k]) + std::fabs(q[k]) + std::fabs(b.lo[k]) + std::fabs(b.hi[k]));
+        const double lo = b.lo[k] - margin, hi = b.hi[k] + margin, d = q[k] - p[k];
+        if (!(std::fabs(d) > margin)) {  // along the slab (or not finite: kept)
+            if (p[k] < lo || p[k] > hi) return false;
+            continue;
+        }
+        double ta = (lo - p[k]) / d, tb = (hi - p[k]) / d;
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+        if (t0 > t1) return false;
+    }
+    return true;
+}
+
+// A pyramid from the light in world space that holds the segments of some points: four side planes
+// through the light (inside: n . (x - light) >= 0) and a far plane across its axis at the farthest point.
+struct WorldPyramid {
+    double light[3], n[4][3], axis[3], dmax;
+};
+
+// False only when box b certainly lies outside the pyramid; `near` gets the distance along the axis from
+// the light to the box's nearest side (an order for the instances met, never an answer).
+inline bool pyramid_meets_box(const WorldPyramid& w, const Box& b, double& near) {
+    if (b.empty()) return false;
+    double c[3], h[3], scale = w.dmax;
+    for (int k = 0; k < 3; ++k) {
+        c[k] = 0.5 * (b.lo[k] + b.hi[k]) - w.light[k], h[k] = 0.5 * (b.hi[k] - b.lo[k]);
+        scale += std::fabs(c[k]) + h[k];
+    }
+    const double eps = 1e-9 * scale;
+    for (int s = 0; s < 4; ++s) {
+        const double* n = w.n[s];
+        const double reach = std::fabs(n[0]) * h[0] + std::fabs(n[1]) * h[1] + std::fabs(n[2]) * h[2];
+        if (math::dot3(n, c) + reach < -eps) return false;  // NaN: kept
+    }
+    const double* z = w.axis;
+    near = math::dot3(z, c) - (std::fabs(z[0]) * h[0] + std::fabs(z[1]) * h[1] + std::fabs(z[2]) * h[2]);
+    return !(near > w.dmax + eps);
+}
+
+}  // namespace level_detail
+
+class Level {
+public:
+    static constexpr uint32_t none = 0xffffffffu;
+
+    // Adds an opened asset; the view (and the bytes under it) must stay alive and unchanged while the level
+    // is used. Makes what queries read of it that does not depend on the light: its meshes' boxes and, unless
+    // `scan_bounds` is false (no query will use Traversal::scan), the scan's bounds (ScanBounds). Returns the
+    // asset's index.
+    uint32_t add_asset(const AssetView& view, bool scan_bounds = true) {
+        Asset a;
+        a.view = view;
+        if (scan_bounds) a.bounds = make_scan_bounds(view);
+        a.mesh_boxes.resize(view.mesh_count);
+        for (uint32_t m = 0; m < view.mesh_count; ++m) {
+            const MeshRecord& mesh = view.meshes[m];
+            level_detail::Box& b = a.mesh_boxes[m];
+            for (uint32_t v = 0; v < mesh.vertex_count; ++v) {
+                const float* p = view.position(mesh, v);
+                for (int k = 0; k < 3; ++k)
+                    b.lo[k] = std::min(b.lo[k], double(p[k])), b.hi[k] = std::max(b.hi[k], double(p[k]));
+            }
+        }
+        assets_.push_back(std::move(a));
+        return uint32_t(assets_.size() - 1);
+    }
+
+    // An instance of mesh `mesh` of asset `asset`, placed by `transform` (affine, column-major 3x4 doubles:
+    // the x, y, z axes, then the translation; mirrored and sheared transforms are fine). Returns its handle,
+    // or none when the asset or mesh does not exist. The hierarchy includes it at the next commit().
+    uint32_t add_instance(uint32_t asset, uint32_t mesh, const double* transform) {
+        if (asset >= assets_.size() || mesh >= assets_[asset].view.mesh_count) return none;
+        uint32_t h;
+        if (!free_.empty()) {
+            h = free_.back();
+            free_.pop_back();
+        } else {
+            h = uint32_t(instances_.size());
+            instances_.emplace_back();
+            leaf_.push_back(none);
+        }
+        Instance& i = instances_[h];
+        i.asset = asset, i.mesh = mesh, i.alive = true;
+        place(h, transform);
+        ++live_;
+        rebuild_ = true;
+        return h;
+    }
+
+    // Every instance of asset `asset` as baked, each under `matrix` (world = matrix x baked transform; null:
+    // as baked). handles[i] (when given) gets the handle of the asset's instance i. Returns how many were added.
+    uint32_t add_baked(uint32_t asset, const double* matrix = nullptr, uint32_t* handles = nullptr) {
+        if (asset >= assets_.size()) return 0;
+        const AssetView& v = assets_[asset].view;
+        for (uint32_t i = 0; i < v.instance_count; ++i) {
+            double world[12];
+            if (matrix)
+                level_detail::compose(matrix, v.instances[i].transform, world);
+            else
+                std::copy(v.instances[i].transform, v.instances[i].transform + 12, world);
+            const uint32_t h = add_instance(asset, v.instances[i].mesh, world);
+            if (handles) handles[i] = h;
+        }
+        return v.instance_count;
+    }
+
+    // Places instance `handle` anew; the hierarchy is refitted along its path at the next commit(). False on
+    // a handle that is not a live instance.
+    bool move(uint32_t handle, const double* transform) {
+        if (!alive(handle)) return false;
+        place(handle, transform);
+        moved_.push_back(handle);
+        return true;
+    }
+
+    // Removes instance `handle` (its handle may be given to a later instance). False on a handle that is not a
+    // live instance.
+    bool remove(uint32_t handle) {
+        if (!alive(handle)) return false;
+        instances_[handle].alive = false;
+        instances_[handle].box = level_detail::Box{};
+        free_.push_back(handle);
+        --live_;
+        if (leaf_[handle] != none) moved_.push_back(handle);  // an empty box: refitted out of its leaf
+        return true;
+    }
+
+    // Brings the hierarchy up to date: rebuilt when instances were added, else refitted along the paths of the
+    // instances moved or removed since the last commit (a move costs a refit of its leaf's ancestors, not a
+    // rebuild). Queries and culling read the hierarchy as of the last commit.
+    void commit() {
+        if (rebuild_) {
+            build();
+        } else if (!moved_.empty()) {
+            refit();
+        }
+        moved_.clear();
+        rebuild_ = false;
+    }
+
+    bool alive(uint32_t handle) const { return handle < instances_.size() && instances_[handle].alive; }
+    uint32_t asset_count() const { return uint32_t(assets_.size()); }
+    const AssetView& asset(uint32_t a) const { return assets_[a].view; }
+    uint32_t instance_count() const { return live_; }
+    uint32_t handle_limit() const { return uint32_t(instances_.size()); }  // every handle is below it
+    uint32_t asset_of(uint32_t handle) const { return instances_[handle].asset; }
+    uint32_t mesh_of(uint32_t handle) const { return instances_[handle].mesh; }
+    const double* transform_of(uint32_t handle) const { return instances_[handle].transform; }
+    size_t node_count() const { return nodes_.size(); }
+    // Bytes the level holds besides the assets' own (their scan bounds included).
+    size_t memory_bytes() const {
+        size_t bytes = instances_.capacity() * sizeof(Instance) + nodes_.capacity() * sizeof(Node) +
+            (leaf_.capacity() + parent_.capacity() + items_.capacity() + free_.capacity() + moved_.capacity()) *
+                sizeof(uint32_t);
+        for (const Asset& a : assets_) {
+            bytes += a.mesh_boxes.capacity() * sizeof(level_detail::Box);
+            for (const ScanBounds& b : a.bounds) bytes += b.memory_bytes() + sizeof(ScanBounds);
+        }
+        return bytes;
+    }
+
+    // f(handle, near) for each live instance whose world box may meet pyramid `w` (as of the last commit),
+    // near its box's distance along the pyramid's axis.
+    template <class F>
+    void visit_pyramid(const level_detail::WorldPyramid& w, F f) const {
+        visit([&](const level_detail::Box& b, double& near) { return level_detail::pyramid_meets_box(w, b, near); }, f);
+    }
+
+    // f(handle, 0) for each live instance whose world box may meet the segment p-q.
+    template <class F>
+    void visit_segment(const double* p, const double* q, F f) const {
+        visit(
+            [&](const level_detail::Box& b, double& near) {
+                near = 0;
+                return level_detail::segment_meets_box(p, q, b);
+            },
+            f);
+    }
+
+    // f(handle) for each live instance whose world box may meet the frustum.
+    template <class F>
+    void visit_frustum(const Frustum& frustum, F f) const {
+        visit(
+            [&](const level_detail::Box& b, double& near) {
+                near = 0;
+                if (b.empty()) return false;
+                for (int k = 0; k < frustum.count; ++k) {
+                    const double* n = frustum.plane[k];
+                    double far = n[3], scale = std::fabs(n[3]);
+                    for (int j = 0; j < 3; ++j) {
+                        far += n[j] * (n[j] >= 0 ? b.hi[j] : b.lo[j]);
+                        scale += std::fabs(n[j]) * (std::fabs(b.lo[j]) + std::fabs(b.hi[j]));
+                    }
+                    if (far < -1e-9 * scale) return false;
+                }
+                return true;
+            },
+            [&](uint32_t h, double) { f(h); });
+    }
+
+    // Where instance `handle` is, for a traversal's build.
+    Placement placement(uint32_t handle) const { return {instances_[handle].mesh, instances_[handle].transform}; }
+    const ScanBounds* scan_bounds(uint32_t asset) const {
+        return assets_[asset].bounds.empty() ? nullptr : assets_[asset].bounds.data();
+    }
+
+private:
+    struct Asset {
+        AssetView view;
+        std::vector<ScanBounds> bounds;             // per mesh
+        std::vector<level_detail::Box> mesh_boxes;  // per mesh, in its frame
+    };
+    struct Instance {
+        uint32_t asset = 0, mesh = 0;
+        bool alive = false;
+        double transform[12] = {};
+        level_detail::Box box;  // in world space
+    };
+    // A node of the hierarchy: an inner node's children are nodes first and first + 1; a leaf holds the
+    // instances items_[first, first + count).
+    struct Node {
+        level_detail::Box box;
+        uint32_t first = 0, count = 0;
+    };
+    static constexpr uint32_t leaf_size = 4;
+    static constexpr int max_depth = 64;  // median splits: log2 of the instance count, far below this
+
+    void place(uint32_t h, const double* transform) {
+        Instance& i = instances_[h];
+        std::copy(transform, transform + 12, i.transform);
+        i.box = level_detail::transform_box(assets_[i.asset].mesh_boxes[i.mesh], i.transform);
+    }
+
+    // Top-down, median splits on the longest axis of the boxes' centres (ties by handle: deterministic).
+    void build() {
+        nodes_.clear(), parent_.clear(), items_.clear();
+        std::fill(leaf_.begin(), leaf_.end(), none);
+        for (uint32_t h = 0; h < instances_.size(); ++h)
+            if (instances_[h].alive) items_.push_back(h);
+        if (items_.empty()) return;
+        auto centre = [&](uint32_t h, int k) {
+            const level_detail::Box& b = instances_[h].box;
+            return b.empty() ? 0.0 : 0.5 * (b.lo[k] + b.hi[k]);
+        };
+        nodes_.emplace_back();
+        parent_.push_back(none);
+        struct Range {
+            uint32_t node, begin, end;
+        };
+        std::vector<Range> todo{{0, 0, uint32_t(items_.size())}};
+        while (!todo.empty()) {
+            const Range r = todo.back();
+            todo.pop_back();
+            if (r.end - r.begin <= leaf_size) {
+                nodes_[r.node].first = r.begin, nodes_[r.node].count = r.end - r.begin;
+                for (uint32_t i = r.begin; i < r.end; ++i) leaf_[items_[i]] = r.node;
+                continue;
+            }
+            double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+            for (uint32_t i = r.begin; i < r.end; ++i)
+                for (int k = 0; k < 3; ++k)
+                    lo[k] = std::min(lo[k], centre(items_[i], k)), hi[k] = std::max(hi[k], centre(items_[i], k));
+            int axis = 0;
+            for (int k = 1; k < 3; ++k)
+                if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
+            const uint32_t mid = r.begin + (r.end - r.begin) / 2;
+            std::nth_element(items_.begin() + r.begin, items_.begin() + mid, items_.begin() + r.end,
+                             [&](uint32_t a, uint32_t b) {
+                                 const double ca = centre(a, axis), cb = centre(b, axis);
+                                 return ca < cb || (ca == cb && a < b);
+                             });
+            const uint32_t left = uint32_t(nodes_.size());
+            nodes_[r.node].first = left, nodes_[r.node].count = 0;
+            nodes_.emplace_back(), nodes_.emplace_back();
+            parent_.push_back(r.node), parent_.push_back(r.node);
+            todo.push_back({left + 1, mid, r.end});
+            todo.push_back({left, r.begin, mid});
+        }
+        // Children follow their parents: boxes from the last node back.
+        for (uint32_t n = uint32_t(nodes_.size()); n-- > 0;) fit(n);
+    }
+
+    void fit(uint32_t n) {
+        Node& node = nodes_[n];
+        node.box = level_detail::Box{};
+        if (node.count) {
+            for (uint32_t i = node.first; i < node.first + node.count; ++i) node.box.add(instances_[items_[i]].box);
+        } else {
+            node.box.add(nodes_[node.first].box), node.box.add(nodes_[node.first + 1].box);
+        }
+    }
+
+    // The moved instances' leaves and their ancestors, each once, children before parents (a child's index is
+    // above its parent's).
+    void refit() {
+        std::vector<uint32_t>& touched = refit_scratch_;
+        touched.clear();
+        if (marks_.size() < nodes_.size()) marks_.assign(nodes_.size(), 0);
+        for (uint32_t h : moved_) {
+            for (uint32_t n = leaf_[h]; n != none && !marks_[n]; n = parent_[n]) marks_[n] = 1, touched.push_back(n);
+        }
+        std::sort(touched.begin(), touched.end(), [](uint32_t a, uint32_t b) { return a > b; });
+        for (uint32_t n : touched) fit(n), marks_[n] = 0;
+    }
+
+    // f(handle, near) for each live instance of a leaf whose box, and whose ancestors' boxes, `meets` keeps.
+    template <class Meets, class F>
+    void visit(Meets meets, F f) const {
+        if (nodes_.empty()) return;
+        uint32_t stack[max_depth + 1];
+        int top = 0;
+        double near;
+        if (!meets(nodes_[0].box, near)) return;
+        stack[top++] = 0;
+        while (top) {
+            const Node& node = nodes_[stack[--top]];
+            if (node.count) {
+                for (uint32_t i = node.first; i < node.first + node.count; ++i) {
+                    const uint32_t h = items_[i];
+                    if (instances_[h].alive && meets(instances_[h].box, near)) f(h, near);
+                }
+                continue;
+            }
+            for (uint32_t c = node.first; c < node.first + 2; ++c)
+                if (top < max_depth && meets(nodes_[c].box, near)) stack[top++] = c;
+        }
+    }
+
+    std::vector<Asset> assets_;
+    std::vector<Instance> instances_;
+    std::vector<uint32_t> leaf_;  // per handle, its leaf node (none before the first commit)
+    std::vector<uint32_t> free_, moved_;
+    std::vector<Node> nodes_;
+    std::vector<uint32_t> parent_, items_;
+    std::vector<uint32_t> refit_scratch_;
+    std::vector<uint8_t> marks_;
+    uint32_t live_ = 0;
+    bool rebuild_ = false;
+};
+
+// One light's shadows over a committed Level. Each frame (or light):
+//   begin(level, light, points, n, options)  order the points by direction from the light into tiles
+//   cull(first, last)                         the instances each of tiles [first, last) meets (ranges may run
+//                                             on different threads)
+//   gather()                                  the instances met, once each
+//   build(first, last)                        set those [first, last) up for the light (ranges, threads)
+//   occluded(first, last, out, scratch)       tiles [first, last): out[i] = 1 when point i is in shadow
+//                                             (const, ranges, threads; scratch_size() words each)
+// occluded_batch() runs them all on the calling thread. The level and the points must stay unchanged from
+// begin() to the last answer. The answers are those of each instance's InstanceShadow for every point.
+class LevelShadow {
+public:
+    void begin(const Level& level, const double* light, const double* points, size_t n,
+               const ShadowBuildOptions& options = {}) {
+        level_ = &level;
+        points_ = points;
+        n_ = n;
+        options_ = options;
+        options_.threads = 1;  // the runtime starts no thread: instances are built in the caller's ranges
+        options_.bounds = nullptr;
+        for (int k = 0; k < 3; ++k) light_[k] = light[k];
+        order_.resize(n);
+        order_scratch_.resize(batch_order_scratch_size(n));
+        batch_order(light, points, n, order_.data(), order_scratch_.data());
+        const size_t tiles = (n + tile_capacity - 1) / tile_capacity;
+        if (tile_lists_.size() < tiles) tile_lists_.resize(tiles);
+        tile_count_ = tiles;
+        built_count_ = 0;
+    }
+
+    size_t tile_count() const { return tile_count_; }
+
+    // The instances tiles [first, last) meet, each tile's nearest first.
+    void cull(size_t first, size_t last) {
+        for (size_t t = first; t < last; ++t) cull_tile(t);
+    }
+
+    // The instances met by any tile, once each, in the order of their first meeting; returns how many.
+    size_t gather() {
+        const uint32_t limit = level_->handle_limit();
+        if (slot_of_.size() < limit) slot_of_.resize(limit, none), stamp_.resize(limit, 0);
+        if (++generation_ == 0) std::fill(stamp_.begin(), stamp_.end(), 0u), generation_ = 1;
+        needed_.clear();
+        for (size_t t = 0; t < tile_count_; ++t)
+            for (uint64_t& entry : tile_lists_[t]) {
+                const uint32_t h = uint32_t(entry);
+                if (stamp_[h] != generation_) {
+                    stamp_[h] = generation_, slot_of_[h] = uint32_t(needed_.size());
+                    needed_.push_back(h);
+                }
+                entry = slot_of_[h];
+            }
+        if (shadows_.size() < needed_.size()) shadows_.resize(needed_.size());
+        built_count_ = needed_.size();
+        return built_count_;
+    }
+
+    size_t build_count() const { return built_count_; }
+
+    // Sets up the gathered instances [first, last) for the light. `scratch` (may be null) lets a thread's
+    // successive tree builds reuse memory.
+    void build(size_t first, size_t last, BuildScratch* scratch = nullptr) {
+        ShadowBuildOptions o = options_;
+        o.scratch = scratch;
+        for (size_t i = first; i < last; ++i) {
+            const uint32_t h = needed_[i];
+            o.bounds = level_->scan_bounds(level_->asset_of(h));
+            shadows_[i].build(level_->asset(level_->asset_of(h)), level_->placement(h), light_, o);
+        }
+    }
+
+    // Words of scratch occluded() needs: the deepest built structure's stack and a TileCache.
+    size_t scratch_size() const { return ordered_scratch_size(shadows_.data(), built_count_); }
+
+    // Tiles [first, last): out[i] = 1 when point i is in shadow, 0 otherwise.
+    void occluded(size_t first, size_t last, uint8_t* out, uint32_t* scratch, QueryStats* stats = nullptr) const {
+        uint32_t* stack = scratch;
+        const uintptr_t at =
+            reinterpret_cast<uintptr_t>(stack + detail::batch_stack_size(shadows_.data(), built_count_));
+        TileCache* cache =
+            new (reinterpret_cast<void*>((at + alignof(TileCache) - 1) / alignof(TileCache) * alignof(TileCache)))
+                TileCache;
+        cache->clear();
+        for (size_t t = first; t < last; ++t) {
+            const size_t begin = t * tile_capacity;
+            const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
+            const uint32_t* index = order_.data() + begin;
+            uint64_t alive = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1, shadowed = 0;
+            for (uint64_t slot : tile_lists_[t]) {
+                if (!alive) break;
+                const uint64_t s = shadows_[slot].occluded_tile(points_, index, count, alive, stack, stats, cache);
+                shadowed |= s, alive &= ~s;
+            }
+            for (uint32_t i = 0; i < count; ++i) out[index[i]] = uint8_t(shadowed >> i & 1);
+        }
+    }
+
+    // All steps on the calling thread (allocates its scratch).
+    void occluded_batch(const Level& level, const double* light, const double* points, size_t n, uint8_t* out,
+                        const ShadowBuildOptions& options = {}, QueryStats* stats = nullptr) {
+        begin(level, light, points, n, options);
+        cull(0, tile_count());
+        build(0, gather());
+        std::vector<uint32_t> scratch(scratch_size());
+        occluded(0, tile_count(), out, scratch.data(), stats);
+    }
+
+    // The structure built for gathered instance i, and its handle in the level.
+    const InstanceShadow& built(size_t i) const { return shadows_[i]; }
+    uint32_t built_handle(size_t i) const { return needed_[i]; }
+    // Instances met per tile, summed over the tiles (what the culling let through).
+    size_t instances_met() const {
+        size_t met = 0;
+        for (size_t t = 0; t < tile_count_; ++t) met += tile_lists_[t].size();
+        return met;
+    }
+    // Bytes held (the level's not counted).
+    size_t memory_bytes() const {
+        size_t bytes = (order_.capacity() + order_scratch_.capacity() + slot_of_.capacity() + stamp_.capacity() +
+                        needed_.capacity()) *
+            sizeof(uint32_t);
+        for (const std::vector<uint64_t>& l : tile_lists_) bytes += l.capacity() * sizeof(uint64_t) + sizeof(l);
+        for (size_t i = 0; i < shadows_.size(); ++i)
+            bytes += sizeof(InstanceShadow) + (i < built_count_ ? shadows_[i].memory_bytes() : 0);
+        return bytes;
+    }
+
+private:
+    static constexpr uint32_t none = 0xffffffffu;
+
+    // The instances tile t's pyramid (and the segments of its points the pyramid does not hold) may meet,
+    // nearest first: each entry the float bits of its distance along the pyramid's axis (not below 0, so
+    // they order as integers) above its handle.
+    void cull_tile(size_t t) {
+        std::vector<uint64_t>& list = tile_lists_[t];
+        list.clear();
+        const size_t begin = t * tile_capacity;
+        const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
+        const uint32_t* index = order_.data() + begin;
+        double e[tile_capacity][3], dist[tile_capacity], m[3] = {0, 0, 0};
+        uint64_t taken = 0, alone = 0;
+        for (uint32_t i = 0; i < count; ++i) {
+            const double* p = points_ + size_t(index[i]) * 3;
+            if (!finite3(p)) continue;  // never in shadow
+            for (int k = 0; k < 3; ++k) e[i][k] = p[k] - light_[k];
+            dist[i] = std::sqrt(math::dot3(e[i], e[i]));
+            if (!(dist[i] > 0)) continue;               // at the light: a segment of no length blocks nothing
+            if (!(dist[i] > 1e-7 && dist[i] < 1e30)) {  // by the light, or beyond what a pyramid holds well
+                alone |= uint64_t(1) << i;
+                continue;
+            }
+            taken |= uint64_t(1) << i;
+            for (int k = 0; k < 3; ++k) m[k] += e[i][k] / dist[i];
+        }
+        auto entry = [](double near, uint32_t h) {
+            const float key = near > 0 ? float(near) : 0.0f;  // NaN: 0
+            uint32_t bits;
+            std::memcpy(&bits, &key, 4);
+            return uint64_t(bits) << 32 | h;
+        };
+        level_detail::WorldPyramid w;
+        const uint64_t held = taken ? make_pyramid(e, dist, taken, m, w) : 0;
+        if (held) level_->visit_pyramid(w, [&](uint32_t h, double near) { list.push_back(entry(near, h)); });
+        alone |= taken & ~held;  // over 60 degrees off the tile's mean direction
+        for (uint64_t b = alone; b; b &= b - 1) {
+            const double* p = points_ + size_t(index[math::lowest_bit(b)]) * 3;
+            level_->visit_segment(p, light_, [&](uint32_t h, double) { list.push_back(entry(0, h)); });
+        }
+        if (alone) {  // once each, at its nearest
+            auto handle = [](uint64_t x) { return uint32_t(x); };
+            std::sort(list.begin(), list.end(), [&](uint64_t x, uint64_t y) {
+                return handle(x) < handle(y) || (handle(x) == handle(y) && x < y);
+            });
+            list.erase(
+                std::unique(list.begin(), list.end(), [&](uint64_t x, uint64_t y) { return handle(x) == handle(y); }),
+                list.end());
+        }
+        // A comparator of this namespace's own: std::sort's instantiation for plain integers would be shared
+        // with the builds for other lanes (cb_simd.h), and the linker could keep a wider build's copy.
+        std::sort(list.begin(), list.end(), [](uint64_t x, uint64_t y) { return x < y; });
+    }
+
+    // The pyramid from the light holding the directions of the points `held` (e from the light, dist
+    // their lengths, m the sum of their unit directions): a frame on their mean direction, the bounding
+    // rectangle of their central projections, widened by 1e-6 (far above their rounding). Returns the points
+    // it holds: those of `taken` within 60 degrees of the mean direction.
+    uint64_t make_pyramid(const double (*e)[3], const double* dist, uint64_t taken, const double* m,
+                          level_detail::WorldPyramid& w) const {
+        uint64_t held = 0;
+        const double ml = std::sqrt(math::dot3(m, m));
+        if (!(ml > 0)) return 0;
+        double z[3], a[3], b[3];
+        for (int k = 0; k < 3; ++k) z[k] = m[k] / ml;
+        const int k0 = std::fabs(z[0]) < std::fabs(z[1]) ? (std::fabs(z[0]) < std::fabs(z[2]) ? 0 : 2)
+                                                         : (std::fabs(z[1]) < std::fabs(z[2]) ? 1 : 2);
+        double unit[3] = {0, 0, 0};
+        unit[k0] = 1;
+        math::cross3(z, unit, a);
+        const double al = std::sqrt(math::dot3(a, a));
+        for (int k = 0; k < 3; ++k) a[k] /= al;
+        math::cross3(z, a, b);
+        double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+        w.dmax = 0;
+        for (uint64_t bits = taken; bits; bits &= bits - 1) {
+            const uint32_t i = math::lowest_bit(bits);
+            const double depth = math::dot3(e[i], z);
+            if (!(depth > 0.5 * dist[i])) continue;
+            const double x = math::dot3(e[i], a) / depth, y = math::dot3(e[i], b) / depth;
+            lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y),
+            hi[1] = std::max(hi[1], y);
+            w.dmax = std::max(w.dmax, dist[i]);
+            held |= uint64_t(1) << i;
+        }
+        if (!held) return 0;
+        for (int k = 0; k < 2; ++k) lo[k] -= 1e-6, hi[k] += 1e-6;
+        const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
+        double ray[4][3];
+        for (int r = 0; r < 4; ++r)
+            for (int k = 0; k < 3; ++k) ray[r][k] = z[k] + corner[r][0] * a[k] + corner[r][1] * b[k];
+        for (int r = 0; r < 4; ++r) {
+            double* n = w.n[r];
+            math::cross3(ray[r], ray[(r + 1) & 3], n);
+            if (math::dot3(n, z) < 0)
+                for (int k = 0; k < 3; ++k) n[k] = -n[k];
+            const double nl = std::sqrt(math::dot3(n, n));
+            for (int k = 0; k < 3; ++k) n[k] = nl > 0 ? n[k] / nl : 0.0;
+        }
+        for (int k = 0; k < 3; ++k) w.light[k] = light_[k], w.axis[k] = z[k];
+        return held;
+    }
+
+    const Level* level_ = nullptr;
+    const double* points_ = nullptr;
+    size_t n_ = 0, tile_count_ = 0, built_count_ = 0;
+    double light_[3] = {0, 0, 0};
+    ShadowBuildOptions options_;
+    std::vector<uint32_t> order_, order_scratch_;
+    std::vector<std::vector<uint64_t>> tile_lists_;  // per tile: cull_tile's entries, then (gather) slots of needed_
+    std::vector<uint32_t> slot_of_, stamp_, needed_;
+    uint32_t generation_ = 0;
+    std::vector<InstanceShadow> shadows_;
+};
+
+// The fine clusters of every live instance that a camera may see (cull_clusters of cb_cull.h over an asset),
+// walking the level's hierarchy first: out[i].instance is the level's handle, out[i].fine the index into that
+// instance's asset's fine clusters. Returns how many there are (which may exceed capacity).
+inline size_t cull_clusters(const Level& level, const Frustum& f, bool backface, VisibleCluster* out, size_t capacity,
+                            CullStats* stats = nullptr) {
+    size_t count = 0;
+    level.visit_frustum(f, [&](uint32_t h) {
+        count = cull_instance(level.asset(level.asset_of(h)), level.placement(h), h, f, backface, out, capacity, count,
+                              stats);
+    });
+    return count;
+}
+
+}  // namespace CB_LANES
+}  // namespace cb

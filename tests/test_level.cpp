@@ -1,0 +1,286 @@
+// The runtime's level (cb_level.h): instances of several assets under the caller's transforms, moved,
+// removed and added between frames, answered through the hierarchy's culling with the exact oracle's
+// answers, by every traversal, one- and two-sided, from many threads at once; and camera culling through
+// the same hierarchy.
+#include <gtest/gtest.h>
+
+#include <cb_level.h>
+
+#include <array>
+#include <cmath>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include "baked.h"
+#include "city.h"
+#include "scene_oracle.h"
+
+namespace {
+
+using cb::test::SceneOracle;
+using Points = std::vector<std::array<double, 3>>;
+
+constexpr cb::Traversal all_traversals[] = {cb::Traversal::scan, cb::Traversal::trees, cb::Traversal::one_tree,
+                                            cb::Traversal::mtsv, cb::Traversal::mtsv_two};
+
+// The loaded scene the exact oracle reads for the level's live instances: the baked meshes (the asset
+// stores them in the same frames) under each instance's transform. `meshes` maps (asset, mesh) to a mesh
+// of the scenes given, one per asset.
+cb::Scene oracle_scene(const cb::Level& level, const std::vector<const cb::Scene*>& assets) {
+    cb::Scene out;
+    std::vector<uint32_t> first(assets.size());
+    for (size_t a = 0; a < assets.size(); ++a) {
+        first[a] = uint32_t(out.meshes.size());
+        out.meshes.insert(out.meshes.end(), assets[a]->meshes.begin(), assets[a]->meshes.end());
+    }
+    for (uint32_t h = 0; h < level.handle_limit(); ++h) {
+        if (!level.alive(h)) continue;
+        cb::Instance inst;
+        inst.mesh = first[level.asset_of(h)] + level.mesh_of(h);
+        const double* m = level.transform_of(h);
+        for (int col = 0; col < 4; ++col)
+            for (int row = 0; row < 3; ++row) inst.world[size_t(col) * 4 + row] = m[col * 3 + row];
+        inst.world[3] = inst.world[7] = inst.world[11] = 0, inst.world[15] = 1;
+        out.instances.push_back(inst);
+    }
+    return out;
+}
+
+// Points on the surfaces (vertices of the instances, then random points on the ground and just above
+// it), as a camera's visible points would be.
+Points level_points(const cb::Scene& world, size_t extra, uint64_t seed) {
+    cb::test::WorldSample s = cb::test::sample_scene(world, 3);
+    Points p(s.surface.begin(), s.surface.end());
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    for (size_t i = 0; i < extra; ++i)
+        p.push_back({s.lo[0] + (s.hi[0] - s.lo[0]) * u(rng), s.lo[1] + (s.hi[1] - s.lo[1]) * u(rng),
+                     i % 3 == 0 ? 0.0 : (s.hi[2] - s.lo[2]) * u(rng) * 0.5});
+    return p;
+}
+
+std::vector<uint8_t> answer(cb::Level& level, const double* light, const Points& p, cb::Traversal traversal,
+                            bool one_sided, cb::QueryStats* stats = nullptr) {
+    cb::LevelShadow shadow;
+    cb::ShadowBuildOptions o;
+    o.traversal = traversal, o.one_sided = one_sided;
+    std::vector<uint8_t> out(p.size(), 2);
+    shadow.occluded_batch(level, light, p[0].data(), p.size(), out.data(), o, stats);
+    return out;
+}
+
+// Counts the points whose answer differs from the exact oracle's.
+size_t disagreements(const SceneOracle& oracle, const double* light, const Points& p, const std::vector<uint8_t>& got,
+                     bool one_sided, size_t* shadowed = nullptr) {
+    size_t wrong = 0, dark = 0;
+    for (size_t i = 0; i < p.size(); ++i) {
+        const bool expect = oracle.occluded(p[i].data(), light, one_sided).blocked;
+        wrong += got[i] != uint8_t(expect);
+        dark += expect;
+    }
+    if (shadowed) *shadowed = dark;
+    return wrong;
+}
+
+TEST(Level, CityAnswersEqualTheExactOracle) {
+    const cb::Scene city = cb::generate::city(60, 3);
+    cb::test::Baked baked = cb::test::bake_scene(city);
+    ASSERT_GT(baked.view.mesh_count, 0u);
+    cb::Level level;
+    level.add_baked(level.add_asset(baked.view));
+    level.commit();
+    EXPECT_EQ(level.instance_count(), city.instances.size());
+    const SceneOracle oracle(city);
+    const Points p = level_points(city, 3000, 5);
+    const double lights[][3] = {
+        {40, 30, 120}, {-500, 20, 30}, {3, -4, 12}, {2000, 1500, 1}};  // overhead, low, inside, grazing
+    for (const auto& light : lights) {
+        for (bool one_sided : {false, true}) {
+            for (cb::Traversal t : all_traversals) {
+                size_t dark = 0;
+                const size_t wrong =
+                    disagreements(oracle, light, p, answer(level, light, p, t, one_sided), one_sided, &dark);
+                EXPECT_EQ(wrong, 0u) << "light " << light[0] << "," << light[1] << "," << light[2] << " traversal "
+                                     << int(t) << (one_sided ? " one-sided" : "");
+                if (t == cb::Traversal::scan && !one_sided) {
+                    EXPECT_GT(dark, p.size() / 50);  // shadows to get wrong
+                }
+            }
+        }
+    }
+}
+
+TEST(Level, MovedRemovedAndAddedInstancesOfTwoAssets) {
+    // Two assets: the city, and a second one of three towers; instances moved to mirrored and sheared
+    // transforms, some removed, some added, over three frames, each checked against the oracle of the
+    // level as it then stands.
+    const cb::Scene city = cb::generate::city(24, 7);
+    cb::Scene towers;
+    for (int i = 0; i < 3; ++i) {
+        towers.meshes.push_back(cb::generate::tower("t", 4 + i, 5, 12 + 6 * i, 3 + i));
+        cb::Transform m = cb::identity_transform();
+        m[12] = 10.0 * i;
+        towers.instances.push_back({uint32_t(i), m, "t"});
+    }
+    cb::test::Baked a = cb::test::bake_scene(city), b = cb::test::bake_scene(towers);
+    cb::Level level;
+    const uint32_t ca = level.add_asset(a.view), cb_ = level.add_asset(b.view);
+    std::vector<uint32_t> city_handles(a.view.instance_count);
+    level.add_baked(ca, nullptr, city_handles.data());
+    const double lift[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 15, -20, 0};
+    level.add_baked(cb_, lift);
+    level.commit();
+    std::mt19937_64 rng(9);
+    std::uniform_real_distribution<double> u(-1, 1);
+    const double light[3] = {60, 80, 90};
+    for (int frame = 0; frame < 3; ++frame) {
+        const cb::Scene world = oracle_scene(level, {&city, &towers});
+        const SceneOracle oracle(world);
+        const Points p = level_points(world, 1500, 11 + frame);
+        for (cb::Traversal t : {cb::Traversal::scan, cb::Traversal::trees, cb::Traversal::mtsv_two})
+            for (bool one_sided : {false, true})
+                EXPECT_EQ(disagreements(oracle, light, p, answer(level, light, p, t, one_sided), one_sided), 0u)
+                    << "frame " << frame << " traversal " << int(t) << (one_sided ? " one-sided" : "");
+        // Next frame: move 8 buildings (sheared or mirrored), remove 2, add 2 towers.
+        for (int k = 0; k < 8; ++k) {
+            const uint32_t h = city_handles[1 + (frame * 8 + k) % 24];
+            if (!level.alive(h)) continue;
+            double m[12];
+            std::copy(level.transform_of(h), level.transform_of(h) + 12, m);
+            m[9] += 7 * u(rng), m[10] += 7 * u(rng);
+            if (k % 2) m[3] += 0.3 * u(rng);  // shear: y axis leans along x
+            if (k % 3 == 0)
+                for (int j = 0; j < 3; ++j) m[j] = -m[j];  // mirrored
+            EXPECT_TRUE(level.move(h, m));
+        }
+        EXPECT_TRUE(level.remove(city_handles[2 + frame * 3]));
+        EXPECT_FALSE(level.remove(city_handles[2 + frame * 3]));  // gone already
+        EXPECT_TRUE(level.alive(city_handles[1]) || frame > 0);
+        const double at[12] = {0, 1, 0, -1, 0, 0, 0, 0, 1, 40 - 30.0 * frame, 40, 0};
+        EXPECT_NE(level.add_instance(cb_, uint32_t(frame % 3), at), cb::Level::none);
+        level.commit();
+    }
+    EXPECT_EQ(level.add_instance(cb_, 99, lift), cb::Level::none);  // no such mesh
+    EXPECT_EQ(level.add_instance(7, 0, lift), cb::Level::none);     // no such asset
+}
+
+TEST(Level, SingularAndFarInstancesBlockNothingOrAnswerExactly) {
+    // A flattened instance blocks nothing, and a level 1e7 from the origin answers as the oracle does.
+    cb::Scene towers;
+    towers.meshes.push_back(cb::generate::tower("t", 6, 6, 20, 4));
+    cb::test::Baked b = cb::test::bake_scene(towers);
+    cb::Level level;
+    const uint32_t asset = level.add_asset(b.view);
+    const double far = 1e7;
+    for (int i = 0; i < 10; ++i) {
+        const double m[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, far + 9.0 * i, far, 0};
+        level.add_instance(asset, 0, m);
+    }
+    const double flat[12] = {1, 0, 0, 0, 1, 0, 0, 0, 0, far + 4, far + 4, 0};
+    level.add_instance(asset, 0, flat);
+    level.commit();
+    const cb::Scene world = oracle_scene(level, {&towers});
+    const SceneOracle oracle(world);
+    const Points p = level_points(world, 500, 3);
+    const double light[3] = {far + 100, far + 30, 60};
+    for (cb::Traversal t : all_traversals)
+        EXPECT_EQ(disagreements(oracle, light, p, answer(level, light, p, t, false), false), 0u) << int(t);
+}
+
+TEST(Level, ConcurrentQueriesFromEightThreadsGiveTheSingleThreadedAnswers) {
+    const cb::Scene city = cb::generate::city(200, 4);
+    cb::test::Baked baked = cb::test::bake_scene(city);
+    cb::Level level;
+    level.add_baked(level.add_asset(baked.view));
+    level.commit();
+    const Points p = level_points(city, 20000, 8);
+    const double light[3] = {100, -60, 150};
+    for (cb::Traversal t : {cb::Traversal::scan, cb::Traversal::trees, cb::Traversal::mtsv}) {
+        cb::ShadowBuildOptions o;
+        o.traversal = t;
+        cb::LevelShadow shadow;
+        std::vector<uint8_t> one(p.size()), many(p.size(), 2);
+        shadow.occluded_batch(level, light, p[0].data(), p.size(), one.data(), o);
+        // The same steps in ranges: culling and building on 8 threads, then 8 threads answering interleaved
+        // tile ranges of the same const structure.
+        shadow.begin(level, light, p[0].data(), p.size(), o);
+        const size_t tiles = shadow.tile_count();
+        std::vector<std::thread> pool;
+        for (size_t w = 0; w < 8; ++w) pool.emplace_back([&, w] { shadow.cull(tiles * w / 8, tiles * (w + 1) / 8); });
+        for (std::thread& th : pool) th.join();
+        pool.clear();
+        const size_t built = shadow.gather();
+        std::vector<cb::BuildScratch> scratch(8);
+        for (size_t w = 0; w < 8; ++w)
+            pool.emplace_back([&, w] { shadow.build(built * w / 8, built * (w + 1) / 8, &scratch[w]); });
+        for (std::thread& th : pool) th.join();
+        pool.clear();
+        for (size_t w = 0; w < 8; ++w)
+            pool.emplace_back([&, w] {
+                std::vector<uint32_t> own(shadow.scratch_size());
+                for (size_t first = w; first < tiles; first += 8)
+                    shadow.occluded(first, first + 1, many.data(), own.data());
+            });
+        for (std::thread& th : pool) th.join();
+        EXPECT_EQ(one, many) << int(t);
+    }
+}
+
+TEST(Level, TilesMeetOnlyTheInstancesNearTheirPointsWhateverTheLevelsSize) {
+    // The same corner of the city, seen in levels of 100 and 2,500 buildings: the instances a tile meets
+    // (and the instances set up for the light) stay about the same, far below the level's count.
+    size_t met[2] = {0, 0}, built[2] = {0, 0}, tiles[2] = {0, 0};
+    const uint32_t sizes[2] = {100, 2500};
+    for (int s = 0; s < 2; ++s) {
+        const cb::Scene city = cb::generate::city(sizes[s], 2);
+        cb::test::Baked baked = cb::test::bake_scene(city);
+        cb::Level level;
+        level.add_baked(level.add_asset(baked.view));
+        level.commit();
+        // Points on the ground in a 100 m square at one corner of the grid, the light above it.
+        const double corner = -0.5 * 30 * (std::ceil(std::sqrt(double(sizes[s]))) - 1);
+        Points p;
+        for (int j = 0; j < 100; ++j)
+            for (int i = 0; i < 100; ++i) p.push_back({corner + i, corner + j, 0.0});
+        const double light[3] = {corner + 50, corner + 50, 80};
+        cb::LevelShadow shadow;
+        std::vector<uint8_t> out(p.size());
+        shadow.occluded_batch(level, light, p[0].data(), p.size(), out.data());
+        met[s] = shadow.instances_met(), built[s] = shadow.build_count(), tiles[s] = shadow.tile_count();
+    }
+    std::printf("instances met per tile: %.2f (100 buildings), %.2f (2,500); set up: %zu, %zu\n",
+                double(met[0]) / tiles[0], double(met[1]) / tiles[1], built[0], built[1]);
+    EXPECT_LE(met[1], met[0] * 3 / 2);
+    EXPECT_LT(built[1], 60u);
+}
+
+TEST(Level, CameraCullingThroughTheHierarchyListsWhatEachInstanceWould) {
+    const cb::Scene city = cb::generate::city(300, 6);
+    cb::test::Baked baked = cb::test::bake_scene(city);
+    cb::Level level;
+    level.add_baked(level.add_asset(baked.view));
+    level.commit();
+    // A frustum looking along +x from the middle of the city: near, far and four sides.
+    cb::Frustum f;
+    f.count = 6;
+    const double planes[6][4] = {{1, 0, 0, -1},   {-1, 0, 0, 200}, {0.5, 1, 0, 0},
+                                 {0.5, -1, 0, 0}, {0.4, 0, 1, 0},  {0.4, 0, -1, 30}};
+    for (int k = 0; k < 6; ++k)
+        for (int j = 0; j < 4; ++j) f.plane[k][j] = planes[k][j];
+    std::vector<cb::VisibleCluster> through(1 << 16), each(1 << 16);
+    const size_t n = cb::cull_clusters(level, f, true, through.data(), through.size());
+    size_t m = 0;
+    for (uint32_t h = 0; h < level.handle_limit(); ++h)
+        m = cb::cull_instance(baked.view, level.placement(h), h, f, true, each.data(), each.size(), m);
+    ASSERT_LT(n, through.size());
+    through.resize(n), each.resize(m);
+    auto key = [](const cb::VisibleCluster& c) { return uint64_t(c.instance) << 32 | c.fine; };
+    auto by_key = [&](const cb::VisibleCluster& x, const cb::VisibleCluster& y) { return key(x) < key(y); };
+    std::sort(through.begin(), through.end(), by_key), std::sort(each.begin(), each.end(), by_key);
+    EXPECT_GT(n, 0u);
+    ASSERT_EQ(n, m);
+    for (size_t i = 0; i < n; ++i) EXPECT_EQ(key(through[i]), key(each[i]));
+}
+
+}  // namespace
