@@ -176,6 +176,13 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
         }
     }
     const double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+    if (!(size > 0 && size < 1e30 &&
+          std::max({std::fabs(lo[0]), std::fabs(lo[1]), std::fabs(lo[2]), std::fabs(hi[0]), std::fabs(hi[1]),
+                    std::fabs(hi[2])}) < 1e30)) {
+        std::printf("| %s | skipped: its bounds (size %g) are beyond what Embree's float rays take |\n", name.c_str(),
+                    size);
+        return;
+    }
     const double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
     // Up is the axis the scene is thinnest along (z for the cities, y for most glTF scenes).
     int up_axis = 0;

@@ -279,6 +279,19 @@ public:
             [&](uint32_t h, double) { f(h); });
     }
 
+    // The sphere about instance `handle`'s world box (radius INFINITY beyond double's range).
+    void world_sphere(uint32_t handle, double* centre, double& radius) const {
+        const level_detail::Box& b = instances_[handle].box;
+        double r2 = 0;
+        for (int k = 0; k < 3; ++k) {
+            centre[k] = 0.5 * (b.lo[k] + b.hi[k]);
+            const double h = 0.5 * (b.hi[k] - b.lo[k]);
+            r2 += h * h;
+        }
+        radius = std::sqrt(r2) * (1 + 1e-12);
+        if (!(radius < INFINITY)) radius = INFINITY;
+    }
+
     // Where instance `handle` is, for a traversal's build.
     Placement placement(uint32_t handle) const { return {instances_[handle].mesh, instances_[handle].transform}; }
     const ScanBounds* scan_bounds(uint32_t asset) const {
@@ -502,14 +515,20 @@ public:
             new (reinterpret_cast<void*>((at + alignof(TileCache) - 1) / alignof(TileCache) * alignof(TileCache)))
                 TileCache;
         cache->clear();
+        alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];
         for (size_t t = first; t < last; ++t) {
             const size_t begin = t * tile_capacity;
             const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
             const uint32_t* index = order_.data() + begin;
             uint64_t alive = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1, shadowed = 0;
+            const uint64_t regular = directions(index, count, ex, ey, ez, fd);
             for (uint64_t slot : tile_lists_[t]) {
                 if (!alive) break;
-                const uint64_t s = shadows_[slot].occluded_tile(points_, index, count, alive, stack, stats, cache);
+                // Only the points whose segment may meet the instance's sphere enter it: an instance's set-up
+                // per tile costs per point.
+                const uint64_t in = alive & instance_points(needed_[slot], regular, ex, ey, ez, fd);
+                if (!in) continue;
+                const uint64_t s = shadows_[slot].occluded_tile(points_, index, count, in, stack, stats, cache);
                 shadowed |= s, alive &= ~s;
             }
             for (uint32_t i = 0; i < count; ++i) out[index[i]] = uint8_t(shadowed >> i & 1);
@@ -548,6 +567,43 @@ public:
 
 private:
     static constexpr uint32_t none = 0xffffffffu;
+
+    // The tile's points from the light in float (lanes past `count` and irregular points: distance -1, in no
+    // sphere); returns the regular ones, whose distance lies between the float filters' bounds
+    // (TraversalBase::float_tiny and float_safe, 1e-7 and 1e9).
+    uint64_t directions(const uint32_t* index, uint32_t count, float* ex, float* ey, float* ez, float* fd) const {
+        uint64_t regular = 0;
+        for (uint32_t i = 0; i < tile_capacity; ++i) {
+            double e[3] = {0, 0, 0}, d = -1;
+            if (i < count) {
+                const double* p = points_ + size_t(index[i]) * 3;
+                for (int k = 0; k < 3; ++k) e[k] = p[k] - light_[k];
+                d = std::sqrt(math::dot3(e, e));
+                if (d > 1e-7 && d < 1e9) {
+                    regular |= uint64_t(1) << i;
+                } else {
+                    e[0] = e[1] = e[2] = 0, d = -1;
+                }
+            }
+            ex[i] = float(e[0]), ey[i] = float(e[1]), ez[i] = float(e[2]), fd[i] = float(d);
+        }
+        return regular;
+    }
+
+    // The tile's points whose segment may meet instance h's sphere: the regular ones by the float test (the
+    // radius grown by 2e-5 of itself and of the centre's distance, as the scan's spheres are), every other
+    // point, and all of them where the sphere is not within the float test's range.
+    uint64_t instance_points(uint32_t h, uint64_t regular, const float* ex, const float* ey, const float* ez,
+                             const float* fd) const {
+        double c[3], r;
+        level_->world_sphere(h, c, r);
+        for (int k = 0; k < 3; ++k) c[k] -= light_[k];
+        const double d1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]), grown = r + 2e-5 * (r + d1);
+        if (!(d1 + grown < 1e9 && d1 + grown > 1e-7)) return ~uint64_t(0);
+        float fr = float(grown);
+        if (double(fr) < grown) fr = std::nextafter(fr, INFINITY);
+        return lit_sphere_points(float(c[0]), float(c[1]), float(c[2]), fr, regular, ex, ey, ez, fd) | ~regular;
+    }
 
     // The instances tile t's pyramid (and the segments of its points the pyramid does not hold) may meet,
     // nearest first: each entry the float bits of its distance along the pyramid's axis (not below 0, so

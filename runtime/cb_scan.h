@@ -168,28 +168,9 @@ private:
         return d2 <= reach * reach;
     }
 
-    // The points of `subset` whose segment to the light may meet sphere s: the ray from the light passes
-    // within the radius (|c x e| <= r |e|) and the sphere is not wholly behind the light or beyond the point.
-    // Float, branch-free; the radius holds the float errors (lit_sphere).
+    // The points of `subset` whose segment to the light may meet sphere s (lit_sphere_points).
     uint64_t sphere_points(const LitSphere& s, uint64_t subset, const Tile& t) const {
-        uint32_t begin, end;
-        simd::lane_span(subset, begin, end);
-        using simd::Floats;
-        const Floats x = simd::splat(s.x), y = simd::splat(s.y), z = simd::splat(s.z), r = simd::splat(s.r),
-                     r2 = simd::splat(s.r * s.r), zero = simd::splat(0.0f);
-        uint64_t keep = 0;
-        for (uint32_t i = begin; i < end; i += simd::width) {
-            if (!simd::group(subset, i)) continue;
-            const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i),
-                         d = simd::load(t.fd + i);
-            const Floats a = simd::fms(y, ez, z * ey), b = simd::fms(z, ex, x * ez), c = simd::fms(x, ey, y * ex);
-            const Floats along = simd::dot(ex, ey, ez, x, y, z), cross2 = simd::dot(a, b, c, a, b, c);
-            Floats m = simd::fms(r2 * d, d, cross2);
-            m = simd::min(m, simd::fma(r, d, along));
-            m = simd::min(m, simd::fms(d + r, d, along));
-            keep |= uint64_t(simd::bits(m >= zero)) << i;
-        }
-        return keep & subset;
+        return lit_sphere_points(s.x, s.y, s.z, s.r, subset, t.ex, t.ey, t.ez, t.fd);
     }
 
     // Asks for fine cluster f's decoded box and record ahead of its test (pending clusters are

@@ -102,6 +102,31 @@ struct IndexRange {
     uint32_t first = 0, count = 0;
 };
 
+// The points of `subset` (lanes of ex, ey, ez: their directions from the light, fd: their distances, in
+// float) whose segment to the light may meet the sphere of centre (x, y, z) from the light and radius r: the
+// ray from the light passes within the radius (|c x e| <= r |e|) and the sphere is not wholly behind the light
+// or beyond the point. Float, branch-free; the radius must hold the float errors (ScanTraversal::lit_sphere).
+inline uint64_t lit_sphere_points(float x, float y, float z, float r, uint64_t subset, const float* ex, const float* ey,
+                                  const float* ez, const float* fd) {
+    uint32_t begin, end;
+    simd::lane_span(subset, begin, end);
+    using simd::Floats;
+    const Floats vx = simd::splat(x), vy = simd::splat(y), vz = simd::splat(z), vr = simd::splat(r),
+                 r2 = simd::splat(r * r), zero = simd::splat(0.0f);
+    uint64_t keep = 0;
+    for (uint32_t i = begin; i < end; i += simd::width) {
+        if (!simd::group(subset, i)) continue;
+        const Floats px = simd::load(ex + i), py = simd::load(ey + i), pz = simd::load(ez + i), d = simd::load(fd + i);
+        const Floats a = simd::fms(vy, pz, vz * py), b = simd::fms(vz, px, vx * pz), c = simd::fms(vx, py, vy * px);
+        const Floats along = simd::dot(px, py, pz, vx, vy, vz), cross2 = simd::dot(a, b, c, a, b, c);
+        Floats m = simd::fms(r2 * d, d, cross2);
+        m = simd::min(m, simd::fma(vr, d, along));
+        m = simd::min(m, simd::fms(d + vr, d, along));
+        keep |= uint64_t(simd::bits(m >= zero)) << i;
+    }
+    return keep & subset;
+}
+
 // The state and the steps every traversal shares, for one instance and one light.
 class TraversalBase {
 public:
