@@ -25,8 +25,8 @@ constexpr cb::Traversal all_traversals[] = {cb::Traversal::scan, cb::Traversal::
                                             cb::Traversal::mtsv, cb::Traversal::mtsv_two};
 
 // The loaded scene the exact oracle reads for the level's live instances: the baked meshes (the asset
-// stores them in the same frames) under each instance's transform. `meshes` maps (asset, mesh) to a mesh
-// of the scenes given, one per asset.
+// stores them in the same frames) under each instance's transform. `assets` holds the scene each asset
+// was baked from, in the level's asset order.
 cb::Scene oracle_scene(const cb::Level& level, const std::vector<const cb::Scene*>& assets) {
     cb::Scene out;
     std::vector<uint32_t> first(assets.size());
