@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "asset_file.h"
+#include "bench_embree.h"
 #include "bake.h"
 #include "city.h"
 #include "load.h"
@@ -36,14 +37,6 @@
 namespace fs = std::filesystem;
 
 namespace {
-
-std::atomic<long long> embree_bytes{0}, embree_peak{0};
-bool monitor(void*, ssize_t bytes, bool) {
-    long long now = embree_bytes += bytes;
-    long long peak = embree_peak.load();
-    while (now > peak && !embree_peak.compare_exchange_weak(peak, now)) {}
-    return true;
-}
 
 struct Settings {
     int view = 512, runs = 3;
@@ -87,11 +80,11 @@ RTCScene triangles(RTCDevice device, const std::vector<float>& v, const std::vec
 
 void build_embree(const cb::Scene& s, EmbreeScenes& e, size_t flat_limit) {
     e.device = rtcNewDevice("threads=1");
-    rtcSetDeviceMemoryMonitorFunction(e.device, monitor, nullptr);
+    rtcSetDeviceMemoryMonitorFunction(e.device, cb::bench::embree_monitor, nullptr);
     size_t in_scene = 0;
     for (const cb::Instance& inst : s.instances) in_scene += s.meshes[inst.mesh].triangle_count();
     if (in_scene <= flat_limit) {
-        embree_bytes = 0;
+        cb::bench::embree_bytes = 0;
         std::vector<float> v;
         std::vector<unsigned> t;
         for (const cb::Instance& inst : s.instances) {
@@ -105,9 +98,9 @@ void build_embree(const cb::Scene& s, EmbreeScenes& e, size_t flat_limit) {
             for (uint32_t i : m.indices) t.push_back(base + i);
         }
         e.flat = triangles(e.device, v, t);
-        e.flat_bytes = size_t(std::max(0LL, embree_bytes.load()));
+        e.flat_bytes = size_t(std::max(0LL, cb::bench::embree_bytes.load()));
     }
-    embree_bytes = 0;
+    cb::bench::embree_bytes = 0;
     for (const cb::Mesh& m : s.meshes) {
         std::vector<unsigned> t(m.indices.begin(), m.indices.end());
         e.meshes.push_back(triangles(e.device, m.positions, t));
@@ -125,7 +118,7 @@ void build_embree(const cb::Scene& s, EmbreeScenes& e, size_t flat_limit) {
         rtcReleaseGeometry(g);
     }
     rtcCommitScene(e.instanced);
-    e.instanced_bytes = size_t(std::max(0LL, embree_bytes.load()));
+    e.instanced_bytes = size_t(std::max(0LL, cb::bench::embree_bytes.load()));
 }
 
 // rtcOccluded1 for every point, segment from self_shadow_fraction of the way to the light.
@@ -199,26 +192,7 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
     for (double& x : right) x /= len;
     cb::math::cross3(right, fw, up);
     RTCScene any = e.flat ? e.flat : e.instanced;
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    std::vector<double> pts;
-    for (int y = 0; y < s.view; ++y)
-        for (int x = 0; x < s.view; ++x) {
-            const double sx = (x + 0.5) / s.view * 2 - 1, sy = (y + 0.5) / s.view * 2 - 1;
-            RTCRayHit rh{};
-            rh.ray.org_x = float(eye[0]), rh.ray.org_y = float(eye[1]), rh.ray.org_z = float(eye[2]);
-            rh.ray.dir_x = float(fw[0] + 0.6 * (sx * right[0] + sy * up[0]));
-            rh.ray.dir_y = float(fw[1] + 0.6 * (sx * right[1] + sy * up[1]));
-            rh.ray.dir_z = float(fw[2] + 0.6 * (sx * right[2] + sy * up[2]));
-            rh.ray.tnear = 0, rh.ray.tfar = INFINITY, rh.ray.mask = 0xffffffff;
-            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rtcIntersect1(any, &ctx, &rh);
-            if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
-            pts.insert(
-                pts.end(),
-                {rh.ray.org_x + double(rh.ray.tfar) * rh.ray.dir_x, rh.ray.org_y + double(rh.ray.tfar) * rh.ray.dir_y,
-                 rh.ray.org_z + double(rh.ray.tfar) * rh.ray.dir_z});
-        }
+    const std::vector<double> pts = cb::bench::first_hits(any, eye, fw, right, up, s.view, 0.6);
     const size_t n = pts.size() / 3;
     if (n == 0) return;
 

@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "asset_file.h"
+#include "bench_embree.h"
 #include "bake.h"
 #include "bench_common.h"
 #include "load.h"
@@ -95,14 +96,6 @@ private:
     unsigned long generation_ = 0;
     bool stop_ = false;
 };
-
-std::atomic<long long> embree_bytes{0}, embree_peak{0};
-bool monitor(void*, ssize_t bytes, bool) {
-    long long now = embree_bytes += bytes;
-    long long peak = embree_peak.load();
-    while (now > peak && !embree_peak.compare_exchange_weak(peak, now)) {}
-    return true;
-}
 
 struct Input {
     std::string name;
@@ -237,9 +230,9 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
     double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
     double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
 
-    embree_bytes = 0, embree_peak = 0;
+    cb::bench::embree_bytes = 0, cb::bench::embree_peak = 0;
     RTCDevice device = rtcNewDevice("threads=2");
-    rtcSetDeviceMemoryMonitorFunction(device, monitor, nullptr);
+    rtcSetDeviceMemoryMonitorFunction(device, cb::bench::embree_monitor, nullptr);
     auto t0 = std::chrono::steady_clock::now();
     RTCScene scene = rtcNewScene(device);
     RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -264,26 +257,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
     for (double& x : right) x /= len;
     up[0] = right[1] * fw[2] - right[2] * fw[1], up[1] = right[2] * fw[0] - right[0] * fw[2],
     up[2] = right[0] * fw[1] - right[1] * fw[0];
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    std::vector<double> pts;
-    for (int y = 0; y < view; ++y)
-        for (int x = 0; x < view; ++x) {
-            double sx = (x + 0.5) / view * 2 - 1, sy = (y + 0.5) / view * 2 - 1;
-            RTCRayHit rh{};
-            rh.ray.org_x = float(eye[0]), rh.ray.org_y = float(eye[1]), rh.ray.org_z = float(eye[2]);
-            rh.ray.dir_x = float(fw[0] + 0.5 * (sx * right[0] + sy * up[0]));
-            rh.ray.dir_y = float(fw[1] + 0.5 * (sx * right[1] + sy * up[1]));
-            rh.ray.dir_z = float(fw[2] + 0.5 * (sx * right[2] + sy * up[2]));
-            rh.ray.tnear = 0, rh.ray.tfar = INFINITY, rh.ray.mask = 0xffffffff;
-            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rtcIntersect1(scene, &ctx, &rh);
-            if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
-            pts.insert(
-                pts.end(),
-                {rh.ray.org_x + double(rh.ray.tfar) * rh.ray.dir_x, rh.ray.org_y + double(rh.ray.tfar) * rh.ray.dir_y,
-                 rh.ray.org_z + double(rh.ray.tfar) * rh.ray.dir_z});
-        }
+    const std::vector<double> pts = cb::bench::first_hits(scene, eye, fw, right, up, view, 0.5);
     size_t n = pts.size() / 3;
 
     // Lights: outside the bounds; inside them; grazing the top of the bounds (a thousandth of the size above
@@ -476,7 +450,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             ratio1, ratio2, packet1, packet2, double(stats.nodes_visited) / double(n),
             double(stats.clusters_tested) / double(n), double(stats.triangles_tested) / double(n),
             double(stats.clusters_tested - shadowed) / double(n), always, double(ours_bytes) / 1048576.0,
-            double(scratch_bytes) / 1048576.0, double(embree_peak) / 1048576.0, differ,
+            double(scratch_bytes) / 1048576.0, double(cb::bench::embree_peak) / 1048576.0, differ,
             100.0 * double(differ) / double(n));
     }
     rtcReleaseScene(scene);

@@ -82,8 +82,8 @@ void answer_points(const AssetView& view, const Level& level, const double* ligh
     auto build_start = std::chrono::steady_clock::now();
     std::vector<InstanceShadow> trees(o.reference ? 0 : view.instance_count);
     ShadowBuildOptions build = build_options(o);
+    build.bounds = level.scan_bounds(0);
     for (uint32_t i = 0; i < trees.size(); ++i) {
-        build.bounds = level.scan_bounds(0);
         trees[i].build(view, i, light, build);
         r.skipped += trees[i].skipped_clusters(), r.nodes += trees[i].node_count();
         r.tree_bytes += trees[i].memory_bytes(), r.always_tested += trees[i].always_tested();

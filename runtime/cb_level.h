@@ -279,18 +279,9 @@ public:
             [&](uint32_t h, double) { f(h); });
     }
 
-    // The sphere about instance `handle`'s world box (radius INFINITY beyond double's range).
-    void world_sphere(uint32_t handle, double* centre, double& radius) const {
-        const level_detail::Box& b = instances_[handle].box;
-        double r2 = 0;
-        for (int k = 0; k < 3; ++k) {
-            centre[k] = 0.5 * (b.lo[k] + b.hi[k]);
-            const double h = 0.5 * (b.hi[k] - b.lo[k]);
-            r2 += h * h;
-        }
-        radius = std::sqrt(r2) * (1 + 1e-12);
-        if (!(radius < INFINITY)) radius = INFINITY;
-    }
+    // The sphere about instance `handle`'s world box: centre x, y, z and radius (INFINITY beyond double's
+    // range), made when the instance is placed.
+    const double* world_sphere(uint32_t handle) const { return instances_[handle].sphere; }
 
     // Where instance `handle` is, for a traversal's build.
     Placement placement(uint32_t handle) const { return {instances_[handle].mesh, instances_[handle].transform}; }
@@ -309,6 +300,7 @@ private:
         bool alive = false;
         double transform[12] = {};
         level_detail::Box box;  // in world space
+        double sphere[4] = {};  // about the box: centre, radius
     };
     // A node of the hierarchy: an inner node's children are nodes first and first + 1; a leaf holds the
     // instances items_[first, first + count).
@@ -323,6 +315,14 @@ private:
         Instance& i = instances_[h];
         std::copy(transform, transform + 12, i.transform);
         i.box = level_detail::transform_box(assets_[i.asset].mesh_boxes[i.mesh], i.transform);
+        double r2 = 0;
+        for (int k = 0; k < 3; ++k) {
+            i.sphere[k] = 0.5 * (i.box.lo[k] + i.box.hi[k]);
+            const double h = 0.5 * (i.box.hi[k] - i.box.lo[k]);
+            r2 += h * h;
+        }
+        const double radius = std::sqrt(r2) * (1 + 1e-12);
+        i.sphere[3] = radius < INFINITY ? radius : INFINITY;
     }
 
     // Top-down, median splits on the longest axis of the boxes' centres (ties by handle: deterministic).
@@ -595,9 +595,8 @@ private:
     // point, and all of them where the sphere is not within the float test's range.
     uint64_t instance_points(uint32_t h, uint64_t regular, const float* ex, const float* ey, const float* ez,
                              const float* fd) const {
-        double c[3], r;
-        level_->world_sphere(h, c, r);
-        for (int k = 0; k < 3; ++k) c[k] -= light_[k];
+        const double* sphere = level_->world_sphere(h);
+        const double c[3] = {sphere[0] - light_[0], sphere[1] - light_[1], sphere[2] - light_[2]}, r = sphere[3];
         const double d1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]), grown = r + 2e-5 * (r + d1);
         if (!(d1 + grown < 1e9 && d1 + grown > 1e-7)) return ~uint64_t(0);
         float fr = float(grown);
@@ -664,18 +663,9 @@ private:
     uint64_t make_pyramid(const double (*e)[3], const double* dist, uint64_t taken, const double* m,
                           level_detail::WorldPyramid& w) const {
         uint64_t held = 0;
-        const double ml = std::sqrt(math::dot3(m, m));
-        if (!(ml > 0)) return 0;
-        double z[3], a[3], b[3];
-        for (int k = 0; k < 3; ++k) z[k] = m[k] / ml;
-        const int k0 = std::fabs(z[0]) < std::fabs(z[1]) ? (std::fabs(z[0]) < std::fabs(z[2]) ? 0 : 2)
-                                                         : (std::fabs(z[1]) < std::fabs(z[2]) ? 1 : 2);
-        double unit[3] = {0, 0, 0};
-        unit[k0] = 1;
-        math::cross3(z, unit, a);
-        const double al = std::sqrt(math::dot3(a, a));
-        for (int k = 0; k < 3; ++k) a[k] /= al;
-        math::cross3(z, a, b);
+        double frame[3][3];
+        if (!direction_frame(m, frame)) return 0;
+        const double *z = frame[0], *a = frame[1], *b = frame[2];
         double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
         w.dmax = 0;
         for (uint64_t bits = taken; bits; bits &= bits - 1) {
@@ -692,8 +682,7 @@ private:
         for (int k = 0; k < 2; ++k) lo[k] -= 1e-6, hi[k] += 1e-6;
         const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
         double ray[4][3];
-        for (int r = 0; r < 4; ++r)
-            for (int k = 0; k < 3; ++k) ray[r][k] = z[k] + corner[r][0] * a[k] + corner[r][1] * b[k];
+        for (int r = 0; r < 4; ++r) frame_ray(frame, corner[r][0], corner[r][1], ray[r]);
         for (int r = 0; r < 4; ++r) {
             double* n = w.n[r];
             math::cross3(ray[r], ray[(r + 1) & 3], n);

@@ -102,6 +102,31 @@ struct IndexRange {
     uint32_t first = 0, count = 0;
 };
 
+// A frame about the direction m (its length does not matter): frame[0] the unit z along m, frame[1] and
+// frame[2] unit axes across it (z x the coordinate axis m leans along least, then z x that). False when m
+// has no length (or is not finite). Tiles of points (TraversalBase) and a level's tiles (cb_level.h) take
+// their pyramids in such frames.
+inline bool direction_frame(const double* m, double (*frame)[3]) {
+    double ml = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+    if (!(ml > 0)) return false;
+    double *z = frame[0], *a = frame[1], *b = frame[2];
+    for (int k = 0; k < 3; ++k) z[k] = m[k] / ml;
+    int k0 = std::fabs(z[0]) < std::fabs(z[1]) ? (std::fabs(z[0]) < std::fabs(z[2]) ? 0 : 2)
+                                               : (std::fabs(z[1]) < std::fabs(z[2]) ? 1 : 2);
+    double axis[3] = {0, 0, 0};
+    axis[k0] = 1;
+    math::cross3(z, axis, a);
+    double al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    for (int k = 0; k < 3; ++k) a[k] /= al;
+    math::cross3(z, a, b);
+    return true;
+}
+
+// The ray z + x a + y b of a direction_frame: through (x, y) on the plane across z at distance 1.
+inline void frame_ray(const double (*frame)[3], double x, double y, double* ray) {
+    for (int k = 0; k < 3; ++k) ray[k] = frame[0][k] + x * frame[1][k] + y * frame[2][k];
+}
+
 // The points of `subset` (lanes of ex, ey, ez: their directions from the light, fd: their distances, in
 // float) whose segment to the light may meet the sphere of centre (x, y, z) from the light and radius r: the
 // ray from the light passes within the radius (|c x e| <= r |e|) and the sphere is not wholly behind the light
@@ -209,18 +234,8 @@ protected:
             const double inv = 1 / t.dist[i];
             for (int k = 0; k < 3; ++k) m[k] += t.e[i][k] * inv;
         }
-        double ml = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
-        if (!(ml > 0)) return 0;
-        double *z = t.frame[0], *a = t.frame[1], *b = t.frame[2];
-        for (int k = 0; k < 3; ++k) z[k] = m[k] / ml;
-        int k0 = std::fabs(z[0]) < std::fabs(z[1]) ? (std::fabs(z[0]) < std::fabs(z[2]) ? 0 : 2)
-                                                   : (std::fabs(z[1]) < std::fabs(z[2]) ? 1 : 2);
-        double axis[3] = {0, 0, 0};
-        axis[k0] = 1;
-        math::cross3(z, axis, a);
-        double al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-        for (int k = 0; k < 3; ++k) a[k] /= al;
-        math::cross3(z, a, b);
+        if (!direction_frame(m, t.frame)) return 0;
+        const double *z = t.frame[0], *a = t.frame[1], *b = t.frame[2];
         uint64_t held = 0;
         for (uint64_t w = which; w; w &= w - 1) {
             uint32_t i = math::lowest_bit(w);
@@ -250,11 +265,10 @@ protected:
         // float (below 1e-7): the float rays still hold every point's direction.
         for (int k = 0; k < 2; ++k) lo[k] -= 1e-6, hi[k] += 1e-6;
         const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
-        const double *z = t.frame[0], *a = t.frame[1], *b = t.frame[2];
         for (int r = 0; r < 4; ++r) {
-            double ray[3], l = 0;
-            for (int k = 0; k < 3; ++k) ray[k] = z[k] + corner[r][0] * a[k] + corner[r][1] * b[k], l += ray[k] * ray[k];
-            l = std::sqrt(l);
+            double ray[3];
+            frame_ray(t.frame, corner[r][0], corner[r][1], ray);
+            const double l = std::sqrt(ray[0] * ray[0] + ray[1] * ray[1] + ray[2] * ray[2]);
             out.rx[r] = float(ray[0] / l), out.ry[r] = float(ray[1] / l), out.rz[r] = float(ray[2] / l);
         }
     }

@@ -7,6 +7,7 @@
 #include <cb_level.h>
 
 #include <array>
+#include <memory>
 #include <cmath>
 #include <random>
 #include <thread>
@@ -83,13 +84,28 @@ size_t disagreements(const SceneOracle& oracle, const double* light, const Point
     return wrong;
 }
 
-TEST(Level, CityAnswersEqualTheExactOracle) {
-    const cb::Scene city = cb::generate::city(60, 3);
-    cb::test::Baked baked = cb::test::bake_scene(city);
-    ASSERT_GT(baked.view.mesh_count, 0u);
+// A generated city of `buildings`, baked, in a level of its instances as baked. Held by pointer: the level
+// reads the baked bytes in place.
+struct CityLevel {
+    cb::Scene city;
+    cb::test::Baked baked;
     cb::Level level;
-    level.add_baked(level.add_asset(baked.view));
-    level.commit();
+};
+std::unique_ptr<CityLevel> city_level(uint32_t buildings, uint64_t seed) {
+    auto c = std::make_unique<CityLevel>();
+    c->city = cb::generate::city(buildings, seed);
+    c->baked = cb::test::bake_scene(c->city);
+    c->level.add_baked(c->level.add_asset(c->baked.view));
+    c->level.commit();
+    return c;
+}
+
+TEST(Level, CityAnswersEqualTheExactOracle) {
+    const std::unique_ptr<CityLevel> c = city_level(60, 3);
+    const cb::Scene& city = c->city;
+    const cb::test::Baked& baked = c->baked;
+    cb::Level& level = c->level;
+    ASSERT_GT(baked.view.mesh_count, 0u);
     EXPECT_EQ(level.instance_count(), city.instances.size());
     const SceneOracle oracle(city);
     const Points p = level_points(city, 3000, 5);
@@ -189,11 +205,9 @@ TEST(Level, SingularAndFarInstancesBlockNothingOrAnswerExactly) {
 }
 
 TEST(Level, ConcurrentQueriesFromEightThreadsGiveTheSingleThreadedAnswers) {
-    const cb::Scene city = cb::generate::city(200, 4);
-    cb::test::Baked baked = cb::test::bake_scene(city);
-    cb::Level level;
-    level.add_baked(level.add_asset(baked.view));
-    level.commit();
+    const std::unique_ptr<CityLevel> c = city_level(200, 4);
+    const cb::Scene& city = c->city;
+    cb::Level& level = c->level;
     const Points p = level_points(city, 20000, 8);
     const double light[3] = {100, -60, 150};
     for (cb::Traversal t : {cb::Traversal::scan, cb::Traversal::trees, cb::Traversal::mtsv}) {
@@ -233,11 +247,8 @@ TEST(Level, TilesMeetOnlyTheInstancesNearTheirPointsWhateverTheLevelsSize) {
     size_t met[2] = {0, 0}, built[2] = {0, 0}, tiles[2] = {0, 0};
     const uint32_t sizes[2] = {100, 2500};
     for (int s = 0; s < 2; ++s) {
-        const cb::Scene city = cb::generate::city(sizes[s], 2);
-        cb::test::Baked baked = cb::test::bake_scene(city);
-        cb::Level level;
-        level.add_baked(level.add_asset(baked.view));
-        level.commit();
+        const std::unique_ptr<CityLevel> c = city_level(sizes[s], 2);
+        cb::Level& level = c->level;
         // Points on the ground in a 100 m square at one corner of the grid, the light above it.
         const double corner = -0.5 * 30 * (std::ceil(std::sqrt(double(sizes[s]))) - 1);
         Points p;
@@ -256,11 +267,9 @@ TEST(Level, TilesMeetOnlyTheInstancesNearTheirPointsWhateverTheLevelsSize) {
 }
 
 TEST(Level, CameraCullingThroughTheHierarchyListsWhatEachInstanceWould) {
-    const cb::Scene city = cb::generate::city(300, 6);
-    cb::test::Baked baked = cb::test::bake_scene(city);
-    cb::Level level;
-    level.add_baked(level.add_asset(baked.view));
-    level.commit();
+    const std::unique_ptr<CityLevel> c = city_level(300, 6);
+    const cb::test::Baked& baked = c->baked;
+    cb::Level& level = c->level;
     // A frustum looking along +x from the middle of the city: near, far and four sides.
     cb::Frustum f;
     f.count = 6;

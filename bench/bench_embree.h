@@ -1,0 +1,50 @@
+// What the shadow benchmarks share on Embree's side: its memory, counted by a device's monitor, and a
+// camera's visible points, the first hits of a grid of rays.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <atomic>
+#include <cmath>
+#include <sys/types.h>
+#include <vector>
+
+namespace cb::bench {
+
+// Bytes Embree's devices hold now and at most (embree_monitor, set with rtcSetDeviceMemoryMonitorFunction).
+inline std::atomic<long long> embree_bytes{0}, embree_peak{0};
+inline bool embree_monitor(void*, ssize_t bytes, bool) {
+    long long now = embree_bytes += bytes;
+    long long peak = embree_peak.load();
+    while (now > peak && !embree_peak.compare_exchange_weak(peak, now)) {}
+    return true;
+}
+
+// The first hits (xyz doubles) of a view x view grid of rays from `eye` along fw + spread (sx right + sy up),
+// sx and sy from -1 to 1 across the grid, row by row; rays that hit nothing give no point.
+inline std::vector<double> first_hits(RTCScene scene, const double* eye, const double* fw, const double* right,
+                                      const double* up, int view, double spread) {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    std::vector<double> pts;
+    for (int y = 0; y < view; ++y)
+        for (int x = 0; x < view; ++x) {
+            double sx = (x + 0.5) / view * 2 - 1, sy = (y + 0.5) / view * 2 - 1;
+            RTCRayHit rh{};
+            rh.ray.org_x = float(eye[0]), rh.ray.org_y = float(eye[1]), rh.ray.org_z = float(eye[2]);
+            rh.ray.dir_x = float(fw[0] + spread * (sx * right[0] + sy * up[0]));
+            rh.ray.dir_y = float(fw[1] + spread * (sx * right[1] + sy * up[1]));
+            rh.ray.dir_z = float(fw[2] + spread * (sx * right[2] + sy * up[2]));
+            rh.ray.tnear = 0, rh.ray.tfar = INFINITY, rh.ray.mask = 0xffffffff;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(scene, &ctx, &rh);
+            if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+            pts.insert(
+                pts.end(),
+                {rh.ray.org_x + double(rh.ray.tfar) * rh.ray.dir_x, rh.ray.org_y + double(rh.ray.tfar) * rh.ray.dir_y,
+                 rh.ray.org_z + double(rh.ray.tfar) * rh.ray.dir_z});
+        }
+    return pts;
+}
+
+}  // namespace cb::bench
