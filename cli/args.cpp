@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <memory>
 
+#include "level_file.h"
+
 namespace cb::cli {
 
 void add_clustering_flags(CLI::App* c, ClusterArgs& a) {
@@ -174,6 +176,42 @@ bool load_asset(const std::string& file, cb::LoadedAsset& out) {
     if (cb::read_asset_file(file, out, error)) return true;
     std::fprintf(stderr, "%s\n", error.c_str());
     return false;
+}
+
+bool load_level(const std::string& file, LoadedLevel& out) {
+    out = LoadedLevel{};
+    if (!cb::is_level_file(file)) {
+        out.assets.emplace_back();
+        if (!load_asset(file, out.assets.back())) return false;
+        cb::place_baked(out.level, out.assets.back().view);
+        return true;
+    }
+    std::vector<cb::LevelEntry> entries;
+    std::string error;
+    if (!cb::read_level_file(file, entries, error)) {
+        std::fprintf(stderr, "%s\n", error.c_str());
+        return false;
+    }
+    // Each asset opened once, in the order the entries first name it; the views are taken once all are in.
+    std::vector<std::string> paths;
+    std::vector<size_t> asset_of(entries.size());
+    for (size_t i = 0; i < entries.size(); ++i) {
+        const std::string path = std::filesystem::path(entries[i].asset).lexically_normal().string();
+        asset_of[i] = size_t(std::find(paths.begin(), paths.end(), path) - paths.begin());
+        if (asset_of[i] < paths.size()) continue;
+        paths.push_back(path);
+        out.assets.emplace_back();
+        if (!cb::read_asset_file(path, out.assets.back(), error)) {
+            std::fprintf(stderr, "%s: instances[%zu]: %s\n", file.c_str(), i, error.c_str());
+            return false;
+        }
+    }
+    for (size_t i = 0; i < entries.size(); ++i) {
+        const cb::Transform& m = entries[i].transform;  // column-major 4x4; the runtime takes its top 3 rows
+        const double matrix[12] = {m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10], m[12], m[13], m[14]};
+        cb::place_baked(out.level, out.assets[asset_of[i]].view, matrix);
+    }
+    return true;
 }
 
 BakeProgress bake_progress(ProgressLine& line) {

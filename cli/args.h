@@ -13,6 +13,7 @@
 #include "bounds.h"
 #include "cluster.h"
 #include "progress.h"
+#include "scene_query.h"
 
 namespace cb::cli {
 
@@ -91,6 +92,16 @@ bool parse_light(const std::string& text, double* light);
 
 // The asset file read and opened; otherwise its one-line error on stderr.
 bool load_asset(const std::string& file, LoadedAsset& out);
+
+// The assets a query or a picture is over, and the level they make.
+struct LoadedLevel {
+    std::vector<LoadedAsset> assets;
+    LevelInput level;  // views into `assets`: moving a LoadedAsset keeps its view valid, copying is refused
+};
+
+// An asset file (every baked instance as baked), or a level file (io/level_file.h) with every asset it
+// names opened once; otherwise a one-line error naming the file and the entry on stderr.
+bool load_level(const std::string& file, LoadedLevel& out);
 
 // This process's peak resident memory in bytes so far (Linux: VmHWM, which counts only this program's
 // image, not its parent's before exec); 0 where unknown.

@@ -161,8 +161,8 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     }
     double light[3];
     if (!parse_light(a.light, light)) return exit_usage;
-    cb::LoadedAsset asset;
-    if (!load_asset(a.asset, asset)) return exit_bad_input;
+    LoadedLevel level;
+    if (!load_level(a.asset, level)) return exit_bad_input;
     std::vector<double> pts;
     if (!read_points(a, pts)) return exit_bad_input;
 
@@ -171,7 +171,7 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     cb::parse_metric_build(a.metric_build, options.metric_build);  // CLI11 checked the name
     options.one_sided = a.one_sided, options.threads = a.threads, options.reference = a.reference;
     options.capsule_ratio = a.capsule_ratio;
-    cb::SceneQueryResult q = cb::query_scene(asset.view, light, pts.data(), pts.size() / 3, options);
+    cb::SceneQueryResult q = cb::query_level(level.level, light, pts.data(), pts.size() / 3, options);
     size_t shadowed = size_t(std::count(q.shadowed.begin(), q.shadowed.end(), uint8_t(1)));
     if (a.json) {
         print_json(a, light, q, shadowed);
@@ -192,7 +192,8 @@ Command add_query(CLI::App& app) {
     CLI::App* c = app.add_subcommand("query",
                                      "Answer point-light shadow queries (exact; two-sided occluders unless "
                                      "--one-sided): one 0/1 line per point on stdout");
-    c->add_option("asset", a->asset, "Asset (.cbk)")->required();
+    c->add_option("asset", a->asset, "Asset (.cbk), or a level file placing several (JSON, docs/RUNTIME.md)")
+        ->required();
     c->add_option("--light", a->light, "Light position X,Y,Z in world space")->required();
     c->add_option("--points", a->points,
                   "Points: text lines 'x y z', or float32 triples with --binary; - reads standard input")

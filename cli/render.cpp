@@ -260,12 +260,12 @@ void print_summary(const RenderArgs& a, const cb::RenderOptions& o, const cb::Re
 int run_render(const CLI::App* c, const RenderArgs& a) {
     cb::RenderOptions options;
     if (!parse_render(c, a, options)) return exit_usage;
-    cb::LoadedAsset asset;
-    if (!load_asset(a.asset, asset)) return exit_bad_input;
+    LoadedLevel level;
+    if (!load_level(a.asset, level)) return exit_bad_input;
     ProgressLine progress(!a.quiet);
     cb::RenderResult r;
     try {
-        r = cb::render_asset(asset.view, options, [&](const std::string& stage, double fraction) {
+        r = cb::render_level(level.level, options, [&](const std::string& stage, double fraction) {
             if (fraction < 0) return progress.stage(stage);
             if (fraction == 0) progress.restart();  // the time left is the lights'
             progress.show(fraction, stage);
@@ -301,10 +301,11 @@ int run_render(const CLI::App* c, const RenderArgs& a) {
 
 Command add_render(CLI::App& app) {
     auto a = std::make_shared<RenderArgs>();
-    CLI::App* c = app.add_subcommand(
-        "render",
-        "Render an asset to PNG: Lambert shading, exact shadows of a point or an area light from the runtime");
-    c->add_option("asset", a->asset, "Asset (.cbk)")->required();
+    CLI::App* c = app.add_subcommand("render",
+                                     "Render an asset or a level to PNG: Lambert shading, exact shadows of a point or "
+                                     "an area light from the runtime");
+    c->add_option("asset", a->asset, "Asset (.cbk), or a level file placing several (JSON, docs/RUNTIME.md)")
+        ->required();
     c->add_option("-o,--output", a->out, "Output PNG (written atomically)")->required();
     c->add_option("--light", a->light, "Point light X,Y,Z (default: above the scene, as the report's first light)");
     c->add_option("--area-light", a->area_light,

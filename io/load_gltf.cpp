@@ -497,13 +497,7 @@ Transform node_local(const Context& ctx, const tinygltf::Node& node) {
             if (node.scale.size() != 3) ctx.fail("scale needs 3 values");
             for (int i = 0; i < 3; ++i) s[i] = node.scale[i];
         }
-        double x = q[0], y = q[1], z = q[2], w = q[3];
-        double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),
-                       2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
-                       2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y)};
-        for (int col = 0; col < 3; ++col)
-            for (int row = 0; row < 3; ++row) m[col * 4 + row] = r[col * 3 + row] * s[col];
-        m[12] = t[0], m[13] = t[1], m[14] = t[2];
+        m = trs_transform(t, q, s);
     }
     for (double v : m)
         if (!std::isfinite(v)) ctx.fail("transform has a non-finite value");

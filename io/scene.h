@@ -37,6 +37,19 @@ using Transform = std::array<double, 16>;
 
 constexpr Transform identity_transform() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }
 
+// glTF's translation, rotation (unit quaternion x, y, z, w) and scale as one transform: T x R x S.
+inline Transform trs_transform(const double* t, const double* q, const double* s) {
+    const double x = q[0], y = q[1], z = q[2], w = q[3];
+    const double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),
+                         2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+                         2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y)};
+    Transform m = identity_transform();
+    for (int col = 0; col < 3; ++col)
+        for (int row = 0; row < 3; ++row) m[col * 4 + row] = r[col * 3 + row] * s[col];
+    m[12] = t[0], m[13] = t[1], m[14] = t[2];
+    return m;
+}
+
 // `world` maps the mesh's frame to world space: the source's transform (a glTF node's composed chain,
 // identity for the other formats) times the translation to the mesh frame's origin. World positions are
 // transform_point(world, position), in double: the file's coordinates (exactly for float inputs, to float

@@ -1,5 +1,8 @@
 #include "scene_query.h"
 
+#include <cb_level.h>
+
+#include <algorithm>
 #include <cstdlib>
 #include <stdexcept>
 #include <string>
@@ -11,30 +14,30 @@ using LightCallback = std::function<void(size_t, const SceneQueryResult&)>;
 // The builds of the query body (scene_query_lanes.cpp): this unit's own lanes, and where query/CMakeLists.txt
 // built them, AVX2's and AVX-512's.
 inline namespace CB_LANES {
-SceneQueryResult query_scene_lanes(const AssetView&, const double*, const double*, size_t, const SceneQueryOptions&);
-double query_lights_lanes(const AssetView&, const double*, size_t, const double*, size_t, const SceneQueryOptions&,
+SceneQueryResult query_level_lanes(const LevelInput&, const double*, const double*, size_t, const SceneQueryOptions&);
+double query_lights_lanes(const LevelInput&, const double*, size_t, const double*, size_t, const SceneQueryOptions&,
                           const LightCallback&);
 }  // namespace CB_LANES
 #if defined(CB_QUERY_LANES_AVX)
 namespace lanes_avx {
-SceneQueryResult query_scene_lanes(const AssetView&, const double*, const double*, size_t, const SceneQueryOptions&);
-double query_lights_lanes(const AssetView&, const double*, size_t, const double*, size_t, const SceneQueryOptions&,
+SceneQueryResult query_level_lanes(const LevelInput&, const double*, const double*, size_t, const SceneQueryOptions&);
+double query_lights_lanes(const LevelInput&, const double*, size_t, const double*, size_t, const SceneQueryOptions&,
                           const LightCallback&);
 }  // namespace lanes_avx
 #endif
 #if defined(CB_QUERY_LANES_AVX512)
 namespace lanes_avx512 {
-SceneQueryResult query_scene_lanes(const AssetView&, const double*, const double*, size_t, const SceneQueryOptions&);
-double query_lights_lanes(const AssetView&, const double*, size_t, const double*, size_t, const SceneQueryOptions&,
+SceneQueryResult query_level_lanes(const LevelInput&, const double*, const double*, size_t, const SceneQueryOptions&);
+double query_lights_lanes(const LevelInput&, const double*, size_t, const double*, size_t, const SceneQueryOptions&,
                           const LightCallback&);
 }  // namespace lanes_avx512
 #endif
 
 namespace {
 
-using QueryBody = SceneQueryResult (*)(const AssetView&, const double*, const double*, size_t,
+using QueryBody = SceneQueryResult (*)(const LevelInput&, const double*, const double*, size_t,
                                        const SceneQueryOptions&);
-using LightsBody = double (*)(const AssetView&, const double*, size_t, const double*, size_t, const SceneQueryOptions&,
+using LightsBody = double (*)(const LevelInput&, const double*, size_t, const double*, size_t, const SceneQueryOptions&,
                               const LightCallback&);
 struct Lanes {
     const char* name;  // as simd::name
@@ -55,12 +58,12 @@ bool cpu_has_avx2() { return __builtin_cpu_supports("avx2") && __builtin_cpu_sup
 // the wider registers), no wider than CLUSTERBAKE_LANES (sse2, avx2 or avx512) when that is set.
 Lanes pick_lanes() {
     const Lanes builds[] = {
-        {simd::name, lanes_rank(simd::name), &CB_LANES::query_scene_lanes, &CB_LANES::query_lights_lanes},
+        {simd::name, lanes_rank(simd::name), &CB_LANES::query_level_lanes, &CB_LANES::query_lights_lanes},
 #if defined(CB_QUERY_LANES_AVX)
-        {"avx2", cpu_has_avx2() ? 3 : -1, &lanes_avx::query_scene_lanes, &lanes_avx::query_lights_lanes},
+        {"avx2", cpu_has_avx2() ? 3 : -1, &lanes_avx::query_level_lanes, &lanes_avx::query_lights_lanes},
 #endif
 #if defined(CB_QUERY_LANES_AVX512)
-        {"avx512", cpu_has_avx2() && __builtin_cpu_supports("avx512f") ? 4 : -1, &lanes_avx512::query_scene_lanes,
+        {"avx512", cpu_has_avx2() && __builtin_cpu_supports("avx512f") ? 4 : -1, &lanes_avx512::query_level_lanes,
          &lanes_avx512::query_lights_lanes},
 #endif
     };
@@ -115,15 +118,40 @@ bool parse_metric_build(const std::string& name, MetricBuild& out) {
 
 const char* query_lanes() { return lanes().name; }
 
-SceneQueryResult query_scene(const AssetView& view, const double* light, const double* points, size_t count,
-                             const SceneQueryOptions& options) {
-    return lanes().body(view, light, points, count, options);
+void place_baked(LevelInput& level, const AssetView& view, const double* matrix) {
+    uint32_t asset = 0;
+    while (asset < level.assets.size() && level.assets[asset] != &view) ++asset;
+    if (asset == level.assets.size()) level.assets.push_back(&view);
+    for (uint32_t i = 0; i < view.instance_count; ++i) {
+        LevelInstance placed{asset, view.instances[i].mesh, {}};
+        if (matrix)
+            level_detail::compose(matrix, view.instances[i].transform, placed.transform);
+        else
+            std::copy(view.instances[i].transform, view.instances[i].transform + 12, placed.transform);
+        level.instances.push_back(placed);
+    }
 }
 
-double query_scene_lights(const AssetView& view, const double* lights, size_t light_count, const double* points,
+LevelInput baked_level(const AssetView& view) {
+    LevelInput level;
+    place_baked(level, view);
+    return level;
+}
+
+SceneQueryResult query_level(const LevelInput& level, const double* light, const double* points, size_t count,
+                             const SceneQueryOptions& options) {
+    return lanes().body(level, light, points, count, options);
+}
+
+SceneQueryResult query_scene(const AssetView& view, const double* light, const double* points, size_t count,
+                             const SceneQueryOptions& options) {
+    return query_level(baked_level(view), light, points, count, options);
+}
+
+double query_level_lights(const LevelInput& level, const double* lights, size_t light_count, const double* points,
                           size_t count, const SceneQueryOptions& options,
                           const std::function<void(size_t light, const SceneQueryResult&)>& on_light) {
-    return lanes().lights_body(view, lights, light_count, points, count, options, on_light);
+    return lanes().lights_body(level, lights, light_count, points, count, options, on_light);
 }
 
 }  // namespace cb

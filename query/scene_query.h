@@ -24,6 +24,28 @@ const char* traversal_name(Traversal t);
 // The metric trees' build (cb::MetricBuild) named "heuristic" or "reference"; false on another name.
 bool parse_metric_build(const std::string& name, MetricBuild& out);
 
+// One instance of a level as the tools hold it: a mesh of one of the level's assets under a world transform
+// (column-major 3x4 doubles: the x, y, z axes, then the translation).
+struct LevelInstance {
+    uint32_t asset, mesh;
+    double transform[12];
+};
+
+// Opened assets and the instances placed from them: what query_level and the renderer answer over. The
+// views must outlive it.
+struct LevelInput {
+    std::vector<const AssetView*> assets;
+    std::vector<LevelInstance> instances;
+};
+
+// Every baked instance of `view` appended to `level`, under `matrix` (world = matrix x the baked transform,
+// in double, as cb::Level::add_baked composes them; null: as baked). The view joins the level's assets
+// unless it is there already.
+void place_baked(LevelInput& level, const AssetView& view, const double* matrix = nullptr);
+
+// The level of one asset's baked instances.
+LevelInput baked_level(const AssetView& view);
+
 struct SceneQueryOptions {
     Traversal traversal = Traversal::scan;
     bool one_sided = false;      // a triangle blocks only when the light is behind it (double-sided ones always)
@@ -46,21 +68,26 @@ struct SceneQueryResult {
     size_t skipped = 0;           // one-sided: clusters the light sees from their front
 };
 
-// The `count` points (xyz, world) against the light (xyz, world). The work runs on the widest lanes this
-// processor has among those the build made (query_lanes); every choice gives the same answers.
+// The `count` points (xyz, world) against the light (xyz, world), over every instance of the level. The
+// work runs on the widest lanes this processor has among those the build made (query_lanes); every choice
+// gives the same answers. trees counts the instances set up for the light.
+SceneQueryResult query_level(const LevelInput& level, const double* light, const double* points, size_t count,
+                             const SceneQueryOptions& options = {});
+
+// query_level over the asset's baked instances.
 SceneQueryResult query_scene(const AssetView& view, const double* light, const double* points, size_t count,
                              const SceneQueryOptions& options = {});
 
-// The same `count` points against each of `light_count` lights (xyz triples, world), as query_scene answers
-// them one light at a time, but with the light-independent part made once: the scan's per-asset bounds
-// (make_scan_bounds). Each light's result goes to `on_light` as soon as it is done, in order, so a caller
-// keeps only what it needs of it; its build_seconds leave the shared bounds out. Returns the seconds the
-// shared bounds took (0 for the reference and the tree traversals, which need none).
-double query_scene_lights(const AssetView& view, const double* lights, size_t light_count, const double* points,
+// The same `count` points against each of `light_count` lights (xyz triples, world), as query_level answers
+// them one light at a time, but with the light-independent part made once: the level's hierarchy and the
+// scan's per-asset bounds (make_scan_bounds). Each light's result goes to `on_light` as soon as it is done,
+// in order, so a caller keeps only what it needs of it; its build_seconds leave the shared part out.
+// Returns the seconds the shared part took.
+double query_level_lights(const LevelInput& level, const double* lights, size_t light_count, const double* points,
                           size_t count, const SceneQueryOptions& options,
                           const std::function<void(size_t light, const SceneQueryResult&)>& on_light);
 
-// The lanes query_scene runs on ("avx512", "avx2", "sse2" or "portable", as cb::simd::name), picked on
+// The lanes query_level runs on ("avx512", "avx2", "sse2" or "portable", as cb::simd::name), picked on
 // first use: the widest the processor runs, no wider than the environment's CLUSTERBAKE_LANES (sse2, avx2
 // or avx512) when set. Throws std::runtime_error on an unknown CLUSTERBAKE_LANES.
 const char* query_lanes();

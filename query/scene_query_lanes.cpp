@@ -16,12 +16,15 @@ inline namespace CB_LANES {
 
 namespace {
 
-// The asset's instances as baked, in a runtime scene (light-independent: made once for every light), with
-// the scan's bounds when the scan reads them.
-struct BakedLevel {
+// The tools' level as a runtime level (light-independent: made once for every light), with the scan's
+// bounds when the scan reads them. Asset a of the input is asset a of the level, and instance i handle i.
+struct RuntimeLevel {
     Level level;
-    explicit BakedLevel(const AssetView& view, const SceneQueryOptions& o) {
-        level.add_baked(level.add_asset(view, o.traversal == Traversal::scan && !o.reference));
+    RuntimeLevel(const LevelInput& input, const SceneQueryOptions& o) {
+        for (const AssetView* view : input.assets)
+            level.add_asset(*view, o.traversal == Traversal::scan && !o.reference);
+        for (const LevelInstance& placed : input.instances)
+            level.add_instance(placed.asset, placed.mesh, placed.transform);
         level.commit();
     }
 };
@@ -77,16 +80,16 @@ void answer_batch(const Level& level, const double* light, const double* points,
 }
 
 // Each point on its own, with its own counts (per_point), or the reference query.
-void answer_points(const AssetView& view, const Level& level, const double* light, const double* points, size_t n,
-                   const SceneQueryOptions& o, unsigned thread_count, SceneQueryResult& r) {
+void answer_points(const Level& level, const double* light, const double* points, size_t n, const SceneQueryOptions& o,
+                   unsigned thread_count, SceneQueryResult& r) {
     auto build_start = std::chrono::steady_clock::now();
-    std::vector<InstanceShadow> trees(o.reference ? 0 : view.instance_count);
+    std::vector<InstanceShadow> trees(o.reference ? 0 : level.handle_limit());
     ShadowBuildOptions build = build_options(o);
-    build.bounds = level.scan_bounds(0);
-    for (uint32_t i = 0; i < trees.size(); ++i) {
-        trees[i].build(view, i, light, build);
-        r.skipped += trees[i].skipped_clusters(), r.nodes += trees[i].node_count();
-        r.tree_bytes += trees[i].memory_bytes(), r.always_tested += trees[i].always_tested();
+    for (uint32_t h = 0; h < trees.size(); ++h) {
+        build.bounds = level.scan_bounds(level.asset_of(h));
+        trees[h].build(level.asset(level.asset_of(h)), level.placement(h), light, build);
+        r.skipped += trees[h].skipped_clusters(), r.nodes += trees[h].node_count();
+        r.tree_bytes += trees[h].memory_bytes(), r.always_tested += trees[h].always_tested();
     }
     r.trees = trees.size();
     r.build_seconds = seconds_since(build_start);
@@ -103,7 +106,7 @@ void answer_points(const AssetView& view, const Level& level, const double* ligh
             QueryStats* s = o.per_point ? &r.point_stats[i] : &counts[t];
             const double* p = &points[i * 3];
             if (o.reference) {
-                r.shadowed[i] = occluded_reference(view, p, light, o.one_sided, s);
+                r.shadowed[i] = occluded_reference(level, p, light, o.one_sided, s);
             } else {
                 for (const InstanceShadow& tree : trees)
                     if (!r.shadowed[i]) r.shadowed[i] = tree.occluded(p, stack.data(), s);
@@ -116,36 +119,36 @@ void answer_points(const AssetView& view, const Level& level, const double* ligh
 }
 
 // One light's answers over the level already made.
-SceneQueryResult answer_light(const AssetView& view, const Level& level, const double* light, const double* points,
-                              size_t n, const SceneQueryOptions& o) {
+SceneQueryResult answer_light(const Level& level, const double* light, const double* points, size_t n,
+                              const SceneQueryOptions& o) {
     SceneQueryResult r;
     const unsigned thread_count = threads_or_all(o.threads);
     if (!o.reference && !o.per_point)
         answer_batch(level, light, points, n, o, thread_count, r);
     else
-        answer_points(view, level, light, points, n, o, thread_count, r);
+        answer_points(level, light, points, n, o, thread_count, r);
     return r;
 }
 
 }  // namespace
 
-SceneQueryResult query_scene_lanes(const AssetView& view, const double* light, const double* points, size_t n,
+SceneQueryResult query_level_lanes(const LevelInput& input, const double* light, const double* points, size_t n,
                                    const SceneQueryOptions& o) {
     auto start = std::chrono::steady_clock::now();
-    const BakedLevel baked(view, o);
+    const RuntimeLevel runtime(input, o);
     const double level_seconds = seconds_since(start);
-    SceneQueryResult r = answer_light(view, baked.level, light, points, n, o);
+    SceneQueryResult r = answer_light(runtime.level, light, points, n, o);
     r.build_seconds += level_seconds;  // one light: its build includes the level
     return r;
 }
 
-double query_lights_lanes(const AssetView& view, const double* lights, size_t light_count, const double* points,
+double query_lights_lanes(const LevelInput& input, const double* lights, size_t light_count, const double* points,
                           size_t n, const SceneQueryOptions& o,
                           const std::function<void(size_t, const SceneQueryResult&)>& on_light) {
     auto start = std::chrono::steady_clock::now();
-    const BakedLevel baked(view, o);
+    const RuntimeLevel runtime(input, o);
     const double level_seconds = seconds_since(start);
-    for (size_t l = 0; l < light_count; ++l) on_light(l, answer_light(view, baked.level, &lights[l * 3], points, n, o));
+    for (size_t l = 0; l < light_count; ++l) on_light(l, answer_light(runtime.level, &lights[l * 3], points, n, o));
     return level_seconds;
 }
 

@@ -56,15 +56,15 @@ void one_sided_filter(const RTCFilterFunctionNArguments* args) {
 
 }  // namespace
 
-EmbreeShadows::EmbreeShadows(const AssetView& view, bool one_sided, unsigned threads)
+EmbreeShadows::EmbreeShadows(const LevelInput& level, bool one_sided, unsigned threads)
     : scene_(std::make_unique<Scene>()), threads_(threads) {
     auto start = std::chrono::steady_clock::now();
     Scene& s = *scene_;
     s.one_sided = one_sided;
-    for (uint32_t i = 0; i < view.instance_count; ++i) {
-        const InstanceRecord& inst = view.instances[i];
-        const MeshRecord& mesh = view.meshes[inst.mesh];
-        const double* m = inst.transform;
+    for (const LevelInstance& placed : level.instances) {
+        const AssetView& view = *level.assets[placed.asset];
+        const MeshRecord& mesh = view.meshes[placed.mesh];
+        const double* m = placed.transform;
         const double det = m[0] * (m[4] * m[8] - m[7] * m[5]) - m[3] * (m[1] * m[8] - m[7] * m[2]) +
             m[6] * (m[1] * m[5] - m[4] * m[2]);
         const uint32_t base = uint32_t(s.vertices.size() / 3);

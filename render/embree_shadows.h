@@ -9,14 +9,16 @@
 #include <memory>
 #include <vector>
 
+#include "scene_query.h"
+
 namespace cb {
 
 class EmbreeShadows {
 public:
-    // Builds the Embree scene of the asset's triangles. `one_sided`: a triangle blocks only when the light
+    // Builds the Embree scene of the level's triangles. `one_sided`: a triangle blocks only when the light
     // is behind it (double-sided ones always), as the runtime's one-sided mode. Throws std::runtime_error
     // when Embree fails.
-    EmbreeShadows(const AssetView& view, bool one_sided, unsigned threads);
+    EmbreeShadows(const LevelInput& level, bool one_sided, unsigned threads);
     ~EmbreeShadows();
     EmbreeShadows(const EmbreeShadows&) = delete;
     EmbreeShadows& operator=(const EmbreeShadows&) = delete;

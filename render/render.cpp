@@ -85,16 +85,16 @@ void dot(std::vector<uint8_t>& rgb, uint32_t width, uint32_t height, uint32_t x,
 // float rounding of its coordinates (1e-6 of the largest, along the point's normal or an axis, either way:
 // the segment moves by that much at every parameter, wherever it meets its occluder). Counts them and marks
 // their pixels (1 a tie or near tie, 2 the runtime alone shadows, 3 Embree alone).
-void classify(const AssetView& view, const SceneQueryOptions& query, const double* light, const VisibleSurface& surface,
-              const std::vector<uint8_t>& shadowed, const std::vector<size_t>& differing, CompareCounts& counts,
-              std::vector<uint8_t>& mark) {
+void classify(const LevelInput& level, const SceneQueryOptions& query, const double* light,
+              const VisibleSurface& surface, const std::vector<uint8_t>& shadowed, const std::vector<size_t>& differing,
+              CompareCounts& counts, std::vector<uint8_t>& mark) {
     SceneQueryOptions exact = query;
     exact.reference = true, exact.per_point = true;
     exact.threads = 1;  // each call asks one point: no threads to start
     for (size_t i : differing) {
         const double* p = &surface.points[i * 3];
         const double* n = &surface.normals[i * 3];
-        const bool tie = query_scene(view, light, p, 1, exact).point_stats[0].touching > 0;
+        const bool tie = query_level(level, light, p, 1, exact).point_stats[0].touching > 0;
         double size = 0;
         for (int k = 0; k < 3; ++k) size = std::max({size, std::fabs(p[k]), std::fabs(light[k])});
         const double step = 1e-6 * size;
@@ -105,7 +105,7 @@ void classify(const AssetView& view, const SceneQueryOptions& query, const doubl
                 const double d = (m % 2 ? -step : step) * (m < 2 ? n[k] : double(k == m / 2 - 1));
                 moved_point[k] = p[k] + d, moved_light[k] = light[k] + d;
             }
-            near = query_scene(view, moved_light, moved_point, 1, exact).shadowed[0] != shadowed[i];
+            near = query_level(level, moved_light, moved_point, 1, exact).shadowed[0] != shadowed[i];
         }
         (shadowed[i] ? counts.runtime_only : counts.embree_only) += 1;
         counts.ties += tie, counts.near_ties += near;
@@ -116,11 +116,11 @@ void classify(const AssetView& view, const SceneQueryOptions& query, const doubl
 
 }  // namespace
 
-RenderResult render_asset(const AssetView& view, const RenderOptions& o, const RenderProgress& progress) {
+RenderResult render_level(const LevelInput& level, const RenderOptions& o, const RenderProgress& progress) {
     RenderResult r;
     r.width = o.width, r.height = o.height;
     double lo[3], hi[3];
-    if (!asset_world_box(view, lo, hi)) throw std::runtime_error("no vertex to look at");
+    if (!level_world_box(level, lo, hi)) throw std::runtime_error("no vertex to look at");
     r.camera = choose_camera(o, lo, hi, r.fov_degrees);
 
     // The lights: one point, or the area light's samples facing the scene's centre.
@@ -138,7 +138,7 @@ RenderResult render_asset(const AssetView& view, const RenderOptions& o, const R
 
     if (progress) progress("drawing the clusters the camera sees", -1);
     auto start = std::chrono::steady_clock::now();
-    const VisibleSurface surface = primary_visibility(view, r.camera, o.threads);
+    const VisibleSurface surface = primary_visibility(level, r.camera, o.threads);
     r.visibility_seconds = seconds_since(start);
     r.clusters_drawn = surface.clusters_drawn, r.triangles_drawn = surface.triangles_drawn;
     r.points = surface.points;
@@ -147,7 +147,7 @@ RenderResult render_asset(const AssetView& view, const RenderOptions& o, const R
     std::unique_ptr<EmbreeShadows> embree;
     if (o.compare) {
         if (progress) progress("building Embree's scene", -1);
-        embree = std::make_unique<EmbreeShadows>(view, o.one_sided, o.threads);
+        embree = std::make_unique<EmbreeShadows>(level, o.one_sided, o.threads);
         r.compare.build_seconds = embree->build_seconds();
     }
 
@@ -158,8 +158,8 @@ RenderResult render_asset(const AssetView& view, const RenderOptions& o, const R
     SceneQueryOptions query;
     query.one_sided = o.one_sided, query.threads = o.threads;
     if (progress) progress("light 1 of " + std::to_string(light_count), 0);
-    r.bounds_seconds = query_scene_lights(
-        view, r.lights.data(), light_count, surface.points.data(), n, query, [&](size_t l, const SceneQueryResult& q) {
+    r.bounds_seconds = query_level_lights(
+        level, r.lights.data(), light_count, surface.points.data(), n, query, [&](size_t l, const SceneQueryResult& q) {
             const double* light = &r.lights[l * 3];
             r.build_seconds.push_back(q.build_seconds), r.query_seconds.push_back(q.query_seconds);
             r.queries += n;
@@ -184,7 +184,7 @@ RenderResult render_asset(const AssetView& view, const RenderOptions& o, const R
                 std::vector<size_t> differing;
                 for (size_t i = 0; i < n; ++i)
                     if (theirs[i] != q.shadowed[i]) differing.push_back(i);
-                if (!differing.empty()) classify(view, query, light, surface, q.shadowed, differing, r.compare, mark);
+                if (!differing.empty()) classify(level, query, light, surface, q.shadowed, differing, r.compare, mark);
             }
             if (progress)
                 progress("light " + std::to_string(std::min(l + 2, light_count)) + " of " + std::to_string(light_count),
@@ -219,6 +219,10 @@ RenderResult render_asset(const AssetView& view, const RenderOptions& o, const R
         for (uint8_t m : mark) r.compare.pixels += m != 0, r.compare.pixels_other += m > 1;
     }
     return r;
+}
+
+RenderResult render_asset(const AssetView& view, const RenderOptions& options, const RenderProgress& progress) {
+    return render_level(baked_level(view), options, progress);
 }
 
 }  // namespace cb

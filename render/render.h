@@ -1,5 +1,5 @@
-// A small CPU renderer for looking at an asset and its shadows: primary visibility from the asset's own
-// clusters (visibility.h), Lambert shading, and shadows from the runtime's exact queries, a point light's
+// A small CPU renderer for looking at an asset, or a level of several, and its shadows: primary visibility
+// from the assets' own clusters (visibility.h), Lambert shading, and shadows from the runtime's exact queries, a point light's
 // hard ones or an area light's soft ones (the fraction of its samples that reach each point). Optionally
 // the same shadows asked of Embree's rays, and a picture of where the two differ.
 #pragma once
@@ -13,6 +13,7 @@
 
 #include "area_light.h"
 #include "runtime_cost.h"
+#include "scene_query.h"
 
 namespace cb {
 
@@ -59,7 +60,7 @@ struct RenderResult {
     uint64_t clusters_drawn = 0, triangles_drawn = 0;
     uint64_t queries = 0, shadowed = 0;  // point and light pairs, and those in shadow
     double visibility_seconds = 0;
-    double bounds_seconds = 0;                         // the scan's per-asset bounds, once for every light
+    double bounds_seconds = 0;  // the level's hierarchy and the scan's per-asset bounds, once for every light
     std::vector<double> build_seconds, query_seconds;  // per light
     CompareCounts compare;
 };
@@ -67,7 +68,10 @@ struct RenderResult {
 // What the renderer reports as it goes: the stage, and the share of the lights done (negative: unknown).
 using RenderProgress = std::function<void(const std::string& stage, double fraction)>;
 
-// Throws std::runtime_error when the asset has no vertex to look at, or Embree fails.
+// Throws std::runtime_error when the level has no vertex to look at, or Embree fails.
+RenderResult render_level(const LevelInput& level, const RenderOptions& options, const RenderProgress& progress = {});
+
+// render_level over the asset's baked instances.
 RenderResult render_asset(const AssetView& view, const RenderOptions& options, const RenderProgress& progress = {});
 
 }  // namespace cb

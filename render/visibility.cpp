@@ -57,32 +57,41 @@ Frustum view_frustum(const Camera& c, double near) {
     return f;
 }
 
-// The fine clusters to draw: those the frustum may see, or every one when the asset has no fine boxes.
-std::vector<VisibleCluster> clusters_to_draw(const AssetView& view, const Frustum& f) {
-    std::vector<VisibleCluster> out;
-    if (!view.fine_bounds.obbs) {
-        for (uint32_t i = 0; i < view.instance_count; ++i) {
-            const MeshRecord& mesh = view.meshes[view.instances[i].mesh];
-            for (uint32_t k = 0; k < mesh.fine_count; ++k) out.push_back({i, mesh.first_fine + k});
+// The fine clusters to draw: those the frustum may see, or every one of an asset without fine boxes.
+std::vector<VisibleCluster> clusters_to_draw(const LevelInput& level, const Frustum& f) {
+    auto list = [&](VisibleCluster* out, size_t capacity) {
+        size_t count = 0;
+        for (uint32_t i = 0; i < level.instances.size(); ++i) {
+            const LevelInstance& placed = level.instances[i];
+            const AssetView& view = *level.assets[placed.asset];
+            if (view.fine_bounds.obbs) {
+                count = cull_instance(view, {placed.mesh, placed.transform}, i, f, /*backface=*/false, out, capacity,
+                                      count);
+                continue;
+            }
+            const MeshRecord& mesh = view.meshes[placed.mesh];
+            for (uint32_t k = 0; k < mesh.fine_count; ++k, ++count)
+                if (count < capacity) out[count] = {i, mesh.first_fine + k};
         }
-        return out;
-    }
-    out.resize(cull_clusters(view, f, /*backface=*/false, nullptr, 0));
-    out.resize(cull_clusters(view, f, false, out.data(), out.size()));
+        return count;
+    };
+    std::vector<VisibleCluster> out(list(nullptr, 0));
+    list(out.data(), out.size());
     return out;
 }
 
 // Corners of triangle `t` (0-based within the cluster) of a listed cluster, in world space.
-void cluster_triangle(const AssetView& view, const VisibleCluster& vc, uint32_t t, double (*world)[3]) {
-    const InstanceRecord& inst = view.instances[vc.instance];
-    const MeshRecord& mesh = view.meshes[inst.mesh];
+void cluster_triangle(const LevelInput& level, const VisibleCluster& vc, uint32_t t, double (*world)[3]) {
+    const LevelInstance& placed = level.instances[vc.instance];
+    const AssetView& view = *level.assets[placed.asset];
+    const MeshRecord& mesh = view.meshes[placed.mesh];
     const uint32_t local_cluster = vc.fine - mesh.first_fine;
     uint32_t corner[3];
     view.triangle(mesh, local_cluster, view.fine[vc.fine].first_triangle + t, corner);
     for (int i = 0; i < 3; ++i) {
         const float* p = view.position(mesh, corner[i]);
         const double local[3] = {p[0], p[1], p[2]};
-        apply_instance(inst.transform, local, world[i]);
+        apply_instance(placed.transform, local, world[i]);
     }
 }
 
@@ -132,16 +141,16 @@ struct DepthBuffer {
 
 }  // namespace
 
-bool asset_world_box(const AssetView& view, double* lo, double* hi) {
+bool level_world_box(const LevelInput& level, double* lo, double* hi) {
     for (int k = 0; k < 3; ++k) lo[k] = INFINITY, hi[k] = -INFINITY;
-    for (uint32_t i = 0; i < view.instance_count; ++i) {
-        const InstanceRecord& inst = view.instances[i];
-        const MeshRecord& mesh = view.meshes[inst.mesh];
+    for (const LevelInstance& placed : level.instances) {
+        const AssetView& view = *level.assets[placed.asset];
+        const MeshRecord& mesh = view.meshes[placed.mesh];
         for (uint32_t v = 0; v < mesh.vertex_count; ++v) {
             const float* p = view.position(mesh, v);
             const double local[3] = {p[0], p[1], p[2]};
             double w[3];
-            apply_instance(inst.transform, local, w);
+            apply_instance(placed.transform, local, w);
             for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], w[k]), hi[k] = std::max(hi[k], w[k]);
         }
     }
@@ -184,12 +193,12 @@ double framing_fov(const Camera& c, const double* lo, const double* hi) {
     return 2 * std::atan(1.04 * extent) * 180 / pi;  // the same margin as default_camera's
 }
 
-VisibleSurface primary_visibility(const AssetView& view, const Camera& c, unsigned threads) {
+VisibleSurface primary_visibility(const LevelInput& level, const Camera& c, unsigned threads) {
     VisibleSurface out;
     out.width = c.width, out.height = c.height;
     const size_t pixel_count = size_t(c.width) * c.height;
     double lo[3], hi[3];
-    if (!asset_world_box(view, lo, hi) || !pixel_count) return out;
+    if (!level_world_box(level, lo, hi) || !pixel_count) return out;
 
     // The near plane: far enough that projected corners stay finite, near enough to cut nothing the
     // camera shows (a millionth of the distance across the scene and the eye).
@@ -198,7 +207,7 @@ VisibleSurface primary_visibility(const AssetView& view, const Camera& c, unsign
         reach = std::max({reach, std::fabs(hi[k] - c.eye[k]), std::fabs(lo[k] - c.eye[k]), hi[k] - lo[k]});
     const double near = std::max(1e-6 * reach, 1e-300);
     const double aspect = aspect_of(c);
-    const std::vector<VisibleCluster> clusters = clusters_to_draw(view, view_frustum(c, near));
+    const std::vector<VisibleCluster> clusters = clusters_to_draw(level, view_frustum(c, near));
     out.clusters_drawn = clusters.size();
 
     // Which rows each cluster reaches, so that a band of rows skips the others.
@@ -206,10 +215,11 @@ VisibleSurface primary_visibility(const AssetView& view, const Camera& c, unsign
     std::vector<uint32_t> triangles(clusters.size());
     parallel_for(clusters.size(), threads, [&](size_t i) {
         double top = INFINITY, bottom = -INFINITY;
-        const uint32_t count = view.fine[clusters[i].fine].triangle_count;
+        const uint32_t count =
+            level.assets[level.instances[clusters[i].instance].asset]->fine[clusters[i].fine].triangle_count;
         for (uint32_t t = 0; t < count; ++t) {
             double world[3][3], screen[4][2];
-            cluster_triangle(view, clusters[i], t, world);
+            cluster_triangle(level, clusters[i], t, world);
             int n = project_triangle(c, aspect, near, world, screen);
             for (int k = 0; k < n; ++k) top = std::min(top, screen[k][1]), bottom = std::max(bottom, screen[k][1]);
         }
@@ -234,7 +244,7 @@ VisibleSurface primary_visibility(const AssetView& view, const Camera& c, unsign
             if (last_row[i] < band_first || first_row[i] > band_last) continue;
             for (uint32_t t = 0; t < triangles[i]; ++t) {
                 double world[3][3], screen[4][2];
-                cluster_triangle(view, clusters[i], t, world);
+                cluster_triangle(level, clusters[i], t, world);
                 const int n = project_triangle(c, aspect, near, world, screen);
                 if (n < 3) continue;
                 double e1[3], e2[3], normal[3], to_a[3];
@@ -270,6 +280,9 @@ VisibleSurface primary_visibility(const AssetView& view, const Camera& c, unsign
     });
 
     // Each covered pixel's point and normal, from the triangle it kept.
+    std::vector<uint32_t> first_mesh(level.assets.size(), 0);  // meshes numbered across the assets
+    for (size_t a = 1; a < level.assets.size(); ++a)
+        first_mesh[a] = first_mesh[a - 1] + level.assets[a - 1]->mesh_count;
     for (size_t p = 0; p < pixel_count; ++p)
         if (buffer.key[p] != DepthBuffer::none) out.pixel.push_back(uint32_t(p));
     const size_t covered = out.pixel.size();
@@ -279,7 +292,7 @@ VisibleSurface primary_visibility(const AssetView& view, const Camera& c, unsign
             const size_t p = out.pixel[j];
             const VisibleCluster& vc = clusters[buffer.key[p] >> 8];
             double world[3][3], e1[3], e2[3], dir[3];
-            cluster_triangle(view, vc, uint32_t(buffer.key[p] & 255), world);
+            cluster_triangle(level, vc, uint32_t(buffer.key[p] & 255), world);
             for (int k = 0; k < 3; ++k) e1[k] = world[1][k] - world[0][k], e2[k] = world[2][k] - world[0][k];
             double* normal = &out.normals[j * 3];
             cross3(e1, e2, normal);
@@ -288,7 +301,7 @@ VisibleSurface primary_visibility(const AssetView& view, const Camera& c, unsign
             if (dot3(normal, dir) > 0)
                 for (int k = 0; k < 3; ++k) normal[k] = -normal[k];
             for (int k = 0; k < 3; ++k) out.points[j * 3 + k] = c.eye[k] + buffer.depth[p] * dir[k];
-            out.meshes[j] = view.instances[vc.instance].mesh;
+            out.meshes[j] = first_mesh[level.instances[vc.instance].asset] + level.instances[vc.instance].mesh;
         }
     });
     return out;

@@ -1,5 +1,5 @@
-// Primary visibility for the renderer, from the asset itself: the fine clusters a camera may see
-// (cb_cull.h), then their triangles drawn into a depth buffer. Each covered pixel gets the point where its
+// Primary visibility for the renderer, from the level's assets themselves: the fine clusters a camera may
+// see (cb_cull.h), then their triangles drawn into a depth buffer. Each covered pixel gets the point where its
 // ray meets the nearest triangle, in double, and that triangle's normal.
 #pragma once
 
@@ -9,11 +9,12 @@
 #include <vector>
 
 #include "runtime_cost.h"
+#include "scene_query.h"
 
 namespace cb {
 
-// The world box [lo, hi] of every instance's vertices; false when the asset has none.
-bool asset_world_box(const AssetView& view, double* lo, double* hi);
+// The world box [lo, hi] of every instance's vertices; false when the level has none.
+bool level_world_box(const LevelInput& level, double* lo, double* hi);
 
 // A camera at `eye` looking at `target`, `up` kept upright in the picture (when it is along the view,
 // another axis is taken), a vertical field of view of `fov_degrees`.
@@ -29,13 +30,14 @@ struct VisibleSurface {
     std::vector<uint32_t> pixel;   // per covered pixel, its index (y * width + x), in pixel order
     std::vector<double> points;    // per covered pixel: xyz, world, on the plane of the triangle it sees
     std::vector<double> normals;   // per covered pixel: unit normal of that triangle, turned to face the eye
-    std::vector<uint32_t> meshes;  // per covered pixel: the asset mesh of that triangle
+    std::vector<uint32_t> meshes;  // per covered pixel: the mesh of that triangle, numbered across the assets
     size_t clusters_drawn = 0;     // fine clusters that passed culling (every cluster without fine boxes)
     size_t triangles_drawn = 0;
 };
 
-// Draws the fine clusters the camera may see (every one when the asset has no fine boxes), both faces of
-// every triangle, on `threads` threads (0: all). Deterministic: equal depths go to the cluster listed first.
-VisibleSurface primary_visibility(const AssetView& view, const Camera& camera, unsigned threads = 0);
+// Draws the fine clusters the camera may see (every one of an asset without fine boxes), both faces of
+// every triangle, on `threads` threads (0: all). Deterministic: equal depths go to the cluster listed
+// first (instance by instance, in the level's order).
+VisibleSurface primary_visibility(const LevelInput& level, const Camera& camera, unsigned threads = 0);
 
 }  // namespace cb

@@ -47,7 +47,7 @@ public:
         build(view, placement_of(view, instance), world_light, options);
     }
 
-    // The same for a mesh of the asset placed by the caller (a runtime scene's instance, cb_scene.h).
+    // The same for a mesh of the asset placed by the caller (a level's instance, cb_level.h).
     void build(const AssetView& view, Placement at, const double* world_light, const ShadowBuildOptions& options = {}) {
         traversal_ =
             options.traversal == Traversal::scan && !view.coarse_bounds.obbs ? Traversal::one_tree : options.traversal;

@@ -116,7 +116,7 @@ inline size_t cull_instance(const AssetView& v, Placement at, uint32_t id, const
 // Writes the visible fine clusters of every instance to `out` (at most `capacity`) and returns how many
 // there are (which may exceed capacity: call again with more room). Needs the fine boxes; coarse boxes
 // and cones are used when present. With `backface` true, clusters whose single-sided triangles all face
-// away from the eye are left out. A runtime scene (cb_scene.h) culls its instances through its hierarchy
+// away from the eye are left out. A level (cb_level.h) culls its instances through its hierarchy
 // first.
 inline size_t cull_clusters(const AssetView& v, const Frustum& f, bool backface, VisibleCluster* out, size_t capacity,
                             CullStats* stats = nullptr) {

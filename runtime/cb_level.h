@@ -25,6 +25,7 @@
 #include "cb_math.h"
 #include "cb_scan_bounds.h"
 #include "cb_segment.h"
+#include "cb_shadow.h"
 #include "cb_tile.h"
 
 namespace cb {
@@ -718,6 +719,20 @@ inline size_t cull_clusters(const Level& level, const Frustum& f, bool backface,
                               stats);
     });
     return count;
+}
+
+// The reference query over a level: every live instance, in handle order, as instance_occludes_reference
+// (cb_shadow.h) tests it; no hierarchy, no per-light structure. Returns true when p is in shadow.
+inline bool occluded_reference(const Level& level, const double* p, const double* light, bool one_sided = false,
+                               QueryStats* stats = nullptr) {
+    bool touched = false, blocked = false;
+    if (!finite3(p) || !finite3(light)) return false;  // nothing is in shadow of, or from, a point at infinity
+    for (uint32_t h = 0; h < level.handle_limit() && !blocked; ++h)
+        if (level.alive(h))
+            blocked = instance_occludes_reference(level.asset(level.asset_of(h)), level.placement(h), p, light,
+                                                  one_sided, stats, &touched);
+    if (stats && touched) ++stats->touching;
+    return blocked;
 }
 
 }  // namespace CB_LANES

@@ -88,7 +88,7 @@ inline SegmentTest segment_triangle(const double* p, const double* q, const doub
 
 // Where one instance of a mesh stands: the mesh's index in the asset and its world transform (affine,
 // column-major 3x4 doubles: the x, y, z axes, then the translation). An asset's InstanceRecord gives one
-// (placement_of); a runtime scene (cb_scene.h) gives its own. Read only while a traversal is built.
+// (placement_of); a level (cb_level.h) gives its own. Read only while a traversal is built.
 struct Placement {
     uint32_t mesh;
     const double* transform;

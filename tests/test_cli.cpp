@@ -223,6 +223,83 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     std::filesystem::remove(pts);
 }
 
+// A level file in place of the asset: paths relative to it, each asset opened once, every traversal giving
+// the reference's answers; a glTF translation, rotation and scale meaning what the equal matrix means.
+TEST(Cli, QueryTakesALevelFile) {
+    const auto dir = std::filesystem::temp_directory_path() / ("cb_cli_level_" + std::to_string(getpid()));
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir / "assets");
+    const std::string asset = (dir / "assets" / "scene.cbk").string(), pts = (dir / "points.txt").string();
+    ASSERT_EQ(run("bake " + data("default_scene.glb") + " -o " + asset).code, 0);
+    {
+        std::ofstream grid(pts);  // over the three copies below
+        for (int i = 0; i < 60; ++i)
+            for (int j = 0; j < 40; ++j)
+                grid << -18 + 0.97 * i << " " << 0.02 + 0.05 * ((i * 7 + j) % 5) << " " << -18 + 0.9 * j << "\n";
+    }
+    auto level = [&](const std::string& name, const std::string& entries) {
+        std::ofstream((dir / name).string()) << "{\"instances\": [" << entries << "]}";
+        return (dir / name).string();
+    };
+    const std::string base = R"({"asset": "assets/scene.cbk"})";
+    // A half turn about y, then a scale mirroring x: the columns (-2, 0, 0), (0, 1, 0), (0, 0, 1).
+    const std::string trs = level("trs.json", base + R"(, {"asset": "./assets/../assets/scene.cbk",
+        "translation": [30, 0, 0], "rotation": [0, 1, 0, 0], "scale": [2, 1, -1]})");
+    const std::string matrix = level("matrix.json", base + R"(, {"asset": "assets/scene.cbk",
+        "matrix": [-2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 30, 0, 0, 1]})");
+    const std::string alone = level("alone.json", base);
+    const std::string light = " --light 6,30,2 --points " + pts;
+
+    CliRun ref = run("query " + trs + light + " --reference");
+    ASSERT_EQ(ref.code, 0) << ref.err;
+    EXPECT_EQ(ref.out.size(), 2400u * 2);
+    for (const char* traversal : {"scan", "trees", "one-tree", "mtsv", "mtsv-two"})
+        EXPECT_EQ(run("query " + trs + light + " --traversal " + traversal + " --threads 2").out, ref.out) << traversal;
+    EXPECT_EQ(run("query " + matrix + light).out, ref.out);
+    const std::string asset_only = run("query " + asset + light).out;
+    EXPECT_EQ(run("query " + alone + light).out, asset_only);
+    EXPECT_NE(asset_only, ref.out) << "the second copy casts shadows of its own";
+    CliRun json = run("query " + trs + light + " --json --stats");
+    ASSERT_EQ(json.code, 0) << json.err;
+    EXPECT_NE(json.out.find("\"shadowed\":"), std::string::npos);
+
+    // Bad level files: exit code 2 and one line naming the file and the entry.
+    const std::string q = " --light 0,10,0 --points " + pts;
+    const std::pair<std::string, std::string> bad[] = {
+        {"{\"instances\": []}", "instances: no entry"},
+        {"{\"instance\": []}", "a level file is an object with an \"instances\" array"},
+        {"{\"instances\": [", "not JSON text (parse error at byte 16)"},
+        {"{\"instances\": [" + base + ", {\"asset\": \"missing.cbk\"}]}",
+         "instances[1]: " + (dir / "missing.cbk").string() + ": cannot open (No such file or directory)"},
+        {"{\"instances\": [{\"asset\": \"assets/scene.cbk\", \"matirx\": []}]}",
+         "instances[0]: unknown key 'matirx' (asset, matrix, translation, rotation, scale)"},
+        {"{\"instances\": [{\"asset\": \"assets/scene.cbk\", \"matrix\": [1, 0, 0]}]}",
+         "instances[0]: matrix needs 16 numbers"},
+        {"{\"instances\": [{\"asset\": \"assets/scene.cbk\", \"matrix\": [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,2]}]}",
+         "instances[0]: matrix is not affine (its last row, elements 3, 7, 11 and 15, must be 0 0 0 1)"},
+        {"{\"instances\": [{\"asset\": \"assets/scene.cbk\", \"rotation\": [0, 0, 0, 0]}]}",
+         "instances[0]: rotation quaternion has zero length"},
+        {"{\"instances\": [{\"asset\": \"assets/scene.cbk\", \"scale\": [1, \"2\", 1]}]}",
+         "instances[0]: scale[1] is not a number"},
+        {"{\"instances\": [{\"asset\": \"assets/scene.cbk\", \"scale\": [1, 1, 1], \"matrix\": []}]}",
+         "instances[0]: a matrix and a translation, rotation or scale: give one or the other"},
+        {"{\"instances\": [{\"matrix\": []}]}", "instances[0]: needs \"asset\": the path of a baked asset"},
+        {"{\"instances\": [{\"asset\": \"points.txt\"}]}",
+         "instances[0]: " + (dir / "points.txt").string() + ": not a clusterbake asset (bad magic)"},
+    };
+    for (const auto& [text, line] : bad) {
+        const std::string file = (dir / "bad.json").string();
+        std::ofstream(file) << text;
+        for (const char* command : {"query ", "render "}) {
+            CliRun r = run(command + file + (command[0] == 'q' ? q : " -o " + (dir / "bad.png").string()));
+            EXPECT_EQ(r.code, 2) << text;
+            EXPECT_EQ(r.err, file + ": " + line + "\n") << text;
+        }
+        EXPECT_FALSE(std::filesystem::exists(dir / "bad.png"));
+    }
+    std::filesystem::remove_all(dir);
+}
+
 TEST(Cli, OptionsNoAlgorithmTakesAreRefusedInOneLineBeforeAnyWork) {
     const std::filesystem::path out = std::filesystem::temp_directory_path() / "cb_cli_refused.cbk";
     std::filesystem::remove(out);

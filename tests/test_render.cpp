@@ -62,9 +62,10 @@ std::string light_text(const nlohmann::json& xyz) {
     return text;
 }
 
-// How many points `query` puts in shadow of `light`.
-uint64_t query_shadowed(const std::string& points, const std::string& light, const std::string& extra = "") {
-    CliRun q = run_cli("query " + default_asset + " --light " + light + " --points " + points + " --json " + extra);
+// How many points `query` puts in shadow of `light`, over the default asset or another asset or level.
+uint64_t query_shadowed(const std::string& points, const std::string& light, const std::string& extra = "",
+                        const std::string& asset = default_asset) {
+    CliRun q = run_cli("query " + asset + " --light " + light + " --points " + points + " --json " + extra);
     EXPECT_EQ(q.code, 0) << q.err;
     return q.code == 0 ? nlohmann::json::parse(q.out)["shadowed"].get<uint64_t>() : 0;
 }
@@ -102,7 +103,7 @@ TEST(RenderVisibility, MatchesABruteForceRayCast) {
 
     const double eye[3] = {-2.3, 2.9, 4.1}, target[3] = {1.1, 0.4, 0.2}, up[3] = {0, 1, 0};
     const cb::Camera cam = cb::camera_looking_at(eye, target, up, 30, 96, 64);
-    const cb::VisibleSurface s = cb::primary_visibility(asset.view, cam, 2);
+    const cb::VisibleSurface s = cb::primary_visibility(cb::baked_level(asset.view), cam, 2);
     ASSERT_GT(s.pixel.size(), 1000u);
 
     std::vector<std::array<double, 9>> world;  // every triangle of both instances
@@ -222,6 +223,35 @@ TEST(Render, DefaultSceneShadowsAgreeWithQuery) {
     const nlohmann::json o = nlohmann::json::parse(one.out);
     EXPECT_EQ(o["pixels_covered"], covered) << "the same camera";
     EXPECT_EQ(query_shadowed(points, "-4,30,2", "--one-sided"), o["shadowed"].get<uint64_t>());
+}
+
+// A level file: the asset alone draws the same picture as the asset; placed three times (one copy turned
+// and mirrored), every copy is drawn and lit, and query over the level agrees with the picture's shadows.
+TEST(Render, LevelFilePlacesEveryAsset) {
+    const fs::path dir = output_dir("level");
+    fs::copy_file(default_asset, dir / "scene.cbk");
+    std::ofstream(dir / "alone.json") << R"({"instances": [{"asset": "scene.cbk"}]})";
+    std::ofstream(dir / "three.json") << R"({"instances": [{"asset": "scene.cbk"},
+        {"asset": "scene.cbk", "translation": [40, 0, 0], "rotation": [0, 1, 0, 0], "scale": [1, 1, -1]},
+        {"asset": "scene.cbk", "matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 40, 1]}]})";
+    const std::string common = " --size 160x120 --light -4,30,2 -q --json";
+    CliRun asset = run_cli("render " + default_asset + " -o " + (dir / "asset.png").string() + common);
+    CliRun alone = run_cli("render " + (dir / "alone.json").string() + " -o " + (dir / "alone.png").string() + common);
+    ASSERT_EQ(asset.code, 0) << asset.err;
+    ASSERT_EQ(alone.code, 0) << alone.err;
+    EXPECT_EQ(read_png((dir / "alone.png").string()).pixels, read_png((dir / "asset.png").string()).pixels);
+
+    const std::string points = (dir / "points.txt").string(), level = (dir / "three.json").string();
+    CliRun three = run_cli("render " + level + " -o " + (dir / "three.png").string() +
+                           " --size 320x240 --light 16,30,20 --json -q --write-points " + points);
+    ASSERT_EQ(three.code, 0) << three.err;
+    const nlohmann::json j = nlohmann::json::parse(three.out), a = nlohmann::json::parse(asset.out);
+    EXPECT_EQ(j["triangles_drawn"].get<uint64_t>() > 2 * a["triangles_drawn"].get<uint64_t>(), true)
+        << "every copy in view";
+    const uint64_t shadowed = j["shadowed"];
+    EXPECT_GT(shadowed, 0u);
+    EXPECT_EQ(query_shadowed(points, "16,30,20", "", level), shadowed);
+    EXPECT_EQ(query_shadowed(points, "16,30,20", "--reference", level), shadowed);
 }
 
 TEST(Render, AreaLightIsSoftAndEachSampleAgreesWithQuery) {
