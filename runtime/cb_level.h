@@ -451,7 +451,6 @@ public:
         points_ = points;
         n_ = n;
         options_ = options;
-        options_.threads = 1;  // the runtime starts no thread: instances are built in the caller's ranges
         options_.bounds = nullptr;
         for (int k = 0; k < 3; ++k) light_[k] = light[k];
         order_.resize(n);

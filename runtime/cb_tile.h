@@ -52,9 +52,6 @@ struct ShadowBuildOptions {
     // One-sided occluders (cb_segment.h): clusters whose front cone holds the light, and that have no
     // double-sided triangle, cannot block anything and are left out.
     bool one_sided = false;
-    // Traversal::trees: up to this many threads (std::thread) build the coarse clusters' fine trees; the tree
-    // is the same for any thread count.
-    unsigned threads = 1;
     // Traversal::scan: the asset's ScanBounds, indexed by mesh (make_scan_bounds), read by every query and so
     // kept alive and unchanged while the traversal is used. Without them, or when they were made from
     // another asset view, the scan makes its mesh's own at each build (a pass over its boxes).

@@ -18,14 +18,12 @@
 //
 // A tile of points (cb_tile.h) walks each tree once with the pyramid from the light that holds their
 // directions; the answers are those of a walk per point. Header-only C++17, no exceptions; building
-// allocates (std::vector, std::thread), queries do not. MIT licensed (runtime/LICENSE).
+// allocates (std::vector) and starts no thread, queries do not. MIT licensed (runtime/LICENSE).
 #pragma once
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdint>
-#include <thread>
 #include <vector>
 
 #include "cb_asset.h"
@@ -71,32 +69,16 @@ struct Nodes {
     std::vector<ClusterNode> clusters;
 };
 
-// The fine trees of some coarse clusters, built on one thread.
-struct Part {
-    Nodes nodes;
-    std::vector<uint32_t> always;  // fine clusters without a volume, in ranges per coarse cluster
-    size_t skipped = 0;
-    uint32_t depth = 0;
-};
-
 }  // namespace top_tree
 
 // The working arrays of TopTreeTraversal::build, reusable between builds (ShadowBuildOptions::scratch).
 struct BuildScratch {
     top_tree::Nodes built;                             // every node before the walk-order layout
-    std::vector<top_tree::Part> parts;                 // per build thread
     std::vector<uint32_t> plane_to, cluster_to, todo;  // the layout's renumbering
-    std::vector<uint8_t> part_of;                      // which thread built each coarse cluster's fine tree
-    std::vector<uint32_t> always;                      // always-tested fine clusters, put back in coarse order
     size_t memory_bytes() const {
-        size_t b = built.planes.capacity() * sizeof(top_tree::PlaneNode) +
+        return built.planes.capacity() * sizeof(top_tree::PlaneNode) +
             built.clusters.capacity() * sizeof(top_tree::ClusterNode) +
-            (plane_to.capacity() + cluster_to.capacity() + todo.capacity() + always.capacity()) * sizeof(uint32_t) +
-            part_of.capacity();
-        for (const top_tree::Part& p : parts)
-            b += p.nodes.planes.capacity() * sizeof(top_tree::PlaneNode) +
-                p.nodes.clusters.capacity() * sizeof(top_tree::ClusterNode) + p.always.capacity() * sizeof(uint32_t);
-        return b;
+            (plane_to.capacity() + cluster_to.capacity() + todo.capacity()) * sizeof(uint32_t);
     }
 };
 
@@ -137,88 +119,23 @@ public:
             renumber_in_walk_order(all, work);
             return;
         }
+        // Fine trees, one per coarse cluster, then the coarse tree over them.
         const uint32_t coarse_count = mesh_->coarse_count;
-        // Fine trees: one per coarse cluster (parts of the coarse clusters on their own threads, each into its
-        // own arrays, then appended in order), then the coarse tree over them.
         std::vector<uint32_t> fine_roots(coarse_count, none);
         std::vector<IndexRange> fine_always(coarse_count);
         std::vector<uint8_t> wanted(coarse_count, 1);
-        uint32_t part_count = std::max(1u, std::min<uint32_t>(std::min(options.threads, 255u), coarse_count / 8));
-        std::vector<Part>& parts = work.parts;
-        if (parts.size() < part_count) parts.resize(part_count);
-        for (uint32_t k = 0; k < part_count; ++k) {
-            Part& part = parts[k];
-            part.nodes.planes.clear(), part.nodes.clusters.clear(), part.always.clear(), part.skipped = 0,
-                                                                                         part.depth = 0;
-        }
-        // Threads take coarse clusters one at a time (their costs vary with the light); part 0 builds
-        // straight into the final arrays, the others are appended after it.
-        std::vector<uint8_t>& part_of = work.part_of;
-        part_of.assign(coarse_count, 0);
-        std::atomic<uint32_t> next{0};
-        auto build_part = [&](uint32_t k) {
-            Part& part = parts[k];
-            Nodes& nodes = k == 0 ? all : part.nodes;
-            std::vector<uint32_t>& always = k == 0 ? always_fine_ : part.always;
-            for (uint32_t c = next++; c < coarse_count; c = next++) {
-                part_of[c] = uint8_t(k);
-                const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
-                if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
-                    part.skipped += r.count;
-                    wanted[c] = 0;
-                    continue;
-                }
-                uint32_t first_always = uint32_t(always.size()), depth = 0;
-                fine_roots[c] = build_fine_tree(nodes, r.first, r.count, depth, always, part.skipped);
-                fine_always[c] = {first_always, uint32_t(always.size()) - first_always};
-                part.depth = std::max(part.depth, depth);
-            }
-        };
-        if (part_count == 1) {
-            build_part(0);
-        } else {
-            std::vector<std::thread> pool;
-            for (uint32_t k = 1; k < part_count; ++k) pool.emplace_back(build_part, k);
-            build_part(0);
-            for (std::thread& t : pool) t.join();
-        }
         uint32_t fine_depth = 0;
-        std::vector<uint32_t> plane_base(part_count, 0), cluster_base(part_count, 0);
-        auto move = [&](uint32_t k, uint32_t ref) {  // a node reference of part k, into the merged arrays
-            return ref == none      ? none
-                : ref & cluster_bit ? ((ref & ~cluster_bit) + cluster_base[k]) | cluster_bit
-                                    : ref + plane_base[k];
-        };
-        for (uint32_t k = 0; k < part_count; ++k) {
-            Part& part = parts[k];
-            skipped_ += part.skipped;
-            fine_depth = std::max(fine_depth, part.depth);
-            if (k == 0) continue;
-            plane_base[k] = uint32_t(all.planes.size()), cluster_base[k] = uint32_t(all.clusters.size());
-            for (PlaneNode n : part.nodes.planes) {
-                for (uint32_t& c : n.child) c = move(k, c);
-                all.planes.push_back(n);
+        for (uint32_t c = 0; c < coarse_count; ++c) {
+            const ClusterRange& r = view.coarse[mesh_->first_coarse + c];
+            if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
+                skipped_ += r.count;
+                wanted[c] = 0;
+                continue;
             }
-            for (ClusterNode l : part.nodes.clusters) {
-                l.inside = move(k, l.inside), l.first_plane = move(k, l.first_plane);
-                all.clusters.push_back(l);
-            }
-        }
-        if (part_count > 1) {
-            // Fine roots into the merged arrays, and the always-tested lists in coarse order, so that the
-            // result does not depend on which thread took which cluster.
-            std::vector<uint32_t>& always = work.always;
-            always.clear();
-            for (uint32_t c = 0; c < coarse_count; ++c) {
-                uint32_t k = part_of[c];
-                fine_roots[c] = move(k, fine_roots[c]);
-                const std::vector<uint32_t>& from = k == 0 ? always_fine_ : parts[k].always;
-                uint32_t first = uint32_t(always.size());
-                always.insert(always.end(), from.begin() + fine_always[c].first,
-                              from.begin() + fine_always[c].first + fine_always[c].count);
-                fine_always[c].first = first;
-            }
-            always_fine_.swap(always);
+            uint32_t first_always = uint32_t(always_fine_.size()), depth = 0;
+            fine_roots[c] = build_fine_tree(all, r.first, r.count, depth, always_fine_, skipped_);
+            fine_always[c] = {first_always, uint32_t(always_fine_.size()) - first_always};
+            fine_depth = std::max(fine_depth, depth);
         }
         uint32_t coarse_depth = build_coarse_tree(all, wanted, [&](uint32_t c, ClusterNode& leaf) {
             leaf.fine_root = fine_roots[c];
@@ -280,7 +197,6 @@ private:
     using PlaneNode = top_tree::PlaneNode;
     using ClusterNode = top_tree::ClusterNode;
     using Nodes = top_tree::Nodes;
-    using Part = top_tree::Part;
     static constexpr uint32_t cluster_bit = top_tree::cluster_bit;
 
     // The smallest and largest sine of the pyramid's rays against the plane with normal n (4 at once with SSE).
