@@ -125,7 +125,7 @@ void place_baked(LevelInput& level, const AssetView& view, const double* matrix)
     for (uint32_t i = 0; i < view.instance_count; ++i) {
         LevelInstance placed{asset, view.instances[i].mesh, {}};
         if (matrix)
-            level_detail::compose(matrix, view.instances[i].transform, placed.transform);
+            compose_instance(matrix, view.instances[i].transform, placed.transform);
         else
             std::copy(view.instances[i].transform, view.instances[i].transform + 12, placed.transform);
         level.instances.push_back(placed);

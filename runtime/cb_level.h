@@ -65,14 +65,6 @@ inline Box transform_box(const Box& local, const double* m) {
     return out;
 }
 
-// Composes affine transforms (column-major 3x4): out = a x b.
-inline void compose(const double* a, const double* b, double* out) {
-    for (int col = 0; col < 4; ++col)
-        for (int k = 0; k < 3; ++k)
-            out[col * 3 + k] =
-                a[k] * b[col * 3] + a[3 + k] * b[col * 3 + 1] + a[6 + k] * b[col * 3 + 2] + (col == 3 ? a[9 + k] : 0.0);
-}
-
 // False only when the segment from p to q certainly misses the box (slabs, in double, widened by 1e-9 of
 // the sizes involved).
 inline bool segment_meets_box(const double* p, const double* q, const Box& b) {
@@ -177,7 +169,7 @@ public:
         for (uint32_t i = 0; i < v.instance_count; ++i) {
             double world[12];
             if (matrix)
-                level_detail::compose(matrix, v.instances[i].transform, world);
+                compose_instance(matrix, v.instances[i].transform, world);
             else
                 std::copy(v.instances[i].transform, v.instances[i].transform + 12, world);
             const uint32_t h = add_instance(asset, v.instances[i].mesh, world);

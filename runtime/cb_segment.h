@@ -120,6 +120,15 @@ inline void apply_instance(const double* m, const double* p, double* out) {
     for (int k = 0; k < 3; ++k) out[k] = m[k] * p[0] + m[3 + k] * p[1] + m[6 + k] * p[2] + m[9 + k];
 }
 
+// The instance transform a x b (both column-major 3x4): b applied first. Levels place baked instances with
+// it (Level::add_baked, level files); an engine that moves them composes the same way to get the same bits.
+inline void compose_instance(const double* a, const double* b, double* out) {
+    for (int col = 0; col < 4; ++col)
+        for (int k = 0; k < 3; ++k)
+            out[col * 3 + k] =
+                a[k] * b[col * 3] + a[3 + k] * b[col * 3 + 1] + a[6 + k] * b[col * 3 + 2] + (col == 3 ? a[9 + k] : 0.0);
+}
+
 // Conservative: false only when the part of the segment p-q from parameter `from` to q (p + t (q - p),
 // from <= t <= 1) certainly misses the box. Clips that parameter range against each of the box's three
 // slabs (the box is their intersection), each slab widened by a margin far above the rounding of the dot
