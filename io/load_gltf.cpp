@@ -13,6 +13,7 @@
 #include <map>
 #include <sstream>
 
+#include "draco_header.h"
 #include "file_access.h"
 #include "load.h"
 
@@ -368,6 +369,28 @@ std::vector<uint32_t> read_indices(const Context& ctx, int accessor_index) {
     return std::vector<uint32_t>(raw.begin(), raw.end());
 }
 
+// Faces and points a Draco stream may declare per byte of itself. Draco compresses a mesh to a byte or
+// two a triangle, a very regular one to less: this leaves room for any real stream and none for a few
+// bytes that declare a billion faces.
+constexpr uint64_t draco_elements_per_byte = 256;
+
+// What Draco's decoder holds per declared face and point (corner table, attribute and point maps).
+constexpr uint64_t draco_bytes_per_face = 96, draco_bytes_per_point = 64;
+
+// Checks the counts a Draco stream declares against its size and the memory budget before the decoder
+// allocates for them.
+void check_draco_counts(const Context& ctx, const uint8_t* data, size_t length) {
+    DracoCounts declared;
+    const std::string problem = read_draco_counts(data, length, declared);
+    if (!problem.empty()) ctx.fail("Draco: " + problem);
+    if (declared.faces > draco_elements_per_byte * length || declared.points > draco_elements_per_byte * length)
+        ctx.fail("Draco: declares " + std::to_string(declared.faces) + " faces and " + std::to_string(declared.points) +
+                 " points in a stream of " + std::to_string(length) + " bytes (at most " +
+                 std::to_string(draco_elements_per_byte) + " a byte)");
+    ctx.need(declared.faces * draco_bytes_per_face + declared.points * draco_bytes_per_point,
+             "Draco's " + std::to_string(declared.faces) + " faces");
+}
+
 // Decodes a KHR_draco_mesh_compression primitive into positions and triangle indices.
 void decode_draco(const Context& ctx, const tinygltf::Value& ext, std::vector<double>& positions,
                   std::vector<uint32_t>& indices) {
@@ -382,6 +405,7 @@ void decode_draco(const Context& ctx, const tinygltf::Value& ext, std::vector<do
         ? ctx.model.bufferViews[view_index].byteLength
         : 0;
     StridedRange r = view_range(ctx, view_index, 0, 1, length, false);
+    check_draco_counts(ctx, r.base, length);
 
     draco::DecoderBuffer buffer;
     buffer.Init(reinterpret_cast<const char*>(r.base), length);
