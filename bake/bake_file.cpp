@@ -77,9 +77,9 @@ void check_bake_memory(const Scene& scene, const BakeRequest& r) {
     held += scene.instances.size() * sizeof(Instance);
     const uint64_t need = held + triangles * bake_bytes_per_triangle;
     if (need <= r.load.memory_budget) return;
-    throw LoadError(r.input + ": " + std::to_string(triangles) + " triangles need about " + std::to_string(need >> 20) +
-                    " MiB to bake, over the memory budget of " + std::to_string(r.load.memory_budget >> 20) +
-                    " MiB (--memory-budget)");
+    throw LoadError(r.input + ": " + std::to_string(triangles) + " triangles need about " + byte_size_text(need) +
+                    " to bake, over the memory budget of " + byte_size_text(r.load.memory_budget) +
+                    " (--memory-budget)");
 }
 
 void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResult& result) {

@@ -80,6 +80,13 @@ Scene single_mesh_scene(Mesh mesh, const std::string& name, const Origin& origin
     return scene;
 }
 
+std::string byte_size_text(uint64_t bytes) {
+    static const char* units[] = {"bytes", "KiB", "MiB", "GiB", "TiB"};
+    int unit = 0;
+    while (unit < 4 && bytes >= (uint64_t(1) << (10 * (unit + 1)))) ++unit;
+    return std::to_string(bytes >> (10 * unit)) + " " + units[unit];
+}
+
 FileFormat format_from_path(std::string_view path) {
     size_t dot = path.find_last_of('.');
     if (dot == std::string_view::npos) return FileFormat::unknown;

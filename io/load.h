@@ -38,6 +38,9 @@ enum class FileFormat { gltf, glb, obj, ply, off, stl, unknown };
 // given: a scene of 10 million triangles loads and bakes within it (docs/SECURITY.md).
 constexpr uint64_t default_memory_budget = uint64_t(4) << 30;
 
+// "800 bytes", "12 KiB", "640 MiB", "4 GiB": a size for a message, rounded down.
+std::string byte_size_text(uint64_t bytes);
+
 // What a load trusts the file with. Scene files are untrusted input (docs/SECURITY.md): by default an
 // external file a scene names (a glTF buffer) must lie inside `root`, and what the file's declared counts
 // would make the loader allocate must fit `memory_budget`.

@@ -176,8 +176,8 @@ struct Context {
     // Fails unless `bytes` more (for `what`) fit the memory budget beside what the load already holds.
     void need(uint64_t bytes, const std::string& what) const {
         if (bytes <= memory->budget && memory->held <= memory->budget - bytes) return;
-        fail(what + " needs " + std::to_string(bytes >> 20) + " MiB, over the memory budget of " +
-             std::to_string(memory->budget >> 20) + " MiB (--memory-budget)");
+        fail(what + " needs " + byte_size_text(bytes) + " more, over the memory budget of " +
+             byte_size_text(memory->budget) + " (--memory-budget)");
     }
 };
 
@@ -597,8 +597,12 @@ public:
     }
 
 private:
-    static constexpr size_t max_instances = 4'000'000;  // a node DAG can multiply paths exponentially
-    static constexpr size_t max_visits = 16'000'000;    // the same, through nodes without meshes
+    static constexpr size_t max_instances = 4'000'000;
+
+    // glTF wants node trees, where every node is visited once; a node shared by several parents (a DAG,
+    // loaded as one instance per path) multiplies the paths below it, exponentially in its depth. Visits
+    // are capped by the file's node count, so a few hundred bytes cannot make millions of instances.
+    size_t max_visits() const { return 65'536 + 64 * ctx_.model.nodes.size(); }
 
     // A node on the path from the root being walked, with its world transform and the next child to enter.
     struct Step {
@@ -634,7 +638,9 @@ private:
         if (node_index < 0 || size_t(node_index) >= nodes.size())
             ctx_.fail("node " + std::to_string(node_index) + " does not exist");
         if (on_path_[node_index]) node_ctx.fail("node cycle (the node is its own ancestor)");
-        if (++visits_ > max_visits) node_ctx.fail("more than 16 million node visits (shared subtrees)");
+        if (++visits_ > max_visits())
+            node_ctx.fail("more than " + std::to_string(max_visits()) +
+                          " node visits: nodes shared by several parents multiply the paths to them");
         const tinygltf::Node& node = nodes[node_index];
         Transform world = multiply(parent, node_local(node_ctx, node));
         if (node.mesh >= 0) {
@@ -724,6 +730,17 @@ struct FileReader {
         r.hasher->add(relative, out->data(), out->size());
         return true;
     }
+
+    // tinygltf joins every URI to the folder, an absolute one too ("folder//abs/x.bin"): when outside files
+    // are allowed, such a URI means the absolute path it names.
+    static std::string expand(const std::string& joined, void* self) {
+        const FileReader& r = *static_cast<const FileReader*>(self);
+        const std::string prefix = r.base_dir.empty() || r.base_dir.back() == '/' ? r.base_dir : r.base_dir + "/";
+        if (r.options.allow_outside_files && !prefix.empty() && joined.size() > prefix.size() &&
+            joined.compare(0, prefix.size(), prefix) == 0 && joined[prefix.size()] == '/')
+            return joined.substr(prefix.size());
+        return joined;
+    }
 };
 
 Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name, const std::string& base_dir,
@@ -749,7 +766,7 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
                           nullptr);
     FileReader reader{source, base_dir, options};
     loader.SetFsCallbacks(
-        {tinygltf::FileExists, tinygltf::ExpandFilePath, FileReader::read, tinygltf::WriteWholeFile, &reader});
+        {tinygltf::FileExists, FileReader::expand, FileReader::read, tinygltf::WriteWholeFile, &reader});
     tinygltf::Model model;
     std::string err, warn;
     bool ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, data, unsigned(size), base_dir)
