@@ -122,8 +122,8 @@ std::vector<BatchJob> plan_batch(const std::vector<std::string>& inputs, const s
             BatchJob job;
             job.name = fs::path(input).filename().string();
             job.input = input;
-            job.root = fs::path(input).parent_path().string();
-            if (job.root.empty()) job.root = ".";
+            // A file named on the command line is taken where it lies (even through a link); its external
+            // files must lie in its folder, as for `bake`: no root.
             job.output = output_for(outdir, job.name);
             job.origin = input;
             job.input_size = size_of(input);

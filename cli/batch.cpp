@@ -70,7 +70,7 @@ std::vector<std::string> bake_argv(const BakeRequest& r, bool force) {
         at = end;
     }
     // What the file is trusted with: the batch's input root, and the load flags when not the defaults.
-    argv.insert(argv.end(), {"--files-root", r.load.root});
+    if (!r.load.root.empty()) argv.insert(argv.end(), {"--files-root", r.load.root});
     if (r.load.allow_outside_files) argv.push_back("--allow-outside-files");
     if (r.load.memory_budget != default_memory_budget)
         argv.insert(argv.end(), {"--memory-budget", std::to_string(r.load.memory_budget)});

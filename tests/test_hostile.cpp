@@ -132,6 +132,12 @@ TEST(Hostile, ABatchOverThemBakesTheGoodFilesBesideThem) {
     const std::vector<std::string> good = {"cube.obj", "cube_binary.ply", "primitive_modes.gltf", "cube_ascii.stl"};
     for (const std::string& g : good)
         fs::copy_file(std::string(CB_SOURCE_DIR) + "/data/small/" + g, base / "in" / ("good_" + g));
+    // A scene below the input root that is a symbolic link to one outside it.
+    std::ofstream(base / "outside/scene.gltf")
+        << cb::hostile::detail::triangle_gltf(cb::hostile::detail::data_uri(cb::hostile::detail::triangle_bytes()))
+               .dump();
+    std::error_code ec;
+    fs::create_symlink(base / "outside/scene.gltf", base / "in/linked.gltf", ec);
     Child c = run_tool({"batch", (base / "in").string(), "-o", (base / "out").string(), "-j", "2", "-q"}, base);
     EXPECT_EQ(c.code, 2) << c.err;  // some failed; the process itself did not die
     std::ifstream in(base / "out/summary.json");
@@ -145,6 +151,10 @@ TEST(Hostile, ABatchOverThemBakesTheGoodFilesBesideThem) {
     for (const std::string& g : good) {
         EXPECT_EQ(status["good_" + g], "baked") << g << ": " << error["good_" + g];
         EXPECT_TRUE(fs::exists(base / "out" / ("good_" + fs::path(g).stem().string() + ".cbk"))) << g;
+    }
+    if (!ec) {
+        EXPECT_NE(error["linked.gltf"].find("refused: a symbolic link leads out of the input root"), std::string::npos)
+            << error["linked.gltf"];
     }
     for (const cb::hostile::File& f : files) {
         SCOPED_TRACE(f.name);
