@@ -159,6 +159,17 @@ inline std::vector<File> write_corpus(const std::filesystem::path& dir, const st
     gltf("gltf/draco_truncated.gltf", draco_gltf(header + std::string("\x00\x00\x00", 3) + varint(50) + varint(36)),
          "Draco: ");
 
+    // Parts the loader never reads, in bulk: a million empty arrays in "extras", a million empty objects
+    // in an extension. Both load, without holding them.
+    doc = triangle_gltf(tri);
+    doc["extras"] = json::array();
+    for (int i = 0; i < 1'000'000; ++i) doc["extras"].push_back(json::array());
+    gltf("gltf/bulky_extras.gltf", doc, "");
+    doc = triangle_gltf(tri);
+    doc["extensions"]["EXT_bulk"] = json::object();
+    for (int i = 0; i < 300'000; ++i) doc["extensions"]["EXT_bulk"][std::to_string(i)] = json::object();
+    gltf("gltf/bulky_extension.gltf", doc, "");
+
     // Node hierarchies: a chain 20,000 deep loads; a cycle through all of it and a DAG that doubles the
     // paths at each of 40 levels are refused.
     gltf("gltf/deep_chain.gltf", chain_gltf(20000, false), "");

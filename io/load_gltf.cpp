@@ -90,12 +90,31 @@ std::string glb_layout_error(const uint8_t* data, size_t size) {
 // The document's JSON (a GLB's JSON chunk, whose layout glb_layout_error has checked). Parsed here rather
 // than by tinygltf, whose error is the JSON library's raw exception text: a file that is not glTF at all is
 // said to be so, with where its JSON breaks.
-nlohmann::json parse_document(const uint8_t* data, size_t size, bool binary, const std::string& name) {
+// Parts the loader never reads ("extras", and extensions other than Draco's: their names are a prefix, an
+// underscore and a lower-case letter) are dropped as they are parsed, with whatever they nest, so that
+// neither this document nor tinygltf's model holds them: a few megabytes of "[[],[],..." there made both
+// hold hundreds. `pruned` tells whether anything was dropped.
+bool never_read(const std::string& key) {
+    if (key == "extras") return true;
+    const size_t underscore = key.find('_');
+    if (underscore == 0 || underscore == std::string::npos || underscore + 1 == key.size()) return false;
+    for (size_t i = 0; i < underscore; ++i)
+        if (!std::isupper(uint8_t(key[i])) && !std::isdigit(uint8_t(key[i]))) return false;
+    return std::islower(uint8_t(key[underscore + 1])) && key != "KHR_draco_mesh_compression";
+}
+
+nlohmann::json parse_document(const uint8_t* data, size_t size, bool binary, const std::string& name, bool& pruned) {
     const uint8_t* begin = binary ? data + 20 : data;
     const size_t length = binary ? read_u32(data + 12) : size;
     nlohmann::json doc;
+    pruned = false;
+    auto keep = [&pruned](int, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+        if (event != nlohmann::json::parse_event_t::key || !parsed.is_string() || !never_read(parsed)) return true;
+        pruned = true;
+        return false;
+    };
     try {
-        doc = nlohmann::json::parse(begin, begin + length);
+        doc = nlohmann::json::parse(begin, begin + length, keep);
     } catch (const nlohmann::json::parse_error& e) {
         const std::string at = "parse error at byte " + std::to_string(e.byte);
         if (binary) throw LoadError(name + ": GLB JSON chunk is not JSON text (" + at + " of the chunk)");
@@ -136,10 +155,10 @@ std::string buffer_file_problem(const nlohmann::json& doc, const std::string& ba
 }
 
 // Returns the glTF (or GLB) bytes with viewless indices detached from `doc` (in place: only its buffers
-// are read later), or an empty vector when nothing changed.
+// are read later) and what parse_document dropped left out, or an empty vector when nothing changed.
 std::vector<uint8_t> prepare_for_tinygltf(const uint8_t* data, size_t size, bool binary, nlohmann::json& doc,
-                                          DetachedIndices& detached) {
-    if (!detach_viewless_indices(doc, detached)) return {};
+                                          bool pruned, DetachedIndices& detached) {
+    if (!detach_viewless_indices(doc, detached) && !pruned) return {};
     const size_t json_size = binary ? read_u32(data + 12) : size;
     std::string text = doc.dump();
     if (!binary) return std::vector<uint8_t>(text.begin(), text.end());
@@ -752,11 +771,12 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
         std::string layout = glb_layout_error(data, size);
         if (!layout.empty()) throw LoadError(name + ": " + layout);
     }
-    nlohmann::json doc = parse_document(data, size, binary, name);
+    bool pruned;
+    nlohmann::json doc = parse_document(data, size, binary, name, pruned);
     std::string access = buffer_access_problem(doc, base_dir, options);
     if (!access.empty()) throw LoadError(name + ": " + access);
     DetachedIndices detached;
-    std::vector<uint8_t> prepared = prepare_for_tinygltf(data, size, binary, doc, detached);
+    std::vector<uint8_t> prepared = prepare_for_tinygltf(data, size, binary, doc, pruned, detached);
     if (!prepared.empty()) data = prepared.data(), size = prepared.size();
 
     tinygltf::TinyGLTF loader;

@@ -4,7 +4,6 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <fcntl.h>
-#include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -15,8 +14,6 @@
 #include <map>
 
 #include "../fuzz/hostile_corpus.h"
-
-extern char** environ;
 
 namespace fs = std::filesystem;
 
@@ -29,8 +26,9 @@ struct Child {
     uint64_t peak_bytes = 0;  // the child's own peak resident size
 };
 
-// Runs clusterbake with `args`, its standard error to a file, and measures it alone (wait4, not the sum
-// over every child so far).
+// Runs clusterbake with `args`, its standard error to a file, and measures it alone: wait4 gives this
+// child's figures, not the sum over every child so far. fork, not posix_spawn's vfork: a child that shares
+// this process's memory until exec would inherit its high-water mark.
 Child run_tool(const std::vector<std::string>& args, const fs::path& scratch) {
     std::vector<std::string> words = {CB_CLI};
     words.insert(words.end(), args.begin(), args.end());
@@ -38,24 +36,48 @@ Child run_tool(const std::vector<std::string>& args, const fs::path& scratch) {
     for (std::string& w : words) argv.push_back(w.data());
     argv.push_back(nullptr);
     const std::string err_path = (scratch / "stderr.txt").string();
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-    posix_spawn_file_actions_addopen(&actions, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     Child c;
-    pid_t pid;
     auto t0 = std::chrono::steady_clock::now();
-    if (posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ) != 0) return c;
+    const pid_t pid = fork();
+    if (pid < 0) return c;
+    if (pid == 0) {
+        const int out = open("/dev/null", O_WRONLY), err = open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        dup2(out, 1), dup2(err, 2);
+        execv(argv[0], argv.data());
+        _exit(127);
+    }
     int status = 0;
     struct rusage usage {};
     wait4(pid, &status, 0, &usage);
     c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    posix_spawn_file_actions_destroy(&actions);
     c.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     c.peak_bytes = uint64_t(usage.ru_maxrss) * 1024;
     std::ifstream in(err_path);
     c.err.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
     return c;
+}
+
+// Writes the corpus from a child process, so that the documents it builds never swell this one (whose
+// resident size the tool's children start from); the child lists the files in outside/listing.txt.
+std::vector<cb::hostile::File> write_corpus(const fs::path& dir, const fs::path& outside) {
+    const pid_t pid = fork();
+    if (pid == 0) {
+        std::vector<cb::hostile::File> files = cb::hostile::write_corpus(dir, outside);
+        std::ofstream listing(outside / "listing.txt");
+        for (const cb::hostile::File& f : files) listing << f.name << '\t' << f.expect << '\n';
+        listing.close();  // _exit runs no destructor
+        _exit(listing ? 0 : 1);
+    }
+    int status = 0;
+    waitpid(pid, &status, 0);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    std::vector<cb::hostile::File> files;
+    std::ifstream listing(outside / "listing.txt");
+    for (std::string line; std::getline(listing, line);) {
+        const size_t tab = line.find('\t');
+        files.push_back({line.substr(0, tab), line.substr(tab + 1)});
+    }
+    return files;
 }
 
 // A fresh folder for this test: the corpus in base/corpus, its targets in base/outside.
@@ -70,7 +92,7 @@ fs::path fresh(const std::string& name) {
 
 TEST(Hostile, EveryFileIsRefusedInOneLineQuicklyAndInLittleMemory) {
     const fs::path base = fresh("each");
-    const std::vector<cb::hostile::File> files = cb::hostile::write_corpus(base / "corpus", base / "outside");
+    const std::vector<cb::hostile::File> files = write_corpus(base / "corpus", base / "outside");
     ASSERT_GE(files.size(), 20u);
     for (const cb::hostile::File& f : files) {
         SCOPED_TRACE(f.name);
@@ -94,7 +116,7 @@ TEST(Hostile, EveryFileIsRefusedInOneLineQuicklyAndInLittleMemory) {
 
 TEST(Hostile, OutsideFilesAreReadOnlyWhenAllowed) {
     const fs::path base = fresh("allow");
-    cb::hostile::write_corpus(base / "corpus", base / "outside");
+    write_corpus(base / "corpus", base / "outside");
     for (const char* name : {"escape_dotdot", "escape_percent", "escape_absolute"}) {
         SCOPED_TRACE(name);
         const std::string path = (base / "corpus/gltf" / (std::string(name) + ".gltf")).string();
@@ -114,7 +136,7 @@ TEST(Hostile, OutsideFilesAreReadOnlyWhenAllowed) {
 
 TEST(Hostile, AMemoryBudgetTurnsABigSceneIntoACleanFailure) {
     const fs::path base = fresh("budget");
-    cb::hostile::write_corpus(base / "corpus", base / "outside");
+    write_corpus(base / "corpus", base / "outside");
     // The 20,000-deep chain's 20,000 instances fit the default; a cube does not fit a kilobyte.
     const std::string path = (base / "corpus/gltf/deep_chain.gltf").string();
     EXPECT_EQ(run_tool({"bake", path, "-o", (base / "chain.cbk").string(), "-q"}, base).code, 0);
@@ -128,7 +150,7 @@ TEST(Hostile, AMemoryBudgetTurnsABigSceneIntoACleanFailure) {
 
 TEST(Hostile, ABatchOverThemBakesTheGoodFilesBesideThem) {
     const fs::path base = fresh("batch");
-    const std::vector<cb::hostile::File> files = cb::hostile::write_corpus(base / "in", base / "outside");
+    const std::vector<cb::hostile::File> files = write_corpus(base / "in", base / "outside");
     const std::vector<std::string> good = {"cube.obj", "cube_binary.ply", "primitive_modes.gltf", "cube_ascii.stl"};
     for (const std::string& g : good)
         fs::copy_file(std::string(CB_SOURCE_DIR) + "/data/small/" + g, base / "in" / ("good_" + g));
