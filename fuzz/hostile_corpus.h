@@ -141,7 +141,7 @@ inline std::vector<File> write_corpus(const std::filesystem::path& dir, const st
     doc["accessors"][0]["sparse"] = {{"count", 3},
                                      {"indices", {{"bufferView", 0}, {"byteOffset", 30}, {"componentType", 5125}}},
                                      {"values", {{"bufferView", 0}}}};
-    gltf("gltf/sparse_past_view.gltf", doc, "needs 42 bytes of bufferView 0 which has 36");
+    gltf("gltf/sparse_past_view.gltf", doc, "sparse indices: needs 42 bytes of bufferView 0 which has 36");
     doc = triangle_gltf(tri);
     doc["bufferViews"][0] = {{"buffer", 0}, {"byteOffset", 24}, {"byteLength", 36}};
     gltf("gltf/view_past_buffer.gltf", doc, "past the end of buffer 0");

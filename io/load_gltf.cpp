@@ -311,9 +311,12 @@ void check_sparse(const Context& ctx, const tinygltf::Accessor& acc, size_t elem
         itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
         ctx.fail("sparse indices componentType " + std::to_string(itype) + " is not unsigned");
     if (sp.indices.byteOffset < 0 || sp.values.byteOffset < 0) ctx.fail("negative sparse byteOffset");
-    view_range(ctx, sp.indices.bufferView, size_t(sp.indices.byteOffset), size_t(sp.count), component_size(itype),
+    Context part = ctx;
+    part.where = ctx.where + ": sparse indices";
+    view_range(part, sp.indices.bufferView, size_t(sp.indices.byteOffset), size_t(sp.count), component_size(itype),
                false);
-    view_range(ctx, sp.values.bufferView, size_t(sp.values.byteOffset), size_t(sp.count), element_size, false);
+    part.where = ctx.where + ": sparse values";
+    view_range(part, sp.values.bufferView, size_t(sp.values.byteOffset), size_t(sp.count), element_size, false);
 }
 
 // Bytes of zeros an accessor without a bufferView may declare beyond what the file's buffers hold.
