@@ -9,9 +9,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -419,13 +419,19 @@ TEST(Polygons, AMillionVerticesInUnderTwoSeconds) {
             p.poly.push_back(uint32_t(i));
         }
         std::vector<uint32_t> tris;
-        auto t0 = std::chrono::steady_clock::now();
+        // The thread's own CPU time: ctest runs other tests beside this one on the same cores.
+        auto cpu_seconds = [] {
+            timespec t;
+            clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+            return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+        };
+        const double t0 = cpu_seconds();
         cb::PolygonShape kind = cb::triangulate_polygon(p.xyz.data(), p.poly.data(), n, tris);
-        double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double seconds = cpu_seconds() - t0;
         EXPECT_LT(seconds, 2.0) << (star ? "star" : "circle");
         EXPECT_NE(kind, cb::PolygonShape::not_simple);
         EXPECT_GE(tris.size(), 3 * (n / 2));
-        std::printf("%s of %zu vertices: %s, %zu triangles in %.3f s\n", star ? "star" : "circle", n,
+        std::printf("%s of %zu vertices: %s, %zu triangles in %.3f s of CPU\n", star ? "star" : "circle", n,
                     kind == cb::PolygonShape::convex ? "convex" : "concave", tris.size() / 3, seconds);
     }
 }
