@@ -9,6 +9,7 @@
 
 #include "bake.h"
 #include "bounds.h"
+#include "load.h"
 #include "cluster.h"
 #include "source_files.h"
 
@@ -23,6 +24,7 @@ struct BakeRequest {
     BoundsOptions bounds;
     bool fit = true;          // false: geometry and hierarchy only (`clusterbake cluster`)
     bool if_changed = false;  // keep an up-to-date output
+    LoadOptions load;         // what the scene is trusted with (external files, memory)
 };
 
 enum class BakeStatus { baked, up_to_date, failed };

@@ -34,6 +34,7 @@ void add_folder(const fs::path& root, const std::string& outdir, std::vector<Bat
         BatchJob job;
         job.name = it->path().lexically_relative(root).generic_string();
         job.input = it->path().string();
+        job.root = root.string();
         job.output = output_for(outdir, job.name);
         job.origin = root.string();
         job.input_size = size_of(it->path());
@@ -66,6 +67,7 @@ void add_manifest(std::istream& in, const std::string& where, const fs::path& ro
         BatchJob job;
         job.name = name.generic_string();
         job.input = path.string();
+        job.root = root.string();
         job.output = output_for(outdir, job.name);
         job.args.assign(fields.begin() + 1, fields.end());
         job.origin = at;
@@ -120,6 +122,8 @@ std::vector<BatchJob> plan_batch(const std::vector<std::string>& inputs, const s
             BatchJob job;
             job.name = fs::path(input).filename().string();
             job.input = input;
+            // A file named on the command line is taken where it lies (even through a link); its external
+            // files must lie in its folder, as for `bake`: no root.
             job.output = output_for(outdir, job.name);
             job.origin = input;
             job.input_size = size_of(input);

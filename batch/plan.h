@@ -14,6 +14,7 @@ namespace cb {
 struct BatchJob {
     std::string name;               // the scene's path below its root, '/'-separated: "a/b/scene.glb"
     std::string input;              // the path read: root joined with name
+    std::string root;               // the folder or manifest's root its files must lie below; empty for a file
     std::string output;             // OUTDIR/a/b/scene.cbk
     std::vector<std::string> args;  // bake options for this file alone, from its manifest line
     std::string origin;             // where it was named, for errors: the input, or "list.txt: line 3"

@@ -13,6 +13,16 @@
 
 namespace cb::cli {
 
+void add_load_flags(CLI::App* c, cb::LoadOptions& load) {
+    c->add_flag("--allow-outside-files", load.allow_outside_files,
+                "Read the external files a scene names (glTF buffers) anywhere, not only inside its folder (a "
+                "batch's: inside its input root); scenes are untrusted input, see docs/SECURITY.md");
+    c->add_option("--memory-budget", load.memory_budget,
+                  "Bytes one scene may take to load and bake, with a unit: 512MB, 8GB (default 4GB, which a "
+                  "10 M-triangle scene fits); a scene that needs more fails cleanly")
+        ->transform(CLI::AsSizeValue(false));
+}
+
 void add_clustering_flags(CLI::App* c, ClusterArgs& a) {
     c->add_option("--method", a.method, "kmeans (default), vco or morton");
     c->add_option("--coarse", a.options.coarse_size, "Triangles per coarse cluster (default 2048)");
@@ -150,6 +160,7 @@ std::string request_error(const ClusterArgs& a, cb::BakeRequest& out) {
     out = cb::BakeRequest{};
     out.fit = a.fit;
     out.if_changed = a.if_changed;
+    out.load = a.load;
     std::string error = clustering_error(a, out.clustering, out.bounds);
     if (error.empty() && a.fit && !cb::parse_bounds_mask(a.bounds, out.bounds.mask))
         error = "--bounds takes auto, all or a list of obb,sphere,capsule,cone,slab (got '" + a.bounds + "')";

@@ -23,12 +23,17 @@ constexpr int exit_usage = 2;      // an option or argument the command cannot t
 struct ClusterArgs {
     std::string file, out, method = "kmeans";
     cb::ClusterOptions options;
+    cb::LoadOptions load;
     bool json = false, quiet = false;
     bool fit = false;  // bake: fit bounds too
     bool if_changed = false, force = false;
     std::string bounds = "auto", obb = "refined";
     double capsule_ratio = 2.0;
 };
+
+// What a command trusts its scene files with (--allow-outside-files, --memory-budget): every command
+// that loads scenes takes them.
+void add_load_flags(CLI::App* c, cb::LoadOptions& load);
 
 // The clustering options (--method, --coarse, --fine, --threads and the methods' own) of cluster, bake, stats.
 void add_clustering_flags(CLI::App* c, ClusterArgs& a);

@@ -132,6 +132,9 @@ void add_common(CLI::App* c, ClusterArgs& a) {
     c->add_option("file", a.file, "Scene file")->required();
     c->add_option("-o,--output", a.out, "Output asset (.cbk); written atomically")->required();
     add_clustering_flags(c, a);
+    add_load_flags(c, a.load);
+    c->add_option("--files-root", a.load.root,
+                  "External files a scene names must lie inside this folder (default: the scene's own folder)");
     c->add_flag("--if-changed", a.if_changed,
                 "Keep the output when it was made from the same input bytes, options and tool version");
     c->add_flag("--force", a.force,

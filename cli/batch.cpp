@@ -56,6 +56,7 @@ std::string job_request(const CLI::App* batch_app, const BatchArgs& a, const Bat
     out.input = job.input;
     out.output = job.output;
     out.if_changed = !a.force;
+    out.load.root = job.root;
     return {};
 }
 
@@ -68,6 +69,11 @@ std::vector<std::string> bake_argv(const BakeRequest& r, bool force) {
         argv.push_back(options.substr(at + 1, end == std::string::npos ? std::string::npos : end - at - 1));
         at = end;
     }
+    // What the file is trusted with: the batch's input root, and the load flags when not the defaults.
+    if (!r.load.root.empty()) argv.insert(argv.end(), {"--files-root", r.load.root});
+    if (r.load.allow_outside_files) argv.push_back("--allow-outside-files");
+    if (r.load.memory_budget != default_memory_budget)
+        argv.insert(argv.end(), {"--memory-budget", std::to_string(r.load.memory_budget)});
     argv.push_back(force ? "--force" : "--if-changed");
     argv.push_back("--json");
     return argv;
@@ -112,8 +118,11 @@ int run_batch_command(const CLI::App* c, const BatchArgs& a) {
         for (size_t i = 0; i < jobs.size(); ++i) {
             std::vector<std::string> argv = bake_argv(requests[i], a.force);
             if (a.plan) {
-                nlohmann::json j = {
-                    {"name", jobs[i].name}, {"input", jobs[i].input}, {"output", jobs[i].output}, {"argv", argv}};
+                nlohmann::json j = {{"name", jobs[i].name},
+                                    {"input", jobs[i].input},
+                                    {"root", jobs[i].root},
+                                    {"output", jobs[i].output},
+                                    {"argv", argv}};
                 std::cout << j.dump() << "\n";
             } else {
                 std::string line = "clusterbake";
@@ -265,10 +274,11 @@ Command add_batch(CLI::App& app) {
         ->required();
     add_clustering_flags(c, a->bake);
     add_bounds_flags(c, a->bake);
+    add_load_flags(c, a->bake.load);
     c->add_option("-j,--jobs", a->jobs, "Files baked at once (default: one per core)");
     c->add_flag("--force", a->force, "Bake every file, even when its output is up to date");
     c->add_flag("--plan", a->plan,
-                "Bake nothing: print each file's job as a JSON line (name, input, output, argv of its bake)");
+                "Bake nothing: print each file's job as a JSON line (name, input, root, output, argv of its bake)");
     c->add_flag("--commands", a->commands, "Bake nothing: print each file's `clusterbake bake` command line");
     c->add_flag("--json", a->json, "Print summary.json on stdout instead of the table");
     c->add_flag("-q,--quiet", a->quiet, "No progress line and no line per file");

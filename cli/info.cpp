@@ -15,13 +15,13 @@
 namespace cb::cli {
 namespace {
 
-int run_info(const std::vector<std::string>& files, bool json) {
+int run_info(const std::vector<std::string>& files, bool json, const cb::LoadOptions& load) {
     int status = 0;
     nlohmann::json all = nlohmann::json::array();
     for (const std::string& file : files) {
         auto start = std::chrono::steady_clock::now();
         try {
-            cb::Scene scene = cb::load_scene(file);
+            cb::Scene scene = cb::load_scene(file, load);
             double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
             cb::SceneInfo info = cb::describe(scene);
             if (json) {
@@ -70,13 +70,15 @@ Command add_info(CLI::App& app) {
     struct Args {
         std::vector<std::string> files;
         bool json = false, quiet = false;
+        cb::LoadOptions load;
     };
     auto a = std::make_shared<Args>();
     CLI::App* c = app.add_subcommand("info", "Load scene files and print counts, bounds and load time");
     c->add_option("files", a->files, "Scene files (.gltf .glb .obj .ply .off .stl)")->required();
     c->add_flag("--json", a->json, "Print a JSON array, one object per file");
     c->add_flag("-q,--quiet", a->quiet, "No progress on stderr (info prints none; errors are always printed)");
-    return {c, [a] { return run_info(a->files, a->json); }};
+    add_load_flags(c, a->load);
+    return {c, [a] { return run_info(a->files, a->json, a->load); }};
 }
 
 }  // namespace cb::cli

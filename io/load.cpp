@@ -6,9 +6,11 @@
 #include <filesystem>
 #include <new>
 
+#include "file_access.h"
+
 namespace cb {
 
-Scene load_scene_unguarded(const std::string& path);
+Scene load_scene_unguarded(const std::string& path, const LoadOptions& options);
 
 Transform multiply(const Transform& a, const Transform& b) {
     Transform r{};
@@ -78,6 +80,13 @@ Scene single_mesh_scene(Mesh mesh, const std::string& name, const Origin& origin
     return scene;
 }
 
+std::string byte_size_text(uint64_t bytes) {
+    static const char* units[] = {"bytes", "KiB", "MiB", "GiB", "TiB"};
+    int unit = 0;
+    while (unit < 4 && bytes >= (uint64_t(1) << (10 * (unit + 1)))) ++unit;
+    return std::to_string(bytes >> (10 * unit)) + " " + units[unit];
+}
+
 FileFormat format_from_path(std::string_view path) {
     size_t dot = path.find_last_of('.');
     if (dot == std::string_view::npos) return FileFormat::unknown;
@@ -92,21 +101,26 @@ FileFormat format_from_path(std::string_view path) {
     return FileFormat::unknown;
 }
 
-Scene load_scene(const std::string& path) {
+Scene load_scene(const std::string& path, const LoadOptions& options) {
     try {
-        return load_scene_unguarded(path);
+        return load_scene_unguarded(path, options);
     } catch (const std::bad_alloc&) {
         // A file can still describe more than this machine holds; say so rather than crash.
         throw LoadError(path + ": out of memory while loading");
     }
 }
 
-Scene load_scene_unguarded(const std::string& path) {
+Scene load_scene_unguarded(const std::string& path, const LoadOptions& options) {
     FileFormat format = format_from_path(path);
     if (format == FileFormat::unknown)
         throw LoadError(path + ": unknown file type (expected .gltf .glb .obj .ply .off .stl)");
     std::error_code ec;
     if (std::filesystem::is_directory(path, ec)) throw LoadError(path + ": is a directory");
+    // A batch's scene found below its input root through a symbolic link that leads elsewhere.
+    if (!options.root.empty() && !options.allow_outside_files) {
+        std::string problem = path_outside_root(path, options.root, "the input root");
+        if (!problem.empty()) throw LoadError(path + ": refused: " + problem + " (--allow-outside-files reads it)");
+    }
     FileBytes bytes;
     std::string error;
     if (!bytes.read(path, error)) throw LoadError(error);
@@ -116,7 +130,7 @@ Scene load_scene_unguarded(const std::string& path) {
     Scene scene;
     if (format == FileFormat::gltf || format == FileFormat::glb) {
         std::string base = std::filesystem::path(path).parent_path().string();
-        scene = load_gltf_memory(bytes.data(), bytes.size(), path, base.empty() ? "." : base, &source);
+        scene = load_gltf_memory(bytes.data(), bytes.size(), path, base.empty() ? "." : base, &source, options);
     } else {
         scene = load_mesh_memory(bytes.data(), bytes.size(), format, path);
     }

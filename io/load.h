@@ -34,17 +34,34 @@ struct LoadError : std::runtime_error {
 
 enum class FileFormat { gltf, glb, obj, ply, off, stl, unknown };
 
+// The bytes a load may hold for what a file declares (decoded arrays, instances) when no other budget is
+// given: a scene of 10 million triangles loads and bakes within it (docs/SECURITY.md).
+constexpr uint64_t default_memory_budget = uint64_t(4) << 30;
+
+// "800 bytes", "12 KiB", "640 MiB", "4 GiB": a size for a message, rounded down.
+std::string byte_size_text(uint64_t bytes);
+
+// What a load trusts the file with. Scene files are untrusted input (docs/SECURITY.md): by default an
+// external file a scene names (a glTF buffer) must lie inside `root`, and what the file's declared counts
+// would make the loader allocate must fit `memory_budget`.
+struct LoadOptions {
+    std::string root;                  // external files must lie below it; empty: the scene file's folder
+    bool allow_outside_files = false;  // any readable file may be named (pipelines sharing buffers)
+    uint64_t memory_budget = default_memory_budget;
+};
+
 // From the file extension, case-insensitive.
 FileFormat format_from_path(std::string_view path);
 
 // Loads any supported file. `path` names the file in every error message. The report's `source` lists the
 // files read and their hash (source_files.h).
-Scene load_scene(const std::string& path);
+Scene load_scene(const std::string& path, const LoadOptions& options = {});
 
 // Loads from bytes already in memory. `name` is used in error messages; external glTF resources are looked
-// up relative to `base_dir` (none when empty) and, when `source` is set, added to it as they are read.
+// up relative to `base_dir` (none may be named when it is empty), inside `options.root` (`base_dir` when
+// empty), and, when `source` is set, added to it as they are read.
 Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name, const std::string& base_dir,
-                       SourceHasher* source = nullptr);
+                       SourceHasher* source = nullptr, const LoadOptions& options = {});
 Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name);
 
 // The per-format readers behind load_mesh_memory.

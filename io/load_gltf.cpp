@@ -13,6 +13,8 @@
 #include <map>
 #include <sstream>
 
+#include "draco_header.h"
+#include "file_access.h"
 #include "load.h"
 
 namespace cb {
@@ -88,12 +90,31 @@ std::string glb_layout_error(const uint8_t* data, size_t size) {
 // The document's JSON (a GLB's JSON chunk, whose layout glb_layout_error has checked). Parsed here rather
 // than by tinygltf, whose error is the JSON library's raw exception text: a file that is not glTF at all is
 // said to be so, with where its JSON breaks.
-nlohmann::json parse_document(const uint8_t* data, size_t size, bool binary, const std::string& name) {
+// Parts the loader never reads ("extras", and extensions other than Draco's: their names are a prefix, an
+// underscore and a lower-case letter) are dropped as they are parsed, with whatever they nest, so that
+// neither this document nor tinygltf's model holds them: a few megabytes of "[[],[],..." there made both
+// hold hundreds. `pruned` tells whether anything was dropped.
+bool never_read(const std::string& key) {
+    if (key == "extras") return true;
+    const size_t underscore = key.find('_');
+    if (underscore == 0 || underscore == std::string::npos || underscore + 1 == key.size()) return false;
+    for (size_t i = 0; i < underscore; ++i)
+        if (!std::isupper(uint8_t(key[i])) && !std::isdigit(uint8_t(key[i]))) return false;
+    return std::islower(uint8_t(key[underscore + 1])) && key != "KHR_draco_mesh_compression";
+}
+
+nlohmann::json parse_document(const uint8_t* data, size_t size, bool binary, const std::string& name, bool& pruned) {
     const uint8_t* begin = binary ? data + 20 : data;
     const size_t length = binary ? read_u32(data + 12) : size;
     nlohmann::json doc;
+    pruned = false;
+    auto keep = [&pruned](int, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+        if (event != nlohmann::json::parse_event_t::key || !parsed.is_string() || !never_read(parsed)) return true;
+        pruned = true;
+        return false;
+    };
     try {
-        doc = nlohmann::json::parse(begin, begin + length);
+        doc = nlohmann::json::parse(begin, begin + length, keep);
     } catch (const nlohmann::json::parse_error& e) {
         const std::string at = "parse error at byte " + std::to_string(e.byte);
         if (binary) throw LoadError(name + ": GLB JSON chunk is not JSON text (" + at + " of the chunk)");
@@ -107,21 +128,6 @@ nlohmann::json parse_document(const uint8_t* data, size_t size, bool binary, con
     if (asset == doc.end() || !asset->is_object() || !asset->contains("version") || !(*asset)["version"].is_string())
         throw LoadError(name + ": not a glTF file: JSON without an \"asset\" object naming its \"version\"");
     return doc;
-}
-
-// "%20" and the like in a URI, as tinygltf decodes them before opening the file.
-std::string percent_decoded(const std::string& uri) {
-    std::string out;
-    for (size_t i = 0; i < uri.size(); ++i) {
-        if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(uint8_t(uri[i + 1])) &&
-            std::isxdigit(uint8_t(uri[i + 2]))) {
-            out += char(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
-            i += 2;
-        } else {
-            out += uri[i];
-        }
-    }
-    return out;
 }
 
 // What is wrong with an external buffer file of the document, or empty: tinygltf's message for it ("File
@@ -149,10 +155,10 @@ std::string buffer_file_problem(const nlohmann::json& doc, const std::string& ba
 }
 
 // Returns the glTF (or GLB) bytes with viewless indices detached from `doc` (in place: only its buffers
-// are read later), or an empty vector when nothing changed.
+// are read later) and what parse_document dropped left out, or an empty vector when nothing changed.
 std::vector<uint8_t> prepare_for_tinygltf(const uint8_t* data, size_t size, bool binary, nlohmann::json& doc,
-                                          DetachedIndices& detached) {
-    if (!detach_viewless_indices(doc, detached)) return {};
+                                          bool pruned, DetachedIndices& detached) {
+    if (!detach_viewless_indices(doc, detached) && !pruned) return {};
     const size_t json_size = binary ? read_u32(data + 12) : size;
     std::string text = doc.dump();
     if (!binary) return std::vector<uint8_t>(text.begin(), text.end());
@@ -168,16 +174,38 @@ std::vector<uint8_t> prepare_for_tinygltf(const uint8_t* data, size_t size, bool
     return out;
 }
 
+// The bytes a load holds for what the file declares: the scene built so far, checked against the budget
+// before each allocation a declared count decides.
+struct MemoryUse {
+    uint64_t held = 0;
+    uint64_t budget = default_memory_budget;
+};
+
 struct Context {
     const tinygltf::Model& model;
     std::string file;
     std::string where;  // "mesh 3 primitive 1: accessor 7" and so on
     const DetachedIndices* detached = nullptr;
+    MemoryUse* memory = nullptr;
 
     [[noreturn]] void fail(const std::string& what) const {
         throw LoadError(file + ": " + (where.empty() ? "" : where + ": ") + what);
     }
+
+    // Fails unless `bytes` more (for `what`) fit the memory budget beside what the load already holds.
+    void need(uint64_t bytes, const std::string& what) const {
+        if (bytes <= memory->budget && memory->held <= memory->budget - bytes) return;
+        fail(what + " needs " + byte_size_text(bytes) + " more, over the memory budget of " +
+             byte_size_text(memory->budget) + " (--memory-budget)");
+    }
 };
+
+// All bytes of the model's buffers: what an accessor without a bufferView may not exceed.
+uint64_t buffer_bytes(const tinygltf::Model& model) {
+    uint64_t total = 0;
+    for (const tinygltf::Buffer& b : model.buffers) total += b.data.size();
+    return total;
+}
 
 // tinygltf's message, one line and short: some quote a whole data URI.
 std::string first_line(const std::string& s) {
@@ -273,6 +301,27 @@ StridedRange view_range(const Context& ctx, int view_index, size_t offset, size_
     return {buffer.data.data() + view.byteOffset + offset, stride};
 }
 
+// A sparse accessor's declared count, index type and offsets, checked before its views are read.
+void check_sparse(const Context& ctx, const tinygltf::Accessor& acc, size_t element_size) {
+    const auto& sp = acc.sparse;
+    if (sp.count < 0 || size_t(sp.count) > acc.count)
+        ctx.fail("sparse count " + std::to_string(sp.count) + " exceeds accessor count " + std::to_string(acc.count));
+    int itype = sp.indices.componentType;
+    if (itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+        itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+        ctx.fail("sparse indices componentType " + std::to_string(itype) + " is not unsigned");
+    if (sp.indices.byteOffset < 0 || sp.values.byteOffset < 0) ctx.fail("negative sparse byteOffset");
+    Context part = ctx;
+    part.where = ctx.where + ": sparse indices";
+    view_range(part, sp.indices.bufferView, size_t(sp.indices.byteOffset), size_t(sp.count), component_size(itype),
+               false);
+    part.where = ctx.where + ": sparse values";
+    view_range(part, sp.values.bufferView, size_t(sp.values.byteOffset), size_t(sp.count), element_size, false);
+}
+
+// Bytes of zeros an accessor without a bufferView may declare beyond what the file's buffers hold.
+constexpr uint64_t zero_filled_allowance = uint64_t(1) << 16;
+
 // Reads any numeric accessor as doubles (count * components), applying sparse substitution.
 std::vector<double> read_accessor(Context ctx, int accessor_index, int want_type) {
     const auto& accessors = ctx.model.accessors;
@@ -287,14 +336,21 @@ std::vector<double> read_accessor(Context ctx, int accessor_index, int want_type
     if (acc.count > std::numeric_limits<uint32_t>::max())
         ctx.fail("count " + std::to_string(acc.count) + " exceeds 2^32-1");
 
-    // Without a bufferView an accessor is zeros (plus sparse values): its count costs no bytes of the file,
-    // so cap it rather than let a small file ask for gigabytes.
-    constexpr size_t max_zero_filled = size_t(1) << 24;
-    if (acc.bufferView < 0 && acc.count > max_zero_filled)
-        ctx.fail("count " + std::to_string(acc.count) + " without a bufferView (zero-filled) exceeds 16 M elements");
+    // Every range is checked against the bytes that exist before anything is allocated. Without a
+    // bufferView an accessor is zeros (plus sparse values): its count costs no bytes of the file, so it may
+    // not declare more than the file's buffers could hold.
+    const size_t element_size = csize * ncomp;
+    StridedRange r;
+    if (acc.bufferView >= 0) {
+        r = view_range(ctx, acc.bufferView, acc.byteOffset, acc.count, element_size, true);
+    } else if (uint64_t(acc.count) * element_size > buffer_bytes(ctx.model) + zero_filled_allowance) {
+        ctx.fail("count " + std::to_string(acc.count) + " without a bufferView (zero-filled) needs " +
+                 std::to_string(uint64_t(acc.count) * element_size) + " bytes, more than the file's buffers hold");
+    }
+    if (acc.sparse.isSparse) check_sparse(ctx, acc, element_size);
+    ctx.need(uint64_t(acc.count) * ncomp * sizeof(double), "count " + std::to_string(acc.count));
     std::vector<double> out(acc.count * ncomp, 0.0);
     if (acc.bufferView >= 0) {
-        StridedRange r = view_range(ctx, acc.bufferView, acc.byteOffset, acc.count, csize * ncomp, true);
         for (size_t i = 0; i < acc.count; ++i)
             for (size_t c = 0; c < ncomp; ++c)
                 out[i * ncomp + c] =
@@ -302,18 +358,11 @@ std::vector<double> read_accessor(Context ctx, int accessor_index, int want_type
     }
     if (acc.sparse.isSparse) {
         const auto& sp = acc.sparse;
-        if (sp.count < 0 || size_t(sp.count) > acc.count)
-            ctx.fail("sparse count " + std::to_string(sp.count) + " exceeds accessor count " +
-                     std::to_string(acc.count));
-        int itype = sp.indices.componentType;
-        if (itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
-            itype != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
-            ctx.fail("sparse indices componentType " + std::to_string(itype) + " is not unsigned");
-        if (sp.indices.byteOffset < 0 || sp.values.byteOffset < 0) ctx.fail("negative sparse byteOffset");
+        const int itype = sp.indices.componentType;
         StridedRange ir = view_range(ctx, sp.indices.bufferView, size_t(sp.indices.byteOffset), size_t(sp.count),
                                      component_size(itype), false);
         StridedRange vr =
-            view_range(ctx, sp.values.bufferView, size_t(sp.values.byteOffset), size_t(sp.count), csize * ncomp, false);
+            view_range(ctx, sp.values.bufferView, size_t(sp.values.byteOffset), size_t(sp.count), element_size, false);
         for (size_t s = 0; s < size_t(sp.count); ++s) {
             double target = read_component(ir.base + s * ir.stride, itype, false);
             if (target >= double(acc.count))
@@ -342,6 +391,28 @@ std::vector<uint32_t> read_indices(const Context& ctx, int accessor_index) {
     return std::vector<uint32_t>(raw.begin(), raw.end());
 }
 
+// Faces and points a Draco stream may declare per byte of itself. Draco compresses a mesh to a byte or
+// two a triangle, a very regular one to less: this leaves room for any real stream and none for a few
+// bytes that declare a billion faces.
+constexpr uint64_t draco_elements_per_byte = 256;
+
+// What Draco's decoder holds per declared face and point (corner table, attribute and point maps).
+constexpr uint64_t draco_bytes_per_face = 96, draco_bytes_per_point = 64;
+
+// Checks the counts a Draco stream declares against its size and the memory budget before the decoder
+// allocates for them.
+void check_draco_counts(const Context& ctx, const uint8_t* data, size_t length) {
+    DracoCounts declared;
+    const std::string problem = read_draco_counts(data, length, declared);
+    if (!problem.empty()) ctx.fail("Draco: " + problem);
+    if (declared.faces > draco_elements_per_byte * length || declared.points > draco_elements_per_byte * length)
+        ctx.fail("Draco: declares " + std::to_string(declared.faces) + " faces and " + std::to_string(declared.points) +
+                 " points in a stream of " + std::to_string(length) + " bytes (at most " +
+                 std::to_string(draco_elements_per_byte) + " a byte)");
+    ctx.need(declared.faces * draco_bytes_per_face + declared.points * draco_bytes_per_point,
+             "Draco's " + std::to_string(declared.faces) + " faces");
+}
+
 // Decodes a KHR_draco_mesh_compression primitive into positions and triangle indices.
 void decode_draco(const Context& ctx, const tinygltf::Value& ext, std::vector<double>& positions,
                   std::vector<uint32_t>& indices) {
@@ -356,6 +427,7 @@ void decode_draco(const Context& ctx, const tinygltf::Value& ext, std::vector<do
         ? ctx.model.bufferViews[view_index].byteLength
         : 0;
     StridedRange r = view_range(ctx, view_index, 0, 1, length, false);
+    check_draco_counts(ctx, r.base, length);
 
     draco::DecoderBuffer buffer;
     buffer.Init(reinterpret_cast<const char*>(r.base), length);
@@ -394,6 +466,7 @@ std::vector<uint32_t> triangulate(const Context& ctx, int mode, const std::vecto
         return idx;
     }
     if (n < 3) return out;
+    ctx.need(uint64_t(n - 2) * 3 * sizeof(uint32_t), "a strip or fan of " + std::to_string(n) + " indices");
     out.reserve((n - 2) * 3);
     for (size_t i = 0; i + 2 < n; ++i) {
         if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
@@ -464,6 +537,9 @@ void load_primitive(Context ctx, size_t mesh_index, size_t prim_index, const tin
 
     size_t base = mesh.vertex_count();
     if (base + vertex_count > std::numeric_limits<uint32_t>::max()) ctx.fail("more than 2^32-1 vertices in one mesh");
+    const uint64_t kept = uint64_t(positions.size()) * sizeof(float) + uint64_t(indices.size()) * sizeof(uint32_t);
+    ctx.need(kept, std::to_string(vertex_count) + " vertices and " + std::to_string(indices.size() / 3) + " triangles");
+    ctx.memory->held += kept;
     Primitive p;
     p.first_triangle = uint32_t(mesh.triangle_count());
     p.triangle_count = uint32_t(indices.size() / 3);
@@ -507,8 +583,9 @@ Transform node_local(const Context& ctx, const tinygltf::Node& node) {
 
 class SceneBuilder {
 public:
-    SceneBuilder(const tinygltf::Model& model, const std::string& file, const DetachedIndices& detached)
-        : ctx_{model, file, "", &detached} {}
+    SceneBuilder(const tinygltf::Model& model, const std::string& file, const DetachedIndices& detached,
+                 MemoryUse& memory)
+        : ctx_{model, file, "", &detached, &memory} {}
 
     Scene build() {
         const auto& model = ctx_.model;
@@ -529,22 +606,57 @@ public:
             for (size_t i = 0; i < model.nodes.size(); ++i)
                 if (!is_child[i]) roots.push_back(int(i));
         }
-        for (int r : roots) visit(r, identity_transform());
+        for (int r : roots) walk(r);
         for (size_t m = 0; m < model.meshes.size(); ++m)
             if (mesh_slot_[m] < 0) ++scene_.report.unreferenced_meshes;
         return std::move(scene_);
     }
 
 private:
-    static constexpr size_t max_instances = 4'000'000;  // a node DAG can multiply paths exponentially
+    static constexpr size_t max_instances = 4'000'000;
 
-    void visit(int node_index, const Transform& parent) {
+    // glTF wants node trees, where every node is visited once; a node shared by several parents (a DAG,
+    // loaded as one instance per path) multiplies the paths below it, exponentially in its depth. Visits
+    // are capped by the file's node count, so a few hundred bytes cannot make millions of instances.
+    size_t max_visits() const { return 65'536 + 64 * ctx_.model.nodes.size(); }
+
+    // A node on the path from the root being walked, with its world transform and the next child to enter.
+    struct Step {
+        int node;
+        size_t next_child;
+        Transform world;
+    };
+
+    // Depth first from `root`, in the order a recursion would take, on a stack of our own: the file
+    // decides the depth, and a chain of 20,000 nodes is as valid as a chain of 2.
+    void walk(int root) {
+        std::vector<Step> path;
+        enter(root, identity_transform(), path);
+        while (!path.empty()) {
+            Step& top = path.back();
+            const std::vector<int>& children = ctx_.model.nodes[top.node].children;
+            if (top.next_child == children.size()) {
+                on_path_[top.node] = false;
+                path.pop_back();
+                continue;
+            }
+            const int child = children[top.next_child++];
+            const Transform parent = top.world;  // `top` moves when `path` grows
+            enter(child, parent, path);
+        }
+    }
+
+    // Checks the node, makes its instance when it holds a mesh, and puts it on the path.
+    void enter(int node_index, const Transform& parent, std::vector<Step>& path) {
         const auto& nodes = ctx_.model.nodes;
         Context node_ctx = ctx_;
         node_ctx.where = "node " + std::to_string(node_index);
         if (node_index < 0 || size_t(node_index) >= nodes.size())
             ctx_.fail("node " + std::to_string(node_index) + " does not exist");
         if (on_path_[node_index]) node_ctx.fail("node cycle (the node is its own ancestor)");
+        if (++visits_ > max_visits())
+            node_ctx.fail("more than " + std::to_string(max_visits()) +
+                          " node visits: nodes shared by several parents multiply the paths to them");
         const tinygltf::Node& node = nodes[node_index];
         Transform world = multiply(parent, node_local(node_ctx, node));
         if (node.mesh >= 0) {
@@ -552,11 +664,12 @@ private:
                 node_ctx.fail("mesh " + std::to_string(node.mesh) + " does not exist");
             if (scene_.instances.size() >= max_instances) node_ctx.fail("more than 4 million instances");
             uint32_t id = mesh_id(node.mesh);
+            node_ctx.need(sizeof(Instance) + node.name.size(), "an instance");
+            ctx_.memory->held += sizeof(Instance) + node.name.size();
             scene_.instances.push_back({id, with_origin(world, origins_[id]), node.name});
         }
         on_path_[node_index] = true;
-        for (int child : node.children) visit(child, world);
-        on_path_[node_index] = false;
+        path.push_back({node_index, 0, world});
     }
 
     uint32_t mesh_id(int gltf_mesh) {
@@ -580,28 +693,74 @@ private:
     std::vector<int> mesh_slot_;   // glTF mesh index -> Scene mesh index, -1 until first used
     std::vector<Origin> origins_;  // per Scene mesh: its frame's origin in the glTF mesh's coordinates
     std::vector<bool> on_path_;    // nodes on the current root-to-node path, for cycle detection
+    size_t visits_ = 0;
 };
 
 }  // namespace
 
-// tinygltf's own file reading, with each file it reads (external buffers; images are compiled out) added to
-// the source hash under its name relative to the scene's folder.
-struct SourceRecorder {
+// The first external buffer of the document the load may not read, as "buffer 0: 'uri': why", or empty.
+// Images are never read, so only buffers are checked.
+std::string buffer_access_problem(const nlohmann::json& doc, const std::string& base_dir, const LoadOptions& options) {
+    const auto buffers = doc.find("buffers");
+    if (buffers == doc.end() || !buffers->is_array()) return {};
+    const std::string root_name = options.root.empty() ? "the scene's folder" : "the input root";
+    for (size_t i = 0; i < buffers->size(); ++i) {
+        const nlohmann::json& b = (*buffers)[i];
+        if (!b.is_object() || !b.contains("uri") || !b["uri"].is_string()) continue;
+        const std::string uri = b["uri"];
+        if (uri.rfind("data:", 0) == 0) continue;
+        const std::string where = "buffer " + std::to_string(i) + ": '" + uri + "': ";
+        if (base_dir.empty()) return where + "an external file, but the scene was not read from a folder";
+        if (options.allow_outside_files) continue;
+        std::string problem = outside_root_problem(uri, base_dir, options.root, root_name);
+        if (!problem.empty()) return where + "refused: " + problem + " (--allow-outside-files reads it)";
+    }
+    return {};
+}
+
+// tinygltf's own file reading, confined to the load's root (again, should a file change after the check
+// above) and with each file it reads (external buffers; images are compiled out) added to the source hash
+// under its name relative to the scene's folder.
+struct FileReader {
     SourceHasher* hasher;
     std::string base_dir;
+    const LoadOptions& options;
 
     static bool read(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* self) {
+        const FileReader& r = *static_cast<const FileReader*>(self);
+        if (r.base_dir.empty()) {
+            *err += path + ": no external files for a scene not read from a folder\n";
+            return false;
+        }
+        std::string problem = r.options.allow_outside_files
+            ? ""
+            : path_outside_root(path, r.options.root.empty() ? r.base_dir : r.options.root, "the root");
+        if (!problem.empty()) {
+            *err += path + ": refused: " + problem + "\n";
+            return false;
+        }
         if (!tinygltf::ReadWholeFile(out, err, path, nullptr)) return false;
-        const SourceRecorder& r = *static_cast<const SourceRecorder*>(self);
-        std::string prefix = r.base_dir.empty() || r.base_dir.back() == '/' ? r.base_dir : r.base_dir + "/";
+        if (!r.hasher) return true;
+        std::string prefix = r.base_dir.back() == '/' ? r.base_dir : r.base_dir + "/";
         std::string relative = path.compare(0, prefix.size(), prefix) == 0 ? path.substr(prefix.size()) : path;
         r.hasher->add(relative, out->data(), out->size());
         return true;
     }
+
+    // tinygltf joins every URI to the folder, an absolute one too ("folder//abs/x.bin"): when outside files
+    // are allowed, such a URI means the absolute path it names.
+    static std::string expand(const std::string& joined, void* self) {
+        const FileReader& r = *static_cast<const FileReader*>(self);
+        const std::string prefix = r.base_dir.empty() || r.base_dir.back() == '/' ? r.base_dir : r.base_dir + "/";
+        if (r.options.allow_outside_files && !prefix.empty() && joined.size() > prefix.size() &&
+            joined.compare(0, prefix.size(), prefix) == 0 && joined[prefix.size()] == '/')
+            return joined.substr(prefix.size());
+        return joined;
+    }
 };
 
 Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name, const std::string& base_dir,
-                       SourceHasher* source) {
+                       SourceHasher* source, const LoadOptions& options) {
     if (size == 0) throw LoadError(name + ": empty file");
     if (size > std::numeric_limits<unsigned int>::max()) throw LoadError(name + ": larger than 4 GiB");
     bool binary = size >= 4 && std::memcmp(data, "glTF", 4) == 0;
@@ -609,9 +768,12 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
         std::string layout = glb_layout_error(data, size);
         if (!layout.empty()) throw LoadError(name + ": " + layout);
     }
-    nlohmann::json doc = parse_document(data, size, binary, name);
+    bool pruned;
+    nlohmann::json doc = parse_document(data, size, binary, name, pruned);
+    std::string access = buffer_access_problem(doc, base_dir, options);
+    if (!access.empty()) throw LoadError(name + ": " + access);
     DetachedIndices detached;
-    std::vector<uint8_t> prepared = prepare_for_tinygltf(data, size, binary, doc, detached);
+    std::vector<uint8_t> prepared = prepare_for_tinygltf(data, size, binary, doc, pruned, detached);
     if (!prepared.empty()) data = prepared.data(), size = prepared.size();
 
     tinygltf::TinyGLTF loader;
@@ -619,10 +781,9 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
     loader.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*,
                              int, void*) { return true; },
                           nullptr);
-    SourceRecorder recorder{source, base_dir};
-    if (source)
-        loader.SetFsCallbacks({tinygltf::FileExists, tinygltf::ExpandFilePath, SourceRecorder::read,
-                               tinygltf::WriteWholeFile, &recorder});
+    FileReader reader{source, base_dir, options};
+    loader.SetFsCallbacks(
+        {tinygltf::FileExists, FileReader::expand, FileReader::read, tinygltf::WriteWholeFile, &reader});
     tinygltf::Model model;
     std::string err, warn;
     bool ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, data, unsigned(size), base_dir)
@@ -634,7 +795,8 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
     }
     for (const std::string& ext : model.extensionsRequired)
         if (!is_known_extension(ext)) throw LoadError(name + ": unsupported required extension " + ext);
-    Scene scene = SceneBuilder(model, name, detached).build();
+    MemoryUse memory{0, options.memory_budget};
+    Scene scene = SceneBuilder(model, name, detached, memory).build();
     validate_scene(scene, name);
     return scene;
 }

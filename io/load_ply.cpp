@@ -130,6 +130,15 @@ private:
     const std::string& name_;
 };
 
+// The fewest bytes a record of the element can take: binary, its scalars and its lists' counts (every list
+// may be empty); ASCII, a digit and a separator a value.
+uint64_t least_record_bytes(const Element& e, Encoding enc) {
+    uint64_t bytes = 0;
+    for (const Property& p : e.properties)
+        bytes += enc == Encoding::ascii ? 2 : type_size(p.list ? p.count_type : p.type);
+    return bytes == 0 ? 1 : bytes;
+}
+
 int find_property(const Element& e, const char* name) {
     for (size_t i = 0; i < e.properties.size(); ++i)
         if (e.properties[i].name == name) return int(i);
@@ -293,8 +302,9 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
     // final, whichever element came first.
     std::vector<uint32_t> pending;
     for (const Element& e : elements) {
-        // Every record takes at least one byte (ASCII: one digit and a separator, so two): refuse counts the
-        // remaining data cannot hold before reserving anything. An element without properties holds nothing.
+        // Refuse counts the remaining data cannot hold before reserving anything, and reserve no more
+        // records than it can hold (a shorter file then says where it ends). An element without properties
+        // holds nothing.
         if (e.properties.empty()) continue;
         if (e.count > body.remaining())
             body.fail("element " + e.name + ": count " + std::to_string(e.count) + " exceeds the data (truncated?)");
@@ -302,7 +312,8 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
         int list_prop = (e.name == "face" || e.name == "tristrips")
             ? std::max(find_property(e, "vertex_indices"), find_property(e, "vertex_index"))
             : -1;
-        if (is_vertex) xyz.reserve(size_t(e.count) * 3);
+        if (is_vertex)
+            xyz.reserve(size_t(std::min<uint64_t>(e.count, body.remaining() / least_record_bytes(e, enc))) * 3);
         values.resize(e.properties.size());
         for (uint64_t r = 0; r < e.count; ++r) {
             for (size_t p = 0; p < e.properties.size(); ++p) {

@@ -8,6 +8,7 @@
 // read exactly here, in double, with an error naming the line for anything malformed. Binary STL goes
 // through OpenMesh (load_mesh.cpp). Faces of more than three vertices are triangulated in their plane
 // (polygon_triangulate.h).
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -127,7 +128,7 @@ Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name)
                         " faces exceed what the file can hold (truncated?)");
 
     std::vector<double> xyz;
-    xyz.reserve(size_t(nv) * 3);
+    xyz.reserve(size_t(std::min<uint64_t>(uint64_t(nv), size / 6)) * 3);  // a vertex takes 6 bytes or more
     for (long long v = 0; v < nv; ++v) {
         do {
             if (!reader.next(line, false))

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "cb_exact.h"
+#include "polygon_cdt.h"
 
 namespace cb {
 namespace {
@@ -80,6 +81,33 @@ void fan(const uint32_t* poly, size_t n, std::vector<uint32_t>& out) {
 }
 
 }  // namespace
+
+// The winding is the turn at the lowest vertex (least u, then least v), which is strictly convex. A
+// polygon touching itself may pass that position more than once: every pass must turn the same way, else 0.
+int PolygonTriangulator::ring_winding() const {
+    const size_t m = ring_.size();
+    auto q = [this](size_t i) { return &uv_[2 * i]; };
+    size_t low = 0;
+    for (size_t i = 1; i < m; ++i)
+        if (lexicographically_less(q(i), q(low))) low = i;
+    int winding = 0;
+    for (size_t i = 0; i < m; ++i)
+        if (equal(q(i), q(low)) && turn_[i] != 0) {
+            if (winding != 0 && turn_[i] != winding) return 0;
+            winding = turn_[i];
+        }
+    return winding;
+}
+
+// A polygon of large_ vertices or more that is neither convex nor degenerate nor spiked: the constrained
+// triangulation settles whether it is simple and tiles it in O(n log n).
+PolygonShape PolygonTriangulator::add_large(const uint32_t* poly, size_t n, std::vector<uint32_t>& out) {
+    const int winding = ring_winding();
+    if (winding != 0 && triangulate_constrained(uv_.data(), ring_.data(), ring_.size(), winding, out))
+        return PolygonShape::concave;
+    fan(poly, n, out);
+    return PolygonShape::not_simple;
+}
 
 PolygonShape PolygonTriangulator::add_polygon(const float* xyz, const uint32_t* poly, size_t n,
                                               std::vector<uint32_t>& out) {
@@ -180,6 +208,7 @@ PolygonShape PolygonTriangulator::add_polygon(const float* xyz, const uint32_t* 
             fan(poly, n, out);
             return PolygonShape::not_simple;
         }
+    if (m >= large_) return add_large(poly, n, out);
     // Edges sorted by their least u, swept: each is compared with the later ones that start before it ends.
     auto umin = [&](size_t e) { return std::min(q(e)[0], q(after(e))[0]); };
     order_.resize(m);
@@ -204,18 +233,8 @@ PolygonShape PolygonTriangulator::add_polygon(const float* xyz, const uint32_t* 
         }
     }
 
-    // The winding is the turn at the lowest vertex (least u, then least v), which is strictly convex. A
-    // polygon touching itself may pass that position more than once: every pass must turn the same way.
-    size_t low = 0;
-    for (size_t i = 1; i < m; ++i)
-        if (lexicographically_less(q(i), q(low))) low = i;
-    int winding = 0;
-    for (size_t i = 0; i < m; ++i)
-        if (equal(q(i), q(low)) && turn_[i] != 0) {
-            if (winding != 0 && turn_[i] != winding) winding = 2;
-            if (winding == 0) winding = turn_[i];
-        }
-    if (winding != 1 && winding != -1) {
+    const int winding = ring_winding();
+    if (winding == 0) {
         fan(poly, n, out);
         return PolygonShape::not_simple;
     }
@@ -311,8 +330,9 @@ PolygonShape PolygonTriangulator::add_polygon(const float* xyz, const uint32_t* 
     return PolygonShape::not_simple;
 }
 
-PolygonShape triangulate_polygon(const float* xyz, const uint32_t* poly, size_t n, std::vector<uint32_t>& out) {
-    PolygonTriangulator triangulator;
+PolygonShape triangulate_polygon(const float* xyz, const uint32_t* poly, size_t n, std::vector<uint32_t>& out,
+                                 size_t large) {
+    PolygonTriangulator triangulator(large);
     return triangulator.add(xyz, poly, n, out);
 }
 

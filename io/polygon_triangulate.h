@@ -5,8 +5,11 @@
 // orientation test below is exact on the file's own numbers. Then:
 //   - convex (every turn the same way, the fan from the first vertex without zero-area triangles): the fan
 //     from the first vertex, exactly as written;
-//   - simple but not convex (reflex turns, collinear or repeated vertices): ear clipping, which gives
-//     triangles that cover the polygon and nothing else, none of zero area. Repeated consecutive vertices
+//   - simple but not convex (reflex turns, collinear or repeated vertices): ear clipping below
+//     `large_polygon` vertices, CGAL's constrained Delaunay triangulation from there on (polygon_cdt.h: the
+//     same exact predicates in O(n log n), where ear clipping's O(n^2) would let one face of a million
+//     vertices take minutes); either gives triangles that cover the polygon and nothing else, none of zero
+//     area. Repeated consecutive vertices
 //     (by index or by position) are dropped first, so such a polygon gives fewer than n - 2 triangles.
 //     A polygon that touches itself only at vertices (a ring cut open along a bridge edge to its hole) is
 //     ear-clipped as well;
@@ -26,10 +29,17 @@ namespace cb {
 
 enum class PolygonShape : uint8_t { triangle, convex, concave, not_simple, degenerate };
 
+// The vertex count from which a polygon that is not convex is triangulated in O(n log n). Below it ear
+// clipping costs no more and keeps the triangles it has always given.
+constexpr size_t large_polygon = 128;
+
 // Holds the scratch space one polygon needs, so a loader's many polygons allocate once, and counts the
 // polygons (faces of 4 or more vertices) by shape.
 class PolygonTriangulator {
 public:
+    // `large` replaces large_polygon (tests run the O(n log n) path on small polygons with it).
+    explicit PolygonTriangulator(size_t large = large_polygon) : large_(large) {}
+
     // Appends the triangles of the polygon `poly[0..n)` (indices into `xyz`, 3 floats per vertex, every one
     // in range) to `out`. n < 3 appends nothing.
     PolygonShape add(const float* xyz, const uint32_t* poly, size_t n, std::vector<uint32_t>& out) {
@@ -53,6 +63,10 @@ public:
 private:
     PolygonShape add_polygon(const float* xyz, const uint32_t* poly, size_t n, std::vector<uint32_t>& out);
 
+    PolygonShape add_large(const uint32_t* poly, size_t n, std::vector<uint32_t>& out);
+    int ring_winding() const;  // +1 or -1 from the lowest vertex's turn, 0 when its passes disagree
+
+    size_t large_;
     PolygonCounts counts_;
     std::vector<uint32_t> ring_;  // the polygon without repeated consecutive vertices
     std::vector<double> uv_;      // its projection, 2 per vertex
@@ -62,6 +76,7 @@ private:
 };
 
 // One polygon, without counting: the shape it was found to have.
-PolygonShape triangulate_polygon(const float* xyz, const uint32_t* poly, size_t n, std::vector<uint32_t>& out);
+PolygonShape triangulate_polygon(const float* xyz, const uint32_t* poly, size_t n, std::vector<uint32_t>& out,
+                                 size_t large = large_polygon);
 
 }  // namespace cb

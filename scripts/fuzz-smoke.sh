@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang + ASan/UBSan in build-fuzz/ and runs each for a short while,
-# seeded from data/ (and ../shared/data when present); then, given the test binary, runs its command-line
+# seeded from data/, the hostile corpus (fuzz/hostile_corpus.h) and ../shared/data when present; then, given the test binary, runs its command-line
 # tests (Cli.*) against the sanitizer build of clusterbake. Usage: fuzz-smoke.sh [RUNS_PER_TARGET [CB_TESTS]]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -8,7 +8,7 @@ runs=${1:-3000}
 cli_tests=${2:-}
 cmake -S . -B build-fuzz -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCLUSTERBAKE_FUZZ=ON -DCLUSTERBAKE_TESTS=OFF -DCLUSTERBAKE_BENCH=OFF >/dev/null
-cmake --build build-fuzz --target fuzz_gltf fuzz_obj fuzz_off fuzz_ply fuzz_stl fuzz_asset clusterbake
+cmake --build build-fuzz --target fuzz_gltf fuzz_obj fuzz_off fuzz_ply fuzz_stl fuzz_asset make_hostile_corpus clusterbake
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 seed() {  # seed FORMAT FILE...
@@ -21,6 +21,12 @@ seed obj data/small/*.obj $shared/hard/deg_faces.obj $shared/hard/wallhole.obj $
 seed off data/small/*.off $shared/hard/comments.off $shared/hard/whitespace.off
 seed ply data/small/*.ply
 seed stl data/small/*.stl $shared/hard/soup.stl
+./build-fuzz/fuzz/make_hostile_corpus "$work/hostile" >/dev/null  # declared sizes, hierarchies, escapes
+seed gltf "$work"/hostile/corpus/gltf/*.gltf "$work"/hostile/corpus/gltf/*.glb
+seed obj "$work"/hostile/corpus/mesh/*.obj
+seed off "$work"/hostile/corpus/mesh/*.off
+seed ply "$work"/hostile/corpus/mesh/*.ply
+seed stl "$work"/hostile/corpus/mesh/*.stl
 mkdir -p "$work/asset"  # assets baked here, with and without bounds, by the instrumented tool itself
 ./build-fuzz/cli/clusterbake bake data/small/cube.obj --bounds all -o "$work/asset/cube_all.cbk" >/dev/null
 ./build-fuzz/cli/clusterbake cluster data/small/primitive_modes.gltf -o "$work/asset/modes.cbk" >/dev/null

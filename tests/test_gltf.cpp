@@ -378,8 +378,10 @@ TEST(Gltf, HugeZeroFilledAccessorIsRefused) {
     GltfWriter w = one_mesh_scene(triangle());
     w.doc["accessors"].push_back({{"componentType", 5126}, {"count", 4000000000u}, {"type", "VEC3"}});
     w.doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = w.doc["accessors"].size() - 1;
-    EXPECT_NE(error_of(w.gltf_embedded()).find("without a bufferView (zero-filled) exceeds 16 M elements"),
-              std::string::npos);
+    EXPECT_NE(
+        error_of(w.gltf_embedded())
+            .find("without a bufferView (zero-filled) needs 48000000000 bytes, more than the file's buffers hold"),
+        std::string::npos);
 }
 
 TEST(Gltf, ExponentialNodeDagIsCapped) {
@@ -394,5 +396,6 @@ TEST(Gltf, ExponentialNodeDagIsCapped) {
         below[0] = a, below[1] = b;
     }
     w.doc["scenes"] = json::array({{{"nodes", {int(w.doc["nodes"].size()) - 1}}}});
-    EXPECT_NE(error_of(w.gltf_embedded()).find("more than 4 million instances"), std::string::npos);
+    EXPECT_NE(error_of(w.gltf_embedded()).find("node visits: nodes shared by several parents multiply the paths"),
+              std::string::npos);
 }

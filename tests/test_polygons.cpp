@@ -10,6 +10,8 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -361,6 +363,77 @@ TEST(Polygons, RandomStarShapedPolygonsOnAGrid) {
         ++checked;
     }
     EXPECT_GT(checked, 100);
+}
+
+TEST(Polygons, TheLargePolygonPathTilesEveryShape) {
+    // The O(n log n) path (polygon_cdt.h) on the small shapes the ear clipper is tested on, by lowering the
+    // size it starts at: the same shapes, triangle counts and tilings, the same refusals.
+    auto large = [](const Polygon& p, cb::PolygonShape* kind) {
+        std::vector<uint32_t> out;
+        *kind = cb::triangulate_polygon(p.xyz.data(), p.poly.data(), p.poly.size(), out, 4);
+        return out;
+    };
+    std::vector<std::array<double, 2>> bridge = {{0, 0}, {4, 0}, {4, 4}, {0, 4}, {0, 0},
+                                                 {1, 1}, {1, 3}, {3, 3}, {3, 1}, {1, 1}};
+    std::vector<std::array<double, 2>> collinear = {{0, 0}, {1, 0}, {2, 0}, {3, 0}, {3, 1}, {3, 2},
+                                                    {2, 2}, {2, 1}, {1, 1}, {1, 2}, {0, 2}, {0, 1}};
+    for (const auto& shape : {l_shape, u_shape, comb(7), bridge, collinear})
+        for (const Plane& plane : planes)
+            for (bool reverse : {false, true})
+                for (size_t start : {size_t(0), size_t(2), size_t(5)}) {
+                    SCOPED_TRACE(std::to_string(shape.size()) + " vertices, axis " + std::to_string(plane.axis) +
+                                 (reverse ? ", reversed" : "") + ", starting at " + std::to_string(start));
+                    Polygon p =
+                        place(rotated(reverse ? reversed(shape) : shape, start), plane.u, plane.v, plane.origin);
+                    cb::PolygonShape kind;
+                    std::vector<uint32_t> tris = large(p, &kind);
+                    EXPECT_EQ(kind, cb::PolygonShape::concave);
+                    EXPECT_EQ(tris.size(), 3 * (shape.size() - 2));
+                    EXPECT_TRUE(tiles(p, tris, plane.axis, 31));
+                }
+    std::vector<std::array<double, 2>> pentagram;
+    for (int i = 0; i < 5; ++i) pentagram.push_back({std::cos(4 * M_PI * i / 5), std::sin(4 * M_PI * i / 5)});
+    for (const auto& shape : std::vector<std::vector<std::array<double, 2>>>{
+             {{0, 0}, {1, 1}, {1, 0}, {0, 1}},
+             {{0, 0}, {4, 0}, {4, 4}, {2, 0}, {0, 4}},
+             {{2, 0}, {4, 2}, {2, 4}, {0, 2}, {2, 0}, {3, 2}, {2, 3}},
+             {{0, 0}, {4, 0}, {4, 4}, {2, 4}, {2, 0}, {1, 4}, {0, 4}},  // an edge along another
+             pentagram}) {
+        SCOPED_TRACE(std::to_string(shape.size()) + " vertices, not simple");
+        Polygon p = place(shape);
+        cb::PolygonShape kind;
+        EXPECT_EQ(large(p, &kind), fan_of(p.poly));
+        EXPECT_EQ(kind, cb::PolygonShape::not_simple);
+    }
+}
+
+TEST(Polygons, AMillionVerticesInUnderTwoSeconds) {
+    // A star of a million vertices (half of them reflex) and a circle whose float vertices turn both ways:
+    // ear clipping's O(n^2) took minutes on either.
+    for (bool star : {true, false}) {
+        const size_t n = 1'000'000;
+        Polygon p;
+        for (size_t i = 0; i < n; ++i) {
+            double a = 2 * M_PI * double(i) / double(n), r = star && i % 2 ? 50 : 100;
+            p.xyz.insert(p.xyz.end(), {float(r * std::cos(a)), float(r * std::sin(a)), 0.f});
+            p.poly.push_back(uint32_t(i));
+        }
+        std::vector<uint32_t> tris;
+        // The thread's own CPU time: ctest runs other tests beside this one on the same cores.
+        auto cpu_seconds = [] {
+            timespec t;
+            clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+            return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+        };
+        const double t0 = cpu_seconds();
+        cb::PolygonShape kind = cb::triangulate_polygon(p.xyz.data(), p.poly.data(), n, tris);
+        const double seconds = cpu_seconds() - t0;
+        EXPECT_LT(seconds, 2.0) << (star ? "star" : "circle");
+        EXPECT_NE(kind, cb::PolygonShape::not_simple);
+        EXPECT_GE(tris.size(), 3 * (n / 2));
+        std::printf("%s of %zu vertices: %s, %zu triangles in %.3f s of CPU\n", star ? "star" : "circle", n,
+                    kind == cb::PolygonShape::convex ? "convex" : "concave", tris.size() / 3, seconds);
+    }
 }
 
 namespace {
