@@ -3,6 +3,7 @@
 #include <cb_asset.h>
 #include <cb_cpsv.h>
 #include <cb_cull.h>
+#include <cb_level.h>
 
 #include <cstddef>
 #include <cmath>
@@ -53,11 +54,10 @@ void query(const cb::AssetView& v) {
     batch.insert(batch.end(), {light[0], light[1], light[2], NAN, 0.0, 1.0, INFINITY, 1.0, 0.0});
     const size_t n = batch.size() / 3;
     std::vector<uint8_t> shadow(n);
-    for (int variant = 0; variant < 3; ++variant) {  // scan two-sided, fine trees one-sided on 2 threads, one tree
+    for (int variant = 0; variant < 3; ++variant) {  // scan two-sided, fine trees one-sided, one tree
         cb::ShadowBuildOptions options;
         options.traversal = cb::Traversal(variant);
         options.one_sided = variant == 1;
-        options.threads = variant == 1 ? 2 : 1;
         std::vector<cb::InstanceShadow> trees(std::min<uint32_t>(v.instance_count, 4));
         for (uint32_t i = 0; i < trees.size(); ++i) {
             trees[i].build(v, i, light, options);
@@ -68,6 +68,14 @@ void query(const cb::AssetView& v) {
         cb::occluded_batch(trees.data(), trees.size(), batch.data(), n, shadow.data(), scratch.data());
         for (uint8_t o : shadow) sink = sink + float(o);
     }
+    // The same batch through a level of the asset's instances: its hierarchy and per-tile culling over the
+    // asset's bounds, whatever they hold.
+    cb::Level level;
+    level.add_baked(level.add_asset(v));
+    level.commit();
+    cb::LevelShadow through_level;
+    through_level.occluded_batch(level, light, batch.data(), n, shadow.data());
+    for (uint8_t o : shadow) sink = sink + float(o);
     for (const double* p : points) sink = sink + float(cb::occluded_reference(v, p, light));
     cb::Frustum f{};
     f.count = 1;
