@@ -5,7 +5,7 @@
 // the fit went: it holds by construction for the stored numbers.
 #include "bounds.h"
 
-#include <cb_math.h>
+#include <detail/cb_math.h>
 
 #include <Eigen/Eigenvalues>
 

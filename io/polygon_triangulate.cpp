@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "cb_exact.h"
+#include "detail/cb_exact.h"
 #include "polygon_cdt.h"
 
 namespace cb {

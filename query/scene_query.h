@@ -16,7 +16,7 @@
 
 namespace cb {
 
-// The traversal (cb::Traversal, runtime/cb_tile.h) named "scan", "trees", "one-tree", "mtsv" or "mtsv-two";
+// The traversal (cb::Traversal, runtime/detail/cb_tile.h) named "scan", "trees", "one-tree", "mtsv" or "mtsv-two";
 // false on another name. Every traversal gives the same answers.
 bool parse_traversal(const std::string& name, Traversal& out);
 // The name parse_traversal reads for a traversal.

@@ -1,7 +1,7 @@
 #include "visibility.h"
 
 #include <cb_cull.h>
-#include <cb_math.h>
+#include <detail/cb_math.h>
 
 #include <algorithm>
 #include <cmath>

@@ -17,8 +17,8 @@
 #include <new>
 
 #include "cb_segment.h"
-#include "cb_simd.h"
-#include "cb_tile.h"
+#include "detail/cb_simd.h"
+#include "detail/cb_tile.h"
 
 namespace cb {
 inline namespace CB_LANES {

@@ -26,12 +26,12 @@
 
 #include "cb_asset.h"
 #include "cb_batch.h"
-#include "cb_metric_tree.h"
-#include "cb_scan.h"
+#include "detail/cb_metric_tree.h"
+#include "detail/cb_scan.h"
 #include "cb_scan_bounds.h"
 #include "cb_segment.h"
-#include "cb_tile.h"
-#include "cb_top_tree.h"
+#include "detail/cb_tile.h"
+#include "detail/cb_top_tree.h"
 
 namespace cb {
 inline namespace CB_LANES {

@@ -8,7 +8,7 @@
 
 #include "cb_asset.h"
 #include "cb_shadow.h"
-#include "cb_simd.h"
+#include "detail/cb_simd.h"
 
 namespace cb {
 inline namespace CB_LANES {

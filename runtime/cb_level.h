@@ -22,11 +22,11 @@
 #include "cb_batch.h"
 #include "cb_cpsv.h"
 #include "cb_cull.h"
-#include "cb_math.h"
+#include "detail/cb_math.h"
 #include "cb_scan_bounds.h"
 #include "cb_segment.h"
 #include "cb_shadow.h"
-#include "cb_tile.h"
+#include "detail/cb_tile.h"
 
 namespace cb {
 inline namespace CB_LANES {

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "cb_asset.h"
-#include "cb_simd.h"
+#include "detail/cb_simd.h"
 
 namespace cb {
 inline namespace CB_LANES {

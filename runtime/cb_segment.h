@@ -28,8 +28,8 @@
 #include <cstdint>
 
 #include "cb_asset.h"
-#include "cb_exact.h"
-#include "cb_simd.h"
+#include "detail/cb_exact.h"
+#include "detail/cb_simd.h"
 
 namespace cb {
 inline namespace CB_LANES {

@@ -9,9 +9,9 @@
 #include <cstdint>
 
 #include "cb_asset.h"
-#include "cb_lit_triangles.h"
+#include "detail/cb_lit_triangles.h"
 #include "cb_segment.h"
-#include "cb_shadow_volume.h"
+#include "detail/cb_shadow_volume.h"
 
 namespace cb {
 inline namespace CB_LANES {

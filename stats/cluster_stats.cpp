@@ -1,7 +1,7 @@
 #include "cluster_stats.h"
 
 #include <cb_shadow.h>
-#include <cb_math.h>
+#include <detail/cb_math.h>
 
 #include <algorithm>
 #include <cmath>

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include <cb_math.h>
+#include <detail/cb_math.h>
 
 #include "asset_file.h"
 #include "baked_scene.h"

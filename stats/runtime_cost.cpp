@@ -1,6 +1,6 @@
 #include "runtime_cost.h"
 
-#include <cb_math.h>
+#include <detail/cb_math.h>
 #include <algorithm>
 #include <cmath>
 

@@ -5,7 +5,7 @@
 
 #include <cb_asset.h>
 #include <cb_shadow.h>
-#include <cb_tile.h>
+#include <detail/cb_tile.h>
 
 #include <cstdint>
 #include <vector>

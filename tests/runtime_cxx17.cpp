@@ -5,7 +5,7 @@
 #include <cb_asset.h>
 #include <cb_cpsv.h>
 #include <cb_cull.h>
-#include <cb_exact.h>
+#include <detail/cb_exact.h>
 #include <cb_level.h>
 #include <cb_shadow.h>
 

@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cb_cull.h>
-#include <cb_exact.h>
+#include <detail/cb_exact.h>
 
 #include <random>
 

@@ -1,11 +1,11 @@
-// The metric-tree traversal (runtime/cb_metric_tree.h): its cones hold their clusters, its splits hold
+// The metric-tree traversal (runtime/detail/cb_metric_tree.h): its cones hold their clusters, its splits hold
 // every volume below them, its answers are the exact oracle's on the shared scenes and generated hard
 // cases, with the fitted spheres and capsules (bake --bounds all) and with those about the boxes, and its
 // trees take at most half the TOP-trees' bytes.
 #include <gtest/gtest.h>
 
 #include <cb_cpsv.h>
-#include <cb_metric_tree.h>
+#include <detail/cb_metric_tree.h>
 #include <cb_shadow.h>
 
 #include <algorithm>

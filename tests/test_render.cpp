@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include <cb_math.h>
+#include <detail/cb_math.h>
 
 #include <algorithm>
 #include <array>

@@ -5,7 +5,7 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
-#include <cb_exact.h>
+#include <detail/cb_exact.h>
 #include <cb_cpsv.h>
 #include <cb_shadow.h>
 

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "cb_asset.h"
+#include "../cb_asset.h"
 #include "cb_simd.h"
 
 namespace cb {

@@ -11,10 +11,10 @@
 #include <cmath>
 #include <cstdint>
 
-#include "cb_asset.h"
+#include "../cb_asset.h"
 #include "cb_exact.h"
 #include "cb_math.h"
-#include "cb_segment.h"
+#include "../cb_segment.h"
 #include "cb_simd.h"
 
 namespace cb {

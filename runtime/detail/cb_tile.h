@@ -12,10 +12,10 @@
 #include <cmath>
 #include <cstdint>
 
-#include "cb_asset.h"
+#include "../cb_asset.h"
 #include "cb_lit_triangles.h"
 #include "cb_math.h"
-#include "cb_segment.h"
+#include "../cb_segment.h"
 #include "cb_simd.h"
 
 namespace cb {

@@ -26,7 +26,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "cb_asset.h"
+#include "../cb_asset.h"
 #include "cb_math.h"
 #include "cb_shadow_volume.h"
 #include "cb_simd.h"

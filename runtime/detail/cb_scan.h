@@ -13,9 +13,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "cb_asset.h"
+#include "../cb_asset.h"
 #include "cb_math.h"
-#include "cb_scan_bounds.h"
+#include "../cb_scan_bounds.h"
 #include "cb_simd.h"
 #include "cb_tile.h"
 

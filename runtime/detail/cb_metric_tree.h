@@ -35,7 +35,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "cb_asset.h"
+#include "../cb_asset.h"
 #include "cb_math.h"
 #include "cb_tile.h"
 
