@@ -1,16 +1,18 @@
 // Whole-level shadow benchmark: the runtime's level (cb_level.h: instances culled per tile through a
-// world-space hierarchy) against Embree 3's rtcOccluded1 on the same points, one thread, with Embree given
-// both one flattened BVH of every instance's triangles and its own two-level instancing (the faster counts).
+// world-space hierarchy) against Embree 3's rtcOccluded1 and rtcOccluded16 on the same points, one thread
+// and --threads threads, with Embree given both one flattened BVH of every instance's triangles and its own
+// two-level instancing (the fastest of the four counts).
 // Scenes: every scene of ../shared/data, data/default_scene.glb, and generated cities (a ground plane and
 // instances of 20 buildings, random yaw, every seventh mirrored) of 10 to 100,000 buildings. Points: the
 // first hits of a W x W view looking down at the scene's centre from a diagonal; lights: beside and above
 // the scene (outside), overhead, grazing the ground, and inside the bounds. Ours per light counts everything
 // a frame costs: ordering the points, culling the tiles, setting the instances met up for the light, and
-// the queries. Medians of --runs rounds, each running ours then Embree's. Also the cost of moving 1,000
-// instances and committing (a refit). Asserts nothing.
+// the queries; on several threads each step runs in ranges on threads started for the pass (Embree's rays
+// too). Medians of --runs rounds, each running ours then Embree's. Also the cost of moving 1,000 instances
+// and committing (a refit). Asserts nothing.
 //
 //   bench_level [--data DIR] [--view 512] [--runs 3] [--cities 10,100,1000,10000,100000] [--only NAME]
-//               [--traversal scan|trees|one-tree|mtsv|mtsv-two] [--one-sided 1]
+//               [--traversal scan|trees|one-tree|mtsv|mtsv-two] [--one-sided 1] [--threads 2]
 #include <embree3/rtcore.h>
 
 #include <cb_level.h>
@@ -24,6 +26,7 @@
 #include <filesystem>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "asset_file.h"
@@ -40,12 +43,13 @@ namespace {
 
 struct Settings {
     int view = 512, runs = 3;
+    unsigned threads = 2;  // the second measurement's (the first is one thread)
     std::vector<uint32_t> cities = {10, 100, 1000, 10000, 100000};
     std::string only;
     cb::ShadowBuildOptions options;
 };
 
-std::vector<double> ratios;
+std::vector<double> ratios, threaded_ratios;  // ours / the fastest Embree, per scene and light
 
 // Embree scenes over the same triangles: one flattened BVH (when the level has at most `flat_limit`
 // triangles in it), and two levels (a BVH per mesh, instanced).
@@ -121,21 +125,77 @@ void build_embree(const cb::Scene& s, EmbreeScenes& e, size_t flat_limit) {
     e.instanced_bytes = size_t(std::max(0LL, cb::bench::embree_bytes.load()));
 }
 
-// rtcOccluded1 for every point, segment from self_shadow_fraction of the way to the light.
-double embree_pass(RTCScene scene, const std::vector<double>& pts, const double* light, std::vector<uint8_t>& out) {
+// Runs job(t) for t in [0, threads): on threads started here, the calling thread taking job 0.
+template <class Job>
+void on_threads(unsigned threads, Job job) {
+    std::vector<std::thread> helpers;
+    for (unsigned t = 1; t < threads; ++t) helpers.emplace_back(job, t);
+    job(0);
+    for (std::thread& h : helpers) h.join();
+}
+
+// Points [first, last) by rtcOccluded1 (packet 1) or rtcOccluded16 (16 neighbouring points of the view a
+// packet), segment from self_shadow_fraction of the way to the light.
+void embree_range(RTCScene scene, const std::vector<double>& pts, const double* light, size_t first, size_t last,
+                  int packet, uint8_t* out) {
     RTCIntersectContext c;
     rtcInitIntersectContext(&c);
+    if (packet == 1) {
+        for (size_t i = first; i < last; ++i) {
+            RTCRay r{};
+            r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
+            r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]),
+            r.dir_z = float(light[2] - pts[i * 3 + 2]);
+            r.tnear = float(cb::self_shadow_fraction), r.tfar = 1.0f, r.mask = 0xffffffff;
+            rtcOccluded1(scene, &c, &r);
+            out[i] = r.tfar < 0;
+        }
+        return;
+    }
+    for (size_t at = first; at < last; at += 16) {
+        alignas(64) RTCRay16 r{};
+        alignas(64) int valid[16];
+        for (size_t j = 0; j < 16; ++j) {
+            const size_t i = std::min(at + j, last - 1);
+            valid[j] = at + j < last ? -1 : 0;
+            r.org_x[j] = float(pts[i * 3]), r.org_y[j] = float(pts[i * 3 + 1]), r.org_z[j] = float(pts[i * 3 + 2]);
+            r.dir_x[j] = float(light[0] - pts[i * 3]), r.dir_y[j] = float(light[1] - pts[i * 3 + 1]),
+            r.dir_z[j] = float(light[2] - pts[i * 3 + 2]);
+            r.tnear[j] = float(cb::self_shadow_fraction), r.tfar[j] = 1.0f, r.mask[j] = 0xffffffff;
+        }
+        rtcOccluded16(valid, scene, &c, &r);
+        for (size_t j = 0; j < 16 && at + j < last; ++j) out[at + j] = r.tfar[j] < 0;
+    }
+}
+
+// Every point on `threads` threads, each a contiguous part of the view; returns the seconds taken.
+double embree_pass(RTCScene scene, const std::vector<double>& pts, const double* light, int packet, unsigned threads,
+                   std::vector<uint8_t>& out) {
     const size_t n = pts.size() / 3;
     auto t0 = std::chrono::steady_clock::now();
-    for (size_t i = 0; i < n; ++i) {
-        RTCRay r{};
-        r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
-        r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]),
-        r.dir_z = float(light[2] - pts[i * 3 + 2]);
-        r.tnear = float(cb::self_shadow_fraction), r.tfar = 1.0f, r.mask = 0xffffffff;
-        rtcOccluded1(scene, &c, &r);
-        out[i] = r.tfar < 0;
-    }
+    on_threads(threads, [&](unsigned t) {
+        embree_range(scene, pts, light, n * t / threads / 16 * 16,
+                     t + 1 == threads ? n : n * (t + 1) / threads / 16 * 16, packet, out.data());
+    });
+    return cb::seconds_since(t0);
+}
+
+// Ours for one light on `threads` threads: order (one thread), cull, set up and answer in ranges.
+double our_pass(cb::LevelShadow& shadow, const cb::Level& level, const double* light, const std::vector<double>& pts,
+                const cb::ShadowBuildOptions& options, unsigned threads, std::vector<uint8_t>& out) {
+    const size_t n = pts.size() / 3;
+    auto t0 = std::chrono::steady_clock::now();
+    shadow.begin(level, light, pts.data(), n, options);
+    const size_t tiles = shadow.tile_count();
+    on_threads(threads, [&](unsigned t) { shadow.cull(tiles * t / threads, tiles * (t + 1) / threads); });
+    const size_t built = shadow.gather();
+    std::vector<cb::BuildScratch> build_scratch(threads);
+    on_threads(threads,
+               [&](unsigned t) { shadow.build(built * t / threads, built * (t + 1) / threads, &build_scratch[t]); });
+    on_threads(threads, [&](unsigned t) {
+        std::vector<uint32_t> scratch(shadow.scratch_size());
+        shadow.occluded(tiles * t / threads, tiles * (t + 1) / threads, out.data(), scratch.data());
+    });
     return cb::seconds_since(t0);
 }
 
@@ -211,40 +271,50 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
     uint32_t in_scene = 0;
     for (const cb::Instance& inst : scene.instances) in_scene += uint32_t(scene.meshes[inst.mesh].triangle_count());
     cb::LevelShadow shadow;
-    std::vector<uint8_t> ours(n), flat(n), inst(n);
+    std::vector<uint8_t> ours(n), ours_t(n), ref(n), other(n);
+    const unsigned threads = std::max(1u, s.threads);
     for (int li = 0; li < 4; ++li) {
         const double* light = lights[li];
-        std::vector<double> our_t, flat_t, inst_t;
+        // Embree's four ways (flat or instanced, packets of 1 or 16), one thread and `threads`.
+        std::vector<double> our_t, our_tt, embree_t[4], embree_tt[4];
         size_t met = 0, built = 0, bytes = 0;
-        cb::QueryStats stats;
         for (int r = 0; r < std::max(1, s.runs); ++r) {
-            auto t0 = std::chrono::steady_clock::now();
-            shadow.begin(level, light, pts.data(), n, s.options);
-            shadow.cull(0, shadow.tile_count());
-            shadow.build(0, shadow.gather());
-            std::vector<uint32_t> scratch(shadow.scratch_size());
-            stats = {};
-            shadow.occluded(0, shadow.tile_count(), ours.data(), scratch.data(), &stats);
-            our_t.push_back(cb::seconds_since(t0));
+            our_t.push_back(our_pass(shadow, level, light, pts, s.options, 1, ours));
             met = shadow.instances_met(), built = shadow.build_count(), bytes = shadow.memory_bytes();
-            if (e.flat) flat_t.push_back(embree_pass(e.flat, pts, light, flat));
-            inst_t.push_back(embree_pass(e.instanced, pts, light, inst));
+            our_tt.push_back(our_pass(shadow, level, light, pts, s.options, threads, ours_t));
+            for (int way = 0; way < 4; ++way) {
+                RTCScene scene = way < 2 ? e.flat : e.instanced;
+                if (!scene) continue;
+                std::vector<uint8_t>& out = way == 0 || (way == 2 && !e.flat) ? ref : other;
+                embree_t[way].push_back(embree_pass(scene, pts, light, way % 2 ? 16 : 1, 1, out));
+                embree_tt[way].push_back(embree_pass(scene, pts, light, way % 2 ? 16 : 1, threads, other));
+            }
         }
-        const double o = cb::median(our_t), f = e.flat ? cb::median(flat_t) : INFINITY, i = cb::median(inst_t);
-        const double best = std::min(f, i);
-        size_t differ = 0, dark = 0;
-        const std::vector<uint8_t>& ref = e.flat ? flat : inst;
-        for (size_t k = 0; k < n; ++k) differ += ours[k] != ref[k], dark += ours[k];
+        double best = INFINITY, best_t = INFINITY, way_ms[4];
+        for (int way = 0; way < 4; ++way) {
+            way_ms[way] = embree_t[way].empty() ? NAN : cb::median(embree_t[way]) * 1e3;
+            if (!embree_t[way].empty())
+                best = std::min(best, cb::median(embree_t[way])), best_t = std::min(best_t, cb::median(embree_tt[way]));
+        }
+        const double o = cb::median(our_t), ot = cb::median(our_tt);
+        size_t differ = 0, dark = 0, threads_differ = 0;
+        for (size_t k = 0; k < n; ++k)
+            differ += ours[k] != ref[k], dark += ours[k], threads_differ += ours[k] != ours_t[k];
         ratios.push_back(o / best);
-        char flat_text[32] = "-";
-        if (e.flat) std::snprintf(flat_text, sizeof flat_text, "%.2f", f * 1e3);
+        threaded_ratios.push_back(ot / best_t);
+        auto ms = [](double v) {
+            char text[32] = "-";
+            if (v == v) std::snprintf(text, sizeof text, "%.2f", v);
+            return std::string(text);
+        };
         std::printf(
-            "| %s | %zu / %zu / %u | %s | %zu | %.1f%% | %.2f | %s | %.2f | **%.2f** | %.2f | %zu | %.1f | %.1f / %.1f "
-            "| %zu |\n",
+            "| %s | %zu / %zu / %u | %s | %zu | %.1f%% | %.2f | %s / %s | %s / %s | **%.2f** | %.2f / %.2f / **%.2f** "
+            "| %.2f | %zu | %.1f | %.1f / %.1f | %zu / %zu |\n",
             name.c_str(), scene.meshes.size(), scene.instances.size(), in_scene, light_names[li], n, 100.0 * dark / n,
-            o * 1e3, flat_text, i * 1e3, o / best, double(n) / o / 1e6, built,
+            o * 1e3, ms(way_ms[0]).c_str(), ms(way_ms[1]).c_str(), ms(way_ms[2]).c_str(), ms(way_ms[3]).c_str(),
+            o / best, ot * 1e3, best_t * 1e3, ot / best_t, double(n) / o / 1e6, built,
             double(met) / double(shadow.tile_count()), double(level.memory_bytes() + bytes) / (1 << 20),
-            double(e.flat ? e.flat_bytes : e.instanced_bytes) / (1 << 20), differ);
+            double(e.flat ? e.flat_bytes : e.instanced_bytes) / (1 << 20), differ, threads_differ);
         std::fflush(stdout);
     }
     // Moving 1,000 instances (or all, when fewer) and committing: a refit.
@@ -281,6 +351,8 @@ int main(int argc, char** argv) {
             s.view = std::stoi(v);
         else if (a == "--runs")
             s.runs = std::stoi(v);
+        else if (a == "--threads")
+            s.threads = unsigned(std::stoul(v));
         else if (a == "--only")
             s.only = v;
         else if (a == "--one-sided")
@@ -301,15 +373,20 @@ int main(int argc, char** argv) {
         }
     }
     std::printf(
-        "One thread, %s traversal%s, view %d x %d, medians of %d rounds. Ours: order + cull + set-up + "
-        "queries per light; Embree: rtcOccluded1 (flat: one BVH of every instance's triangles; inst: "
-        "two-level instancing), BVH builds not counted. ratio = ours / the faster Embree.\n\n",
-        cb::traversal_name(s.options.traversal), s.options.one_sided ? ", one-sided" : "", s.view, s.view, s.runs);
+        "%s traversal%s, view %d x %d, medians of %d rounds. Ours: order + cull + set-up + queries per light; "
+        "Embree: rtcOccluded1 / rtcOccluded16 over a flat BVH of every instance's triangles and over two-level "
+        "instancing, BVH builds not counted. ratio = ours / the fastest of Embree's four, on one thread and on %u "
+        "(ours ms / Embree's fastest ms / ratio). Answers differing: ours against Embree's rtcOccluded1 "
+        "(flat when built; float ties), and ours on 1 thread against ours on %u.\n\n",
+        cb::traversal_name(s.options.traversal), s.options.one_sided ? ", one-sided" : "", s.view, s.view, s.runs,
+        s.threads, s.threads);
     std::printf(
-        "| scene | meshes / instances / triangles in scene | light | points | shadowed | ours ms | Embree flat ms | "
-        "Embree inst ms | ratio | our M points/s | instances set up | instances met per tile | memory MB ours / Embree "
-        "| answers differing |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        "| scene | meshes / instances / triangles in scene | light | points | shadowed | ours ms, 1 thread | Embree "
+        "flat ms occluded1 / 16 | Embree inst ms occluded1 / 16 | ratio, 1 thread | %u threads: ours ms / Embree "
+        "ms / ratio | our M points/s | instances set up | instances met per tile | memory MB ours / Embree | "
+        "answers differing: from Embree's / 1 and %u threads |\n",
+        s.threads, s.threads);
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     auto wanted = [&](const std::string& name) { return s.only.empty() || name.find(s.only) != std::string::npos; };
     for (uint32_t c : s.cities) {
         const std::string name = "city " + std::to_string(c);
@@ -344,8 +421,12 @@ int main(int argc, char** argv) {
     if (!ratios.empty()) {
         std::vector<double> sorted = ratios;
         std::sort(sorted.begin(), sorted.end());
-        std::printf("\nratio ours / Embree over %zu scene-lights: median %.2f, worst %.2f, best %.2f\n", sorted.size(),
-                    cb::median(ratios), sorted.back(), sorted.front());
+        std::printf("\nratio ours / Embree over %zu scene-lights, one thread: median %.2f, worst %.2f, best %.2f\n",
+                    sorted.size(), cb::median(ratios), sorted.back(), sorted.front());
+        sorted = threaded_ratios;
+        std::sort(sorted.begin(), sorted.end());
+        std::printf("ratio ours / Embree, %u threads: median %.2f, worst %.2f, best %.2f\n", s.threads,
+                    cb::median(threaded_ratios), sorted.back(), sorted.front());
     }
     return 0;
 }
