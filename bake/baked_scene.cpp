@@ -47,9 +47,9 @@ std::string mask_text(uint32_t mask) {
 }  // namespace
 
 BakedScene load_baked(const std::string& path, const ClusterOptions& clustering, const BoundsOptions& bounds,
-                      std::string* fitted_note, const BakeProgress& progress) {
+                      std::string* fitted_note, const BakeProgress& progress, const LoadOptions& load) {
     if (!is_asset_file(path)) {
-        Scene scene = load_scene(path);  // LoadError is a runtime_error naming the file
+        Scene scene = load_scene(path, load);  // LoadError is a runtime_error naming the file
         return bake_in_memory(scene, clustering, bounds, nullptr, progress);
     }
     LoadedAsset asset;

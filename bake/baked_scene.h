@@ -7,6 +7,7 @@
 
 #include "asset_writer.h"
 #include "bake.h"
+#include "load.h"
 
 namespace cb {
 
@@ -15,9 +16,10 @@ BakedScene bake_in_memory(const Scene& scene, const ClusterOptions& clustering, 
                           BakeStats* stats = nullptr, const BakeProgress& progress = {});
 
 // A scene file (clustered and fitted with the options) or an asset (its clusters and stored volumes as they
-// are; the kinds in bounds.mask it does not hold are fitted with `bounds`). Throws std::runtime_error with a
-// one-line message naming the file.
+// are; the kinds in bounds.mask it does not hold are fitted with `bounds`). A scene file is loaded as `load`
+// allows. Throws std::runtime_error with a one-line message naming the file.
 BakedScene load_baked(const std::string& path, const ClusterOptions& clustering, const BoundsOptions& bounds,
-                      std::string* fitted_note = nullptr, const BakeProgress& progress = {});
+                      std::string* fitted_note = nullptr, const BakeProgress& progress = {},
+                      const LoadOptions& load = {});
 
 }  // namespace cb

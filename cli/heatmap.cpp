@@ -19,6 +19,7 @@ namespace {
 struct HeatmapArgs {
     std::string file, out, light, obb = "refined";
     cb::HeatmapOptions options;
+    cb::LoadOptions load;
     bool json = false, quiet = false;
 };
 
@@ -63,7 +64,7 @@ int run_heatmap(HeatmapArgs a) {
     cb::Heatmap h;
     try {
         progress.stage("loading " + a.file);
-        cb::Scene scene = cb::load_scene(a.file);
+        cb::Scene scene = cb::load_scene(a.file, a.load);
         h = cb::render_heatmap(scene, a.options, [&](const std::string& stage) { progress.stage(stage); });
         progress.clear();
         if (h.png.empty()) throw std::runtime_error(a.file + ": no triangles to draw");
@@ -89,6 +90,7 @@ Command add_heatmap(CLI::App& app) {
         "PNG heat map of useless cluster tests per pixel for a camera and a light: k-means (left) beside VCO (right)");
     c->add_option("file", a->file, "Scene file")->required();
     c->add_option("-o,--output", a->out, "Output PNG (written atomically)")->required();
+    add_load_flags(c, a->load);
     c->add_option("--size", a->options.size, "Panel size in pixels (default 256)");
     c->add_option("--light", a->light, "Light position X,Y,Z (default: above the scene, as the report's first light)");
     c->add_option("--fine", a->options.clustering.fine_size, "Maximum triangles per fine cluster, 1 to 85 (default 16)")

@@ -118,6 +118,7 @@ Command add_report(CLI::App& app) {
                                      "runtime cost; writes DIR/report.html, .json, .csv");
     c->add_option("files", a->files, "Scene files")->required();
     c->add_option("-o,--output", a->out, "Output folder (created before the sweep)")->required();
+    add_load_flags(c, a->options.load);
     c->add_option("--method", a->methods, "Comma list of clustering methods: kmeans, vco, morton (default all three)");
     c->add_option("--fine", a->fine, "Comma list of maximum triangles per fine cluster, 1 to 85 (default 8,16,24,32)");
     c->add_option("--obb", a->obbs, "Comma list of box fitters: refined, pca, pca-area, cgal (default refined,pca)");

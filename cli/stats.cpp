@@ -33,6 +33,8 @@ uint32_t stored_kinds(const cb::AssetView& view) {
 bool refuse_unused_on_asset(const CLI::App* c, const std::string& file) {
     const std::string why = file + " is an asset, ";
     if (refuse_given(c, cluster_shape_flags(), why + "clustered when it was baked")) return true;
+    if (refuse_given(c, {"--allow-outside-files", "--memory-budget"}, why + "not a scene: nothing is loaded or baked"))
+        return true;
     if (first_given(c, {"--obb", "--capsule-ratio"}).empty()) return false;
     cb::LoadedAsset asset;
     std::string error;
@@ -73,7 +75,7 @@ int run_stats(const CLI::App* c, const ClusterArgs& a, cb::StatsOptions so) {
     cb::BakedScene baked;
     std::string note;
     try {
-        baked = cb::load_baked(a.file, clustering, bounds, &note, bake_progress(progress));
+        baked = cb::load_baked(a.file, clustering, bounds, &note, bake_progress(progress), a.load);
     } catch (const std::runtime_error& e) {
         progress.clear();
         std::fprintf(stderr, "%s\n", e.what());
@@ -109,6 +111,7 @@ Command add_stats(CLI::App& app) {
                   "Scene file, or an asset (.cbk): its clusters and stored volumes as they are")
         ->required();
     add_clustering_flags(c, a->clustering);
+    add_load_flags(c, a->clustering.load);
     c->add_option("--obb", a->clustering.obb,
                   "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow); for an asset, the volumes it "
                   "does not store");

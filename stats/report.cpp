@@ -118,7 +118,7 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
     r.cpu = cpu_model();
     r.cores = std::thread::hardware_concurrency();
     for (const std::string& file : files) {
-        Scene scene = load_scene(file);
+        Scene scene = load_scene(file, o.load);
         SceneReport s;
         s.file = file;
         s.name = scene_name(file, r.scenes);

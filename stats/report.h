@@ -13,6 +13,7 @@
 #include "bounds.h"
 #include "cluster.h"
 #include "cluster_stats.h"
+#include "load.h"
 #include "scene.h"
 #include "scene_query.h"
 
@@ -33,6 +34,7 @@ struct ReportOptions {
     uint32_t frame_view = 1024;  // frame time is for this resolution: build + its visible points / queries per second
     uint32_t lights = 2;         // fixed light positions around the scene (report_lights)
     bool one_sided = false;      // query mode
+    LoadOptions load;            // what the scene files are trusted with (docs/SECURITY.md)
     StatsOptions stats{4, 8};    // lights and samples of the shadow-volume conservativeness
     unsigned threads = 0;        // bake threads (queries run on one thread)
     bool heatmap = false;        // per scene, the useless-tests heat map (k-means beside VCO) embedded in the HTML

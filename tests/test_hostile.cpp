@@ -123,6 +123,22 @@ TEST(Hostile, OutsideFilesAreReadOnlyWhenAllowed) {
         Child allowed = run_tool({"info", "--allow-outside-files", path}, base);
         EXPECT_EQ(allowed.code, 0) << allowed.err;
     }
+    // Every command that loads scenes takes the same flag, and refuses the same escape without it.
+    const std::string escape = (base / "corpus/gltf/escape_dotdot.gltf").string();
+    const std::vector<std::vector<std::string>> commands = {
+        {"stats", escape},
+        {"heatmap", escape, "-o", (base / "heat.png").string(), "--size", "32", "-q"},
+        {"report", escape, "-o", (base / "report").string(), "--method", "kmeans", "--fine", "8", "--obb", "pca",
+         "--runs", "1", "--query-runs", "1", "-q"}};
+    for (std::vector<std::string> command : commands) {
+        SCOPED_TRACE(command[0]);
+        Child refused = run_tool(command, base);
+        EXPECT_EQ(refused.code, 2);
+        EXPECT_NE(refused.err.find("leads out of the scene's folder"), std::string::npos) << refused.err;
+        command.insert(command.begin() + 1, "--allow-outside-files");
+        Child allowed = run_tool(command, base);
+        EXPECT_EQ(allowed.code, 0) << allowed.err;
+    }
     // Inside its own folder a buffer is read as always, also through a folder of its own.
     const std::string inside = (base / "corpus/gltf/inside.gltf").string();
     fs::create_directories(base / "corpus/gltf/buffers");
