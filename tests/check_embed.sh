@@ -6,7 +6,7 @@ set -euo pipefail
 src=$(cd "$(dirname "$0")/.." && pwd)
 # docs/RUNTIME.md's two examples are word for word functions of examples/embed, compiled below: each starts
 # at a comment line given here and ends at the function's closing brace.
-doc_example() { awk -v first="    // $2" '$0 == first || index($0, first) == 1 { on = 1 } on { print substr($0, 5) } on && /^    }$/ { exit }' "$1"; }
+doc_example() { awk -v first="    // $2" 'index($0, first) == 1 { on = 1 } on { print substr($0, 5) } on && /^    }$/ { exit }' "$1"; }
 code_example() { awk -v first="// $2" 'index($0, first) == 1 { on = 1 } on { print } on && /^}$/ { exit }' "$1"; }
 for example in "main.cpp:bytes: the asset in memory" "level.cpp:ground, prop: opened assets"; do
   file=${example%%:*} first=${example#*:}
