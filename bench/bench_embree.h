@@ -1,11 +1,14 @@
-// What the shadow benchmarks share on Embree's side: its memory, counted by a device's monitor, and a
-// camera's visible points, the first hits of a grid of rays.
+// What the shadow benchmarks share on Embree's side: its memory, counted by a device's monitor, a camera's
+// visible points, the first hits of a grid of rays, and the shadow rays of a range of points.
 #pragma once
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <sys/types.h>
 #include <vector>
 
@@ -45,6 +48,41 @@ inline std::vector<double> first_hits(RTCScene scene, const double* eye, const d
                  rh.ray.org_z + double(rh.ray.tfar) * rh.ray.dir_z});
         }
     return pts;
+}
+
+// Points [first, last) of `pts` (xyz doubles) against `light`, by rtcOccluded1 (packet 1) or rtcOccluded16
+// (packet 16: 16 neighbouring points a packet): out[i] = 1 when the ray from point i, from `tnear` of the
+// way to the light, is blocked.
+inline void occluded_range(RTCScene scene, const double* pts, const double* light, size_t first, size_t last,
+                           int packet, float tnear, uint8_t* out) {
+    RTCIntersectContext c;
+    rtcInitIntersectContext(&c);
+    if (packet == 1) {
+        for (size_t i = first; i < last; ++i) {
+            RTCRay r{};
+            r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
+            r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]),
+            r.dir_z = float(light[2] - pts[i * 3 + 2]);
+            r.tnear = tnear, r.tfar = 1.0f, r.mask = 0xffffffff;
+            rtcOccluded1(scene, &c, &r);
+            out[i] = r.tfar < 0;
+        }
+        return;
+    }
+    for (size_t at = first; at < last; at += 16) {
+        alignas(64) RTCRay16 r{};
+        alignas(64) int valid[16];
+        for (size_t k = 0; k < 16; ++k) {
+            const size_t i = std::min(at + k, last - 1);
+            valid[k] = at + k < last ? -1 : 0;
+            r.org_x[k] = float(pts[i * 3]), r.org_y[k] = float(pts[i * 3 + 1]), r.org_z[k] = float(pts[i * 3 + 2]);
+            r.dir_x[k] = float(light[0] - pts[i * 3]), r.dir_y[k] = float(light[1] - pts[i * 3 + 1]),
+            r.dir_z[k] = float(light[2] - pts[i * 3 + 2]);
+            r.tnear[k] = tnear, r.tfar[k] = 1.0f, r.mask[k] = 0xffffffff;
+        }
+        rtcOccluded16(valid, scene, &c, &r);
+        for (size_t k = 0; k < 16 && at + k < last; ++k) out[at + k] = r.tfar[k] < 0;
+    }
 }
 
 }  // namespace cb::bench

@@ -134,48 +134,15 @@ void on_threads(unsigned threads, Job job) {
     for (std::thread& h : helpers) h.join();
 }
 
-// Points [first, last) by rtcOccluded1 (packet 1) or rtcOccluded16 (16 neighbouring points of the view a
-// packet), segment from self_shadow_fraction of the way to the light.
-void embree_range(RTCScene scene, const std::vector<double>& pts, const double* light, size_t first, size_t last,
-                  int packet, uint8_t* out) {
-    RTCIntersectContext c;
-    rtcInitIntersectContext(&c);
-    if (packet == 1) {
-        for (size_t i = first; i < last; ++i) {
-            RTCRay r{};
-            r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
-            r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]),
-            r.dir_z = float(light[2] - pts[i * 3 + 2]);
-            r.tnear = float(cb::self_shadow_fraction), r.tfar = 1.0f, r.mask = 0xffffffff;
-            rtcOccluded1(scene, &c, &r);
-            out[i] = r.tfar < 0;
-        }
-        return;
-    }
-    for (size_t at = first; at < last; at += 16) {
-        alignas(64) RTCRay16 r{};
-        alignas(64) int valid[16];
-        for (size_t j = 0; j < 16; ++j) {
-            const size_t i = std::min(at + j, last - 1);
-            valid[j] = at + j < last ? -1 : 0;
-            r.org_x[j] = float(pts[i * 3]), r.org_y[j] = float(pts[i * 3 + 1]), r.org_z[j] = float(pts[i * 3 + 2]);
-            r.dir_x[j] = float(light[0] - pts[i * 3]), r.dir_y[j] = float(light[1] - pts[i * 3 + 1]),
-            r.dir_z[j] = float(light[2] - pts[i * 3 + 2]);
-            r.tnear[j] = float(cb::self_shadow_fraction), r.tfar[j] = 1.0f, r.mask[j] = 0xffffffff;
-        }
-        rtcOccluded16(valid, scene, &c, &r);
-        for (size_t j = 0; j < 16 && at + j < last; ++j) out[at + j] = r.tfar[j] < 0;
-    }
-}
-
 // Every point on `threads` threads, each a contiguous part of the view; returns the seconds taken.
 double embree_pass(RTCScene scene, const std::vector<double>& pts, const double* light, int packet, unsigned threads,
                    std::vector<uint8_t>& out) {
     const size_t n = pts.size() / 3;
     auto t0 = std::chrono::steady_clock::now();
     on_threads(threads, [&](unsigned t) {
-        embree_range(scene, pts, light, n * t / threads / 16 * 16,
-                     t + 1 == threads ? n : n * (t + 1) / threads / 16 * 16, packet, out.data());
+        cb::bench::occluded_range(scene, pts.data(), light, n * t / threads / 16 * 16,
+                                  t + 1 == threads ? n : n * (t + 1) / threads / 16 * 16, packet,
+                                  float(cb::self_shadow_fraction), out.data());
     });
     return cb::seconds_since(t0);
 }

@@ -352,38 +352,10 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             auto s = std::chrono::steady_clock::now();
             std::atomic<size_t> next{0};
             auto work = [&](unsigned) {
-                RTCIntersectContext c;
-                rtcInitIntersectContext(&c);
-                for (size_t begin, end; take_chunk(next, threads, begin, end);) {
-                    if (!packets) {
-                        for (size_t i = begin; i < end; ++i) {
-                            RTCRay r{};
-                            r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]),
-                            r.org_z = float(pts[i * 3 + 2]);
-                            r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]),
-                            r.dir_z = float(light[2] - pts[i * 3 + 2]);
-                            r.tnear = float(cb::self_shadow_fraction), r.tfar = 1.0f, r.mask = 0xffffffff;
-                            rtcOccluded1(scene, &c, &r);
-                            embree1[i] = r.tfar < 0;
-                        }
-                        continue;
-                    }
-                    for (size_t i = begin; i < end; i += 16) {
-                        RTCRay16 r{};
-                        alignas(64) int valid[16];
-                        for (int k = 0; k < 16; ++k) {
-                            size_t j = std::min(i + k, end - 1);
-                            valid[k] = i + k < end ? -1 : 0;
-                            r.org_x[k] = float(pts[j * 3]), r.org_y[k] = float(pts[j * 3 + 1]),
-                            r.org_z[k] = float(pts[j * 3 + 2]);
-                            r.dir_x[k] = float(light[0] - pts[j * 3]), r.dir_y[k] = float(light[1] - pts[j * 3 + 1]),
-                            r.dir_z[k] = float(light[2] - pts[j * 3 + 2]);
-                            r.tnear[k] = float(cb::self_shadow_fraction), r.tfar[k] = 1.0f, r.mask[k] = 0xffffffff;
-                        }
-                        rtcOccluded16(valid, scene, &c, &r);
-                        for (int k = 0; k < 16 && i + k < end; ++k) embree16[i + k] = r.tfar[k] < 0;
-                    }
-                }
+                for (size_t begin, end; take_chunk(next, threads, begin, end);)
+                    cb::bench::occluded_range(scene, pts.data(), light, begin, end, packets ? 16 : 1,
+                                              float(cb::self_shadow_fraction),
+                                              packets ? embree16.data() : embree1.data());
             };
             workers.run(threads, work);
             return cb::seconds_since(s);
