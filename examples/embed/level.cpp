@@ -13,6 +13,8 @@
 #include <cstdlib>
 #include <vector>
 
+#include "files.h"
+
 // The level example of docs/RUNTIME.md, word for word (tests/check_embed.sh compares the two).
 
 // ground, prop: opened assets; first, second: where the prop stands in each frame (column-major 3x4, world =
@@ -39,24 +41,6 @@ void two_frames(const cb::AssetView& ground, const cb::AssetView& prop, const do
     shadow.occluded_batch(level, light, points, n, answers + n);
 }
 
-namespace {
-
-// The whole file in memory aligned for any standard type (malloc's guarantee), as the view's doubles need.
-void* read_file(const char* path, size_t& size) {
-    FILE* f = std::fopen(path, "rb");
-    if (!f) return nullptr;
-    std::fseek(f, 0, SEEK_END);
-    const long length = std::ftell(f);
-    std::fseek(f, 0, SEEK_SET);
-    void* bytes = length > 0 ? std::malloc(size_t(length)) : nullptr;
-    if (bytes && std::fread(bytes, 1, size_t(length), f) != size_t(length)) std::free(bytes), bytes = nullptr;
-    std::fclose(f);
-    size = size_t(length);
-    return bytes;
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
     double light[3];
     if (argc != 5 || std::sscanf(argv[3], "%lf,%lf,%lf", &light[0], &light[1], &light[2]) != 3) {
@@ -67,19 +51,9 @@ int main(int argc, char** argv) {
     cb::AssetView views[2];
     for (int a = 0; a < 2; ++a) {
         size_t size = 0;
-        bytes[a] = read_file(argv[1 + a], size);
-        const cb::AssetError error = bytes[a] ? cb::open_asset(bytes[a], size, &views[a]) : cb::AssetError::too_small;
-        if (error != cb::AssetError::ok) {
-            std::fprintf(stderr, "%s: %s\n", argv[1 + a], cb::asset_error_text(error));
-            return 2;
-        }
+        if (!example::open_asset_file(argv[1 + a], bytes[a], size, views[a])) return 2;
     }
-    std::vector<double> points;
-    if (FILE* f = std::fopen(argv[4], "r")) {
-        double p[3];
-        while (std::fscanf(f, "%lf %lf %lf", &p[0], &p[1], &p[2]) == 3) points.insert(points.end(), p, p + 3);
-        std::fclose(f);
-    }
+    const std::vector<double> points = example::read_points(argv[4]);
     const size_t n = points.size() / 3;
 
     // Frame 1: the prop three times its size, raised 6 above the origin and moved to (8, 8); frame 2: its x

@@ -17,6 +17,8 @@
 #include <cstdlib>
 #include <vector>
 
+#include "files.h"
+
 // The embedding example of docs/RUNTIME.md, word for word (tests/check_embed.sh compares the two).
 
 // bytes: the asset in memory, 8-byte aligned; light: xyz; points: n xyz triples; all world space.
@@ -39,20 +41,6 @@ bool shadow_answers(const void* bytes, size_t size, const double* light, const d
 }
 
 namespace {
-
-// The whole file in memory aligned for any standard type (malloc's guarantee), as the view's doubles need.
-void* read_file(const char* path, size_t& size) {
-    FILE* f = std::fopen(path, "rb");
-    if (!f) return nullptr;
-    std::fseek(f, 0, SEEK_END);
-    const long length = std::ftell(f);
-    std::fseek(f, 0, SEEK_SET);
-    void* bytes = length > 0 ? std::malloc(size_t(length)) : nullptr;
-    if (bytes && std::fread(bytes, 1, size_t(length), f) != size_t(length)) std::free(bytes), bytes = nullptr;
-    std::fclose(f);
-    size = size_t(length);
-    return bytes;
-}
 
 // A frustum from `eye` towards `target`: a square 90-degree view, near 1e-3, no far plane.
 cb::Frustum look_at(const double* eye, const double* target) {
@@ -87,20 +75,11 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "usage: embed ASSET X,Y,Z POINTS\n");
         return 2;
     }
+    void* bytes = nullptr;
     size_t size = 0;
-    void* bytes = read_file(argv[1], size);
     cb::AssetView view;
-    const cb::AssetError error = bytes ? cb::open_asset(bytes, size, &view) : cb::AssetError::too_small;
-    if (error != cb::AssetError::ok) {
-        std::fprintf(stderr, "%s: %s\n", argv[1], cb::asset_error_text(error));
-        return 2;
-    }
-    std::vector<double> points;
-    if (FILE* f = std::fopen(argv[3], "r")) {
-        double p[3];
-        while (std::fscanf(f, "%lf %lf %lf", &p[0], &p[1], &p[2]) == 3) points.insert(points.end(), p, p + 3);
-        std::fclose(f);
-    }
+    if (!example::open_asset_file(argv[1], bytes, size, view)) return 2;
+    const std::vector<double> points = example::read_points(argv[3]);
     const size_t n = points.size() / 3;
 
     // Shadows: the light-independent bounds, then per light one structure per instance, and one batch query
