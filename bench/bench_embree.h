@@ -2,6 +2,7 @@
 // visible points, the first hits of a grid of rays, and the shadow rays of a range of points.
 #pragma once
 
+#include <cb_segment.h>
 #include <embree3/rtcore.h>
 
 #include <algorithm>
@@ -51,10 +52,10 @@ inline std::vector<double> first_hits(RTCScene scene, const double* eye, const d
 }
 
 // Points [first, last) of `pts` (xyz doubles) against `light`, by rtcOccluded1 (packet 1) or rtcOccluded16
-// (packet 16: 16 neighbouring points a packet): out[i] = 1 when the ray from point i, from `tnear` of the
-// way to the light, is blocked.
+// (packet 16: 16 neighbouring points a packet): out[i] = 1 when the ray from point i to the light is blocked
+// past the runtime's self-shadowing start (cb::shadow_from of the point, the light and `bias`).
 inline void occluded_range(RTCScene scene, const double* pts, const double* light, size_t first, size_t last,
-                           int packet, float tnear, uint8_t* out) {
+                           int packet, double bias, uint8_t* out) {
     RTCIntersectContext c;
     rtcInitIntersectContext(&c);
     if (packet == 1) {
@@ -63,7 +64,7 @@ inline void occluded_range(RTCScene scene, const double* pts, const double* ligh
             r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
             r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]),
             r.dir_z = float(light[2] - pts[i * 3 + 2]);
-            r.tnear = tnear, r.tfar = 1.0f, r.mask = 0xffffffff;
+            r.tnear = float(cb::shadow_from(pts + i * 3, light, bias)), r.tfar = 1.0f, r.mask = 0xffffffff;
             rtcOccluded1(scene, &c, &r);
             out[i] = r.tfar < 0;
         }
@@ -78,7 +79,7 @@ inline void occluded_range(RTCScene scene, const double* pts, const double* ligh
             r.org_x[k] = float(pts[i * 3]), r.org_y[k] = float(pts[i * 3 + 1]), r.org_z[k] = float(pts[i * 3 + 2]);
             r.dir_x[k] = float(light[0] - pts[i * 3]), r.dir_y[k] = float(light[1] - pts[i * 3 + 1]),
             r.dir_z[k] = float(light[2] - pts[i * 3 + 2]);
-            r.tnear[k] = tnear, r.tfar[k] = 1.0f, r.mask[k] = 0xffffffff;
+            r.tnear[k] = float(cb::shadow_from(pts + i * 3, light, bias)), r.tfar[k] = 1.0f, r.mask[k] = 0xffffffff;
         }
         rtcOccluded16(valid, scene, &c, &r);
         for (size_t k = 0; k < 16 && at + k < last; ++k) out[at + k] = r.tfar[k] < 0;

@@ -135,14 +135,13 @@ void on_threads(unsigned threads, Job job) {
 }
 
 // Every point on `threads` threads, each a contiguous part of the view; returns the seconds taken.
-double embree_pass(RTCScene scene, const std::vector<double>& pts, const double* light, int packet, unsigned threads,
-                   std::vector<uint8_t>& out) {
+double embree_pass(RTCScene scene, const std::vector<double>& pts, const double* light, double bias, int packet,
+                   unsigned threads, std::vector<uint8_t>& out) {
     const size_t n = pts.size() / 3;
     auto t0 = std::chrono::steady_clock::now();
     on_threads(threads, [&](unsigned t) {
         cb::bench::occluded_range(scene, pts.data(), light, n * t / threads / 16 * 16,
-                                  t + 1 == threads ? n : n * (t + 1) / threads / 16 * 16, packet,
-                                  float(cb::self_shadow_fraction), out.data());
+                                  t + 1 == threads ? n : n * (t + 1) / threads / 16 * 16, packet, bias, out.data());
     });
     return cb::seconds_since(t0);
 }
@@ -253,8 +252,9 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
                 RTCScene scene = way < 2 ? e.flat : e.instanced;
                 if (!scene) continue;
                 std::vector<uint8_t>& out = way == 0 || (way == 2 && !e.flat) ? ref : other;
-                embree_t[way].push_back(embree_pass(scene, pts, light, way % 2 ? 16 : 1, 1, out));
-                embree_tt[way].push_back(embree_pass(scene, pts, light, way % 2 ? 16 : 1, threads, other));
+                embree_t[way].push_back(embree_pass(scene, pts, light, level.shadow_bias(), way % 2 ? 16 : 1, 1, out));
+                embree_tt[way].push_back(
+                    embree_pass(scene, pts, light, level.shadow_bias(), way % 2 ? 16 : 1, threads, other));
             }
         }
         double best = INFINITY, best_t = INFINITY, way_ms[4];

@@ -143,7 +143,8 @@ const Config configs[] = {
 // (medians), beside Embree's occluded1 on one thread (its build is once per scene, not counted).
 void compare_light(const cb::AssetView& boxes, const cb::AssetView& fitted, const std::vector<cb::ScanBounds>& scan,
                    const std::vector<double>& pts, const double* light, const char* light_name,
-                   const std::string& scene, int runs, bool one_sided, const std::function<double()>& embree_pass) {
+                   const std::string& scene, int runs, bool one_sided, double bias,
+                   const std::function<double()>& embree_pass) {
     const size_t n = pts.size() / 3, count = std::size(configs);
     std::vector<uint32_t> order(n), order_scratch(cb::batch_order_scratch_size(n));
     std::vector<std::vector<double>> build(count), query(count);
@@ -160,6 +161,7 @@ void compare_light(const cb::AssetView& boxes, const cb::AssetView& fitted, cons
             options.traversal = config.traversal, options.one_sided = one_sided;
             options.bounds = config.fitted ? nullptr : scan.data();
             options.capsule_ratio = config.capsule_ratio, options.metric_build = config.build;
+            options.bias = bias;
             auto b0 = std::chrono::steady_clock::now();
             for (uint32_t i = 0; i < view.instance_count; ++i) trees[i].build(view, i, light, options);
             build[c].push_back(cb::seconds_since(b0));
@@ -208,6 +210,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
     cb::LoadedAsset loaded;
     if (cb::open_asset_copy(bytes, loaded) != cb::AssetError::ok) return;
     const cb::AssetView& asset = loaded.view;
+    const double bias = cb::default_shadow_bias(cb::asset_world_size(asset));  // the runtime's default, once
     cb::LoadedAsset fitted;  // --traversal compare: the same clusters with spheres, capsules and slabs too
     if (comparing) {
         bo.mask = cb::bounds_all;
@@ -283,6 +286,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             auto build_some = [&](unsigned th) {
                 cb::ShadowBuildOptions options;
                 options.traversal = level, options.one_sided = one_sided, options.bounds = scan_bounds.data();
+                options.bias = bias;
                 for (uint32_t i = th; i < asset.instance_count; i += threads) {
                     options.scratch = &build_scratch[i];
                     trees[i].build(asset, i, light, options);
@@ -353,8 +357,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             std::atomic<size_t> next{0};
             auto work = [&](unsigned) {
                 for (size_t begin, end; take_chunk(next, threads, begin, end);)
-                    cb::bench::occluded_range(scene, pts.data(), light, begin, end, packets ? 16 : 1,
-                                              float(cb::self_shadow_fraction),
+                    cb::bench::occluded_range(scene, pts.data(), light, begin, end, packets ? 16 : 1, bias,
                                               packets ? embree16.data() : embree1.data());
             };
             workers.run(threads, work);
@@ -369,7 +372,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             return step();
         };
         if (comparing) {
-            compare_light(asset, fitted.view, scan_bounds, pts, light, light_names[li], in.name, runs, one_sided,
+            compare_light(asset, fitted.view, scan_bounds, pts, light, light_names[li], in.name, runs, one_sided, bias,
                           [&] { return embree_pass(1, false); });
             continue;
         }

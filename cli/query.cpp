@@ -19,7 +19,7 @@ namespace {
 
 struct QueryArgs {
     std::string asset, light, points, traversal = "scan", fine, metric_build = "heuristic";
-    double capsule_ratio = 4.0;
+    double capsule_ratio = 4.0, bias = 0;
     bool binary = false, stats = false, reference = false, one_sided = false, json = false, quiet = false;
     unsigned threads = 0;
 };
@@ -122,6 +122,7 @@ void print_json(const QueryArgs& a, const double* light, const cb::SceneQueryRes
                         {"light", {light[0], light[1], light[2]}},
                         {"traversal", a.reference ? "reference" : a.traversal},
                         {"one_sided", a.one_sided},
+                        {"bias", q.bias},
                         {"points", n},
                         {"shadowed", shadowed},
                         {"answers", q.shadowed}};
@@ -155,6 +156,10 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     if (a.traversal != "mtsv" && a.traversal != "mtsv-two" &&
         refuse_given(c, {"--capsule-ratio", "--mtsv-build"}, "they set up the metric trees of --traversal mtsv"))
         return exit_usage;
+    if (!(a.bias >= 0 && a.bias < INFINITY)) {  // NaN too
+        std::fprintf(stderr, "clusterbake: --bias takes a distance of at least 0 (0: the level's default)\n");
+        return exit_usage;
+    }
     if (!(a.capsule_ratio >= 1)) {  // NaN too
         std::fprintf(stderr, "clusterbake: --capsule-ratio takes a number of at least 1 (inf: spheres only)\n");
         return exit_usage;
@@ -170,7 +175,7 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     cb::parse_traversal(a.traversal, options.traversal);           // CLI11 checked the name
     cb::parse_metric_build(a.metric_build, options.metric_build);  // CLI11 checked the name
     options.one_sided = a.one_sided, options.threads = a.threads, options.reference = a.reference;
-    options.capsule_ratio = a.capsule_ratio;
+    options.capsule_ratio = a.capsule_ratio, options.bias = a.bias;
     cb::SceneQueryResult q = cb::query_level(level.level, light, pts.data(), pts.size() / 3, options);
     size_t shadowed = size_t(std::count(q.shadowed.begin(), q.shadowed.end(), uint8_t(1)));
     if (a.json) {
@@ -202,6 +207,9 @@ Command add_query(CLI::App& app) {
     c->add_flag("--one-sided", a->one_sided,
                 "One-sided occluders: a triangle blocks only when the light is behind it "
                 "(double-sided glTF primitives stay two-sided)");
+    c->add_option("--bias", a->bias,
+                  "Self-shadowing bias, a world distance: contacts nearer to the point do not count (default 0: "
+                  "1/65536 of the largest side of the level's world box)");
     c->add_flag("--stats", a->stats,
                 "Print build and query time and traversal counts on stderr (with --json: in the JSON)");
     c->add_flag("--reference", a->reference,

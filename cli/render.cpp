@@ -28,7 +28,7 @@ namespace {
 struct RenderArgs {
     std::string asset, out, light, area_light, area_shape = "square", eye, target, up, size = "640x480";
     std::string write_points;
-    double fov = 0;
+    double fov = 0, bias = 0;
     bool one_sided = false, compare = false, force = false, json = false, quiet = false;
     unsigned threads = 0;
 };
@@ -130,6 +130,9 @@ bool parse_render(const CLI::App* c, const RenderArgs& a, cb::RenderOptions& o) 
     o.fov_degrees = a.fov;
     if (!parse_size(a.size, o.width, o.height)) return false;
     o.one_sided = a.one_sided, o.compare = a.compare, o.threads = a.threads;
+    if (!(a.bias >= 0 && a.bias < INFINITY))  // NaN too
+        return usage_ok("--bias takes a distance of at least 0 (0: the scene's default)");
+    o.bias = a.bias;
 
     if (!usage_ok(png_output_error(a, a.out))) return false;
     if (a.compare && !usage_ok(png_output_error(a, compare_path(a.out)))) return false;
@@ -186,6 +189,7 @@ void print_json(const RenderArgs& a, const cb::RenderOptions& o, const cb::Rende
                           {"up", {cam.up[0], cam.up[1], cam.up[2]}},
                           {"fov", r.fov_degrees}}},
                         {"one_sided", o.one_sided},
+                        {"bias", r.bias},
                         {"lights", r.lights.size() / 3},
                         {"light_positions", r.lights},
                         {"pixels_covered", r.points.size() / 3},
@@ -320,6 +324,9 @@ Command add_render(CLI::App& app) {
     c->add_flag("--one-sided", a->one_sided,
                 "One-sided occluders: a triangle blocks only when the light is behind it "
                 "(double-sided glTF primitives stay two-sided)");
+    c->add_option("--bias", a->bias,
+                  "Self-shadowing bias, a world distance: contacts nearer to the point do not count (default 0: "
+                  "1/65536 of the largest side of the scene's world box)");
     c->add_flag("--compare", a->compare,
                 "Also ask Embree's rays, and write OUTPUT's .compare.png: the pixels where the answers differ");
     c->add_option("--write-points", a->write_points,

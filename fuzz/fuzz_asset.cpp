@@ -76,7 +76,7 @@ void query(const cb::AssetView& v) {
     cb::LevelShadow through_level;
     through_level.occluded_batch(level, light, batch.data(), n, shadow.data());
     for (uint8_t o : shadow) sink = sink + float(o);
-    for (const double* p : points) sink = sink + float(cb::occluded_reference(v, p, light));
+    for (const double* p : points) sink = sink + float(cb::occluded_reference(v, p, light, 0.0));
     cb::Frustum f{};
     f.count = 1;
     f.plane[0][0] = 1, f.plane[0][3] = 1;

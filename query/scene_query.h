@@ -54,6 +54,7 @@ struct SceneQueryOptions {
     bool per_point = false;      // each point asks alone and keeps its own counts (a batch's tiles share theirs)
     double capsule_ratio = 4.0;  // mtsv: capsule-cones for clusters at least this elongated, else cones
     MetricBuild metric_build = MetricBuild::heuristic;  // mtsv: how the metric trees are built
+    double bias = 0;  // self-shadowing bias, world distance (cb_segment.h); 0: the level's, cb::Level::shadow_bias
 };
 
 struct SceneQueryResult {
@@ -66,6 +67,7 @@ struct SceneQueryResult {
     size_t tree_bytes = 0;        // what those structures hold (ShadowBuildOptions' shared bounds not counted)
     size_t always_tested = 0;     // clusters tested for every point (light inside or level with their box)
     size_t skipped = 0;           // one-sided: clusters the light sees from their front
+    double bias = 0;              // the self-shadowing bias the answers used
 };
 
 // The `count` points (xyz, world) against the light (xyz, world), over every instance of the level. The

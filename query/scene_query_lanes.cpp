@@ -40,6 +40,7 @@ ShadowBuildOptions build_options(const SceneQueryOptions& o) {
     build.one_sided = o.one_sided;
     build.capsule_ratio = o.capsule_ratio;
     build.metric_build = o.metric_build;
+    build.bias = o.bias;
     return build;
 }
 
@@ -106,7 +107,7 @@ void answer_points(const Level& level, const double* light, const double* points
             QueryStats* s = o.per_point ? &r.point_stats[i] : &counts[t];
             const double* p = &points[i * 3];
             if (o.reference) {
-                r.shadowed[i] = occluded_reference(level, p, light, o.one_sided, s);
+                r.shadowed[i] = occluded_reference(level, p, light, o.bias, o.one_sided, s);
             } else {
                 for (const InstanceShadow& tree : trees)
                     if (!r.shadowed[i]) r.shadowed[i] = tree.occluded(p, stack.data(), s);
@@ -118,10 +119,12 @@ void answer_points(const Level& level, const double* light, const double* points
     r.query_seconds = seconds_since(start);
 }
 
-// One light's answers over the level already made.
+// One light's answers over the level already made, with the level's bias unless the options give one.
 SceneQueryResult answer_light(const Level& level, const double* light, const double* points, size_t n,
-                              const SceneQueryOptions& o) {
+                              SceneQueryOptions o) {
     SceneQueryResult r;
+    if (!(o.bias > 0)) o.bias = level.shadow_bias();
+    r.bias = o.bias;
     const unsigned thread_count = threads_or_all(o.threads);
     if (!o.reference && !o.per_point)
         answer_batch(level, light, points, n, o, thread_count, r);

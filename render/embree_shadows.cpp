@@ -114,7 +114,8 @@ EmbreeShadows::EmbreeShadows(const LevelInput& level, bool one_sided, unsigned t
 
 EmbreeShadows::~EmbreeShadows() = default;
 
-std::vector<uint8_t> EmbreeShadows::occluded(const double* light, const double* points, size_t count) const {
+std::vector<uint8_t> EmbreeShadows::occluded(const double* light, double bias, const double* points,
+                                             size_t count) const {
     std::vector<uint8_t> out(count, 0);
     const size_t chunk = 4096;
     parallel_for((count + chunk - 1) / chunk, threads_, [&](size_t c) {
@@ -126,7 +127,7 @@ std::vector<uint8_t> EmbreeShadows::occluded(const double* light, const double* 
             RTCRay r;
             r.org_x = float(p[0]), r.org_y = float(p[1]), r.org_z = float(p[2]);
             r.dir_x = float(light[0] - p[0]), r.dir_y = float(light[1] - p[1]), r.dir_z = float(light[2] - p[2]);
-            r.tnear = float(self_shadow_fraction), r.tfar = 1.0f;
+            r.tnear = float(shadow_from(p, light, bias)), r.tfar = 1.0f;  // the runtime's self-shadowing rule
             r.time = 0, r.mask = 0xffffffff, r.id = 0, r.flags = 0;
             rtcOccluded1(scene_->scene, &context.embree, &r);
             out[i] = r.tfar < 0;

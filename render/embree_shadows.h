@@ -24,8 +24,9 @@ public:
     EmbreeShadows& operator=(const EmbreeShadows&) = delete;
 
     // Per point (xyz, world), 1 when the ray from it towards `light` hits a triangle at a parameter in
-    // [2^-13, 1], the runtime's self-shadowing policy (cb_segment.h) in Embree's float arithmetic.
-    std::vector<uint8_t> occluded(const double* light, const double* points, size_t count) const;
+    // [shadow_from(point, light, bias), 1], the runtime's self-shadowing rule (cb_segment.h) in Embree's float
+    // arithmetic.
+    std::vector<uint8_t> occluded(const double* light, double bias, const double* points, size_t count) const;
 
     double build_seconds() const { return build_seconds_; }
 

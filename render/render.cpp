@@ -156,12 +156,13 @@ RenderResult render_level(const LevelInput& level, const RenderOptions& o, const
     std::vector<double> diffuse(n, 0.0);
     std::vector<uint8_t> mark(n, 0);  // with compare: as classify marks
     SceneQueryOptions query;
-    query.one_sided = o.one_sided, query.threads = o.threads;
+    query.one_sided = o.one_sided, query.threads = o.threads, query.bias = o.bias;
     if (progress) progress("light 1 of " + std::to_string(light_count), 0);
     r.bounds_seconds = query_level_lights(
         level, r.lights.data(), light_count, surface.points.data(), n, query, [&](size_t l, const SceneQueryResult& q) {
             const double* light = &r.lights[l * 3];
             r.build_seconds.push_back(q.build_seconds), r.query_seconds.push_back(q.query_seconds);
+            r.bias = q.bias;
             r.queries += n;
             for (size_t i = 0; i < n; ++i) {
                 if (q.shadowed[i]) {
@@ -178,13 +179,15 @@ RenderResult render_level(const LevelInput& level, const RenderOptions& o, const
             }
             if (embree) {
                 auto embree_start = std::chrono::steady_clock::now();
-                const std::vector<uint8_t> theirs = embree->occluded(light, surface.points.data(), n);
+                const std::vector<uint8_t> theirs = embree->occluded(light, q.bias, surface.points.data(), n);
                 r.compare.query_seconds += seconds_since(embree_start);
                 r.compare.pairs += n;
                 std::vector<size_t> differing;
                 for (size_t i = 0; i < n; ++i)
                     if (theirs[i] != q.shadowed[i]) differing.push_back(i);
-                if (!differing.empty()) classify(level, query, light, surface, q.shadowed, differing, r.compare, mark);
+                SceneQueryOptions asked = query;
+                asked.bias = q.bias;  // the level's default resolved: each point asked alone keeps it
+                if (!differing.empty()) classify(level, asked, light, surface, q.shadowed, differing, r.compare, mark);
             }
             if (progress)
                 progress("light " + std::to_string(std::min(l + 2, light_count)) + " of " + std::to_string(light_count),

@@ -31,6 +31,7 @@ struct RenderOptions {
     double light[3] = {0, 0, 0};
     AreaLight area_light;    // faces the world box's centre
     bool one_sided = false;  // one-sided occluders, as query --one-sided
+    double bias = 0;         // self-shadowing bias, a world distance; 0: the level's (cb::Level::shadow_bias)
     bool compare = false;    // also ask Embree, and draw where the answers differ
     unsigned threads = 0;    // 0: all; the picture does not depend on it
 };
@@ -59,6 +60,7 @@ struct RenderResult {
     std::vector<double> points;  // every covered pixel's visible point (xyz), in pixel order
     uint64_t clusters_drawn = 0, triangles_drawn = 0;
     uint64_t queries = 0, shadowed = 0;  // point and light pairs, and those in shadow
+    double bias = 0;                     // the self-shadowing bias the answers used
     double visibility_seconds = 0;
     double bounds_seconds = 0;  // the level's hierarchy and the scan's per-asset bounds, once for every light
     std::vector<double> build_seconds, query_seconds;  // per light

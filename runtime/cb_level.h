@@ -15,6 +15,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <new>
 #include <vector>
 
@@ -32,6 +33,21 @@ namespace cb {
 inline namespace CB_LANES {
 
 namespace level_detail {
+
+// An allocator of these lanes' own: a std::vector of a plain type made through it is a type of these lanes,
+// so that the linker never takes a wider build's copy of one of its members for the baseline's (cb_simd.h).
+template <class T>
+struct LaneAllocator : std::allocator<T> {
+    template <class U>
+    struct rebind {
+        using other = LaneAllocator<U>;
+    };
+    LaneAllocator() = default;
+    template <class U>
+    LaneAllocator(const LaneAllocator<U>&) {}
+};
+template <class T>
+using LaneVector = std::vector<T, LaneAllocator<T>>;
 
 // An axis-aligned box in world space, in double; empty when lo > hi (it meets nothing).
 struct Box {
@@ -272,6 +288,15 @@ public:
             [&](uint32_t h, double) { f(h); });
     }
 
+    // The self-shadowing bias shadow queries take unless given one (ShadowBuildOptions::bias):
+    // default_shadow_bias of the largest side of the level's world box (the hierarchy's root, the union of
+    // the instances' world boxes) as of the last commit; 0 for an empty level.
+    double shadow_bias() const {
+        return nodes_.empty() || nodes_[0].box.empty()
+            ? 0.0
+            : default_shadow_bias(box_size(nodes_[0].box.lo, nodes_[0].box.hi));
+    }
+
     // The sphere about instance `handle`'s world box: centre x, y, z and radius (INFINITY beyond double's
     // range), made when the instance is placed.
     const double* world_sphere(uint32_t handle) const { return instances_[handle].sphere; }
@@ -380,7 +405,7 @@ private:
     // The moved instances' leaves and their ancestors, each once, children before parents (a child's index is
     // above its parent's).
     void refit() {
-        std::vector<uint32_t>& touched = refit_scratch_;
+        level_detail::LaneVector<uint32_t>& touched = refit_scratch_;
         touched.clear();
         if (marks_.size() < nodes_.size()) marks_.assign(nodes_.size(), 0);
         for (uint32_t h : moved_) {
@@ -415,12 +440,12 @@ private:
 
     std::vector<Asset> assets_;
     std::vector<Instance> instances_;
-    std::vector<uint32_t> leaf_;  // per handle, its leaf node (none before the first commit)
-    std::vector<uint32_t> free_, moved_;
+    level_detail::LaneVector<uint32_t> leaf_;  // per handle, its leaf node (none before the first commit)
+    level_detail::LaneVector<uint32_t> free_, moved_;
     std::vector<Node> nodes_;
-    std::vector<uint32_t> parent_, items_;
-    std::vector<uint32_t> refit_scratch_;
-    std::vector<uint8_t> marks_;
+    level_detail::LaneVector<uint32_t> parent_, items_;
+    level_detail::LaneVector<uint32_t> refit_scratch_;
+    level_detail::LaneVector<uint8_t> marks_;
     uint32_t live_ = 0;
     bool rebuild_ = false;
 };
@@ -444,6 +469,7 @@ public:
         n_ = n;
         options_ = options;
         options_.bounds = nullptr;
+        if (!(options_.bias > 0)) options_.bias = level.shadow_bias();
         for (int k = 0; k < 3; ++k) light_[k] = light[k];
         order_.resize(n);
         order_scratch_.resize(batch_order_scratch_size(n));
@@ -533,7 +559,7 @@ public:
         begin(level, light, points, n, options);
         cull(0, tile_count());
         build(0, gather());
-        std::vector<uint32_t> scratch(scratch_size());
+        level_detail::LaneVector<uint32_t> scratch(scratch_size());
         occluded(0, tile_count(), out, scratch.data(), stats);
     }
 
@@ -551,7 +577,8 @@ public:
         size_t bytes = (order_.capacity() + order_scratch_.capacity() + slot_of_.capacity() + stamp_.capacity() +
                         needed_.capacity()) *
             sizeof(uint32_t);
-        for (const std::vector<uint64_t>& l : tile_lists_) bytes += l.capacity() * sizeof(uint64_t) + sizeof(l);
+        for (const level_detail::LaneVector<uint64_t>& l : tile_lists_)
+            bytes += l.capacity() * sizeof(uint64_t) + sizeof(l);
         for (size_t i = 0; i < shadows_.size(); ++i)
             bytes += sizeof(InstanceShadow) + (i < built_count_ ? shadows_[i].memory_bytes() : 0);
         return bytes;
@@ -600,7 +627,7 @@ private:
     // nearest first: each entry the float bits of its distance along the pyramid's axis (not below 0, so
     // they order as integers) above its handle.
     void cull_tile(size_t t) {
-        std::vector<uint64_t>& list = tile_lists_[t];
+        level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
         list.clear();
         const size_t begin = t * tile_capacity;
         const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
@@ -692,9 +719,10 @@ private:
     size_t n_ = 0, tile_count_ = 0, built_count_ = 0;
     double light_[3] = {0, 0, 0};
     ShadowBuildOptions options_;
-    std::vector<uint32_t> order_, order_scratch_;
-    std::vector<std::vector<uint64_t>> tile_lists_;  // per tile: cull_tile's entries, then (gather) slots of needed_
-    std::vector<uint32_t> slot_of_, stamp_, needed_;
+    level_detail::LaneVector<uint32_t> order_, order_scratch_;
+    level_detail::LaneVector<level_detail::LaneVector<uint64_t>>
+        tile_lists_;  // per tile: cull_tile's entries, then (gather) slots of needed_
+    level_detail::LaneVector<uint32_t> slot_of_, stamp_, needed_;
     uint32_t generation_ = 0;
     std::vector<InstanceShadow> shadows_;
 };
@@ -713,15 +741,34 @@ inline size_t cull_clusters(const Level& level, const Frustum& f, bool backface,
 }
 
 // The reference query over a level: every live instance, in handle order, as instance_occludes_reference
-// (cb_shadow.h) tests it; no hierarchy, no per-light structure. Returns true when p is in shadow.
-inline bool occluded_reference(const Level& level, const double* p, const double* light, bool one_sided = false,
-                               QueryStats* stats = nullptr) {
+// (cb_shadow.h) tests it, with the self-shadowing `bias` (zero or less: the level's shadow_bias()); no
+// hierarchy, no per-light structure. Returns true when p is in shadow.
+inline bool occluded_reference(const Level& level, const double* p, const double* light, double bias,
+                               bool one_sided = false, QueryStats* stats = nullptr) {
     bool touched = false, blocked = false;
     if (!finite3(p) || !finite3(light)) return false;  // nothing is in shadow of, or from, a point at infinity
+    const double from = shadow_from(p, light, bias > 0 ? bias : level.shadow_bias());
+    if (!may_block(from)) return false;
     for (uint32_t h = 0; h < level.handle_limit() && !blocked; ++h)
         if (level.alive(h))
-            blocked = instance_occludes_reference(level.asset(level.asset_of(h)), level.placement(h), p, light,
+            blocked = instance_occludes_reference(level.asset(level.asset_of(h)), level.placement(h), p, light, from,
                                                   one_sided, stats, &touched);
+    if (stats && touched) ++stats->touching;
+    return blocked;
+}
+
+// The sun's reference query over a level (cb_shadow.h, occluded_sun_reference), every live instance in
+// handle order, with the self-shadowing `bias` (zero or less: the level's shadow_bias()).
+inline bool occluded_sun_reference(const Level& level, const double* p, const double* toward, double bias,
+                                   bool one_sided = false, QueryStats* stats = nullptr) {
+    bool touched = false, blocked = false;
+    if (!finite3(p) || !finite3(toward)) return false;
+    const double from = sun_from(toward, bias > 0 ? bias : level.shadow_bias());
+    if (!(from < INFINITY)) return false;
+    for (uint32_t h = 0; h < level.handle_limit() && !blocked; ++h)
+        if (level.alive(h))
+            blocked = instance_occludes_sun_reference(level.asset(level.asset_of(h)), level.placement(h), p, toward,
+                                                      from, one_sided, stats, &touched);
     if (stats && touched) ++stats->touching;
     return blocked;
 }

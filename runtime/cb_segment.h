@@ -8,9 +8,11 @@
 //   (on the side its counter-clockwise winding faces away from), unless the asset marks it double-sided
 //   (glTF doubleSided primitives stay two-sided). For points outside a closed mesh both modes agree.
 // - The query segment runs from the point p to the light L. A triangle blocks when the segment meets the
-//   closed triangle at a parameter t (p + t (L - p)) of at least 2^-13. So a point on a surface does not
-//   shadow itself, nor is it shadowed by anything closer than 2^-13 of its distance to the light
-//   (self-shadowing policy); the light itself lying on a triangle counts as blocked.
+//   closed triangle at a parameter t (p + t (L - p)) of at least `from` = shadow_from(p, L, bias), the
+//   self-shadowing rule: contacts nearer to p than the world-space distance `bias` do not count, whatever
+//   the light's distance (so a point on a surface does not shadow itself). `from` is computed in double
+//   exactly as shadow_from writes it, and the comparison t >= from is then exact. The light itself lying on
+//   a triangle counts as blocked; a point within `bias` of the light is never in shadow.
 // - A triangle whose plane contains the whole segment (seen exactly edge-on), or that has no area,
 //   never blocks.
 // - "Touching": the segment meets the triangle only on its boundary (an edge or vertex), or an end of the
@@ -34,24 +36,41 @@
 namespace cb {
 inline namespace CB_LANES {
 
-// Hits closer to the query point than this fraction of the way to the light are ignored. A power of two,
-// so the exact test scales by it without rounding.
-constexpr double self_shadow_fraction = 1.0 / 8192.0;
+// The self-shadowing bias a scene gets unless the caller gives one: this fraction of the largest side of its
+// world box (Level::shadow_bias, default_shadow_bias), 128 to 256 float steps of the scene's size. Meshes are
+// stored about origins of their own (FORMAT.md), so their float precision follows their size, not their
+// distance from the world's origin.
+constexpr double default_bias_fraction = 1.0 / 65536.0;
 
-// Where the filters start the segment (as a fraction of the way from the point): half of
-// self_shadow_fraction, far beyond their rounding, so that a point lying on a flat cluster, whose segment
-// leaves that cluster's thin box well before any contact could count, does not test its triangles.
-constexpr double blocking_from = self_shadow_fraction / 2;
+inline double default_shadow_bias(double world_size) {
+    return world_size > 0 && world_size < INFINITY ? world_size * default_bias_fraction : 0.0;
+}
+
+// Where a query's contacts start to count, as a fraction of the way from p to the light: bias / |light - p|.
+// Evaluated as written (differences, then the squares summed with explicit fused multiply-adds, so that
+// every compiler and instruction set gives the same bits), each step rounded to nearest (IEEE 754); infinite
+// when p is the light, NaN when something is not finite. Every traversal and the reference use this value.
+inline double shadow_from(const double* p, const double* light, double bias) {
+    const double dx = light[0] - p[0], dy = light[1] - p[1], dz = light[2] - p[2];
+    return bias / std::sqrt(std::fma(dz, dz, std::fma(dy, dy, dx * dx)));
+}
+
+// A query can be blocked at all: its `from` is at most 1 (a NaN is not). The filters start the segment at
+// half of `from` (blocking_start), far beyond their rounding, so that a point lying on a flat cluster, whose
+// segment leaves that cluster's thin box before any contact could count, does not test its triangles.
+inline bool may_block(double from) { return from <= 1; }
+inline double blocking_start(double from) { return 0.5 * from; }
 
 struct SegmentTest {
     bool blocks = false;
     bool touching = false;  // boundary contact (see above), whether or not it blocks
 };
 
-// The segment p -> q against the closed triangle a, b, c, exactly. With `two_sided` false the triangle only
-// blocks when q (the light) is strictly behind it.
+// The segment p -> q against the closed triangle a, b, c, exactly, contacts counting from parameter `from`
+// on (shadow_from, at most 1). With `two_sided` false the triangle only blocks when q (the light) is
+// strictly behind it.
 inline SegmentTest segment_triangle(const double* p, const double* q, const double* a, const double* b, const double* c,
-                                    bool two_sided = true) {
+                                    double from, bool two_sided = true) {
     SegmentTest r;
     double bp, bq, ep = exact::orient3d_estimate(a, b, c, p, bp), eq = exact::orient3d_estimate(a, b, c, q, bq);
     int sp = ep > bp ? 1 : -ep > bp ? -1 : exact::sign(exact::orient3d_exact(a, b, c, p));
@@ -64,24 +83,78 @@ inline SegmentTest segment_triangle(const double* p, const double* q, const doub
     int e0 = exact::orient3d(p, q, a, b), e1 = exact::orient3d(p, q, b, c), e2 = exact::orient3d(p, q, c, a);
     if ((e0 > 0 || e1 > 0 || e2 > 0) && (e0 < 0 || e1 < 0 || e2 < 0)) return r;
     r.touching = sp == 0 || sq == 0 || e0 == 0 || e1 == 0 || e2 == 0;
-    // The crossing is at t = Dp / (Dp - Dq) with D the plane determinants; it counts when t >= f, that is
-    // when (1 - f) Dp + f Dq has Dp's sign or is zero (Dp and Dq have opposite signs or Dq is zero).
-    if (sp == 0) return r;                   // at the query point itself: t = 0 < f
-    if (sq == 0) return r.blocks = true, r;  // at the light: t = 1
+    // The crossing is at t = Dp / (Dp - Dq) with D the plane determinants; it counts when t >= f (f = from),
+    // that is when Dp + f (Dq - Dp) = (1 - f) Dp + f Dq has Dp's sign or is zero (Dp and Dq have opposite
+    // signs or Dq is zero).
+    if (!may_block(from)) return r;               // every contact is nearer than `from` (or `from` is not a number)
+    if (sp == 0) return r.blocks = from <= 0, r;  // at the query point itself: t = 0
+    if (sq == 0) return r.blocks = true, r;       // at the light: t = 1
     // In double first: the estimate of (1 - f) Dp + f Dq is off by at most the bounds' blend and its own
-    // rounding; only when that cannot decide, exactly.
-    double mix_estimate = (1 - self_shadow_fraction) * ep + self_shadow_fraction * eq;
-    double mix_bound =
-        (1 - self_shadow_fraction) * bp + self_shadow_fraction * bq + 4e-16 * (std::fabs(ep) + std::fabs(eq));
+    // rounding (1 - f's included); only when that cannot decide, exactly.
+    const double f = from;
+    double mix_estimate = (1 - f) * ep + f * eq;
+    double mix_bound = (1 - f) * bp + f * bq + 8e-16 * (std::fabs(ep) + std::fabs(eq));
     if (std::fabs(mix_estimate) > mix_bound) {
         r.blocks = (mix_estimate > 0 ? 1 : -1) == sp;
         return r;
     }
     exact::Expansion dp = exact::orient3d_exact(a, b, c, p), dq = exact::orient3d_exact(a, b, c, q);
-    exact::Expansion mix = exact::scaled_by_power_of_two(dq, self_shadow_fraction);
+    exact::add(dq, exact::negated(dp));
+    exact::Expansion mix = exact::scaled(exact::compressed(dq), f);
     exact::add(mix, dp);
-    exact::add(mix, exact::negated(exact::scaled_by_power_of_two(dp, self_shadow_fraction)));
     int s = exact::sign(mix);
+    r.blocks = s == 0 || s == sp;
+    return r;
+}
+
+// A sun: a light at infinity, given by `toward`, the direction from the scene toward it (any length above
+// zero). The query ray runs from p along it, p + t toward for t >= 0; contacts count from t >= from on, with
+// from = sun_from(toward, bias) = bias / |toward| computed as shadow_from computes it for L - p: the same
+// world-space bias. Every other rule is the point light's, the light taken as lying past every triangle:
+// a triangle blocks one-sided only when the sun is strictly behind it (toward points to the side its
+// counter-clockwise winding faces away from), a triangle parallel to the ray never blocks, touching
+// contacts block.
+inline double sun_from(const double* toward, double bias) {
+    const double dx = toward[0], dy = toward[1], dz = toward[2];
+    return bias / std::sqrt(std::fma(dz, dz, std::fma(dy, dy, dx * dx)));
+}
+
+// The ray p + t d (t >= from) against the closed triangle a, b, c, exactly (the sun's rules above; from is
+// sun_from's). With D(x) = orient3d(a, b, c, x) = N . (a - x), N = (b - a) x (c - a): D(p + t d) = D(p) +
+// t D_d with D_d = det(-d, b - a, c - a) = -N . d, the side the ray heads for.
+inline SegmentTest ray_triangle(const double* p, const double* d, const double* a, const double* b, const double* c,
+                                double from, bool two_sided = true) {
+    SegmentTest r;
+    const double minus_d[3] = {-d[0], -d[1], -d[2]};
+    const exact::Row side_rows[3] = {{minus_d, nullptr}, {b, a}, {c, a}};
+    double bp, bd, ep = exact::orient3d_estimate(a, b, c, p, bp), ed = exact::det3_estimate(side_rows, bd);
+    int sp = ep > bp ? 1 : -ep > bp ? -1 : exact::sign(exact::orient3d_exact(a, b, c, p));
+    int sd = ed > bd ? 1 : -ed > bd ? -1 : exact::sign(exact::det3_exact(side_rows));
+    if (!two_sided && sd != 1) return r;  // one-sided: the sun sees its front, or grazes its plane
+    if (sd == 0) return r;                // parallel to the plane: in it (edge-on) or never meeting it
+    if (sp == sd) return r;               // heading away from the plane
+    // The line must pass through the closed triangle: orient3d(p, p + d, u, v) = det(p - v, d, u - v) per
+    // edge u-v, no two of opposite strict signs.
+    auto edge = [&](const double* u, const double* v) {
+        const exact::Row rows[3] = {{p, v}, {d, nullptr}, {u, v}};
+        return exact::det3_sign(rows);
+    };
+    const int e0 = edge(a, b), e1 = edge(b, c), e2 = edge(c, a);
+    if ((e0 > 0 || e1 > 0 || e2 > 0) && (e0 < 0 || e1 < 0 || e2 < 0)) return r;
+    r.touching = sp == 0 || e0 == 0 || e1 == 0 || e2 == 0;
+    if (!(std::fabs(from) < INFINITY)) return r;  // not a number
+    if (sp == 0) return r.blocks = from <= 0, r;  // at the query point itself: t = 0
+    // The crossing is at t = -D(p) / D_d; it counts when t >= f, that is when D(p) + f D_d has D(p)'s sign or
+    // is zero. In double first, then exactly.
+    const double f = from;
+    const double mix_estimate = ep + f * ed, mix_bound = bp + f * bd + 4e-16 * (std::fabs(ep) + f * std::fabs(ed));
+    if (std::fabs(mix_estimate) > mix_bound) {
+        r.blocks = (mix_estimate > 0 ? 1 : -1) == sp;
+        return r;
+    }
+    exact::Expansion mix = exact::scaled(exact::compressed(exact::det3_exact(side_rows)), f);
+    exact::add(mix, exact::orient3d_exact(a, b, c, p));
+    const int s = exact::sign(mix);
     r.blocks = s == 0 || s == sp;
     return r;
 }
@@ -120,6 +193,11 @@ inline void apply_instance(const double* m, const double* p, double* out) {
     for (int k = 0; k < 3; ++k) out[k] = m[k] * p[0] + m[3 + k] * p[1] + m[6 + k] * p[2] + m[9 + k];
 }
 
+// The linear part of an instance transform applied to a direction (no translation).
+inline void apply_linear(const double* m, const double* d, double* out) {
+    for (int k = 0; k < 3; ++k) out[k] = m[k] * d[0] + m[3 + k] * d[1] + m[6 + k] * d[2];
+}
+
 // The instance transform a x b (both column-major 3x4): b applied first. Levels place baked instances with
 // it (Level::add_baked, level files); an engine that moves them composes the same way to get the same bits.
 inline void compose_instance(const double* a, const double* b, double* out) {
@@ -129,10 +207,60 @@ inline void compose_instance(const double* a, const double* b, double* out) {
                 a[k] * b[col * 3] + a[3 + k] * b[col * 3 + 1] + a[6 + k] * b[col * 3 + 2] + (col == 3 ? a[9 + k] : 0.0);
 }
 
+// Grows lo, hi (world space) by the box [box_lo, box_hi] of a mesh's frame placed by m (column-major 3x4): its
+// centre moved, its half extents through |M|. Singular or non-finite placements add nothing (they block
+// nothing). The scene's size for default_shadow_bias (asset_world_size, Level::shadow_bias).
+inline void add_placed_box(const double* box_lo, const double* box_hi, const double* m, double* lo, double* hi) {
+    double inverse[12];
+    if (!(box_lo[0] <= box_hi[0] && box_lo[1] <= box_hi[1] && box_lo[2] <= box_hi[2]) || !invert_instance(m, inverse))
+        return;
+    double c[3], h[3], wc[3];
+    for (int k = 0; k < 3; ++k) c[k] = 0.5 * (box_lo[k] + box_hi[k]), h[k] = 0.5 * (box_hi[k] - box_lo[k]);
+    apply_instance(m, c, wc);
+    for (int k = 0; k < 3; ++k) {
+        const double wh = std::fabs(m[k]) * h[0] + std::fabs(m[3 + k]) * h[1] + std::fabs(m[6 + k]) * h[2];
+        if (!std::isfinite(wc[k] - wh) || !std::isfinite(wc[k] + wh)) return;
+    }
+    for (int k = 0; k < 3; ++k) {
+        const double wh = std::fabs(m[k]) * h[0] + std::fabs(m[3 + k]) * h[1] + std::fabs(m[6 + k]) * h[2];
+        lo[k] = std::min(lo[k], wc[k] - wh), hi[k] = std::max(hi[k], wc[k] + wh);
+    }
+}
+
+// The largest side of a world box (0 when empty).
+inline double box_size(const double* lo, const double* hi) {
+    double size = 0;
+    for (int k = 0; k < 3; ++k) size = std::max(size, hi[k] - lo[k]);
+    return size;
+}
+
+// The mesh's box in its own frame, from its vertices (empty, lo > hi, without any).
+inline void mesh_box(const AssetView& v, const MeshRecord& mesh, double* lo, double* hi) {
+    for (int k = 0; k < 3; ++k) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (uint32_t i = 0; i < mesh.vertex_count; ++i) {
+        const float* p = v.position(mesh, i);
+        for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], double(p[k])), hi[k] = std::max(hi[k], double(p[k]));
+    }
+}
+
+// The largest side of the world box of every instance of the asset (add_placed_box of each mesh's box): the
+// size default_shadow_bias takes for the asset's own scene. A pass over the vertices, and one over the
+// instances per mesh (no allocation).
+inline double asset_world_size(const AssetView& v) {
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t m = 0; m < v.mesh_count; ++m) {
+        double mlo[3], mhi[3];
+        mesh_box(v, v.meshes[m], mlo, mhi);
+        for (uint32_t i = 0; i < v.instance_count; ++i)
+            if (v.instances[i].mesh == m) add_placed_box(mlo, mhi, v.instances[i].transform, lo, hi);
+    }
+    return box_size(lo, hi);
+}
+
 // Conservative: false only when the part of the segment p-q from parameter `from` to q (p + t (q - p),
 // from <= t <= 1) certainly misses the box. Clips that parameter range against each of the box's three
 // slabs (the box is their intersection), each slab widened by a margin far above the rounding of the dot
-// products and divisions, relative to the inputs' size. Shadow queries pass blocking_from.
+// products and divisions, relative to the inputs' size. Shadow queries pass blocking_start(from).
 inline bool segment_may_touch_box(const Obb& box, const double* p, const double* q, double from = 0) {
     double t0 = from, t1 = 1;
     double pc[3] = {p[0] - box.center[0], p[1] - box.center[1], p[2] - box.center[2]};
@@ -153,6 +281,19 @@ inline bool segment_may_touch_box(const Obb& box, const double* p, const double*
         if (t0 > t1) return false;
     }
     return true;
+}
+
+// The same for the ray p + t d, from <= t (a sun's query): false only when it certainly misses the box. Past
+// t = T = 2 (|p - centre|_1 + the half extents' sum) / |d| the ray is outside the box's bounding sphere, so
+// the segment from p to p + T d, from from / T of its way on, stands for it (the rounding of its far end,
+// 1e-16 of its size, is far inside segment_may_touch_box's margin).
+inline bool ray_may_touch_box(const Obb& box, const double* p, const double* d, double from = 0) {
+    const double reach = std::fabs(p[0] - box.center[0]) + std::fabs(p[1] - box.center[1]) +
+        std::fabs(p[2] - box.center[2]) + double(box.half[0]) + box.half[1] + box.half[2];
+    const double length = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]), far = 2 * reach / length;
+    if (!(far > 0 && far < INFINITY)) return true;  // no direction, no size or not finite: kept
+    const double q[3] = {p[0] + far * d[0], p[1] + far * d[1], p[2] + far * d[2]};
+    return segment_may_touch_box(box, p, q, from / far);
 }
 
 // True only when the light is clearly inside the cluster's front cone (the stored cone's cosine rounded up,

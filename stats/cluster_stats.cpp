@@ -118,7 +118,7 @@ void sample_shadow_volume(const MeshContext& ctx, const Obb& box, const double* 
             double c[3][3];
             for (int k = 0; k < 3; ++k)
                 for (int j = 0; j < 3; ++j) c[k][j] = pos[size_t(tri[size_t(t) * 3 + k]) * 3 + j];
-            shadowed = segment_triangle(p, light, c[0], c[1], c[2]).blocks;
+            shadowed = segment_triangle(p, light, c[0], c[1], c[2], shadow_from(p, light, 0.0)).blocks;
         }
         out.useless += shadowed ? 0 : 1;
     }

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cb_asset.h>
+#include <cb_segment.h>
 
 #include <string>
 #include <vector>
@@ -36,5 +37,9 @@ inline Baked bake_scene(const cb::Scene& scene, const cb::ClusterOptions& cluste
 }
 
 inline Baked bake(const std::string& file) { return bake_scene(cb::load_scene(file)); }
+
+// The self-shadowing bias an InstanceShadow of the asset takes by default (ShadowBuildOptions::bias zero),
+// worked out once: tests give it to their builds and to the oracle.
+inline double asset_bias(const cb::AssetView& v) { return cb::default_shadow_bias(cb::asset_world_size(v)); }
 
 }  // namespace cb::test

@@ -207,12 +207,14 @@ std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle
     using cb::Traversal;
     std::vector<cb::InstanceShadow> scan(v.instance_count), two(v.instance_count), one(v.instance_count),
         metric(v.instance_count), metric2(v.instance_count);
+    const double bias = cb::test::asset_bias(v);
     for (uint32_t i = 0; i < v.instance_count; ++i) {
-        scan[i].build(v, i, light.at.data(), {.traversal = Traversal::scan, .one_sided = one_sided});
-        two[i].build(v, i, light.at.data(), {.traversal = Traversal::trees, .one_sided = one_sided});
-        one[i].build(v, i, light.at.data(), {.traversal = Traversal::one_tree, .one_sided = one_sided});
-        metric[i].build(v, i, light.at.data(), {.traversal = Traversal::mtsv, .one_sided = one_sided});
-        metric2[i].build(v, i, light.at.data(), {.traversal = Traversal::mtsv_two, .one_sided = one_sided});
+        const double* at = light.at.data();
+        scan[i].build(v, i, at, {.traversal = Traversal::scan, .one_sided = one_sided, .bias = bias});
+        two[i].build(v, i, at, {.traversal = Traversal::trees, .one_sided = one_sided, .bias = bias});
+        one[i].build(v, i, at, {.traversal = Traversal::one_tree, .one_sided = one_sided, .bias = bias});
+        metric[i].build(v, i, at, {.traversal = Traversal::mtsv, .one_sided = one_sided, .bias = bias});
+        metric2[i].build(v, i, at, {.traversal = Traversal::mtsv_two, .one_sided = one_sided, .bias = bias});
     }
     std::vector<Answer> answers(points.size());
     parallel(points.size(), threads, [&](size_t begin, size_t end) {
@@ -238,7 +240,7 @@ std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle
                 answers[k].walk = answers[k].walk || tree.occluded(p, scratch.data());
             for (const cb::InstanceShadow& tree : two)
                 answers[k].walk2 = answers[k].walk2 || tree.occluded(p, scratch.data());
-            answers[k].reference = cb::occluded_reference(v, p, light.at.data(), one_sided);
+            answers[k].reference = cb::occluded_reference(v, p, light.at.data(), bias, one_sided);
             answers[k].exact = oracle.occluded(p, light.at.data(), one_sided);
             if (brute_every && k % brute_every == 0) {
                 cb::test::OracleAnswer b = oracle.occluded_brute_force(p, light.at.data(), one_sided);
@@ -294,7 +296,7 @@ Tally check_scene(const std::string& name, const cb::Scene& scene, size_t budget
         note += " bake-failed";
         return {};
     }
-    SceneOracle oracle(scene);
+    SceneOracle oracle(scene, cb::test::asset_bias(b.view));
     WorldSample w = cb::test::sample_scene(scene, 1);
     double size = w.size() > 0 ? w.size() : 1.0;
     cb::test::PlaneLight plane;

@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
         return 1;
     }
     const double light[3] = {-4, 30, 2}, under[3] = {-4, 0.05, 2}, above[3] = {-4, 5, 2};
-    bool a = cb::occluded_reference(view, under, light), b = cb::occluded_reference(view, above, light);
+    bool a = cb::occluded_reference(view, under, light, 0.0), b = cb::occluded_reference(view, above, light, 0.0);
     std::printf("under the blob: %s, above it: %s\n", a ? "shadow" : "lit", b ? "shadow" : "lit");
     // The same two points through a level holding the asset's instances as baked.
     cb::Level level;

@@ -155,7 +155,9 @@ inline std::vector<std::array<double, 3>> through_points(const cb::Scene& scene,
 
 class SceneOracle {
 public:
-    explicit SceneOracle(const cb::Scene& scene) {
+    // `bias`: the self-shadowing bias the runtime's answers to compare with used (cb::Level::shadow_bias, or
+    // cb::default_shadow_bias of cb::asset_world_size for an asset's InstanceShadows).
+    SceneOracle(const cb::Scene& scene, double bias) : bias_(bias) {
         for (const cb::Mesh& m : scene.meshes) meshes_.push_back(build_mesh(m));
         for (const cb::Instance& i : scene.instances) {
             Frame f;
@@ -175,6 +177,15 @@ public:
     // The same answer from every triangle of every instance, without the trees: to check the trees' candidates.
     OracleAnswer occluded_brute_force(const double* p, const double* light, bool one_sided) const {
         return answer(p, light, one_sided, false);
+    }
+
+    // Is p in the shadow of the sun in direction `toward` (cb::ray_triangle's semantics)? With the trees, or
+    // from every triangle.
+    OracleAnswer occluded_sun(const double* p, const double* toward, bool one_sided) const {
+        return answer(p, toward, one_sided, true, true);
+    }
+    OracleAnswer occluded_sun_brute_force(const double* p, const double* toward, bool one_sided) const {
+        return answer(p, toward, one_sided, false, true);
     }
 
     // The first surface point along a world ray (double constructions: near the surface, not on it).
@@ -252,8 +263,12 @@ private:
     // Every instance: p and the light taken into the mesh frame exactly as the runtime maps them, then each
     // candidate triangle decided exactly. Candidates: those the AABB tree says the closed segment meets, or
     // (brute force) all of them.
-    OracleAnswer answer(const double* p, const double* light, bool one_sided, bool use_trees) const {
+    // A sun (`sun`): `light` is its direction, the ray taken into each mesh frame by the transform's linear part.
+    OracleAnswer answer(const double* p, const double* light, bool one_sided, bool use_trees, bool sun = false) const {
         OracleAnswer a;
+        // In world space: the same at every instance.
+        const double from = sun ? oracle_sun_from(light, bias_) : oracle_from(p, light, bias_);
+        if (!(sun ? std::isfinite(from) : from <= 1)) return a;  // within the bias of the light, or not finite
         bool blocked_by_a_crossing = false;
         std::vector<size_t> candidates;
         for (const Frame& f : frames_) {
@@ -261,14 +276,23 @@ private:
             if (!f.usable || m.triangles.empty()) continue;  // a singular transform flattens the mesh
             double lp[3], ll[3];
             cb::apply_instance(f.to_mesh.data(), p, lp);
-            cb::apply_instance(f.to_mesh.data(), light, ll);
-            // p at the light: no plane separates the ends, nothing blocks (and CGAL wants a real segment).
-            if (lp[0] == ll[0] && lp[1] == ll[1] && lp[2] == ll[2]) continue;
+            if (sun)
+                cb::apply_linear(f.to_mesh.data(), light, ll);
+            else
+                cb::apply_instance(f.to_mesh.data(), light, ll);
+            // p at the light, or a sun without a direction: nothing blocks (and CGAL wants a real segment).
+            if (sun ? ll[0] == 0 && ll[1] == 0 && ll[2] == 0 : lp[0] == ll[0] && lp[1] == ll[1] && lp[2] == ll[2])
+                continue;
             candidates.clear();
             if (use_trees) {
-                Epick::Segment_3 s(Epick::Point_3(lp[0], lp[1], lp[2]), Epick::Point_3(ll[0], ll[1], ll[2]));
                 std::vector<Triangles::const_iterator> met;
-                m.tree.all_intersected_primitives(s, std::back_inserter(met));
+                const Epick::Point_3 start(lp[0], lp[1], lp[2]);
+                if (sun)
+                    m.tree.all_intersected_primitives(Epick::Ray_3(start, Epick::Vector_3(ll[0], ll[1], ll[2])),
+                                                      std::back_inserter(met));
+                else
+                    m.tree.all_intersected_primitives(Epick::Segment_3(start, Epick::Point_3(ll[0], ll[1], ll[2])),
+                                                      std::back_inserter(met));
                 for (Triangles::const_iterator t : met) candidates.push_back(size_t(t - m.triangles.begin()));
             } else {
                 for (size_t k = 0; k < m.triangles.size(); ++k) candidates.push_back(k);
@@ -278,7 +302,9 @@ private:
                 for (int v = 0; v < 3; ++v)
                     for (int j = 0; j < 3; ++j)
                         c[v][j] = CGAL::to_double(m.triangles[k].vertex(v)[j]);  // doubles from floats: exact
-                cb::SegmentTest r = oracle(lp, ll, c[0], c[1], c[2], !one_sided || m.double_sided[k]);
+                const bool two_sided = !one_sided || m.double_sided[k];
+                cb::SegmentTest r = sun ? oracle_ray(lp, ll, c[0], c[1], c[2], from, two_sided)
+                                        : oracle(lp, ll, c[0], c[1], c[2], from, two_sided);
                 a.touching |= r.touching;
                 a.blocked |= r.blocks;
                 blocked_by_a_crossing |= r.blocks && !r.touching;
@@ -290,6 +316,7 @@ private:
 
     std::vector<std::unique_ptr<MeshTree>> meshes_;
     std::vector<Frame> frames_;
+    double bias_;
 };
 
 }  // namespace cb::test

@@ -225,6 +225,37 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
 
 // A level file in place of the asset: paths relative to it, each asset opened once, every traversal giving
 // the reference's answers; a glTF translation, rotation and scale meaning what the equal matrix means.
+TEST(Cli, QueryBiasIsAWorldDistance) {
+    // A square roof 1 above the ground and points 0.01 under it: with --bias 0.001 the roof shadows them
+    // however far the light, with --bias 0.02 it does not; a bias that is not a distance is refused.
+    const auto dir = std::filesystem::temp_directory_path() / ("cb_cli_bias_" + std::to_string(getpid()));
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    const std::string obj = (dir / "roof.obj").string(), asset = (dir / "roof.cbk").string(),
+                      pts = (dir / "points.txt").string();
+    std::ofstream(obj) << "v -1 1 -1\nv 1 1 -1\nv 1 1 1\nv -1 1 1\nf 1 2 3\nf 1 3 4\n";
+    std::ofstream(pts) << "0.1 0.99 0.2\n-0.3 0.99 -0.4\n0.5 0.99 0.5\n";
+    ASSERT_EQ(run("bake " + obj + " -o " + asset).code, 0);
+    for (const char* light : {"0,10,0", "0,1e7,0", "3,1e9,2"}) {
+        SCOPED_TRACE(light);
+        const std::string q = "query " + asset + " --points " + pts + " --light " + light;
+        EXPECT_EQ(run(q + " --bias 0.001").out, "1\n1\n1\n");
+        EXPECT_EQ(run(q + " --bias 0.02").out, "0\n0\n0\n");
+        EXPECT_EQ(run(q + " --bias 0.001 --reference").out, "1\n1\n1\n");
+        EXPECT_EQ(run(q).out, "1\n1\n1\n");  // the default: 2 / 65536 for this 2-wide roof
+    }
+    CliRun json = run("query " + asset + " --points " + pts + " --light 0,10,0 --json");
+    const size_t at = json.out.find("\"bias\":");
+    ASSERT_NE(at, std::string::npos) << json.out;
+    EXPECT_NEAR(std::stod(json.out.substr(at + 7)), 2.0 / 65536, 1e-12);  // the hierarchy's boxes are padded
+    for (const char* bad : {"-1", "nan", "inf"}) {
+        CliRun r = run("query " + asset + " --points " + pts + " --light 0,10,0 --bias " + bad);
+        EXPECT_EQ(r.code, 2) << bad;
+        EXPECT_NE(r.err.find("--bias"), std::string::npos) << r.err;
+    }
+    std::filesystem::remove_all(dir);
+}
+
 TEST(Cli, QueryTakesALevelFile) {
     const auto dir = std::filesystem::temp_directory_path() / ("cb_cli_level_" + std::to_string(getpid()));
     std::filesystem::remove_all(dir);

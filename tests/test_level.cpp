@@ -107,7 +107,7 @@ TEST(Level, CityAnswersEqualTheExactOracle) {
     cb::Level& level = c->level;
     ASSERT_GT(baked.view.mesh_count, 0u);
     EXPECT_EQ(level.instance_count(), city.instances.size());
-    const SceneOracle oracle(city);
+    const SceneOracle oracle(city, level.shadow_bias());
     const Points p = level_points(city, 3000, 5);
     const double lights[][3] = {
         {40, 30, 120}, {-500, 20, 30}, {3, -4, 12}, {2000, 1500, 1}};  // overhead, low, inside, grazing
@@ -152,7 +152,7 @@ TEST(Level, MovedRemovedAndAddedInstancesOfTwoAssets) {
     const double light[3] = {60, 80, 90};
     for (int frame = 0; frame < 3; ++frame) {
         const cb::Scene world = oracle_scene(level, {&city, &towers});
-        const SceneOracle oracle(world);
+        const SceneOracle oracle(world, level.shadow_bias());
         const Points p = level_points(world, 1500, 11 + frame);
         for (cb::Traversal t : {cb::Traversal::scan, cb::Traversal::trees, cb::Traversal::mtsv_two})
             for (bool one_sided : {false, true})
@@ -197,11 +197,52 @@ TEST(Level, SingularAndFarInstancesBlockNothingOrAnswerExactly) {
     level.add_instance(asset, 0, flat);
     level.commit();
     const cb::Scene world = oracle_scene(level, {&towers});
-    const SceneOracle oracle(world);
+    const SceneOracle oracle(world, level.shadow_bias());
     const Points p = level_points(world, 500, 3);
     const double light[3] = {far + 100, far + 30, 60};
     for (cb::Traversal t : all_traversals)
         EXPECT_EQ(disagreements(oracle, light, p, answer(level, light, p, t, false), false), 0u) << int(t);
+}
+
+TEST(Level, ShadowsSettleAsTheLightMovesAway) {
+    // The self-shadowing bias is a world distance: a light moved away in one direction, from 100 m to
+    // 10,000 km, keeps the walls' and roofs' shadows, and the shadowed share settles to the far limit instead
+    // of falling (a bias in proportion to the light's distance would lose them all).
+    const std::unique_ptr<CityLevel> c = city_level(40, 5);
+    cb::Level& level = c->level;
+    const Points p = level_points(c->city, 3000, 21);
+    const cb::test::WorldSample w = cb::test::sample_scene(c->city, 1);
+    const double centre[3] = {0.5 * (w.lo[0] + w.hi[0]), 0.5 * (w.lo[1] + w.hi[1]), 0.5 * (w.lo[2] + w.hi[2])};
+    const double dl = std::sqrt(0.5 * 0.5 + 0.3 * 0.3 + 0.8 * 0.8), dir[3] = {0.5 / dl, 0.3 / dl, 0.8 / dl};
+    std::vector<double> share;
+    for (double distance : {1e2, 1e3, 1e4, 1e5, 1e6, 1e7}) {
+        const double light[3] = {centre[0] + distance * dir[0], centre[1] + distance * dir[1],
+                                 centre[2] + distance * dir[2]};
+        const std::vector<uint8_t> got = answer(level, light, p, cb::Traversal::scan, false);
+        size_t dark = 0;
+        for (uint8_t g : got) dark += g;
+        share.push_back(double(dark) / double(p.size()));
+        std::printf("light at %.0e m: %.2f%% of %zu points in shadow\n", distance, 100 * share.back(), p.size());
+        if (distance >= 1e6) {  // exact there too, by every traversal
+            const SceneOracle oracle(c->city, level.shadow_bias());
+            for (cb::Traversal t : all_traversals)
+                EXPECT_EQ(disagreements(oracle, light, p, answer(level, light, p, t, false), false), 0u)
+                    << distance << " m, traversal " << int(t);
+        }
+    }
+    // The sun in that direction: its exact reference answers (the ray from each point, the same bias) give
+    // the share the far lights settle to.
+    size_t sun_dark = 0;
+    const double bias = level.shadow_bias();
+    for (const auto& q : p) sun_dark += cb::occluded_sun_reference(level, q.data(), dir, bias);
+    const double sun_share = double(sun_dark) / double(p.size());
+    std::printf("the sun: %.2f%% in shadow\n", 100 * sun_share);
+    EXPECT_LT(std::fabs(share[5] - sun_share), 0.002);
+    EXPECT_LT(std::fabs(share[3] - sun_share), 0.01);
+    EXPECT_GT(share.back(), 0.1);                      // the far light still casts shadows
+    EXPECT_LT(std::fabs(share[5] - share[4]), 0.002);  // settled: 1,000 km and 10,000 km agree
+    EXPECT_LT(std::fabs(share[5] - share[3]), 0.01);   // and 100 km nearly
+    EXPECT_GT(share[3], share[5] - 0.01);              // nothing lost on the way out
 }
 
 TEST(Level, ConcurrentQueriesFromEightThreadsGiveTheSingleThreadedAnswers) {

@@ -104,12 +104,14 @@ struct Tally {
 void check_light(const cb::AssetView& v, const double* light, const std::vector<double>& points,
                  const std::vector<uint8_t>& exact, bool one_sided, Tally& t) {
     const size_t n = exact.size();
+    const double bias = cb::test::asset_bias(v);
     for (const Variant& variant : variants) {
         std::vector<cb::InstanceShadow> trees(v.instance_count);
         for (uint32_t i = 0; i < v.instance_count; ++i) {
             trees[i].build(v, i, light,
                            {.traversal = variant.traversal,
                             .one_sided = one_sided,
+                            .bias = bias,
                             .capsule_ratio = variant.capsule_ratio,
                             .metric_build = variant.build});
         }
@@ -151,7 +153,7 @@ TEST(MetricTree, AnswersAreTheExactOraclesOnSharedScenes) {
         for (uint32_t bounds : {all_volumes, cb::bounds_auto}) {  // fitted spheres and capsules; about the boxes
             Baked b = bake_file(file, bounds);
             ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
-            SceneOracle oracle(b.scene);
+            SceneOracle oracle(b.scene, cb::test::asset_bias(b.view));
             WorldSample w = cb::test::sample_scene(b.scene, 1);
             std::mt19937 rng(23);
             const size_t n = b.view.triangle_count > 20000 ? 150 : 300;
@@ -209,7 +211,7 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
         for (uint32_t bounds : {all_volumes, cb::bounds_auto}) {
             Baked b = bake_mesh(c.positions, c.indices, bounds);
             ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
-            SceneOracle oracle(b.scene);
+            SceneOracle oracle(b.scene, cb::test::asset_bias(b.view));
             WorldSample w = cb::test::sample_scene(b.scene, 1);
             for (const auto& light : c.lights) {
                 std::vector<double> points;

@@ -74,7 +74,7 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
         SCOPED_TRACE(file.path);
         cb::test::Baked b = cb::test::bake(file.path);
         ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
-        SceneOracle fast(b.scene);
+        SceneOracle fast(b.scene, cb::test::asset_bias(b.view));
         WorldSample w = cb::test::sample_scene(b.scene, 1);
         double size = w.size();
         std::mt19937 rng(41);
@@ -129,10 +129,11 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
 // The oracle finds p blocked by a proper crossing (no touching contact), two-sided; the reference walk and
 // every tree structure of instance 0 agree.
 static void expect_blocked_by_a_crossing(const cb::test::Baked& b, const double* p, const double* light) {
-    cb::test::OracleAnswer exact = SceneOracle(b.scene).occluded(p, light, false);
+    const double bias = cb::test::asset_bias(b.view);
+    cb::test::OracleAnswer exact = SceneOracle(b.scene, bias).occluded(p, light, false);
     EXPECT_TRUE(exact.blocked);
     EXPECT_FALSE(exact.touching);
-    EXPECT_TRUE(cb::occluded_reference(b.view, p, light, false));
+    EXPECT_TRUE(cb::occluded_reference(b.view, p, light, bias, false));
     using cb::Traversal;
     for (Traversal traversal :
          {Traversal::scan, Traversal::trees, Traversal::one_tree, Traversal::mtsv, Traversal::mtsv_two}) {

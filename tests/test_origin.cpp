@@ -390,7 +390,7 @@ void check_shadows(const Source& base, const char* what, cb::FileFormat format) 
         cb::test::Baked baked = cb::test::bake_scene(scene);
         ASSERT_GT(baked.view.mesh_count, 0u);
         cb::SceneQueryResult r = cb::query_scene(baked.view, light, points.data(), points.size() / 3);
-        cb::test::SceneOracle oracle(scene);
+        cb::test::SceneOracle oracle(scene, r.bias);
         size_t differ = 0, behind_lit = 0;
         for (size_t i = 0; i < points.size() / 3; ++i) {
             differ += r.shadowed[i] != oracle.occluded(&points[i * 3], light, false).blocked;

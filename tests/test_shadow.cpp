@@ -136,8 +136,12 @@ TEST(Exact, SegmentTestAgreesWithCgalOracle) {
             for (int k = 0; k < 3; ++k) p[k] = a[k] + s * (b[k] - a[k]) + t * (c[k] - a[k]);
         }
         bool two_sided = i % 3 != 2;
-        cb::SegmentTest ours = cb::segment_triangle(p, q, a, b, c, two_sided),
-                        theirs = oracle(p, q, a, b, c, two_sided);
+        // Where contacts start: powers of two and not, tiny and large, zero (a point on the triangle then
+        // shadows itself), past the light, and the rule's own value for a bias.
+        const double froms[] = {1.0 / 8192, 0.3, 1e-9 * (1 + std::fabs(u(rng))), 0.0, 1.0, 1.5, 0.125 + 1e-3 * u(rng)};
+        const double from = i % 8 == 7 ? cb::shadow_from(p, q, 0.05) : froms[i % 8];
+        cb::SegmentTest ours = cb::segment_triangle(p, q, a, b, c, from, two_sided),
+                        theirs = oracle(p, q, a, b, c, from, two_sided);
         ASSERT_EQ(ours.blocks, theirs.blocks) << "case " << i;
         ASSERT_EQ(ours.touching, theirs.touching) << "case " << i;
         touching += ours.touching;
@@ -145,6 +149,41 @@ TEST(Exact, SegmentTestAgreesWithCgalOracle) {
         ++checked;
     }
     std::printf("%zu segment tests: %zu block, %zu touching\n", checked, blocks, touching);
+    EXPECT_GT(touching, 1000u);
+    EXPECT_GT(blocks, 1000u);
+}
+
+TEST(Exact, RayTestAgreesWithCgalOracle) {
+    // The sun's ray test (cb::ray_triangle) against CGAL's exact ray-triangle intersection: random and grid
+    // cases, the point on the triangle, the ray parallel to the triangle's plane (in it, or beside it), and
+    // `from` tiny, a power of two or not, zero and large (a ray has no far end).
+    std::mt19937 rng(19);
+    std::uniform_int_distribution<int> grid(-3, 3);
+    std::uniform_real_distribution<double> u(-2, 2);
+    size_t touching = 0, blocks = 0, parallel = 0;
+    for (int i = 0; i < 60000; ++i) {
+        double p[3], d[3], a[3], b[3], c[3];
+        const bool on_grid = i % 2 == 0;
+        for (double* v : {p, d, a, b, c})
+            for (int k = 0; k < 3; ++k) v[k] = on_grid ? grid(rng) : u(rng);
+        if (i % 6 == 1) {  // the point on the triangle
+            const double s = (i % 5) * 0.125, t = (i % 3) * 0.25;
+            for (int k = 0; k < 3; ++k) p[k] = a[k] + s * (b[k] - a[k]) + t * (c[k] - a[k]);
+        }
+        if (i % 7 == 3) {  // the ray parallel to the plane: along an edge, or a sum of two (exact on the grid)
+            for (int k = 0; k < 3; ++k) d[k] = i % 2 ? b[k] - a[k] : (b[k] - a[k]) + (c[k] - a[k]);
+            ++parallel;
+        }
+        const bool two_sided = i % 3 != 2;
+        const double froms[] = {1.0 / 8192, 0.3, 1e-9 * (1 + std::fabs(u(rng))), 0.0, 7.5, 0.125 + 1e-3 * u(rng)};
+        const double from = i % 7 == 6 ? cb::sun_from(d, 0.05) : froms[i % 6];
+        const cb::SegmentTest ours = cb::ray_triangle(p, d, a, b, c, from, two_sided),
+                              theirs = cb::test::oracle_ray(p, d, a, b, c, from, two_sided);
+        ASSERT_EQ(ours.blocks, theirs.blocks) << "case " << i;
+        ASSERT_EQ(ours.touching, theirs.touching) << "case " << i;
+        touching += ours.touching, blocks += ours.blocks;
+    }
+    std::printf("60000 ray tests (%zu parallel to the plane): %zu block, %zu touching\n", parallel, blocks, touching);
     EXPECT_GT(touching, 1000u);
     EXPECT_GT(blocks, 1000u);
 }
@@ -159,8 +198,9 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
         Baked b = bake(file);
         ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
         const cb::AssetView& v = b.view;
+        const double bias = cb::test::asset_bias(v);  // the builds' default
         WorldSample world = sample_scene(b.scene, 3);
-        SceneOracle exact_oracle(b.scene);
+        SceneOracle exact_oracle(b.scene, bias);
         const double *lo = world.lo, *hi = world.hi;
         const auto& surface = world.surface;
         double size = world.size();
@@ -189,13 +229,13 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
                 }
                 for (bool one_sided : {false, true}) {
                     cb::QueryStats stats;
-                    bool ours = cb::occluded_reference(v, p, light, one_sided, &stats);
+                    bool ours = cb::occluded_reference(v, p, light, bias, one_sided, &stats);
                     cb::test::OracleAnswer exact_answer = exact_oracle.occluded(p, light, one_sided);
                     bool exact = exact_answer.blocked;
                     disagreements += ours != exact;
                     touching += exact_answer.touching;
                     shadowed += exact;
-                    one_sided_differs += one_sided && ours != cb::occluded_reference(v, p, light, false);
+                    one_sided_differs += one_sided && ours != cb::occluded_reference(v, p, light, bias, false);
                     ++queries;
                 }
             }
@@ -297,6 +337,7 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
         Baked b = bake(file);
         ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
         const cb::AssetView& v = b.view;
+        const double bias = cb::test::asset_bias(v);  // the builds' default
         WorldSample world = sample_scene(b.scene, 1);
         const double *lo = world.lo, *hi = world.hi;
         const auto& surface = world.surface;
@@ -345,7 +386,7 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
                         tree = true;
                         break;
                     }
-                bool reference = cb::occluded_reference(v, p, light, one_sided, &r);
+                bool reference = cb::occluded_reference(v, p, light, bias, one_sided, &r);
                 disagreements += tree != reference;
                 shadowed += reference;
                 tested_tree += a.triangles_tested, tested_reference += r.triangles_tested;
@@ -408,6 +449,7 @@ TEST(Shadow, PointsAndLightsThatAreNotFiniteAreNeverInShadow) {
     Baked b = bake(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
     ASSERT_GT(b.view.mesh_count, 0u);
     const cb::AssetView& v = b.view;
+    const double bias = cb::test::asset_bias(v);  // the builds' default
     WorldSample world = sample_scene(b.scene, 1);
     const double light[3] = {world.lo[0] - world.size(), world.hi[1] + 2 * world.size(), world.lo[2]};
     std::vector<double> points;
@@ -431,7 +473,7 @@ TEST(Shadow, PointsAndLightsThatAreNotFiniteAreNeverInShadow) {
         EXPECT_GT(shadowed, 0u);  // the finite points are really answered
         for (size_t k = n - 4; k < n; ++k) {
             EXPECT_EQ(out[k], 0) << k;
-            EXPECT_FALSE(cb::occluded_reference(v, &points[k * 3], light));
+            EXPECT_FALSE(cb::occluded_reference(v, &points[k * 3], light, bias));
             for (const cb::InstanceShadow& t : trees) EXPECT_FALSE(t.occluded(&points[k * 3], scratch.data()));
         }
         const double nan_light[3] = {0, NAN, 0};
@@ -439,7 +481,7 @@ TEST(Shadow, PointsAndLightsThatAreNotFiniteAreNeverInShadow) {
         dark.build(v, 0, nan_light, {.traversal = traversal});
         EXPECT_EQ(dark.node_count(), 0u);
         EXPECT_FALSE(dark.occluded(&points[0], scratch.data()));
-        EXPECT_FALSE(cb::occluded_reference(v, &points[0], nan_light));
+        EXPECT_FALSE(cb::occluded_reference(v, &points[0], nan_light, bias));
     }
 }
 
@@ -504,6 +546,7 @@ TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
                                    /*fine_bounds=*/false);
     ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
     const cb::AssetView& v = b.view;
+    const double bias = cb::test::asset_bias(v);  // the builds' default
     ASSERT_TRUE(v.coarse_bounds.obbs != nullptr);
     ASSERT_TRUE(v.fine_bounds.obbs == nullptr);
     WorldSample world = sample_scene(b.scene, 1);
@@ -523,7 +566,7 @@ TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
     const double light[3] = {-4, 30, 2};
     std::vector<uint8_t> reference(n);
     size_t shadowed = 0;
-    for (size_t k = 0; k < n; ++k) shadowed += reference[k] = cb::occluded_reference(v, &points[k * 3], light);
+    for (size_t k = 0; k < n; ++k) shadowed += reference[k] = cb::occluded_reference(v, &points[k * 3], light, bias);
     EXPECT_GT(shadowed, 50u);
     using Level = cb::Traversal;
     for (Level level : {Level::scan, Level::trees, Level::one_tree, Level::mtsv, Level::mtsv_two}) {
@@ -593,6 +636,80 @@ Baked bumpy_grid(double offset, double dx, double dy, double height, double wave
 
 }  // namespace
 
+TEST(Shadow, SunReferenceAgreesWithExactOracle) {
+    // Suns over the default scene, the hard cases (flat grids at the origin and 1e6 from it, layers 1e-12 and
+    // 1e-23 apart, needles) and shared scenes when present: overhead, low, grazing a flat grid (1e-9 off its
+    // plane), exactly in a triangle's plane (points on faces parallel to the sun), and along a triangle's
+    // edge; points on the surfaces, in the grids' plane, and around; both modes.
+    std::vector<std::pair<std::string, Baked>> scenes;
+    scenes.emplace_back("default scene", bake(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb"));
+    for (const cb::test::HardCase& c : {cb::test::flat_grid(0), cb::test::flat_grid(1e6), cb::test::two_layers(1e-12),
+                                        cb::test::two_layers(1e-23), cb::test::needles()})
+        scenes.emplace_back(c.name, bake_mesh(c.positions, c.indices));
+    for (const char* f : {"scanned/bunny_npm.obj", "hard/tube.obj", "hard/v405.off"})
+        if (fs::exists(fs::path(CB_SHARED_DATA) / f))
+            scenes.emplace_back(f, bake((fs::path(CB_SHARED_DATA) / f).string()));
+        else
+            std::printf("skipped %s: ../shared/data is not here\n", f);
+    std::mt19937 rng(43);
+    std::uniform_real_distribution<double> u(-1, 1);
+    size_t queries = 0, wrong = 0, shadowed = 0, touching = 0, brute_wrong = 0;
+    for (const auto& [name, b] : scenes) {
+        SCOPED_TRACE(name);
+        ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
+        const cb::AssetView& v = b.view;
+        const double bias = cb::test::asset_bias(v);
+        const SceneOracle oracle(b.scene, bias);
+        const WorldSample world = sample_scene(b.scene, 1);
+        // A triangle of the first instance, in world space: its plane and edge give the exact suns.
+        const cb::MeshRecord& m0 = v.meshes[v.instances[0].mesh];
+        uint32_t id[3];
+        v.triangle(m0, 0, 0, id);
+        double corner[3][3];
+        for (int k = 0; k < 3; ++k) {
+            const double local[3] = {v.position(m0, id[k])[0], v.position(m0, id[k])[1], v.position(m0, id[k])[2]};
+            cb::apply_instance(v.instances[0].transform, local, corner[k]);
+        }
+        double edge[3], across[3], in_plane[3];
+        for (int k = 0; k < 3; ++k) edge[k] = corner[1][k] - corner[0][k], across[k] = corner[2][k] - corner[0][k];
+        for (int k = 0; k < 3; ++k) in_plane[k] = edge[k] + across[k];
+        const double suns[][3] = {{0.1, 1, 0.2},
+                                  {0.2, 0.3, 1},
+                                  {1, 1e-9, 0.4},
+                                  {1, 0.4, 1e-9},
+                                  {in_plane[0], in_plane[1], in_plane[2]},
+                                  {edge[0], edge[1], edge[2]}};
+        for (const auto& sun : suns)
+            for (int k = 0; k < 120; ++k) {
+                double p[3];
+                if (k % 3 == 0) {
+                    const auto& s = world.surface[size_t(k) * 7919 % world.surface.size()];
+                    p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                } else if (k % 3 == 1) {  // on the first triangle's plane (to rounding), in and beyond it
+                    const double s = 1.5 * std::fabs(u(rng)), t = 1.5 * std::fabs(u(rng));
+                    for (int j = 0; j < 3; ++j) p[j] = corner[0][j] + s * edge[j] + t * across[j];
+                } else {
+                    for (int j = 0; j < 3; ++j)
+                        p[j] = 0.5 * (world.lo[j] + world.hi[j]) + (world.hi[j] - world.lo[j] + 1) * u(rng);
+                }
+                for (bool one_sided : {false, true}) {
+                    const bool ours = cb::occluded_sun_reference(v, p, sun, bias, one_sided);
+                    const cb::test::OracleAnswer exact = oracle.occluded_sun(p, sun, one_sided);
+                    wrong += ours != exact.blocked;
+                    shadowed += exact.blocked, touching += exact.touching, ++queries;
+                    if (k % 10 == 0)
+                        brute_wrong += oracle.occluded_sun_brute_force(p, sun, one_sided).blocked != exact.blocked;
+                }
+            }
+    }
+    std::printf("%zu sun queries on %zu scenes: %zu in shadow, %zu touching; %zu disagreements\n", queries,
+                scenes.size(), shadowed, touching, wrong);
+    EXPECT_EQ(wrong, 0u);
+    EXPECT_EQ(brute_wrong, 0u);
+    EXPECT_GT(shadowed, queries / 20);  // 9.6% on the scenes of this repository alone
+    EXPECT_GT(touching, 10u);
+}
+
 TEST(Shadow, HardCasesAgreeWithTheOracle) {
     std::mt19937 rng(31);
     std::uniform_real_distribution<double> u(-1, 1);
@@ -606,8 +723,9 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
         Baked b = bake_mesh(c.positions, c.indices);
         ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
         const cb::AssetView& v = b.view;
+        const double bias = cb::test::asset_bias(v);  // the builds' default
         WorldSample world = sample_scene(b.scene, 1);
-        SceneOracle exact_oracle(b.scene);
+        SceneOracle exact_oracle(b.scene, bias);
         for (const auto& light : c.lights)
             for (int variant = 0; variant < 10; ++variant) {  // scan, trees, one tree, mtsv, mtsv two levels
                 bool one_sided = variant % 2 == 1;
@@ -638,7 +756,7 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                     }
                     cb::test::OracleAnswer exact_answer = exact_oracle.occluded(p, light.data(), one_sided);
                     bool exact = exact_answer.blocked;
-                    bool ref = cb::occluded_reference(v, p, light.data(), one_sided);
+                    bool ref = cb::occluded_reference(v, p, light.data(), bias, one_sided);
                     bool fast = tree.occluded(p, stack.data());
                     disagreements += ref != exact;
                     tree_disagreements += fast != exact;
@@ -744,9 +862,9 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
             }
             // 64 points, each a positive mix of the float rays (each weight at least 1/100 of the largest).
             double p[64][3];
-            alignas(64) float ex[64], ey[64], ez[64], vl[64];
-            double l1[64];
-            const double reach = std::pow(10.0, -2 + 3 * u(rng));
+            alignas(64) float ex[64], ey[64], ez[64], vl[64], keep[64];
+            double l1[64], from[64];
+            const double reach = std::pow(10.0, -2 + 3 * u(rng)), bias = 1e-4 * reach * u(rng);
             for (int i = 0; i < 64; ++i) {
                 double w[4], e[3] = {0, 0, 0};
                 for (double& q : w) q = (0.01 + u(rng)) * reach;
@@ -755,9 +873,10 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
                 const double f0 = p[i][0] - light[0], f1 = p[i][1] - light[1], f2 = p[i][2] - light[2];
                 ex[i] = float(f0), ey[i] = float(f1), ez[i] = float(f2);
                 l1[i] = std::fabs(f0) + std::fabs(f1) + std::fabs(f2), vl[i] = float(l1[i] * 1.000001);
+                from[i] = cb::shadow_from(p[i], light, bias), keep[i] = float(1 - from[i]);
             }
             const cb::lit::TileView tile{
-                ex, ey, ez, vl, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64), rx, ry, rz};
+                ex, ey, ez, vl, keep, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64), rx, ry, rz};
             const uint64_t which = ~uint64_t(0);
             for (bool one_sided : {false, true}) {
                 for (uint32_t first = 0; first < c.triangle_count; first += cb::lit::capacity) {
@@ -777,7 +896,7 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
                             const bool meets = (left >> i & 1) && (may_meet[i] >> k & 1);
                             if (!(sure >> i & 1) && !meets) {
                                 ++pairs_left_out;
-                                wrong += cb::segment_triangle(p[i], light, q[0], q[1], q[2], true)
+                                wrong += cb::segment_triangle(p[i], light, q[0], q[1], q[2], from[i], true)
                                              .blocks;  // two-sided: the strictest
                             }
                             if (meets && (through[i] >> k & 1)) {
@@ -787,22 +906,23 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
                                 wrong += !(o0 != 0 && o0 == o1 && o1 == o2);
                             }
                             blocks = blocks ||
-                                cb::segment_triangle(p[i], light, q[0], q[1], q[2], lit.two_sided >> k & 1).blocks;
+                                cb::segment_triangle(p[i], light, q[0], q[1], q[2], from[i], lit.two_sided >> k & 1)
+                                    .blocks;
                         }
                         surely_blocked += sure >> i & 1;
                         wrong += (sure >> i & 1) && !blocks;  // said blocked for sure, and is not
                     }
                 }
                 // Whole answers, with and without the tile, against the exact test of every triangle.
-                const uint64_t with = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr, nullptr,
-                                                                nullptr, nullptr, &tile);
-                const uint64_t without = cb::cluster_blocks_points(v, m, f, p, which, light, one_sided, nullptr);
+                const uint64_t with = cb::cluster_blocks_points(v, m, f, p, from, which, light, one_sided, nullptr,
+                                                                nullptr, nullptr, nullptr, &tile);
+                const uint64_t without = cb::cluster_blocks_points(v, m, f, p, from, which, light, one_sided, nullptr);
                 for (int i = 0; i < 64; ++i) {
                     bool exact = false;
                     for (uint32_t k = c.first_triangle; k < c.first_triangle + c.triangle_count && !exact; ++k) {
                         double q[3][3];
                         triangle_corners(v, m, f, k, q);
-                        exact = cb::segment_triangle(p[i], light, q[0], q[1], q[2], !one_sided).blocks;
+                        exact = cb::segment_triangle(p[i], light, q[0], q[1], q[2], from[i], !one_sided).blocks;
                     }
                     ++answers, blocked += exact;
                     wrong += bool(with >> i & 1) != exact || bool(without >> i & 1) != exact;
@@ -843,6 +963,7 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
                 a[k] = v.position(m, id[0])[k], bb[k] = v.position(m, id[1])[k], cc[k] = v.position(m, id[2])[k];
             double s = u(rng), t = u(rng) * (1 - s),
                    far[3] = {offset + 20 * u(rng) - 7, offset + 20 * u(rng) - 7, offset + 5 + 5 * u(rng)};
+            double bias = 1e-4 * (1 + u(rng));  // a world distance: cells are 1 unit
             switch (trial % 4) {
                 case 0:  // p within rounding of the triangle's plane, the light above or below
                     for (int k = 0; k < 3; ++k)
@@ -859,20 +980,26 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
                         p[k] = a[k] + 3 * s * (bb[k] - a[k]) - t * (cc[k] - a[k]),
                         light[k] = a[k] - 2 * t * (bb[k] - a[k]) + 4 * s * (cc[k] - a[k]);
                     break;
-                default:  // the segment crosses the triangle within rounding of 2^-13 of the way from p
+                default: {  // the segment crosses the triangle within rounding of where contacts start to count
+                    const double f0 = 1.0 / (8192 + 3 * u(rng));
+                    double d2 = 0;
                     for (int k = 0; k < 3; ++k) {
                         double x = a[k] + s * (bb[k] - a[k]) + t * (cc[k] - a[k]);
-                        light[k] = far[k],
-                        p[k] = (x - cb::self_shadow_fraction * far[k]) / (1 - cb::self_shadow_fraction);
+                        light[k] = far[k], p[k] = (x - f0 * far[k]) / (1 - f0);
+                        d2 += (far[k] - p[k]) * (far[k] - p[k]);
                     }
+                    bias = f0 * std::sqrt(d2);  // from = bias / |light - p| is f0 to rounding
+                }
             }
+            const double from = cb::shadow_from(p, light, bias);
+            if (!cb::may_block(from)) continue;
             for (bool one_sided : {false, true}) {
-                bool fast = cb::cluster_blocks(v, m, f, p, light, one_sided, nullptr);
+                bool fast = cb::cluster_blocks(v, m, f, p, from, light, one_sided, nullptr);
                 bool exact = false;
                 for (uint32_t tt = c.first_triangle; tt < c.first_triangle + c.triangle_count && !exact; ++tt) {
                     double x[3][3];
                     triangle_corners(v, m, f, tt, x);
-                    exact = cb::segment_triangle(p, light, x[0], x[1], x[2], !one_sided).blocks;
+                    exact = cb::segment_triangle(p, light, x[0], x[1], x[2], from, !one_sided).blocks;
                 }
                 ++tests;
                 blocked += exact;
@@ -949,10 +1076,10 @@ TEST(Shadow, LitTrianglePlaneSidesStayWithinTheirBounds) {
 
 TEST(Shadow, LitTriangleFloatPlaneTestsStayWithinTheirBounds) {
     // The float line tests rule a triangle out when the segment's crossing value mix = dq - (1 - f) N . e
-    // (f the self-shadowing fraction; the exact value is f orient3d(a, b, c, light) + (1 - f)
-    // orient3d(a, b, c, x)) clears qbound + |e|_1 pbound with dq's sign, and dq clears qbound: both bounds must
-    // hold the exact values, checked here with exact expansions (times 8192 = 1 / f, to stay exact), for
-    // points on, near and off the planes, at large offsets. The float values are computed as the lanes do.
+    // (f the point's `from`; the exact value is f orient3d(a, b, c, light) + (1 - f) orient3d(a, b, c, x))
+    // clears qbound + |e|_1 pbound with dq's sign, and dq clears qbound: both bounds must hold the exact
+    // values, checked here with exact expansions, for points on, near and off the planes, at large offsets,
+    // with `from` tiny, a power of two or not, and near 1. The float values are computed as the lanes do.
     size_t checked = 0, outside = 0, usable = 0;
     double worst = 0;                                                            // the largest |error| / bound seen
     auto within = [&](cb::exact::Expansion exact, double value, double bound) {  // |exact - value| <= bound
@@ -967,7 +1094,8 @@ TEST(Shadow, LitTriangleFloatPlaneTestsStayWithinTheirBounds) {
         for (int k = 0; k < error.n; ++k) e += error.t[k];
         worst = std::max(worst, std::fabs(e) / bound);
     };
-    static_assert(cb::self_shadow_fraction == 1.0 / 8192, "the scaling below");
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(0, 1);
     for_each_lit_plane_sample(
         12,
         [&](const cb::lit::Triangles& lit, uint32_t t, const double(&corner)[3][3], const double* light,
@@ -981,15 +1109,18 @@ TEST(Shadow, LitTriangleFloatPlaneTestsStayWithinTheirBounds) {
                 const double e_l1 = std::fabs(e[0]) + std::fabs(e[1]) + std::fabs(e[2]);
                 if (!(e_l1 * lit.plane_scale < 1e30 && e_l1 * lit.plane_scale > 1e-20)) continue;  // as the lanes skip
                 const float v0 = float(e[0]), v1 = float(e[1]), v2 = float(e[2]), vl = float(e_l1 * 1.000001);
-                const float mix = lit.dq[t] -
-                    float(1 - cb::self_shadow_fraction) * (v0 * lit.nx[t] + v1 * lit.ny[t] + v2 * lit.nz[t]);
+                const double froms[4] = {1.0 / 8192, 1e-9 * u(rng), 0.3 * u(rng), 1 - 1e-3 * u(rng)};
+                const double f = froms[checked % 4];
+                // As crossing_signs: one fused multiply-add of -(1 - f) in float.
+                const float mix = std::fma(-float(1 - f), v0 * lit.nx[t] + v1 * lit.ny[t] + v2 * lit.nz[t], lit.dq[t]);
                 const float bound = lit.qbound[t] + vl * lit.pbound[t];
-                // 8192 mix = q + 8191 orient3d(a, b, c, x) = q + 8192 p - p
+                // mix = f q + (1 - f) side = side + f (q - side), exactly
                 const cb::exact::Expansion side = cb::exact::orient3d_exact(corner[0], corner[1], corner[2], x);
-                cb::exact::Expansion scaled = q;
-                cb::exact::add(scaled, cb::exact::scaled_by_power_of_two(side, 8192));
-                cb::exact::add(scaled, cb::exact::negated(side));
-                within(scaled, 8192.0 * double(mix), 8192.0 * double(bound));
+                cb::exact::Expansion apart = q;
+                cb::exact::add(apart, cb::exact::negated(side));
+                cb::exact::Expansion value = cb::exact::scaled(cb::exact::compressed(apart), f);
+                cb::exact::add(value, side);
+                within(value, double(mix), double(bound));
             }
         });
     std::printf("%zu values checked (%zu usable planes); largest error: %.3f of its bound\n", checked, usable, worst);
@@ -1192,9 +1323,9 @@ TEST(Shadow, SegmentBoxFilterNeverMissesATouch) {
                            double(a[0]) * b[1] - double(a[1]) * b[0]};
             for (int k = 0; k < 3; ++k) p[k] = box.center[k] + a[k] * (coeff[face] / a2), q[k] = p[k] + len * w[k];
         }
-        // Exact clipping of the whole segment, and of its part from self_shadow_fraction on (where a contact
-        // can block: the filter clipped at blocking_from must keep those).
-        for (double from : {0.0, cb::self_shadow_fraction}) {
+        // Exact clipping of the whole segment, and of its part from `from` on (where a contact can block: the
+        // filter clipped at blocking_start(from) must keep those).
+        for (double from : {0.0, 1.0 / 8192, 0.0123 * (1 + u(rng))}) {
             FT t0 = from, t1 = 1;
             bool meets = true;
             for (int i = 0; i < 3 && meets; ++i) {
@@ -1215,7 +1346,7 @@ TEST(Shadow, SegmentBoxFilterNeverMissesATouch) {
             }
             ++tests;
             touching += meets;
-            if (meets && !cb::segment_may_touch_box(box, p, q, from == 0 ? 0.0 : cb::blocking_from)) ++missed;
+            if (meets && !cb::segment_may_touch_box(box, p, q, cb::blocking_start(from))) ++missed;
         }
     }
     std::printf("%zu segments, %zu meet their box exactly; filter said 'misses' for %zu of those\n", tests, touching,

@@ -34,6 +34,8 @@ bool shadow_answers(const void* bytes, size_t size, const double* light, const d
     // The defaults: scan traversal, two-sided, one thread
     cb::ShadowBuildOptions options;
     options.bounds = bounds.data();
+    // The self-shadowing bias (a world distance), worked out once rather than by each build
+    options.bias = cb::default_shadow_bias(cb::asset_world_size(view));
     for (uint32_t i = 0; i < view.instance_count; ++i) shadows[i].build(view, i, light, options);
     std::vector<uint32_t> scratch(cb::batch_scratch_size(shadows.data(), shadows.size(), n));
     cb::occluded_batch(shadows.data(), shadows.size(), points, n, in_shadow, scratch.data());

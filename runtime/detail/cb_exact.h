@@ -89,6 +89,45 @@ inline Expansion scaled_by_power_of_two(Expansion e, double s) {
     return e;
 }
 
+// e with the same value in as few terms as the value needs (Shewchuk's Compress): a sum of expansions has up to
+// the count of both, and compressing first keeps scaled()'s doubling far below the capacity.
+inline Expansion compressed(const Expansion& e) {
+    if (e.n < 2) return e;
+    double g[256];
+    int bottom = e.n - 1;
+    double q = e.t[e.n - 1];
+    for (int i = e.n - 2; i >= 0; --i) {
+        const double sum = q + e.t[i], err = e.t[i] - (sum - q);  // Fast-Two-Sum: |q| >= |e.t[i]| or q is 0
+        if (err != 0) {
+            g[bottom--] = sum;
+            q = err;
+        } else {
+            q = sum;
+        }
+    }
+    g[bottom] = q;
+    Expansion out;
+    for (int i = bottom + 1; i < e.n; ++i) {
+        const double sum = g[i] + q, err = q - (sum - g[i]);
+        if (err != 0) out.t[out.n++] = err;
+        q = sum;
+    }
+    out.t[out.n++] = q;
+    return out;
+}
+
+// e * s for any double s, exactly: every term's product and its rounding error.
+inline Expansion scaled(const Expansion& e, double s) {
+    Expansion out;
+    for (int i = 0; i < e.n; ++i) {
+        double p, err;
+        two_product(e.t[i], s, p, err);
+        if (err != 0) grow(out, err);
+        grow(out, p);
+    }
+    return out;
+}
+
 // The sign of an expansion is the sign of its largest (last) non-zero term.
 inline int sign(const Expansion& e) {
     for (int i = e.n - 1; i >= 0; --i)
@@ -128,6 +167,59 @@ inline double orient3d_estimate(const double* a, const double* b, const double* 
     // 1e-15 is above it.
     bound = 1e-15 * permanent;
     return adx * bc + ady * ca + adz * ab;
+}
+
+// The determinant of three rows, each entry given exactly as an expansion (a difference of doubles, or a
+// double), exactly: row 0 . (row 1 x row 2).
+inline Expansion det3_exact(const Expansion (&r)[3][3]) {
+    Expansion x = multiply(r[1][1], r[2][2]);
+    add(x, negated(multiply(r[1][2], r[2][1])));
+    Expansion y = multiply(r[1][2], r[2][0]);
+    add(y, negated(multiply(r[1][0], r[2][2])));
+    Expansion z = multiply(r[1][0], r[2][1]);
+    add(z, negated(multiply(r[1][1], r[2][0])));
+    Expansion det = multiply(r[0][0], x);
+    add(det, multiply(r[0][1], y));
+    add(det, multiply(r[0][2], z));
+    return det;
+}
+
+// A double as an expansion of one term (none for zero).
+inline Expansion single(double a) {
+    Expansion e;
+    if (a != 0) e.t[e.n++] = a;
+    return e;
+}
+
+// The determinant of three rows given in double, each row either a difference x - y of doubles or, when
+// `y` is null, the double vector x itself; in double with a bound on its error (`bound`, as
+// orient3d_estimate's: the same products of three rounded differences at most), and exactly.
+struct Row {
+    const double *x, *y;  // y null: the row is x
+};
+inline double det3_estimate(const Row (&rows)[3], double& bound) {
+    double r[3][3];
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) r[i][k] = rows[i].y ? rows[i].x[k] - rows[i].y[k] : rows[i].x[k];
+    const double bc = r[1][1] * r[2][2] - r[1][2] * r[2][1], ca = r[1][2] * r[2][0] - r[1][0] * r[2][2],
+                 ab = r[1][0] * r[2][1] - r[1][1] * r[2][0];
+    const double permanent = std::fabs(r[0][0]) * (std::fabs(r[1][1] * r[2][2]) + std::fabs(r[1][2] * r[2][1])) +
+        std::fabs(r[0][1]) * (std::fabs(r[1][2] * r[2][0]) + std::fabs(r[1][0] * r[2][2])) +
+        std::fabs(r[0][2]) * (std::fabs(r[1][0] * r[2][1]) + std::fabs(r[1][1] * r[2][0]));
+    bound = 1e-15 * permanent;
+    return r[0][0] * bc + r[0][1] * ca + r[0][2] * ab;
+}
+inline Expansion det3_exact(const Row (&rows)[3]) {
+    Expansion r[3][3];
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) r[i][k] = rows[i].y ? difference(rows[i].x[k], rows[i].y[k]) : single(rows[i].x[k]);
+    return det3_exact(r);
+}
+inline int det3_sign(const Row (&rows)[3]) {
+    double bound, det = det3_estimate(rows, bound);
+    if (det > bound) return 1;
+    if (-det > bound) return -1;
+    return sign(det3_exact(rows));
 }
 
 // Sign of | a - d, b - d, c - d |: +1, 0 or -1, exact. Positive when d sees a, b, c clockwise (equivalently,

@@ -28,11 +28,12 @@ namespace lit {
 constexpr double det_error = 2e-15;
 
 // The exact answer for one triangle (cb::segment_triangle) when the double filter cannot decide.
-inline SegmentTest exact_triangle(const double* p, const double* light, const float* const* corner, bool two_sided) {
+inline SegmentTest exact_triangle(const double* p, const double* light, const float* const* corner, bool two_sided,
+                                  double from) {
     double c[3][3];
     for (int k = 0; k < 3; ++k)
         for (int j = 0; j < 3; ++j) c[k][j] = corner[k][j];
-    return segment_triangle(p, light, c[0], c[1], c[2], two_sided);
+    return segment_triangle(p, light, c[0], c[1], c[2], from, two_sided);
 }
 
 // Up to 16 triangles of a cluster seen from the light: the terms every segment test from that light shares.
@@ -192,9 +193,10 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     // with A = |b - a| x |c - a|, each component of N is within 4 2^-24 A of the exact normal's (two rounded
     // differences, two rounded products and a rounded difference), as for the edges above. So dq = N . u
     // (u = a - light rounded from double) is within 8 2^-24 |u|_1 max(A) of the exact value, and a point's
-    // N . e within 8 2^-24 |e|_1 max(A); the crossing test's value dq - (1 - f) N . e (f the self-shadowing
-    // fraction, 1 - f exact in float) adds two roundings, under 2 2^-24 max(A) (|u|_1 + |e|_1). In all
-    // under 6e-7 max(A) (|u|_1 + |e|_1): the bounds take 9e-7, plus 1e-30 for products that fall to
+    // N . e within 8 2^-24 |e|_1 max(A); the crossing test's value dq - (1 - f) N . e (f the point's `from`,
+    // 1 - f rounded to float: within 2^-25 of its value in [0, 1]) adds that and two roundings, under
+    // 2.5 2^-24 max(A) (|u|_1 + |e|_1). In all under 6.3e-7 max(A) (|u|_1 + |e|_1): the bounds take 9e-7, plus
+    // 1e-30 for products that fall to
     // float's subnormals. Usable as the edges are, and when qbound <= 1e30 (nothing overflows).
     alignas(64) float flat[capacity] = {};  // per triangle, its plane's max(A) if usable
     for (uint32_t t = 0; t < capacity; ++t) {
@@ -227,17 +229,15 @@ inline double plane_side(const TriangleTerms& terms, const double* x, double& bo
 }
 
 // The float plane test (light_triangles' bounds): whether a point with |e|_1 = l1 keeps its products in
-// range, and its crossing value mix = dq - (1 - f) N . e settled above (up) or below (down) its bound
-// qbound + |e|_1 pbound, a vector an instruction (of triangles, or of points).
+// range, and its crossing value mix = dq - (1 - f) N . e (keep = 1 - f in float, f its `from`) settled above
+// (up) or below (down) its bound qbound + |e|_1 pbound, a vector an instruction (of triangles, or of points).
 inline bool plane_test_usable(double l1, double plane_scale) {
     return l1 > 1e-30 && l1 * plane_scale < 1e30 && l1 * plane_scale > 1e-20;
 }
 inline void crossing_signs(simd::Floats ex, simd::Floats ey, simd::Floats ez, simd::Floats vl, simd::Floats nx,
                            simd::Floats ny, simd::Floats nz, simd::Floats dq, simd::Floats qbound, simd::Floats pbound,
-                           simd::Mask& up, simd::Mask& down) {
-    static_assert(float(1 - self_shadow_fraction) == 1 - self_shadow_fraction, "1 - f exact in float");
-    const simd::Floats mix =
-        simd::fma(simd::splat(-float(1 - self_shadow_fraction)), simd::dot(ex, ey, ez, nx, ny, nz), dq);
+                           simd::Floats keep, simd::Mask& up, simd::Mask& down) {
+    const simd::Floats mix = simd::fma(simd::splat(0.0f) - keep, simd::dot(ex, ey, ez, nx, ny, nz), dq);
     const simd::Floats bound = simd::fma(vl, pbound, qbound);
     up = mix > bound, down = -mix > bound;
 }
@@ -252,8 +252,8 @@ inline void crossing_signs(simd::Floats ex, simd::Floats ey, simd::Floats ez, si
 // the points whose segment surely crosses a triangle that blocks (the line through its interior, the plane
 // crossed from f on, and the triangle two-sided or the light behind it): their answer is known. The others
 // with some triangle left in may_meet go in *candidates.
-inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], uint64_t which, const double* light,
-                           uint32_t* may_meet, uint32_t* through, uint64_t* candidates) {
+inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], const double* from, uint64_t which,
+                           const double* light, uint32_t* may_meet, uint32_t* through, uint64_t* candidates) {
     const uint32_t all = (1u << lit.count) - 1;  // (capacity < 32)
     const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f);
     uint64_t blocked = 0, left = 0;
@@ -267,7 +267,7 @@ inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], uint64_t 
             continue;
         }
         const simd::Floats v0 = simd::splat(float(e0)), v1 = simd::splat(float(e1)), v2 = simd::splat(float(e2));
-        const simd::Floats vl = simd::splat(float(e_l1 * 1.000001));
+        const simd::Floats vl = simd::splat(float(e_l1 * 1.000001)), keep = simd::splat(float(1 - from[i]));
         const bool planes = plane_test_usable(e_l1, lit.plane_scale);
         uint32_t missed = 0, inside = 0, crossed = 0;
         for (uint32_t t = 0; t < lit.count; t += simd::width) {  // the last group padded (light_triangles)
@@ -290,7 +290,7 @@ inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], uint64_t 
             const simd::Floats dq = simd::load(lit.dq + t), qb = simd::load(lit.qbound + t);
             simd::Mask mix_up, mix_down;
             crossing_signs(v0, v1, v2, vl, simd::load(lit.nx + t), simd::load(lit.ny + t), simd::load(lit.nz + t), dq,
-                           qb, simd::load(lit.pbound + t), mix_up, mix_down);
+                           qb, simd::load(lit.pbound + t), keep, mix_up, mix_down);
             const simd::Mask light_up = dq > qb, light_down = -dq > qb;
             missed |= (simd::bits(light_up & mix_up) | simd::bits(light_down & mix_down)) << t;
             crossed |= (simd::bits(light_up & mix_down) | (simd::bits(light_down & mix_up) & (lit.two_sided >> t)))
@@ -305,10 +305,11 @@ inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], uint64_t 
 }
 
 // A tile of points as the clustered structure holds them (cb_tile.h), for tile_line_tests: for point i,
-// e = p[i] - light in float (ex, ey, ez), |e|_1 in double (l1) and in float a little above it (vl); and
-// four float rays from the light (rx, ry, rz) of which every point's e is a positive mix.
+// e = p[i] - light in float (ex, ey, ez), |e|_1 in double (l1) and in float a little above it (vl), 1 - its
+// `from` in float (keep); and four float rays from the light (rx, ry, rz) of which every point's e is a
+// positive mix.
 struct TileView {
-    const float *ex, *ey, *ez, *vl;
+    const float *ex, *ey, *ez, *vl, *keep;
     const double* l1;
     double l1_lo, l1_hi;  // the smallest and largest l1 of the tile's points
     const float *rx, *ry, *rz;
@@ -374,7 +375,7 @@ inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t
                 if (!simd::group(which, i)) continue;
                 simd::Mask up, down;
                 crossing_signs(simd::load(tile.ex + i), simd::load(tile.ey + i), simd::load(tile.ez + i),
-                               simd::load(tile.vl + i), nx, ny, nz, sdq, sqb, spb, up, down);
+                               simd::load(tile.vl + i), nx, ny, nz, sdq, sqb, spb, simd::load(tile.keep + i), up, down);
                 ruled |= uint64_t(simd::bits(dq > 0 ? up : down)) << i,
                     across |= uint64_t(simd::bits(dq > 0 ? down : up)) << i;
             }
@@ -401,8 +402,8 @@ inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t
 // unsettled, then the two ends' sides of the plane; a triangle the bounds cannot settle (a segment within
 // rounding of its plane or of an edge line) goes to the exact test. Sets *touched when an exactly tested
 // triangle was touched. Makes the double terms of the triangles it needs that `lit` lacks.
-inline bool triangles_block(Triangles& lit, const double* p, const double* light, uint32_t may_meet, uint32_t through,
-                            bool* touched) {
+inline bool triangles_block(Triangles& lit, const double* p, double from, const double* light, uint32_t may_meet,
+                            uint32_t through, bool* touched) {
     const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
     const double edge_scale = det_error * (std::fabs(e0) + std::fabs(e1) + std::fabs(e2));
     for (; may_meet; may_meet &= may_meet - 1) {
@@ -430,9 +431,9 @@ inline bool triangles_block(Triangles& lit, const double* p, const double* light
                 if ((dq > 0) == (dp > 0) || (!(lit.two_sided >> t & 1) && dq < 0))
                     continue;  // no crossing, or front-facing
                 // The crossing counts when it is at t >= f (see segment_triangle).
-                double mix = (1 - self_shadow_fraction) * dp + self_shadow_fraction * dq;
-                double mix_bound = (1 - self_shadow_fraction) * bp + self_shadow_fraction * terms.bq +
-                    4e-16 * (std::fabs(dp) + std::fabs(dq));
+                const double f = from;
+                double mix = (1 - f) * dp + f * dq;
+                double mix_bound = (1 - f) * bp + f * terms.bq + 8e-16 * (std::fabs(dp) + std::fabs(dq));
                 if (std::fabs(mix) > mix_bound)
                     blocks = (mix > 0) == (dp > 0);
                 else
@@ -440,7 +441,7 @@ inline bool triangles_block(Triangles& lit, const double* p, const double* light
             }
         }
         if (!decided) {
-            SegmentTest s = exact_triangle(p, light, lit.corner[t], lit.two_sided >> t & 1);
+            SegmentTest s = exact_triangle(p, light, lit.corner[t], lit.two_sided >> t & 1, from);
             if (touched) *touched |= s.touching;
             blocks = s.blocks;
         }
@@ -470,14 +471,15 @@ struct Cache {
 }  // namespace lit
 
 // Which of the points p[i], i in `which` (bits of a mask), the triangles of fine cluster `f` (mesh-local)
-// of `mesh` shadow from the light, in the mesh's frame: the same answers as cb::segment_triangle on each
-// triangle. The light's terms are computed once for all the points, 16 triangles at a time (or taken from
-// `cache`, under `owner`, and left there). Sets *touched when an exactly tested triangle was touched. Uses
+// of `mesh` shadow from the light, in the mesh's frame, contacts counting from from[i] on (shadow_from of the
+// world point, which may_block): the same answers as cb::segment_triangle on each triangle. The light's
+// terms are computed once for all the points, 16 triangles at a time (or taken from `cache`, under `owner`,
+// and left there). Sets *touched when an exactly tested triangle was touched. Uses
 // about 7 KB of stack, and the exact test's 50 KB when a sign needs it (docs/RUNTIME.md).
 inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double (*p)[3],
-                                      uint64_t which, const double* light, bool one_sided, QueryStats* stats,
-                                      bool* touched = nullptr, lit::Cache* cache = nullptr, const void* owner = nullptr,
-                                      const lit::TileView* tile = nullptr) {
+                                      const double* from, uint64_t which, const double* light, bool one_sided,
+                                      QueryStats* stats, bool* touched = nullptr, lit::Cache* cache = nullptr,
+                                      const void* owner = nullptr, const lit::TileView* tile = nullptr) {
     using namespace lit;
     const FineCluster& c = v.fine[mesh.first_fine + f];
     uint64_t blocked = 0;
@@ -503,25 +505,26 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         uint64_t sure = 0, left = 0;  // points surely blocked (no double work), points with triangles left
         const bool whole = tile && math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32)) >= 32 &&
             tile_line_tests(*lit, *tile, which, may_meet, through, &sure, &left);
-        if (!whole) sure = line_tests(*lit, p, which, light, may_meet, through, &left);
+        if (!whole) sure = line_tests(*lit, p, from, which, light, may_meet, through, &left);
         if (stats)
             stats->triangles_tested +=
                 uint64_t(lit->count) * (math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32)));
         blocked |= sure, which &= ~sure;
         for (uint64_t w = left; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            if (triangles_block(*lit, p[i], light, may_meet[i], through[i], touched))
+            if (triangles_block(*lit, p[i], from[i], light, may_meet[i], through[i], touched))
                 blocked |= uint64_t(1) << i, which &= ~(uint64_t(1) << i);
         }
     }
     return blocked;
 }
 
-// One point: true when a triangle of fine cluster `f` blocks the segment p -> light.
-inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double* p, const double* light,
-                           bool one_sided, QueryStats* stats, bool* touched = nullptr) {
+// One point: true when a triangle of fine cluster `f` blocks the segment p -> light, contacts counting from
+// `from` on (shadow_from).
+inline bool cluster_blocks(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double* p, double from,
+                           const double* light, bool one_sided, QueryStats* stats, bool* touched = nullptr) {
     const double(*one)[3] = reinterpret_cast<const double(*)[3]>(p);
-    return cluster_blocks_points(v, mesh, f, one, 1, light, one_sided, stats, touched) != 0;
+    return cluster_blocks_points(v, mesh, f, one, &from, 1, light, one_sided, stats, touched) != 0;
 }
 
 }  // namespace CB_LANES

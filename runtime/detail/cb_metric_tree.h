@@ -204,7 +204,7 @@ public:
         nodes_.clear(), always_fine_.clear(), always_coarse_.clear(), fine_roots_.clear(), fine_always_.clear();
         coarse_boxes_.clear();
         root_ = none, depth_ = 0, capsules_ = 0, top_always_ = {};
-        if (!set_instance(view, at, world_light, options.one_sided)) return;
+        if (!set_instance(view, at, world_light, options.one_sided, options.bias)) return;
         capsule_ratio_ = options.capsule_ratio;
         build_ = options.metric_build;
         slabs_ = view.fine_bounds.slabs != nullptr;
@@ -813,7 +813,7 @@ private:
         const Obb box = coarse_obb(c);  // decoded once for all the points
         for (uint64_t w = in; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            if (!segment_may_touch_box(box, t.p[i], light_, blocking_from)) in &= ~(uint64_t(1) << i);
+            if (!segment_may_touch_box(box, t.p[i], light_, blocking_start(t.from[i]))) in &= ~(uint64_t(1) << i);
         }
         return in;
     }
@@ -890,7 +890,8 @@ private:
     bool walk_alone(const double* world_p, uint32_t* stack, QueryStats* stats) const {
         if (!usable_ || !finite3(world_p)) return false;
         const Query q = make_query(world_p, stats, nullptr);
-        if (!(q.dist > 0)) return false;  // at the light: the segment is a point, which blocks nothing
+        if (!may_block(q.from)) return false;  // within the bias of the light
+        if (!(q.dist > 0)) return false;       // at the light: the segment is a point, which blocks nothing
         double u[3] = {q.e[0], q.e[1], q.e[2]};
         metric_tree::normalize(u);
         for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count; ++i)
@@ -924,7 +925,8 @@ private:
             if (s > tol || q.dist < node.near) continue;
             if (node.cluster & coarse_bit) {
                 const uint32_t c = node.cluster & ~coarse_bit;
-                if (!coarse_boxes_.empty() && !segment_may_touch_box(coarse_obb(c), q.p, light_, blocking_from))
+                if (!coarse_boxes_.empty() &&
+                    !segment_may_touch_box(coarse_obb(c), q.p, light_, blocking_start(q.from)))
                     continue;
                 const IndexRange r = fine_always_[c];
                 for (uint32_t k = r.first; k < r.first + r.count; ++k)

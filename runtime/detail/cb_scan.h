@@ -34,7 +34,7 @@ public:
         shared_bounds_ = nullptr;
         coarse_boxes_.clear();
         coarse_skipped_.clear();
-        if (!set_instance(view, at, world_light, options.one_sided)) return;
+        if (!set_instance(view, at, world_light, options.one_sided, options.bias)) return;
         const uint32_t coarse_count = mesh_->coarse_count;
         const uint32_t m = at.mesh;
         const ScanBounds* bounds = options.bounds;
@@ -104,7 +104,8 @@ private:
     bool walk_alone(const double* world_p, QueryStats* stats) const {
         if (!usable_ || !finite3(world_p)) return false;
         const Query q = make_query(world_p, stats, fine_obbs());
-        if (!(q.dist > 0)) return false;  // at the light: the segment is a point, which blocks nothing
+        if (!may_block(q.from)) return false;  // within the bias of the light
+        if (!(q.dist > 0)) return false;       // at the light: the segment is a point, which blocks nothing
         const ScanBounds& s = scan_bounds();
         const bool spheres = s.source_fine != nullptr;  // none without fine boxes: every cluster is tested
         for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {

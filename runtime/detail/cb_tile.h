@@ -52,6 +52,11 @@ struct ShadowBuildOptions {
     // One-sided occluders (cb_segment.h): clusters whose front cone holds the light, and that have no
     // double-sided triangle, cannot block anything and are left out.
     bool one_sided = false;
+    // The self-shadowing bias, a world-space distance (cb_segment.h): contacts nearer to the point do not
+    // count. Zero or less: the scene's default, the Level's shadow_bias() through a LevelShadow, and
+    // default_shadow_bias of the asset's world size (asset_world_size, a pass over its vertices) when an
+    // InstanceShadow is built on its own; give it to build many.
+    double bias = 0;
     // Traversal::scan: the asset's ScanBounds, indexed by mesh (make_scan_bounds), read by every query and so
     // kept alive and unchanged while the traversal is used. Without them, or when they were made from
     // another asset view, the scan makes its mesh's own at each build (a pass over its boxes).
@@ -168,7 +173,7 @@ protected:
     static constexpr double float_tiny = 1e-7;
 
     struct Query {
-        double p[3], e[3], dist;
+        double p[3], e[3], dist, from;  // from: where contacts start to count (shadow_from, in world space)
         QueryStats* stats;
         const Obb* fine_obbs;  // the fine boxes decoded (ScanBounds), or null: from the asset
     };
@@ -186,6 +191,9 @@ protected:
         uint64_t shadowed;
         bool small;  // every live point within float_safe of the light: the float filters apply
         double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
+        double from[tile_capacity];              // where each point's contacts start to count (shadow_from)
+        alignas(64) float keep[tile_capacity];   // 1 - from, in float (the triangles' plane test)
+        alignas(64) float reach[tile_capacity];  // 1 - blocking_start(from), in float (box_points)
         alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity],
             fd[tile_capacity];                   // e and dist in float
         alignas(64) float slack[tile_capacity];  // the plane checks' tolerance, 2e-6 of the distance
@@ -310,9 +318,10 @@ protected:
     // The instance's frame for a light in world space, and the build's common settings; false when the
     // instance can block nothing: a singular transform flattens the mesh, and a light that is not finite
     // lights nothing.
-    bool set_instance(const AssetView& view, Placement at, const double* world_light, bool one_sided) {
+    bool set_instance(const AssetView& view, Placement at, const double* world_light, bool one_sided, double bias) {
         view_ = &view;
         one_sided_ = one_sided;
+        bias_ = bias > 0 ? bias : default_shadow_bias(asset_world_size(view));
         skipped_ = 0;
         for (int k = 0; k < 3; ++k) world_light_[k] = world_light[k];
         usable_ = invert_instance(at.transform, inverse_) && finite3(world_light);
@@ -325,9 +334,10 @@ protected:
     // Sets up tile t for the `count` world points points + 3 * index[i] (xyz doubles) set in `alive`: in the
     // mesh's frame, from the light, in float, and the pyramid from the light that holds their directions.
     // t.alive gets the points the tile takes; `alone` those that go alone, in double (at or by the light, not
-    // finite, or beyond float's range). Returns the points over 60 degrees off the tile's mean direction,
-    // which the tile does not take either (the traversal says where they go). `fine_obbs`: the fine boxes
-    // decoded (ScanBounds), or null to read them from the asset.
+    // finite, or beyond float's range); neither gets those within the bias of the light (never blocked).
+    // Returns the points over 60 degrees off the tile's mean direction, which the tile does not take either
+    // (the traversal says where they go). `fine_obbs`: the fine boxes decoded (ScanBounds), or null to read
+    // them from the asset.
     uint64_t start_tile(Tile& t, const double* points, const uint32_t* index, uint32_t count, uint64_t alive,
                         QueryStats* stats, TileCache* cache, const Obb* fine_obbs, uint64_t& alone) const {
         t.count = count;
@@ -342,7 +352,11 @@ protected:
         for (uint32_t i = 0; i < count; ++i) {
             if (!(alive >> i & 1)) continue;
             double p[3], e[3];
-            apply_instance(inverse_, points + size_t(index[i]) * 3, p);
+            const double* world_p = points + size_t(index[i]) * 3;
+            const double from = shadow_from(world_p, world_light_, bias_);
+            if (!may_block(from)) continue;
+            t.from[i] = from;
+            apply_instance(inverse_, world_p, p);
             for (int k = 0; k < 3; ++k) e[k] = p[k] - light_[k];
             const double dist = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
             for (int k = 0; k < 3; ++k) t.p[i][k] = p[k], t.e[i][k] = e[k];
@@ -367,6 +381,8 @@ protected:
                 t.ez[i] = in ? float(t.e[i][2]) : 0.0f;
                 t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
                 t.slack[i] = 2e-6f * t.fd[i];
+                t.keep[i] = in ? float(1 - t.from[i]) : 1.0f;
+                t.reach[i] = in ? float(1 - blocking_start(t.from[i])) : 1.0f;
             }
             t.l1_lo = INFINITY, t.l1_hi = 0;
             for (uint64_t w = t.alive; w; w &= w - 1) {
@@ -379,9 +395,10 @@ protected:
         return off;
     }
 
-    // The query of one point on its own, in double.
+    // The query of one point on its own, in double (q.from: not may_block when nothing can block it).
     Query make_query(const double* world_p, QueryStats* stats, const Obb* fine_obbs) const {
         Query q;
+        q.from = shadow_from(world_p, world_light_, bias_);
         apply_instance(inverse_, world_p, q.p);
         for (int k = 0; k < 3; ++k) q.e[k] = q.p[k] - light_[k];
         q.dist = std::sqrt(q.e[0] * q.e[0] + q.e[1] * q.e[1] + q.e[2] * q.e[2]);
@@ -426,7 +443,7 @@ protected:
     }
 
     // The points of `subset` whose segment to the light may touch the box of `b` (usable, and the tile small)
-    // where a contact could block (from the light to blocking_from of the way from the point, cb_segment.h):
+    // where a contact could block (from the light to blocking_start of each point's `from`, cb_segment.h):
     // separating axis tests in float over the subset's lanes, on the box's 3 axes and on the segment's
     // direction crossed with each.
     static uint64_t box_points(const BoxFilter& b, uint64_t subset, const Tile& t) {
@@ -440,12 +457,11 @@ protected:
         // where the segment projects to 0, the box's centre projects to e . (axis k x c) = e . w[k], and its
         // support is hf[j] |g[m]| + hf[m] |g[j]|. The slack (1e-6 of the distance) holds s's rounding.
         using simd::Floats;
-        const Floats zero = simd::splat(0.0f), micro = simd::splat(1e-6f), vtol = simd::splat(tol),
-                     reach = simd::splat(float(1 - blocking_from));
+        const Floats zero = simd::splat(0.0f), micro = simd::splat(1e-6f), vtol = simd::splat(tol);
         for (uint32_t i = begin; i < end; i += simd::width) {
             if (!simd::group(subset, i)) continue;  // no point in these lanes (the subset is often sparse)
             const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i),
-                         d = simd::load(t.fd + i);
+                         d = simd::load(t.fd + i), reach = simd::load(t.reach + i);
             const Floats slack = micro * d;
             const Floats g[3] = {simd::dot(ex, ey, ez, ax[0][0], ax[0][1], ax[0][2]),
                                  simd::dot(ex, ey, ez, ax[1][0], ax[1][1], ax[1][2]),
@@ -483,7 +499,7 @@ protected:
         const Obb box = fine_obb(f, t.fine_obbs);
         for (uint64_t w = subset; w; w &= w - 1) {
             uint32_t i = math::lowest_bit(w);
-            if (!segment_may_touch_box(box, t.p[i], light_, blocking_from)) subset &= ~(uint64_t(1) << i);
+            if (!segment_may_touch_box(box, t.p[i], light_, blocking_start(t.from[i]))) subset &= ~(uint64_t(1) << i);
         }
         return subset;
     }
@@ -494,9 +510,9 @@ protected:
         if (!todo) return;
         // The tile's pyramid holds every point of `todo`: it is narrowed only while a scan or a fine walk works
         // for some points, and the clusters tested then are those that scan or walk found for them.
-        const lit::TileView tile{t.ex,    t.ey,    t.ez,         t.vl,         t.l1,
+        const lit::TileView tile{t.ex,    t.ey,    t.ez,         t.vl,         t.keep,      t.l1,
                                  t.l1_lo, t.l1_hi, t.pyramid.rx, t.pyramid.ry, t.pyramid.rz};
-        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, todo, light_, one_sided_, t.stats, nullptr,
+        uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, t.from, todo, light_, one_sided_, t.stats, nullptr,
                                              t.cache ? &t.cache->lit : nullptr, this, &tile);
         t.alive &= ~hit, t.shadowed |= hit;
     }
@@ -557,14 +573,15 @@ protected:
     // A cluster's triangles, unless the segment certainly misses its box (a volume only says the point
     // is in the box's shadow cone, which a 4-plane outline makes wider than the box).
     bool test_cluster(uint32_t f, const Query& q) const {
-        if (view_->fine_bounds.obbs && !segment_may_touch_box(fine_obb(f, q.fine_obbs), q.p, light_, blocking_from))
+        if (view_->fine_bounds.obbs &&
+            !segment_may_touch_box(fine_obb(f, q.fine_obbs), q.p, light_, blocking_start(q.from)))
             return false;
-        return cluster_blocks(*view_, *mesh_, f, q.p, light_, one_sided_, q.stats);
+        return cluster_blocks(*view_, *mesh_, f, q.p, q.from, light_, one_sided_, q.stats);
     }
 
     const AssetView* view_ = nullptr;
     const MeshRecord* mesh_ = nullptr;
-    double inverse_[12] = {}, light_[3] = {}, world_light_[3] = {};
+    double inverse_[12] = {}, light_[3] = {}, world_light_[3] = {}, bias_ = 0;
     bool usable_ = false, one_sided_ = false;
     size_t skipped_ = 0, capsules_ = 0;
 };

@@ -100,7 +100,7 @@ public:
         root_ = none;
         depth_ = 0;
         top_always_ = {};
-        if (!set_instance(view, at, world_light, options.one_sided)) return;
+        if (!set_instance(view, at, world_light, options.one_sided, options.bias)) return;
         const bool two = options.traversal != Traversal::one_tree && view.coarse_bounds.obbs;
         Nodes& all = work.built;
         all.planes.clear();
@@ -260,6 +260,7 @@ private:
     bool walk_alone(const double* world_p, uint32_t* stack, QueryStats* stats) const {
         if (!usable_ || !finite3(world_p)) return false;
         const Query q = make_query(world_p, stats, nullptr);
+        if (!may_block(q.from)) return false;  // within the bias of the light
         for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count; ++i)
             if (test_cluster(always_fine_[i], q)) return true;
         for (uint32_t node : always_coarse_)  // coarse clusters around the light, one walk each
