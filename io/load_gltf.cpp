@@ -439,7 +439,7 @@ const std::vector<uint8_t>& meshopt_view(const Context& outer, int view_index, c
     if (view.byteStride != 0 && int64_t(view.byteStride) != stride)
         ctx.fail("byteStride " + std::to_string(stride) + " differs from the bufferView's " +
                  std::to_string(view.byteStride));
-    const uint64_t decoded_bytes = uint64_t(count) * uint64_t(stride);  // both below 2^53 / 257: no overflow
+    const uint64_t decoded_bytes = uint64_t(count) * uint64_t(stride);  // below 2^53 x 256: no overflow
     if (decoded_bytes != view.byteLength)
         ctx.fail(layout + " make " + std::to_string(decoded_bytes) + " bytes, but the bufferView's byteLength is " +
                  std::to_string(view.byteLength));
@@ -904,8 +904,8 @@ private:
     void add_gpu_instances(Context node_ctx, const tinygltf::Node& node, const tinygltf::Value& ext,
                            const Transform& world, uint32_t mesh) {
         node_ctx.where += std::string(": ") + instancing_name;
+        if (!ext.IsObject() || !ext.Get("attributes").IsObject()) node_ctx.fail("no attributes object");
         const tinygltf::Value& attributes = ext.Get("attributes");
-        if (!ext.IsObject() || !attributes.IsObject()) node_ctx.fail("no attributes object");
         const char* names[3] = {"TRANSLATION", "ROTATION", "SCALE"};
         const int types[3] = {TINYGLTF_TYPE_VEC3, TINYGLTF_TYPE_VEC4, TINYGLTF_TYPE_VEC3};
         std::vector<double> values[3];
