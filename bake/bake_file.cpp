@@ -140,6 +140,9 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
     if (result.triangles == 0)
         result.warning = r.input + ": no triangles (" + std::to_string(scene.report.skipped_primitives) +
             " point or line primitives skipped): the asset holds no geometry";
+    // What the loader could not honour (an optional extension it does not know that could change the
+    // geometry), each already naming the file.
+    for (const std::string& w : scene.report.warnings) result.warning += (result.warning.empty() ? "" : "; ") + w;
 }
 
 }  // namespace

@@ -33,7 +33,7 @@ const char* status_name(BakeStatus s);  // "baked", "up-to-date", "failed"
 struct BakeResult {
     BakeStatus status = BakeStatus::failed;
     std::string error;    // one line naming the file, when failed
-    std::string warning;  // one line naming the file, when baked but worth a look (no triangles at all)
+    std::string warning;  // naming the file, when baked but worth a look (no triangles, an extension not read)
     uint64_t input_bytes = 0, output_bytes = 0;
     uint64_t triangles = 0, fine_clusters = 0, coarse_clusters = 0;
     uint64_t meshes = 0, instances = 0;

@@ -44,6 +44,19 @@ int run_info(const std::vector<std::string>& files, bool json, const cb::LoadOpt
                 std::printf("  polygons %llu (%llu concave, %llu not simple, %llu degenerate)\n",
                             (unsigned long long)info.polygons.total, (unsigned long long)info.polygons.concave,
                             (unsigned long long)info.polygons.not_simple, (unsigned long long)info.polygons.degenerate);
+            if (info.instanced_nodes)
+                std::printf("  EXT_mesh_gpu_instancing: %llu instances from %llu nodes\n",
+                            (unsigned long long)info.gpu_instances, (unsigned long long)info.instanced_nodes);
+            if (info.meshopt_views)
+                std::printf("  EXT_meshopt_compression: %llu bufferViews decoded\n",
+                            (unsigned long long)info.meshopt_views);
+            if (!info.extensions.empty()) {
+                std::string line;
+                for (const cb::ExtensionUse& e : info.extensions)
+                    line += (line.empty() ? "" : ", ") + cb::extension_text(e);
+                std::printf("  extensions: %s\n", line.c_str());
+            }
+            for (const std::string& w : info.warnings) std::printf("  warning: %s\n", w.c_str());
             if (info.unreferenced_meshes)
                 std::printf("  meshes not used by the scene %llu (not loaded)\n",
                             (unsigned long long)info.unreferenced_meshes);

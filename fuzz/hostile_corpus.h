@@ -159,6 +159,30 @@ inline std::vector<File> write_corpus(const std::filesystem::path& dir, const st
     gltf("gltf/draco_truncated.gltf", draco_gltf(header + std::string("\x00\x00\x00", 3) + varint(50) + varint(36)),
          "Draco: ");
 
+    // EXT_meshopt_compression: a view declaring a billion 12-byte vertices from a stream of 40 bytes, and
+    // a stream cut short.
+    auto meshopt_gltf = [&](uint64_t count, size_t stream_bytes) {
+        json d = triangle_gltf(data_uri(std::string("\xa0", 1) + std::string(stream_bytes - 1, '\0')));
+        d["buffers"][0]["byteLength"] = stream_bytes;
+        d["bufferViews"][0] = {{"buffer", 0},
+                               {"byteLength", count * 12},
+                               {"byteStride", 12},
+                               {"extensions",
+                                {{"EXT_meshopt_compression",
+                                  {{"buffer", 0},
+                                   {"byteLength", stream_bytes},
+                                   {"byteStride", 12},
+                                   {"count", count},
+                                   {"mode", "ATTRIBUTES"}}}}}};
+        d["accessors"][0]["count"] = count;
+        d["extensionsUsed"] = {"EXT_meshopt_compression"};
+        d["extensionsRequired"] = {"EXT_meshopt_compression"};
+        return d;
+    };
+    gltf("gltf/meshopt_huge_count.gltf", meshopt_gltf(1'000'000'000, 40),
+         "EXT_meshopt_compression: count 1000000000, byteStride 12 declare 12000000000 bytes from a stream of 40");
+    gltf("gltf/meshopt_truncated.gltf", meshopt_gltf(3, 8), "EXT_meshopt_compression: bad compressed data");
+
     // Parts the loader never reads, in bulk: a million empty arrays in "extras", a million empty objects
     // in an extension. Both load, without holding them.
     doc = triangle_gltf(tri);

@@ -1,6 +1,7 @@
 // glTF 2.0 loading: tinygltf parses the JSON and buffers (images are never decoded), this file turns
 // accessors into flat arrays, checking every range against its buffer before reading a byte of it.
 #include <draco/compression/decode.h>
+#include <meshoptimizer.h>
 #include <tiny_gltf.h>
 
 #include <nlohmann/json.hpp>
@@ -11,6 +12,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "draco_header.h"
@@ -20,16 +22,49 @@
 namespace cb {
 namespace {
 
-// Extensions whose presence changes nothing about positions, indices or sidedness, so a file that
-// requires them is still loaded exactly.
-bool is_known_extension(const std::string& name) {
-    static const char* known[] = {"KHR_draco_mesh_compression", "KHR_mesh_quantization",  "KHR_texture_transform",
-                                  "KHR_texture_basisu",         "KHR_lights_punctual",    "KHR_materials_common",
-                                  "EXT_texture_webp",           "KHR_materials_variants", "KHR_animation_pointer"};
+constexpr const char* meshopt_name = "EXT_meshopt_compression";
+constexpr const char* instancing_name = "EXT_mesh_gpu_instancing";
+
+// Extensions the loader reads into the geometry.
+bool is_applied_extension(const std::string& name) {
+    return name == "KHR_draco_mesh_compression" || name == "KHR_mesh_quantization" || name == meshopt_name ||
+        name == instancing_name;
+}
+
+// Extensions whose presence changes nothing about positions, indices, instances or sidedness, so a file
+// that requires them is still loaded exactly.
+bool is_no_geometry_extension(const std::string& name) {
+    static const char* known[] = {"KHR_texture_transform", "KHR_texture_basisu",     "KHR_lights_punctual",
+                                  "KHR_materials_common",  "EXT_texture_webp",       "EXT_texture_avif",
+                                  "KHR_xmp_json_ld",       "KHR_materials_variants", "KHR_animation_pointer"};
     for (const char* k : known)
         if (name == k) return true;
     return name.rfind("KHR_materials_", 0) == 0;  // every material extension: no geometry
 }
+
+// The kinds of objects whose extensions cannot change what the loader reads: an unknown extension found
+// only on these is skipped without a word. On any other object (meshes, nodes, accessors, bufferViews,
+// buffers, scenes, the document itself) it could.
+bool owner_without_geometry(const std::string& owner) {
+    static const char* owners[] = {"materials",  "textures", "images",  "samplers",
+                                   "animations", "skins",    "cameras", "asset"};
+    for (const char* o : owners)
+        if (owner == o) return true;
+    return false;
+}
+
+// Where each extension of the document was found, by the kind of object that holds it ("meshes",
+// "nodes", "the document"), in the order first seen.
+struct ExtensionSightings {
+    std::vector<std::string> order;
+    std::map<std::string, std::set<std::string>> owners;
+
+    void add(const std::string& name, const std::string& owner) {
+        auto [it, fresh] = owners.try_emplace(name);
+        if (fresh) order.push_back(name);
+        it->second.insert(owner);
+    }
+};
 
 // tinygltf 2.7 refuses a primitive whose indices accessor has no bufferView, yet that is what every
 // KHR_draco_mesh_compression primitive looks like (its data lives in the extension), and what a sparse or
@@ -90,27 +125,52 @@ std::string glb_layout_error(const uint8_t* data, size_t size) {
 // The document's JSON (a GLB's JSON chunk, whose layout glb_layout_error has checked). Parsed here rather
 // than by tinygltf, whose error is the JSON library's raw exception text: a file that is not glTF at all is
 // said to be so, with where its JSON breaks.
-// Parts the loader never reads ("extras", and extensions other than Draco's: their names are a prefix, an
-// underscore and a lower-case letter) are dropped as they are parsed, with whatever they nest, so that
-// neither this document nor tinygltf's model holds them: a few megabytes of "[[],[],..." there made both
-// hold hundreds. `pruned` tells whether anything was dropped.
+// Parts the loader never reads ("extras", and extensions other than the three it decodes: their names are
+// a prefix, an underscore and a lower-case letter) are dropped as they are parsed, with whatever they nest,
+// so that neither this document nor tinygltf's model holds them: a few megabytes of "[[],[],..." there
+// made both hold hundreds. `pruned` tells whether anything was dropped. The name of every extension met on
+// the way, and the kind of object it is on, go into `seen` all the same.
 bool never_read(const std::string& key) {
     if (key == "extras") return true;
     const size_t underscore = key.find('_');
     if (underscore == 0 || underscore == std::string::npos || underscore + 1 == key.size()) return false;
     for (size_t i = 0; i < underscore; ++i)
         if (!std::isupper(uint8_t(key[i])) && !std::isdigit(uint8_t(key[i]))) return false;
-    return std::islower(uint8_t(key[underscore + 1])) && key != "KHR_draco_mesh_compression";
+    return std::islower(uint8_t(key[underscore + 1])) && key != "KHR_draco_mesh_compression" && key != meshopt_name &&
+        key != instancing_name;
 }
 
-nlohmann::json parse_document(const uint8_t* data, size_t size, bool binary, const std::string& name, bool& pruned) {
+nlohmann::json parse_document(const uint8_t* data, size_t size, bool binary, const std::string& name, bool& pruned,
+                              ExtensionSightings& seen) {
     const uint8_t* begin = binary ? data + 20 : data;
     const size_t length = binary ? read_u32(data + 12) : size;
     nlohmann::json doc;
     pruned = false;
-    auto keep = [&pruned](int, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
-        if (event != nlohmann::json::parse_event_t::key || !parsed.is_string() || !never_read(parsed)) return true;
+    // keys[d]: the last key read at depth d, or "[" where an array holds that level. The top-level object's
+    // keys are at depth 1, so an extension's name is a key whose parent key is "extensions", and keys[1]
+    // names the kind of object it is on.
+    std::vector<std::string> keys;
+    int dropping = -1;  // the depth of a key whose value is being dropped, -1 when none
+    auto keep = [&](int depth, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+        using event_t = nlohmann::json::parse_event_t;
+        if (depth < 0) return true;
+        const size_t d = size_t(depth);
+        if (event == event_t::array_start) {
+            if (keys.size() < d + 2) keys.resize(d + 2);
+            keys[d + 1] = "[";
+            return true;
+        }
+        if (event != event_t::key || !parsed.is_string()) return true;
+        if (dropping >= 0 && depth > dropping) return false;  // inside what is dropped: neither read nor seen
+        dropping = -1;
+        const std::string& key = parsed.get_ref<const std::string&>();
+        if (keys.size() < d + 1) keys.resize(d + 1);
+        keys[d] = key;
+        if (d >= 2 && keys[d - 1] == "extensions")
+            seen.add(key, d == 2 || keys[1] == "extensions" ? "the document" : keys[1]);
+        if (!never_read(key)) return true;
         pruned = true;
+        dropping = depth;
         return false;
     };
     try {
@@ -154,11 +214,55 @@ std::string buffer_file_problem(const nlohmann::json& doc, const std::string& ba
     return {};
 }
 
+// EXT_meshopt_compression's fallback buffers hold the uncompressed data for loaders without the
+// extension; this one decodes the compressed views instead and never reads them. Often they have no data
+// at all (no URI, only a byteLength), which tinygltf takes for the GLB's BIN chunk and refuses. A fallback
+// buffer is one marked so ("fallback": true), or one without a URI (other than a GLB's buffer 0) that only
+// compressed views name as their buffer. Each is replaced in `doc` by a one-byte buffer, and its index and
+// declared length are kept here.
+using FallbackBuffers = std::map<int, uint64_t>;
+
+bool is_marked_fallback(const nlohmann::json& b) {
+    const auto ext = b.find("extensions");
+    if (ext == b.end() || !ext->is_object()) return false;
+    const auto meshopt = ext->find(meshopt_name);
+    if (meshopt == ext->end() || !meshopt->is_object()) return false;
+    const auto flag = meshopt->find("fallback");
+    return flag != meshopt->end() && flag->is_boolean() && flag->get<bool>();
+}
+
+bool detach_fallback_buffers(nlohmann::json& doc, bool binary, FallbackBuffers& fallback) {
+    const auto buffers = doc.find("buffers");
+    if (buffers == doc.end() || !buffers->is_array()) return false;
+    // Per buffer: how many views name it, and how many of those are compressed.
+    std::vector<size_t> views(buffers->size(), 0), compressed(buffers->size(), 0);
+    if (const auto v = doc.find("bufferViews"); v != doc.end() && v->is_array())
+        for (const nlohmann::json& view : *v) {
+            if (!view.is_object() || !view.contains("buffer") || !view["buffer"].is_number_unsigned()) continue;
+            const size_t b = view["buffer"].get<size_t>();
+            if (b >= buffers->size()) continue;
+            ++views[b];
+            const auto ext = view.find("extensions");
+            compressed[b] += ext != view.end() && ext->is_object() && ext->contains(meshopt_name);
+        }
+    for (size_t i = 0; i < buffers->size(); ++i) {
+        nlohmann::json& b = (*buffers)[i];
+        if (!b.is_object()) continue;
+        const bool placeholder = !b.contains("uri") && !(binary && i == 0) && views[i] > 0 && compressed[i] == views[i];
+        if (!is_marked_fallback(b) && !placeholder) continue;
+        const auto length = b.find("byteLength");
+        fallback[int(i)] = length != b.end() && length->is_number_unsigned() ? length->get<uint64_t>() : 0;
+        b = {{"byteLength", 1}, {"uri", "data:application/octet-stream;base64,AA=="}};
+    }
+    return !fallback.empty();
+}
+
 // Returns the glTF (or GLB) bytes with viewless indices detached from `doc` (in place: only its buffers
-// are read later) and what parse_document dropped left out, or an empty vector when nothing changed.
+// are read later) and what parse_document dropped or detach_fallback_buffers replaced left out, or an empty
+// vector when nothing changed.
 std::vector<uint8_t> prepare_for_tinygltf(const uint8_t* data, size_t size, bool binary, nlohmann::json& doc,
-                                          bool pruned, DetachedIndices& detached) {
-    if (!detach_viewless_indices(doc, detached) && !pruned) return {};
+                                          bool changed, DetachedIndices& detached) {
+    if (!detach_viewless_indices(doc, detached) && !changed) return {};
     const size_t json_size = binary ? read_u32(data + 12) : size;
     std::string text = doc.dump();
     if (!binary) return std::vector<uint8_t>(text.begin(), text.end());
@@ -181,12 +285,20 @@ struct MemoryUse {
     uint64_t budget = default_memory_budget;
 };
 
+// EXT_meshopt_compression's state for one load: the fallback buffers (detach_fallback_buffers) and the
+// views decoded so far, each decoded once however many accessors read it.
+struct MeshoptViews {
+    FallbackBuffers fallback;
+    std::map<int, std::vector<uint8_t>> decoded;
+};
+
 struct Context {
     const tinygltf::Model& model;
     std::string file;
     std::string where;  // "mesh 3 primitive 1: accessor 7" and so on
     const DetachedIndices* detached = nullptr;
     MemoryUse* memory = nullptr;
+    MeshoptViews* meshopt = nullptr;
 
     [[noreturn]] void fail(const std::string& what) const {
         throw LoadError(file + ": " + (where.empty() ? "" : where + ": ") + what);
@@ -274,20 +386,125 @@ struct StridedRange {
     size_t stride = 0;
 };
 
+// A non-negative integer property of an extension object: -1 when absent, fails when not such an integer.
+int64_t extension_integer(const Context& ctx, const tinygltf::Value& object, const char* key) {
+    if (!object.Has(key)) return -1;
+    const tinygltf::Value& v = object.Get(key);
+    double d = v.IsInt() ? double(v.Get<int>()) : v.IsReal() ? v.Get<double>() : -1;
+    if (!(d >= 0 && d <= 9007199254740992.0 && d == std::floor(d)))
+        ctx.fail(std::string(key) + " is not a non-negative integer");
+    return int64_t(d);
+}
+
+// Decoded bytes a compressed stream of `length` bytes may hold, by mode. The attribute codec stores, for
+// each byte of an element, 2 header bits a group of 16 elements of a block: at least a byte for 64 bytes
+// decoded. The triangle codec spends at least one byte on each triangle, the index codec one on each
+// index. A larger declaration is refused before anything is allocated for it.
+constexpr uint64_t meshopt_attribute_bytes_per_byte = 64;
+
+// The bytes of an EXT_meshopt_compression bufferView, decoded (and filtered) on first use. Every rule of
+// the extension on count, byteStride, mode and filter is checked first, and the declared size against the
+// compressed stream's and the memory budget.
+const std::vector<uint8_t>& meshopt_view(const Context& outer, int view_index, const tinygltf::Value& ext) {
+    if (auto it = outer.meshopt->decoded.find(view_index); it != outer.meshopt->decoded.end()) return it->second;
+    Context ctx = outer;
+    ctx.where = (outer.where.empty() ? "" : outer.where + ": ") + "bufferView " + std::to_string(view_index) + ": " +
+        meshopt_name;
+    const tinygltf::BufferView& view = ctx.model.bufferViews[view_index];
+    if (!ext.IsObject()) ctx.fail("not an object");
+    const int64_t buffer_index = extension_integer(ctx, ext, "buffer");
+    const int64_t offset = std::max<int64_t>(0, extension_integer(ctx, ext, "byteOffset"));
+    const int64_t length = extension_integer(ctx, ext, "byteLength");
+    const int64_t stride = extension_integer(ctx, ext, "byteStride");
+    const int64_t count = extension_integer(ctx, ext, "count");
+    if (buffer_index < 0 || length < 0 || stride < 0 || count < 0)
+        ctx.fail("needs buffer, byteLength, byteStride and count");
+    const std::string mode = ext.Has("mode") && ext.Get("mode").IsString() ? ext.Get("mode").Get<std::string>() : "";
+    const std::string filter =
+        ext.Has("filter") && ext.Get("filter").IsString() ? ext.Get("filter").Get<std::string>() : "NONE";
+    if (mode != "ATTRIBUTES" && mode != "TRIANGLES" && mode != "INDICES")
+        ctx.fail("mode '" + mode + "' is none of ATTRIBUTES, TRIANGLES, INDICES");
+    if (filter != "NONE" && filter != "OCTAHEDRAL" && filter != "QUATERNION" && filter != "EXPONENTIAL")
+        ctx.fail("filter '" + filter + "' is none of NONE, OCTAHEDRAL, QUATERNION, EXPONENTIAL");
+    const std::string layout = "count " + std::to_string(count) + ", byteStride " + std::to_string(stride);
+    if (mode == "ATTRIBUTES" && (stride == 0 || stride % 4 != 0 || stride > 256))
+        ctx.fail("ATTRIBUTES with byteStride " + std::to_string(stride) + " (a multiple of 4, at most 256)");
+    if (mode != "ATTRIBUTES" && stride != 2 && stride != 4)
+        ctx.fail(mode + " with byteStride " + std::to_string(stride) + " (2 or 4)");
+    if (mode == "TRIANGLES" && count % 3 != 0)
+        ctx.fail("TRIANGLES with count " + std::to_string(count) + ", not a multiple of 3");
+    if (mode != "ATTRIBUTES" && filter != "NONE") ctx.fail(mode + " with filter " + filter + " (only NONE)");
+    if ((filter == "OCTAHEDRAL" && stride != 4 && stride != 8) || (filter == "QUATERNION" && stride != 8))
+        ctx.fail("filter " + filter + " with byteStride " + std::to_string(stride));
+    if (view.byteStride != 0 && int64_t(view.byteStride) != stride)
+        ctx.fail("byteStride " + std::to_string(stride) + " differs from the bufferView's " +
+                 std::to_string(view.byteStride));
+    const uint64_t decoded_bytes = uint64_t(count) * uint64_t(stride);  // below 2^53 x 256: no overflow
+    if (decoded_bytes != view.byteLength)
+        ctx.fail(layout + " make " + std::to_string(decoded_bytes) + " bytes, but the bufferView's byteLength is " +
+                 std::to_string(view.byteLength));
+    if (size_t(buffer_index) >= ctx.model.buffers.size())
+        ctx.fail("buffer " + std::to_string(buffer_index) + " does not exist");
+    if (ctx.meshopt->fallback.count(int(buffer_index)))
+        ctx.fail("buffer " + std::to_string(buffer_index) + " is a fallback buffer, not compressed data");
+    const std::vector<unsigned char>& buffer = ctx.model.buffers[size_t(buffer_index)].data;
+    if (uint64_t(offset) > buffer.size() || uint64_t(length) > buffer.size() - uint64_t(offset))
+        ctx.fail("range " + std::to_string(offset) + "+" + std::to_string(length) + " past the end of buffer " +
+                 std::to_string(buffer_index) + " (" + std::to_string(buffer.size()) + " bytes)");
+    const uint8_t* stream = buffer.data() + offset;
+    const uint64_t most = mode == "ATTRIBUTES" ? meshopt_attribute_bytes_per_byte * uint64_t(length)
+        : mode == "TRIANGLES"                  ? 3 * uint64_t(length) * uint64_t(stride)
+                                               : uint64_t(length) * uint64_t(stride);
+    if (decoded_bytes > most)
+        ctx.fail(layout + " declare " + std::to_string(decoded_bytes) + " bytes from a stream of " +
+                 std::to_string(length) + " (at most " + std::to_string(most) + ")");
+    if (mode == "ATTRIBUTES" && length > 0 && stream[0] != 0xa0)
+        ctx.fail("attribute stream header 0x" +
+                 [](uint8_t b) {
+                     const char* hex = "0123456789abcdef";
+                     return std::string{hex[b >> 4], hex[b & 15]};
+                 }(stream[0]) +
+                 " (version 0's is 0xa0; KHR_meshopt_compression's later versions are not read)");
+    ctx.need(decoded_bytes, layout);
+    std::vector<uint8_t> out(decoded_bytes);
+    const int rc = mode == "ATTRIBUTES"
+        ? meshopt_decodeVertexBuffer(out.data(), size_t(count), size_t(stride), stream, size_t(length))
+        : mode == "TRIANGLES"
+        ? meshopt_decodeIndexBuffer(out.data(), size_t(count), size_t(stride), stream, size_t(length))
+        : meshopt_decodeIndexSequence(out.data(), size_t(count), size_t(stride), stream, size_t(length));
+    if (rc != 0)
+        ctx.fail("bad compressed data: " + mode + " stream of " + std::to_string(length) +
+                 " bytes does not decode to " + layout + " (meshoptimizer error " + std::to_string(rc) + ")");
+    if (filter == "OCTAHEDRAL") meshopt_decodeFilterOct(out.data(), size_t(count), size_t(stride));
+    if (filter == "QUATERNION") meshopt_decodeFilterQuat(out.data(), size_t(count), size_t(stride));
+    if (filter == "EXPONENTIAL") meshopt_decodeFilterExp(out.data(), size_t(count), size_t(stride));
+    ctx.memory->held += decoded_bytes;
+    return ctx.meshopt->decoded.emplace(view_index, std::move(out)).first->second;
+}
+
 StridedRange view_range(const Context& ctx, int view_index, size_t offset, size_t count, size_t element_size,
                         bool allow_stride) {
     const auto& views = ctx.model.bufferViews;
     if (view_index < 0 || size_t(view_index) >= views.size())
         ctx.fail("bufferView " + std::to_string(view_index) + " does not exist");
     const tinygltf::BufferView& view = views[view_index];
-    if (view.buffer < 0 || size_t(view.buffer) >= ctx.model.buffers.size())
-        ctx.fail("bufferView " + std::to_string(view_index) + ": buffer " + std::to_string(view.buffer) +
-                 " does not exist");
-    const tinygltf::Buffer& buffer = ctx.model.buffers[view.buffer];
-    if (view.byteOffset > buffer.data.size() || view.byteLength > buffer.data.size() - view.byteOffset)
-        ctx.fail("bufferView " + std::to_string(view_index) + ": range " + std::to_string(view.byteOffset) + "+" +
-                 std::to_string(view.byteLength) + " past the end of buffer " + std::to_string(view.buffer) + " (" +
-                 std::to_string(buffer.data.size()) + " bytes)");
+    const uint8_t* bytes = nullptr;
+    if (auto ext = view.extensions.find(meshopt_name); ext != view.extensions.end()) {
+        bytes = meshopt_view(ctx, view_index, ext->second).data();
+    } else {
+        if (view.buffer < 0 || size_t(view.buffer) >= ctx.model.buffers.size())
+            ctx.fail("bufferView " + std::to_string(view_index) + ": buffer " + std::to_string(view.buffer) +
+                     " does not exist");
+        if (ctx.meshopt->fallback.count(view.buffer))
+            ctx.fail("bufferView " + std::to_string(view_index) + ": reads buffer " + std::to_string(view.buffer) +
+                     ", an " + meshopt_name + " fallback buffer, without being compressed itself");
+        const tinygltf::Buffer& buffer = ctx.model.buffers[view.buffer];
+        if (view.byteOffset > buffer.data.size() || view.byteLength > buffer.data.size() - view.byteOffset)
+            ctx.fail("bufferView " + std::to_string(view_index) + ": range " + std::to_string(view.byteOffset) + "+" +
+                     std::to_string(view.byteLength) + " past the end of buffer " + std::to_string(view.buffer) + " (" +
+                     std::to_string(buffer.data.size()) + " bytes)");
+        bytes = buffer.data.data() + view.byteOffset;
+    }
     size_t stride = allow_stride && view.byteStride != 0 ? view.byteStride : element_size;
     if (stride < element_size)
         ctx.fail("bufferView " + std::to_string(view_index) + ": byteStride " + std::to_string(stride) +
@@ -298,7 +515,7 @@ StridedRange view_range(const Context& ctx, int view_index, size_t offset, size_
     if (needed > view.byteLength)
         ctx.fail("needs " + std::to_string((unsigned long long)needed) + " bytes of bufferView " +
                  std::to_string(view_index) + " which has " + std::to_string(view.byteLength));
-    return {buffer.data.data() + view.byteOffset + offset, stride};
+    return {bytes + offset, stride};
 }
 
 // A sparse accessor's declared count, index type and offsets, checked before its views are read.
@@ -584,8 +801,8 @@ Transform node_local(const Context& ctx, const tinygltf::Node& node) {
 class SceneBuilder {
 public:
     SceneBuilder(const tinygltf::Model& model, const std::string& file, const DetachedIndices& detached,
-                 MemoryUse& memory)
-        : ctx_{model, file, "", &detached, &memory} {}
+                 MemoryUse& memory, MeshoptViews& meshopt)
+        : ctx_{model, file, "", &detached, &memory, &meshopt} {}
 
     Scene build() {
         const auto& model = ctx_.model;
@@ -609,6 +826,7 @@ public:
         for (int r : roots) walk(r);
         for (size_t m = 0; m < model.meshes.size(); ++m)
             if (mesh_slot_[m] < 0) ++scene_.report.unreferenced_meshes;
+        scene_.report.meshopt_views = uint32_t(ctx_.meshopt->decoded.size());
         return std::move(scene_);
     }
 
@@ -662,14 +880,70 @@ private:
         if (node.mesh >= 0) {
             if (size_t(node.mesh) >= ctx_.model.meshes.size())
                 node_ctx.fail("mesh " + std::to_string(node.mesh) + " does not exist");
-            if (scene_.instances.size() >= max_instances) node_ctx.fail("more than 4 million instances");
             uint32_t id = mesh_id(node.mesh);
-            node_ctx.need(sizeof(Instance) + node.name.size(), "an instance");
-            ctx_.memory->held += sizeof(Instance) + node.name.size();
-            scene_.instances.push_back({id, with_origin(world, origins_[id]), node.name});
+            if (auto gpu = node.extensions.find(instancing_name); gpu != node.extensions.end()) {
+                add_gpu_instances(node_ctx, node, gpu->second, world, id);
+            } else {
+                add_instance(node_ctx, node, with_origin(world, origins_[id]), id);
+            }
         }
         on_path_[node_index] = true;
         path.push_back({node_index, 0, world});
+    }
+
+    void add_instance(const Context& node_ctx, const tinygltf::Node& node, const Transform& world, uint32_t mesh) {
+        if (scene_.instances.size() >= max_instances) node_ctx.fail("more than 4 million instances");
+        node_ctx.need(sizeof(Instance) + node.name.size(), "an instance");
+        ctx_.memory->held += sizeof(Instance) + node.name.size();
+        scene_.instances.push_back({mesh, world, node.name});
+    }
+
+    // EXT_mesh_gpu_instancing: the node's mesh drawn once per element of its TRANSLATION, ROTATION and SCALE
+    // accessors, each element's T x R x S after the node's world transform, in double. The node's children
+    // are not instanced. A mirroring scale is kept in the transform, as a mirrored node's is.
+    void add_gpu_instances(Context node_ctx, const tinygltf::Node& node, const tinygltf::Value& ext,
+                           const Transform& world, uint32_t mesh) {
+        node_ctx.where += std::string(": ") + instancing_name;
+        if (!ext.IsObject() || !ext.Get("attributes").IsObject()) node_ctx.fail("no attributes object");
+        const tinygltf::Value& attributes = ext.Get("attributes");
+        const char* names[3] = {"TRANSLATION", "ROTATION", "SCALE"};
+        const int types[3] = {TINYGLTF_TYPE_VEC3, TINYGLTF_TYPE_VEC4, TINYGLTF_TYPE_VEC3};
+        std::vector<double> values[3];
+        int64_t count = -1;
+        for (int a = 0; a < 3; ++a) {
+            if (!attributes.Has(names[a])) continue;
+            const tinygltf::Value& index = attributes.Get(names[a]);
+            Context actx = node_ctx;
+            actx.where += std::string(" ") + names[a];
+            if (!index.IsInt()) actx.fail("is not an accessor index");
+            values[a] = read_accessor(actx, index.Get<int>(), types[a]);
+            const int64_t n = int64_t(values[a].size() / (a == 1 ? 4 : 3));
+            if (count >= 0 && n != count)
+                actx.fail("has " + std::to_string(n) + " elements, the other attributes " + std::to_string(count));
+            count = n;
+        }
+        if (count < 0) node_ctx.fail("names none of TRANSLATION, ROTATION, SCALE: how many instances is unknown");
+        ++scene_.report.instanced_nodes;
+        scene_.report.gpu_instances += uint64_t(count);
+        for (int64_t i = 0; i < count; ++i) {
+            double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
+            for (int c = 0; c < 3; ++c) {
+                if (!values[0].empty()) t[c] = values[0][size_t(i) * 3 + c];
+                if (!values[2].empty()) s[c] = values[2][size_t(i) * 3 + c];
+            }
+            if (!values[1].empty()) {
+                for (int c = 0; c < 4; ++c) q[c] = values[1][size_t(i) * 4 + c];
+                const double len = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+                if (!(len > 0) || !std::isfinite(len))
+                    node_ctx.fail("instance " + std::to_string(i) + ": rotation has zero or non-finite length");
+                for (double& c : q) c /= len;  // quantized rotations are unit to their precision only
+            }
+            const Transform m = multiply(world, trs_transform(t, q, s));
+            for (double v : m)
+                if (!std::isfinite(v))
+                    node_ctx.fail("instance " + std::to_string(i) + ": transform has a non-finite value");
+            add_instance(node_ctx, node, with_origin(m, origins_[mesh]), mesh);
+        }
     }
 
     uint32_t mesh_id(int gltf_mesh) {
@@ -697,6 +971,58 @@ private:
 };
 
 }  // namespace
+
+// Every extension the document names, in extensionsUsed, extensionsRequired or on an object, with what the
+// load does with it. One it does not know that could change the geometry (on a mesh, node, accessor,
+// bufferView, buffer, scene or the document, or required and on no object at all) fails the load when
+// required and is a warning when optional; one found only on materials, textures, animations and the like
+// is skipped.
+static std::vector<ExtensionUse> classify_extensions(const nlohmann::json& doc, const ExtensionSightings& seen,
+                                                     const std::string& name, std::vector<std::string>& warnings) {
+    std::vector<std::string> order;
+    std::set<std::string> required, listed;
+    auto names = [&doc](const char* key) {
+        std::vector<std::string> out;
+        const auto it = doc.find(key);
+        if (it == doc.end() || !it->is_array()) return out;
+        for (const nlohmann::json& n : *it)
+            if (n.is_string()) out.push_back(n.get<std::string>());
+        return out;
+    };
+    const std::vector<std::string> used = names("extensionsUsed"), declared_required = names("extensionsRequired");
+    required.insert(declared_required.begin(), declared_required.end());
+    for (const std::vector<std::string>* list : {&used, &declared_required, &seen.order})
+        for (const std::string& n : *list)
+            if (listed.insert(n).second) order.push_back(n);
+    std::vector<ExtensionUse> out;
+    for (const std::string& n : order) {
+        ExtensionUse use;
+        use.name = n;
+        use.required = required.count(n) > 0;
+        bool geometry = false;
+        if (auto it = seen.owners.find(n); it != seen.owners.end()) {
+            for (const std::string& owner : it->second) {
+                use.where += (use.where.empty() ? "" : ", ") + owner;
+                geometry = geometry || !owner_without_geometry(owner);
+            }
+        } else {
+            geometry = use.required;  // such as KHR_mesh_quantization: it changes how accessors read
+        }
+        if (is_applied_extension(n)) {
+            use.status = ExtensionUse::Status::applied;
+        } else if (is_no_geometry_extension(n) || !geometry) {
+            use.status = ExtensionUse::Status::no_geometry;
+        } else {
+            const std::string on = use.where.empty() ? "" : " (on " + use.where + ")";
+            if (use.required) throw LoadError(name + ": unsupported required extension " + n + on);
+            use.status = ExtensionUse::Status::unsupported;
+            warnings.push_back(name + ": optional extension " + n + on +
+                               " is not supported and could change the geometry: loaded without it");
+        }
+        out.push_back(std::move(use));
+    }
+    return out;
+}
 
 // The first external buffer of the document the load may not read, as "buffer 0: 'uri': why", or empty.
 // Images are never read, so only buffers are checked.
@@ -769,11 +1095,17 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
         if (!layout.empty()) throw LoadError(name + ": " + layout);
     }
     bool pruned;
-    nlohmann::json doc = parse_document(data, size, binary, name, pruned);
+    ExtensionSightings seen;
+    nlohmann::json doc = parse_document(data, size, binary, name, pruned, seen);
+    std::vector<std::string> warnings;
+    std::vector<ExtensionUse> extensions = classify_extensions(doc, seen, name, warnings);
+    MeshoptViews meshopt;
+    const bool detached_fallback = detach_fallback_buffers(doc, binary, meshopt.fallback);
     std::string access = buffer_access_problem(doc, base_dir, options);
     if (!access.empty()) throw LoadError(name + ": " + access);
     DetachedIndices detached;
-    std::vector<uint8_t> prepared = prepare_for_tinygltf(data, size, binary, doc, pruned, detached);
+    std::vector<uint8_t> prepared =
+        prepare_for_tinygltf(data, size, binary, doc, pruned || detached_fallback, detached);
     if (!prepared.empty()) data = prepared.data(), size = prepared.size();
 
     tinygltf::TinyGLTF loader;
@@ -793,10 +1125,10 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
         std::string buffer = buffer_file_problem(doc, base_dir);
         throw LoadError(name + ": " + (buffer.empty() ? first_line(err.empty() ? warn : err) : buffer));
     }
-    for (const std::string& ext : model.extensionsRequired)
-        if (!is_known_extension(ext)) throw LoadError(name + ": unsupported required extension " + ext);
     MemoryUse memory{0, options.memory_budget};
-    Scene scene = SceneBuilder(model, name, detached, memory).build();
+    Scene scene = SceneBuilder(model, name, detached, memory, meshopt).build();
+    scene.report.extensions = std::move(extensions);
+    scene.report.warnings = std::move(warnings);
     validate_scene(scene, name);
     return scene;
 }

@@ -69,15 +69,34 @@ struct PolygonCounts {
     uint64_t degenerate = 0;  // no area at all: the fan, as written
 };
 
+// A glTF extension the file names (in extensionsUsed, extensionsRequired or on any of its objects), and
+// what the loader did with it.
+struct ExtensionUse {
+    enum class Status {
+        applied,      // read into the geometry (Draco, meshopt, quantization, GPU instancing)
+        no_geometry,  // changes nothing the loader reads (materials, textures, lights...): skipped
+        unsupported,  // unknown, on objects that carry geometry: loaded without it, with a warning
+    };
+    std::string name;
+    bool required = false;
+    Status status = Status::no_geometry;
+    std::string where;  // the kinds of objects it is on ("meshes, nodes"), or empty when on none
+};
+
 // Things the loader skipped or noticed; reported by `clusterbake info`, never silently dropped.
 struct LoadReport {
-    uint32_t primitives = 0;            // triangle primitives loaded
-    uint32_t skipped_primitives = 0;    // POINTS / LINES / LINE_LOOP / LINE_STRIP
-    uint32_t draco_primitives = 0;      // decoded from KHR_draco_mesh_compression
-    uint64_t degenerate_triangles = 0;  // repeated index or zero area, kept in the mesh
-    uint64_t unreferenced_meshes = 0;   // glTF meshes no node of the chosen scene uses
-    PolygonCounts polygons;             // OBJ, OFF and PLY faces of more than three vertices
-    SourceFiles source;                 // the files read and their hash (load_scene only)
+    uint32_t primitives = 0;               // triangle primitives loaded
+    uint32_t skipped_primitives = 0;       // POINTS / LINES / LINE_LOOP / LINE_STRIP
+    uint32_t draco_primitives = 0;         // decoded from KHR_draco_mesh_compression
+    uint32_t meshopt_views = 0;            // bufferViews decoded from EXT_meshopt_compression
+    uint32_t instanced_nodes = 0;          // nodes with EXT_mesh_gpu_instancing
+    uint64_t gpu_instances = 0;            // instances those nodes made, one per element of their accessors
+    uint64_t degenerate_triangles = 0;     // repeated index or zero area, kept in the mesh
+    uint64_t unreferenced_meshes = 0;      // glTF meshes no node of the chosen scene uses
+    PolygonCounts polygons;                // OBJ, OFF and PLY faces of more than three vertices
+    std::vector<ExtensionUse> extensions;  // glTF: every extension the file names, in the order first named
+    std::vector<std::string> warnings;     // one line each, naming the file: what the load could not honour
+    SourceFiles source;                    // the files read and their hash (load_scene only)
 };
 
 struct Scene {

@@ -15,6 +15,11 @@ SceneInfo describe(const Scene& scene) {
     info.degenerate_triangles = scene.report.degenerate_triangles;
     info.unreferenced_meshes = scene.report.unreferenced_meshes;
     info.polygons = scene.report.polygons;
+    info.meshopt_views = scene.report.meshopt_views;
+    info.instanced_nodes = scene.report.instanced_nodes;
+    info.gpu_instances = scene.report.gpu_instances;
+    info.extensions = scene.report.extensions;
+    info.warnings = scene.report.warnings;
     for (const Mesh& m : scene.meshes) {
         info.unique_triangles += m.triangle_count();
         info.unique_vertices += m.vertex_count();
@@ -53,12 +58,34 @@ nlohmann::json to_json(const SceneInfo& i) {
         {"concave_polygons", i.polygons.concave},
         {"not_simple_polygons", i.polygons.not_simple},
         {"degenerate_polygons", i.polygons.degenerate},
+        {"meshopt_views", i.meshopt_views},
+        {"gpu_instancing_nodes", i.instanced_nodes},
+        {"gpu_instances", i.gpu_instances},
+        {"warnings", i.warnings},
     };
+    nlohmann::json extensions = nlohmann::json::array();
+    for (const ExtensionUse& e : i.extensions)
+        extensions.push_back(
+            {{"name", e.name}, {"required", e.required}, {"status", status_name(e.status)}, {"on", e.where}});
+    j["extensions"] = extensions;
     if (i.empty_bounds)
         j["world_bounds"] = nullptr;
     else
         j["world_bounds"] = {{"min", i.world_min}, {"max", i.world_max}};
     return j;
+}
+
+const char* status_name(ExtensionUse::Status status) {
+    switch (status) {
+        case ExtensionUse::Status::applied: return "applied";
+        case ExtensionUse::Status::no_geometry: return "no geometry";
+        case ExtensionUse::Status::unsupported: return "unsupported";
+    }
+    return "?";
+}
+
+std::string extension_text(const ExtensionUse& use) {
+    return use.name + " (" + (use.required ? "required, " : "") + status_name(use.status) + ")";
 }
 
 }  // namespace cb

@@ -3,6 +3,8 @@
 
 #include <array>
 #include <cstdint>
+#include <string>
+#include <vector>
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -16,7 +18,11 @@ struct SceneInfo {
     uint64_t scene_triangles = 0, scene_vertices = 0;    // each mesh counted per instance
     uint64_t degenerate_triangles = 0;                   // unique, kept in the meshes
     uint64_t unreferenced_meshes = 0;
-    PolygonCounts polygons;  // OBJ, OFF and PLY faces of more than three vertices, by shape
+    uint64_t meshopt_views = 0, instanced_nodes = 0,
+             gpu_instances = 0;            // glTF EXT_meshopt_compression, EXT_mesh_gpu_instancing
+    std::vector<ExtensionUse> extensions;  // glTF: every extension the file names, and what the load did with it
+    std::vector<std::string> warnings;     // what the load could not honour, one line each
+    PolygonCounts polygons;                // OBJ, OFF and PLY faces of more than three vertices, by shape
     std::array<double, 3> world_min{0, 0, 0}, world_max{0, 0, 0};  // exact over every instanced vertex
     bool empty_bounds = true;
 };
@@ -24,5 +30,11 @@ struct SceneInfo {
 SceneInfo describe(const Scene& scene);
 
 nlohmann::json to_json(const SceneInfo& info);
+
+// "applied", "no geometry" or "unsupported".
+const char* status_name(ExtensionUse::Status status);
+
+// An extension as `info` lists it: "EXT_meshopt_compression (required, applied)".
+std::string extension_text(const ExtensionUse& use);
 
 }  // namespace cb

@@ -8,13 +8,14 @@ packages=(
   libxxhash-dev              # input hashes of incremental batch bakes
   python3-distributed        # scripts/clusterbake-dask and its test (Dask scheduler and workers)
   qemu-user                  # the portability test runs the binary as older processors
-  libmeshoptimizer-dev libembree-dev
+  libmeshoptimizer-dev       # EXT_meshopt_compression's decoders (io/), and a peer in the benchmarks
+  libembree-dev
   zlib1g-dev                 # PNG heat maps (clusterbake heatmap, report --heatmap)
   libpng-dev chromium chromium-driver   # the report's browser test: headless Chromium renders report.html
   clang libclang-rt-14-dev   # libFuzzer + AddressSanitizer for the fuzz targets
   clang-format               # the format test (scripts/check-format.sh)
   assimp-testmodels          # real broken and Draco glTF files the tests read in place
-  nodejs                     # the Khronos glTF validator, run on export-gltf's outputs by the tests
+  nodejs                     # the tests' npm packages: the glTF validator, gltfpack, glTF-Transform
 )
 # Some builds of nodejs bring npm themselves and conflict with Debian's npm package: ask for it only when
 # there is no npm.
@@ -33,14 +34,18 @@ else
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-# The glTF validator (an npm package, its version pinned by tests/node/package-lock.json) into
-# tests/node/node_modules, which git ignores; skipped when that version is there already.
+# The npm packages the tests run, their versions pinned by tests/node/package-lock.json: the Khronos glTF
+# validator (on export-gltf's outputs), gltfpack and glTF-Transform's command line (whose outputs the loader
+# tests read). Into tests/node/node_modules, which git ignores; skipped when those versions are there already.
 node_dir="$(cd "$(dirname "$0")/.." && pwd)/tests/node"
-want=$(cd "$node_dir" && node -p "require('./package-lock.json').packages['node_modules/gltf-validator'].version")
-have=$(cd "$node_dir" && node -p "require('./node_modules/gltf-validator/package.json').version" 2>/dev/null || true)
+npm_packages="['gltf-validator', 'gltfpack', '@gltf-transform/cli']"
+want=$(cd "$node_dir" && node -p "const l = require('./package-lock.json').packages;
+  ${npm_packages}.map(n => n + '@' + l['node_modules/' + n].version).join(' ')")
+have=$(cd "$node_dir" && node -p "${npm_packages}.map(n => { try { return n + '@' +
+  require('./node_modules/' + n + '/package.json').version; } catch (e) { return n + '@none'; } }).join(' ')")
 if [ "$have" = "$want" ]; then
-  echo "install-deps: gltf-validator $want present"
+  echo "install-deps: npm packages present: $want"
 else
-  echo "install-deps: installing gltf-validator $want with npm"
+  echo "install-deps: installing $want with npm"
   (cd "$node_dir" && npm ci --no-audit --no-fund --loglevel=error)
 fi

@@ -11,6 +11,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "gltf_writer.h"
+
 namespace {
 
 struct CliRun {
@@ -400,6 +402,35 @@ void expect_bad_input(const CliRun& r, const std::string& line, const std::strin
 }
 
 }  // namespace
+
+TEST(Cli, InfoListsGltfExtensionsAndBakeWarnsOfOnesItCannotRead) {
+    namespace fs = std::filesystem;
+    fs::path dir = fs::temp_directory_path() / ("cb_cli_extensions_" + std::to_string(getpid()));
+    fs::create_directories(dir);
+    cb::data::GltfWriter w;
+    w.mesh("m", {{0, 0, 0, 1, 0, 0, 0, 1, 0}, {0, 1, 2}}, -1);
+    w.node({{"mesh", 0}, {"extensions", {{"MSFT_lod", {{"ids", {0}}}}}}});
+    w.doc["extensionsUsed"] = {"MSFT_lod", "KHR_texture_transform"};
+    const fs::path scene = dir / "lod.gltf";
+    std::ofstream(scene) << w.gltf_embedded();
+    const std::string warning = scene.string() +
+        ": optional extension MSFT_lod (on nodes) is not supported and could change the geometry: loaded without it";
+    CliRun info = run("info " + scene.string());
+    EXPECT_EQ(info.code, 0) << info.err;
+    EXPECT_NE(info.out.find("  extensions: MSFT_lod (unsupported), KHR_texture_transform (no geometry)\n"),
+              std::string::npos)
+        << info.out;
+    EXPECT_NE(info.out.find("  warning: " + warning + "\n"), std::string::npos) << info.out;
+    CliRun bake = run("bake " + scene.string() + " -o " + (dir / "lod.cbk").string());
+    EXPECT_EQ(bake.code, 0) << bake.err;
+    EXPECT_NE(bake.err.find("clusterbake: warning: " + warning + "\n"), std::string::npos) << bake.err;
+    // Required, it is refused.
+    w.doc["extensionsRequired"] = {"MSFT_lod"};
+    std::ofstream(scene) << w.gltf_embedded();
+    expect_bad_input(run("info " + scene.string()),
+                     scene.string() + ": unsupported required extension MSFT_lod (on nodes)", "required");
+    fs::remove_all(dir);
+}
 
 TEST(Cli, FilesThatAreNotWhatTheirNameSaysGiveOneLineNamingThem) {
     std::string text = scratch("text.glb").string(), gltf = scratch("text.gltf").string();

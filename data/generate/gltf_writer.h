@@ -81,9 +81,11 @@ struct GltfWriter {
         return d.dump(1);
     }
 
-    std::vector<uint8_t> glb() {
+    // The GLB: buffer 0 is its BIN chunk, `more_buffers` (such as fallback buffers without data) follow it.
+    std::vector<uint8_t> glb(const json& more_buffers = json::array()) {
         while (bin.size() % 4) bin.push_back(0);
         doc["buffers"] = json::array({{{"byteLength", bin.size()}}});
+        for (const json& b : more_buffers) doc["buffers"].push_back(b);
         std::string text = doc.dump();
         while (text.size() % 4) text.push_back(' ');
         std::vector<uint8_t> out;
