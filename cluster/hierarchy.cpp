@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <numeric>
+#include <stdexcept>
 #include <thread>
 
 #include "cluster.h"
@@ -10,21 +11,6 @@
 #include "random.h"
 
 namespace cb {
-
-const char* method_name(ClusterMethod m) {
-    switch (m) {
-        case ClusterMethod::kmeans: return "kmeans";
-        case ClusterMethod::vco: return "vco";
-        case ClusterMethod::morton: return "morton";
-    }
-    return "?";
-}
-
-bool parse_method(const std::string& name, ClusterMethod& out) {
-    for (ClusterMethod m : {ClusterMethod::kmeans, ClusterMethod::vco, ClusterMethod::morton})
-        if (name == method_name(m)) return out = m, true;
-    return false;
-}
 
 void connected_patches(const uint32_t* indices, uint32_t* tris, size_t count, std::vector<uint32_t>& patch_sizes) {
     // Union-find over the slice; slices are small (fine_size triangles), so the pairwise test is cheap.
@@ -124,9 +110,9 @@ void split_chunk(const float* positions, const uint32_t* indices, uint32_t* tris
 Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uint32_t* indices, size_t triangle_count,
                           const ClusterOptions& options, ClusterStats* stats,
                           const std::function<void(size_t, size_t)>& progress) {
-    ClusterOptions o = options;
-    o.fine_size = std::max(1u, o.fine_size);
-    o.coarse_size = std::max(o.fine_size, o.coarse_size);
+    const ClusterOptionsError error = check_options(options);
+    if (error != ClusterOptionsError::none) throw std::invalid_argument(describe(error));
+    const ClusterOptions& o = options;
     Hierarchy h;
 
     // Coarse level.
