@@ -850,6 +850,24 @@ bool parse_obb_method(const std::string& name, ObbMethod& out) {
     return false;
 }
 
+BoundsOptionsError check_options(const BoundsOptions& o) {
+    if (o.mask & ~bounds_all) return BoundsOptionsError::mask_unknown_kind;
+    if (!(o.capsule_ratio >= 1 && std::isfinite(o.capsule_ratio))) return BoundsOptionsError::capsule_ratio_below_one;
+    return BoundsOptionsError::none;
+}
+
+std::string describe(BoundsOptionsError error, const std::function<std::string(const char* field)>& name) {
+    auto field = [&](const char* f) { return name ? name(f) : std::string(f); };
+    switch (error) {
+        case BoundsOptionsError::none: return {};
+        case BoundsOptionsError::mask_unknown_kind:
+            return field("mask") + " holds a bit of no volume kind (obb, sphere, capsule, cone, slab)";
+        case BoundsOptionsError::capsule_ratio_below_one:
+            return field("capsule_ratio") + " must be a finite number of at least 1";
+    }
+    return "unknown bounds options error";
+}
+
 bool parse_bounds_mask(const std::string& text, uint32_t& mask) {
     if (text == "auto") return mask = bounds_auto, true;
     if (text == "all") return mask = bounds_all, true;
