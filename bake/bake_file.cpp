@@ -9,26 +9,13 @@
 #include <thread>
 
 #include "asset_file.h"
+#include "bake_options.h"
 #include "load.h"
 #include "parallel.h"
 #include "timing.h"
 
 namespace cb {
 namespace {
-
-std::string mask_text(uint32_t mask) {
-    static const char* names[] = {"obb", "sphere", "capsule", "cone", "slab"};
-    std::string out;
-    for (int b = 0; b < 5; ++b)
-        if (mask & (1u << b)) out += (out.empty() ? "" : ",") + std::string(names[b]);
-    return out.empty() ? "none" : out;
-}
-
-std::string number(double v) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%.17g", v);
-    return text;
-}
 
 // The file names a source section lists, in order.
 std::vector<std::string> source_names(const char* text, size_t size) {
@@ -155,21 +142,13 @@ const char* status_name(BakeStatus s) {
     return "?";
 }
 
-std::string options_text(const ClusterOptions& c, const BoundsOptions& b, bool fit) {
+std::string options_text(const ClusterOptions& clustering, const BoundsOptions& bounds, bool fit) {
+    BakeRequest r;
+    r.clustering = clustering;
+    r.bounds = bounds;
+    r.fit = fit;
     std::string out = fit ? "bake" : "cluster";
-    out += std::string(" --method ") + method_name(c.method);
-    out += " --coarse " + std::to_string(c.coarse_size) + " --fine " + std::to_string(c.fine_size);
-    // The method's own options only: the others change nothing, and the command line refuses them.
-    if (c.method == ClusterMethod::kmeans) {
-        out += " --seed " + std::to_string(c.seed) + " --k0 " + std::to_string(c.kmeans_branching);
-        out += " --iterations " + std::to_string(c.kmeans_max_iterations);
-        out += c.kmeans_coarse_from_tree ? " --presplit " + std::to_string(c.kmeans_presplit) : " --coarse-morton";
-    }
-    if (c.method == ClusterMethod::vco) out += " --cache " + std::to_string(c.vco_cache_size);
-    if (fit) {
-        out += " --bounds " + mask_text(b.mask) + " --obb " + obb_method_name(b.obb);
-        out += " --capsule-ratio " + number(b.capsule_ratio);
-    }
+    for (const std::string& word : options_argv(r)) out += " " + word;
     return out;
 }
 
@@ -185,6 +164,12 @@ std::string source_text(const SourceFiles& source, const ClusterOptions& cluster
 BakeResult bake_file(const BakeRequest& request, const BakeProgress& progress) {
     auto t0 = std::chrono::steady_clock::now();
     BakeResult result;
+    const std::string options_error = request_options_error(request);
+    if (!options_error.empty()) {  // before any work: nothing read, nothing written
+        result.error = request.input + ": " + options_error;
+        result.seconds = seconds_since(t0);
+        return result;
+    }
     try {
         if (!(request.if_changed && up_to_date(request, result))) bake_unguarded(request, progress, result);
     } catch (const LoadError& e) {
