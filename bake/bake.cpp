@@ -109,7 +109,8 @@ void flag_closed(AssetMesh& out, unsigned threads) {
 // and its other arrays are freed once it is clustered.
 std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const ClusterOptions& options,
                                       BakeStats& stats,
-                                      const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
+                                      const std::function<void(size_t, size_t, size_t, size_t)>& progress,
+                                      unsigned threads) {
     auto start = std::chrono::steady_clock::now();
     std::vector<AssetMesh> meshes;
     stats = BakeStats{};
@@ -122,10 +123,10 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
             if (progress) progress(m, scene.meshes.size(), done, total);
         };
         Hierarchy h = build_hierarchy(mesh.positions.data(), mesh.vertex_count(), mesh.indices.data(),
-                                      mesh.triangle_count(), options, &cs, report);
+                                      mesh.triangle_count(), options, &cs, report, threads);
         const size_t triangles = mesh.triangle_count();
         AssetMesh am;
-        order_triangles(mesh, h, options.threads, am);
+        order_triangles(mesh, h, threads, am);
         h = Hierarchy{};
         if (release) {
             Mesh& owned = release->meshes[m];
@@ -134,7 +135,7 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
         } else {
             am.positions = mesh.positions;
         }
-        flag_closed(am, options.threads);
+        flag_closed(am, threads);
         stats.triangles += triangles;
         stats.fine_clusters += am.fine.size();
         stats.coarse_clusters += am.coarse.size();
@@ -171,13 +172,15 @@ AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h) {
 }
 
 std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& options, BakeStats& stats,
-                                     const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
-    return cluster_meshes(scene, nullptr, options, stats, progress);
+                                     const std::function<void(size_t, size_t, size_t, size_t)>& progress,
+                                     unsigned threads) {
+    return cluster_meshes(scene, nullptr, options, stats, progress, threads);
 }
 
 std::vector<AssetMesh> cluster_scene_releasing(Scene& scene, const ClusterOptions& options, BakeStats& stats,
-                                               const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
-    return cluster_meshes(scene, &scene, options, stats, progress);
+                                               const std::function<void(size_t, size_t, size_t, size_t)>& progress,
+                                               unsigned threads) {
+    return cluster_meshes(scene, &scene, options, stats, progress, threads);
 }
 
 void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats,

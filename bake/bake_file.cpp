@@ -78,7 +78,8 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
     result.meshes = scene.meshes.size();
     result.instances = scene.instances.size();
 
-    std::vector<AssetMesh> meshes = cluster_scene_releasing(scene, r.clustering, result.stats, progress.clustering);
+    std::vector<AssetMesh> meshes =
+        cluster_scene_releasing(scene, r.clustering, result.stats, progress.clustering, r.threads);
 
     // The geometry's encoding (vertex renumbering, serial) reads only what fitting reads and writes nothing
     // fitting reads: on a thread of its own beside the fitting when there is a core for it, taken from the
@@ -92,7 +93,7 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
             encode_failed = std::current_exception();
         }
     };
-    const unsigned threads = threads_or_all(r.clustering.threads);
+    const unsigned threads = threads_or_all(r.threads);
     CoreBudget* budget = thread_core_budget();
     std::thread encoding;
     // Joined however this scope is left (a fitting that throws, out of memory, must not leave it running).
@@ -107,7 +108,7 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
         ~Joined() { join(); }
     } joined{encoding, budget};
     if (r.fit && threads > 1 && (!budget || budget->try_take())) encoding = std::thread(encode);
-    if (r.fit) fit_scene_bounds(meshes, r.bounds, r.clustering.threads, result.stats, progress.bounds);
+    if (r.fit) fit_scene_bounds(meshes, r.bounds, r.threads, result.stats, progress.bounds);
 
     auto t1 = std::chrono::steady_clock::now();
     if (encoding.joinable())
@@ -115,9 +116,8 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
     else
         encode();
     if (encode_failed) std::rethrow_exception(encode_failed);
-    result.output_bytes =
-        write_asset(r.output, meshes, std::move(geometry), scene.instances,
-                    source_text(scene.report.source, r.clustering, r.bounds, r.fit), r.clustering.threads);
+    result.output_bytes = write_asset(r.output, meshes, std::move(geometry), scene.instances,
+                                      source_text(scene.report.source, r.clustering, r.bounds, r.fit), r.threads);
     result.write_seconds = seconds_since(t1);
     result.triangles = result.stats.triangles;
     result.fine_clusters = result.stats.fine_clusters;

@@ -25,6 +25,8 @@ struct BakeRequest {
     bool fit = true;                       // false: geometry and hierarchy only (`clusterbake cluster`)
     bool if_changed = false;               // keep an up-to-date output
     LoadOptions load;                      // what the scene is trusted with (external files, memory)
+    // Threads that cluster, fit and write, 0 = all hardware threads: the asset is the same for any count.
+    unsigned threads = 0;
 };
 
 enum class BakeStatus { baked, up_to_date, failed };

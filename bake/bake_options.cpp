@@ -120,8 +120,7 @@ std::vector<BakeOption> make_table() {
          [](W r, S v) { return set_real("--capsule-ratio", v, r.bounds.capsule_ratio); }},
         {"--threads", "threads", OptionUse::run, true, "UINT", "0",
          "Worker threads, 0 = all hardware threads; the output is identical for any count",
-         [](R r) { return std::to_string(r.clustering.threads); },
-         [](W r, S v) { return set_whole("--threads", v, r.clustering.threads); }},
+         [](R r) { return std::to_string(r.threads); }, [](W r, S v) { return set_whole("--threads", v, r.threads); }},
     };
 }
 

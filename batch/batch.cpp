@@ -10,7 +10,7 @@ namespace cb {
 
 std::string job_request(const BatchOptions& batch, const BatchJob& job, BakeRequest& out) {
     out = batch.bake;
-    out.clustering.threads = 0;  // the batch's --threads is the cores it shares; a line may cap its own file
+    out.threads = 0;  // the batch's --threads is the cores it shares; a line may cap its own file
     std::vector<std::string> line_given;
     std::string error = apply_options(job.args, out, &line_given);
     if (error.empty()) error = request_options_error(out);

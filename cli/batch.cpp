@@ -92,7 +92,7 @@ int run_batch_command(const BatchArgs& a) {
 
     const std::vector<size_t> order = largest_first(jobs);
     BatchRun run;
-    const unsigned threads = batch.bake.clustering.threads;
+    const unsigned threads = batch.bake.threads;
     run.cores = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
     run.jobs = a.jobs ? a.jobs : run.cores;
 

@@ -34,6 +34,7 @@ bool parse_heatmap(HeatmapArgs& a) {
     if (!usage_ok(apply_flags(a.flags, request))) return false;
     a.options.clustering = request.clustering;
     a.options.obb = request.bounds.obb;
+    a.options.threads = request.threads;
     if (a.options.size < 8 || a.options.size > 4096) {
         std::fprintf(stderr, "clusterbake: --size takes 8 to 4096\n");
         return false;

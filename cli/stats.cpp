@@ -75,13 +75,13 @@ int run_stats(const CLI::App* c, const ClusterArgs& a, cb::StatsOptions so) {
     const cb::ClusterOptions& clustering = request.clustering;
     cb::BoundsOptions bounds = request.bounds;
     bounds.mask = cb::bounds_all;
-    so.threads = clustering.threads;
+    so.threads = request.threads;
     ProgressLine progress(!a.quiet);
     progress.stage((asset ? "reading " : "clustering and fitting ") + a.file);
     cb::BakedScene baked;
     std::string note;
     try {
-        baked = cb::load_baked(a.file, clustering, bounds, &note, bake_progress(progress), a.load);
+        baked = cb::load_baked(a.file, clustering, bounds, &note, bake_progress(progress), a.load, request.threads);
     } catch (const std::runtime_error& e) {
         progress.clear();
         std::fprintf(stderr, "%s\n", e.what());

@@ -36,7 +36,6 @@ struct ClusterOptions {
                                           // (0: one tree over the whole mesh, on one thread)
     uint32_t vco_cache_size = 32;
     uint64_t seed = 1;
-    unsigned threads = 0;  // 0: all hardware threads
 };
 
 // The rules ClusterOptions must keep, each an error of its own; checked in this order.
@@ -75,11 +74,12 @@ struct ClusterStats {
     double acmr_after = 0;         // ... and over the clustered order
 };
 
-// `progress`, when set, is called with (chunks done, chunk count) from the calling thread. Throws
+// On `threads` worker threads (0: all hardware threads); the result is the same for any count. `progress`,
+// when set, is called with (chunks done, chunk count) from the calling thread. Throws
 // std::invalid_argument with describe()'s line, before any work, when check_options finds a broken rule.
 Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uint32_t* indices, size_t triangle_count,
                           const ClusterOptions& options, ClusterStats* stats = nullptr,
-                          const std::function<void(size_t, size_t)>& progress = {});
+                          const std::function<void(size_t, size_t)>& progress = {}, unsigned threads = 0);
 
 // ---- the building blocks, exposed for tests and benchmarks
 

@@ -109,7 +109,7 @@ void split_chunk(const float* positions, const uint32_t* indices, uint32_t* tris
 
 Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uint32_t* indices, size_t triangle_count,
                           const ClusterOptions& options, ClusterStats* stats,
-                          const std::function<void(size_t, size_t)>& progress) {
+                          const std::function<void(size_t, size_t)>& progress, unsigned threads) {
     const ClusterOptionsError error = check_options(options);
     if (error != ClusterOptionsError::none) throw std::invalid_argument(describe(error));
     const ClusterOptions& o = options;
@@ -122,17 +122,17 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
         std::iota(h.order.begin(), h.order.end(), 0u);
         kmeans_tris(positions, indices, h.order.data(), triangle_count, o.coarse_size, o, o.seed, chunk_sizes);
     } else if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree) {
-        h.order = morton_order(positions, indices, triangle_count, o.threads);
+        h.order = morton_order(positions, indices, triangle_count, threads);
         const size_t part = std::max<size_t>(o.kmeans_presplit, o.coarse_size),
                      parts = (triangle_count + part - 1) / part;
         std::vector<std::vector<uint32_t>> sizes(parts);
-        parallel_for(parts, o.threads, [&](size_t p) {
+        parallel_for(parts, threads, [&](size_t p) {
             kmeans_tris(positions, indices, h.order.data() + p * part, std::min(part, triangle_count - p * part),
                         o.coarse_size, o, splitmix(o.seed ^ (p + 1)), sizes[p]);
         });
         for (const auto& s : sizes) chunk_sizes.insert(chunk_sizes.end(), s.begin(), s.end());
     } else {
-        h.order = morton_order(positions, indices, triangle_count, o.threads);
+        h.order = morton_order(positions, indices, triangle_count, threads);
         for (size_t at = 0; at < triangle_count; at += o.coarse_size)
             chunk_sizes.push_back(uint32_t(std::min<size_t>(o.coarse_size, triangle_count - at)));
     }
@@ -143,7 +143,7 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
     std::vector<std::vector<uint32_t>> fine(chunk_sizes.size());
     std::atomic<size_t> done{0};
     const std::thread::id caller = std::this_thread::get_id();  // progress is reported from the caller only
-    parallel_for(chunk_sizes.size(), o.threads, [&](size_t c) {
+    parallel_for(chunk_sizes.size(), threads, [&](size_t c) {
         split_chunk(positions, indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
         size_t finished = done.fetch_add(1) + 1;
         if (progress && std::this_thread::get_id() == caller) progress(finished, chunk_sizes.size());

@@ -150,7 +150,7 @@ TEST(Options, ApplyOptionsSetsFieldsAndNamesWhatIsWrong) {
     EXPECT_EQ(r.bounds.mask, cb::bounds_all);
     EXPECT_EQ(r.bounds.obb, cb::ObbMethod::pca);
     EXPECT_EQ(r.bounds.capsule_ratio, 2.5);
-    EXPECT_EQ(r.clustering.threads, 3u);
+    EXPECT_EQ(r.threads, 3u);
     EXPECT_EQ(given,
               (std::vector<std::string>{"--method", "--fine", "--cache", "--bounds", "--obb", "--capsule-ratio",
                                         "--threads"}));
@@ -235,12 +235,12 @@ TEST(Options, ABatchJobTakesItsLineOverTheBatchsOptions) {
     ASSERT_EQ(cb::job_request(batch, job, r), "");
     EXPECT_EQ(r.clustering.fine_size, 24u);
     EXPECT_EQ(r.clustering.seed, 3u);
-    EXPECT_EQ(r.clustering.threads, 1u);  // the line's cap; the batch's --threads is the cores it shares
+    EXPECT_EQ(r.threads, 1u);  // the line's cap; the batch's --threads is the cores it shares
     EXPECT_TRUE(r.if_changed);
     EXPECT_EQ(r.input, job.input);
     job.args = {};
     ASSERT_EQ(cb::job_request(batch, job, r), "");
-    EXPECT_EQ(r.clustering.threads, 0u);
+    EXPECT_EQ(r.threads, 0u);
     job.args = {"--method", "vco"};
     EXPECT_EQ(cb::job_request(batch, job, r),
               "list.txt: line 2: --seed does nothing here: an option of kmeans, and the method is vco");
