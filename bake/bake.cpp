@@ -131,7 +131,9 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
         if (release) {
             Mesh& owned = release->meshes[m];
             am.positions = std::move(owned.positions);
-            owned.positions = {}, owned.indices = {}, owned.primitives = {};
+            owned.positions = {};
+            owned.indices = {};
+            owned.primitives = {};
         } else {
             am.positions = mesh.positions;
         }
@@ -142,12 +144,15 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
         stats.fine_below_half += cs.fine_below_half;
         acmr_before += cs.acmr_before * double(triangles);
         acmr_after += cs.acmr_after * double(triangles);
-        for (const ClusterRange& f : am.fine)
-            stats.fine_min = std::min(stats.fine_min, f.count), stats.fine_max = std::max(stats.fine_max, f.count);
+        for (const ClusterRange& f : am.fine) {
+            stats.fine_min = std::min(stats.fine_min, f.count);
+            stats.fine_max = std::max(stats.fine_max, f.count);
+        }
         for (const ClusterRange& c : am.coarse) {
             uint32_t tris = 0;
             for (uint32_t f = c.first; f < c.first + c.count; ++f) tris += am.fine[f].count;
-            stats.coarse_min = std::min(stats.coarse_min, tris), stats.coarse_max = std::max(stats.coarse_max, tris);
+            stats.coarse_min = std::min(stats.coarse_min, tris);
+            stats.coarse_max = std::max(stats.coarse_max, tris);
         }
         meshes.push_back(std::move(am));
     }
@@ -219,7 +224,10 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
     }
     uint32_t largest = 0;
     size_t total = 0;
-    for (const Item& it : items) largest = std::max(largest, it.count), total += it.count;
+    for (const Item& it : items) {
+        largest = std::max(largest, it.count);
+        total += it.count;
+    }
     // Triangles are already in cluster order: a cluster's are [first, first + count) of its mesh, read
     // through these ids from its first triangle on.
     std::vector<uint32_t> ids(largest);

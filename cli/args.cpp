@@ -201,7 +201,10 @@ BakeProgress bake_progress(ProgressLine& line) {
     };
     progress.bounds = [&line, state, late](size_t done, size_t total) {
         if (!line.on()) return;
-        if (!state->fitting) line.restart(), state->fitting = true;  // the time left is the fitting's own
+        if (!state->fitting) {  // the time left is the fitting's own
+            line.restart();
+            state->fitting = true;
+        }
         if (!late()) return;
         line.show(total ? double(done) / double(total) : 1.0,
                   "fitting bounds: " + std::to_string(done / 1000) + "k of " + std::to_string(total / 1000) +

@@ -58,7 +58,10 @@ bool usable(const CLI::App* c, const ReportArgs& a) {
 
 int run_report(const CLI::App* c, ReportArgs a) {
     cb::ReportOptions& o = a.options;
-    o.methods.clear(), o.fine_sizes.clear(), o.obbs.clear(), o.traversals.clear();
+    o.methods.clear();
+    o.fine_sizes.clear();
+    o.obbs.clear();
+    o.traversals.clear();
     auto fine_size = [](const std::string& f, uint32_t& v) {
         cb::BakeRequest r;
         if (!cb::find_bake_option("--fine")->set(r, f).empty()) return false;

@@ -18,7 +18,8 @@ namespace {
 // The volume kinds an asset stores at both levels.
 uint32_t stored_kinds(const cb::AssetView& view) {
     uint32_t mask = 0;
-    const cb::LevelBounds &fine = view.fine_bounds, &coarse = view.coarse_bounds;
+    const cb::LevelBounds& fine = view.fine_bounds;
+    const cb::LevelBounds& coarse = view.coarse_bounds;
     if (fine.obbs && coarse.obbs) mask |= cb::bounds_obb;
     if (fine.spheres && coarse.spheres) mask |= cb::bounds_sphere;
     if (fine.capsules && coarse.capsules) mask |= cb::bounds_capsule;

@@ -38,7 +38,10 @@ void connected_patches(const uint32_t* indices, uint32_t* tris, size_t count, st
         uint32_t r = root(uint32_t(i));
         size_t before = result.size();
         for (size_t j = i; j < count; ++j)
-            if (!taken[j] && root(uint32_t(j)) == r) taken[j] = 1, result.push_back(tris[j]);
+            if (!taken[j] && root(uint32_t(j)) == r) {
+                taken[j] = 1;
+                result.push_back(tris[j]);
+            }
         patch_sizes.push_back(uint32_t(result.size() - before));
     }
     std::copy(result.begin(), result.end(), tris);
