@@ -73,8 +73,8 @@ bool is_closed(const Mesh& mesh) { return is_closed(mesh.indices.data(), mesh.in
 
 namespace {
 
-// Everything of clustered_mesh but the positions and the closed flag: the triangles gathered into cluster
-// order in parallel blocks, sidedness following each triangle to its place.
+// A clustered mesh's triangles gathered into cluster order in parallel blocks, sidedness following each
+// triangle to its place (its positions and closed flag are set apart).
 void order_triangles(const Mesh& mesh, const Hierarchy& h, unsigned threads, AssetMesh& out) {
     const size_t n = h.order.size(), block = 1 << 16;
     out.triangles.resize(n * 3);
@@ -167,14 +167,6 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
 }
 
 }  // namespace
-
-AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h) {
-    AssetMesh out;
-    out.positions = mesh.positions;
-    order_triangles(mesh, h, 1, out);
-    flag_closed(out, 1);
-    return out;
-}
 
 std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& options, BakeStats& stats,
                                      const std::function<void(size_t, size_t, size_t, size_t)>& progress,

@@ -29,9 +29,6 @@ struct BakeStats {
 bool is_closed(const uint32_t* indices, size_t corners, size_t vertices, unsigned threads);
 bool is_closed(const Mesh& mesh);
 
-// Mesh `m` of the scene in cluster order, ranges mesh-local.
-AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h);
-
 // Clusters every mesh of the scene on `threads` threads (0 = all); the result does not depend on the count.
 // `progress(mesh, mesh_count, chunk, chunk_count)` when set.
 std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& options, BakeStats& stats,
