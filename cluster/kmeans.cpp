@@ -1,6 +1,6 @@
 // Hierarchical k-means++ over triangle boxes seen as 6-D points (min xyz, max xyz): the distance is
 // |min1 - min2|^2 + |max1 - max2|^2 and a centre is the mean box (Meister and Bittner's clustering of
-// triangles for BVH construction, used by the thesis, section 2.2.2).
+// triangles for BVH construction, used in section 2.2.2 of the thesis, chapter 2).
 #include <algorithm>
 #include <cmath>
 #include <numeric>
