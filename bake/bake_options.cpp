@@ -20,7 +20,8 @@ std::string mask_text(uint32_t mask) {
     return out.empty() ? "none" : out;
 }
 
-// A whole number as a command line writes it (decimal, or 0x hexadecimal), no sign but '+', at most `max`.
+// A whole number read as the command line's parser has always read one (strtoull, base 0: decimal, 0x
+// hexadecimal, a leading 0 octal), no sign but '+', at most `max`.
 bool parse_whole(const std::string& text, uint64_t max, uint64_t& out) {
     if (text.empty() || text[0] == '-' || !(std::isdigit((unsigned char)text[0]) || text[0] == '+')) return false;
     errno = 0;
@@ -49,7 +50,7 @@ std::string set_real(const char* flag, const std::string& value, double& field) 
     return {};
 }
 
-// The shortest decimal text that reads back as the same double.
+// Seventeen significant digits: the text reads back as the same double.
 std::string real_text(double v) {
     char text[32];
     std::snprintf(text, sizeof text, "%.17g", v);

@@ -1,6 +1,6 @@
 // What the subcommands share: the exit code of bad input, the bake options' flags (from the table of
-// bake_options.h) of `cluster`, `bake`, `batch`, `stats` and `heatmap`, the checks of options and outputs made before any work, and the parsers
-// whose errors are one line on stderr.
+// bake_options.h) of `cluster`, `bake`, `batch`, `stats` and `heatmap`, the checks of options and outputs
+// made before any work, and the parsers whose errors are one line on stderr.
 #pragma once
 
 #include <CLI/CLI.hpp>
