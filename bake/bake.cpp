@@ -73,8 +73,8 @@ bool is_closed(const Mesh& mesh) { return is_closed(mesh.indices.data(), mesh.in
 
 namespace {
 
-// Everything of clustered_mesh but the positions and the closed flag: the triangles gathered into cluster
-// order in parallel blocks, sidedness following each triangle to its place.
+// A clustered mesh's triangles gathered into cluster order in parallel blocks, sidedness following each
+// triangle to its place (its positions and closed flag are set apart).
 void order_triangles(const Mesh& mesh, const Hierarchy& h, unsigned threads, AssetMesh& out) {
     const size_t n = h.order.size(), block = 1 << 16;
     out.triangles.resize(n * 3);
@@ -109,7 +109,8 @@ void flag_closed(AssetMesh& out, unsigned threads) {
 // and its other arrays are freed once it is clustered.
 std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const ClusterOptions& options,
                                       BakeStats& stats,
-                                      const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
+                                      const std::function<void(size_t, size_t, size_t, size_t)>& progress,
+                                      unsigned threads) {
     auto start = std::chrono::steady_clock::now();
     std::vector<AssetMesh> meshes;
     stats = BakeStats{};
@@ -122,31 +123,36 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
             if (progress) progress(m, scene.meshes.size(), done, total);
         };
         Hierarchy h = build_hierarchy(mesh.positions.data(), mesh.vertex_count(), mesh.indices.data(),
-                                      mesh.triangle_count(), options, &cs, report);
+                                      mesh.triangle_count(), options, &cs, report, threads);
         const size_t triangles = mesh.triangle_count();
         AssetMesh am;
-        order_triangles(mesh, h, options.threads, am);
+        order_triangles(mesh, h, threads, am);
         h = Hierarchy{};
         if (release) {
             Mesh& owned = release->meshes[m];
             am.positions = std::move(owned.positions);
-            owned.positions = {}, owned.indices = {}, owned.primitives = {};
+            owned.positions = {};
+            owned.indices = {};
+            owned.primitives = {};
         } else {
             am.positions = mesh.positions;
         }
-        flag_closed(am, options.threads);
+        flag_closed(am, threads);
         stats.triangles += triangles;
         stats.fine_clusters += am.fine.size();
         stats.coarse_clusters += am.coarse.size();
         stats.fine_below_half += cs.fine_below_half;
         acmr_before += cs.acmr_before * double(triangles);
         acmr_after += cs.acmr_after * double(triangles);
-        for (const ClusterRange& f : am.fine)
-            stats.fine_min = std::min(stats.fine_min, f.count), stats.fine_max = std::max(stats.fine_max, f.count);
+        for (const ClusterRange& f : am.fine) {
+            stats.fine_min = std::min(stats.fine_min, f.count);
+            stats.fine_max = std::max(stats.fine_max, f.count);
+        }
         for (const ClusterRange& c : am.coarse) {
             uint32_t tris = 0;
             for (uint32_t f = c.first; f < c.first + c.count; ++f) tris += am.fine[f].count;
-            stats.coarse_min = std::min(stats.coarse_min, tris), stats.coarse_max = std::max(stats.coarse_max, tris);
+            stats.coarse_min = std::min(stats.coarse_min, tris);
+            stats.coarse_max = std::max(stats.coarse_max, tris);
         }
         meshes.push_back(std::move(am));
     }
@@ -162,22 +168,16 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
 
 }  // namespace
 
-AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h) {
-    AssetMesh out;
-    out.positions = mesh.positions;
-    order_triangles(mesh, h, 1, out);
-    flag_closed(out, 1);
-    return out;
-}
-
 std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& options, BakeStats& stats,
-                                     const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
-    return cluster_meshes(scene, nullptr, options, stats, progress);
+                                     const std::function<void(size_t, size_t, size_t, size_t)>& progress,
+                                     unsigned threads) {
+    return cluster_meshes(scene, nullptr, options, stats, progress, threads);
 }
 
 std::vector<AssetMesh> cluster_scene_releasing(Scene& scene, const ClusterOptions& options, BakeStats& stats,
-                                               const std::function<void(size_t, size_t, size_t, size_t)>& progress) {
-    return cluster_meshes(scene, &scene, options, stats, progress);
+                                               const std::function<void(size_t, size_t, size_t, size_t)>& progress,
+                                               unsigned threads) {
+    return cluster_meshes(scene, &scene, options, stats, progress, threads);
 }
 
 void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats,
@@ -216,7 +216,10 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
     }
     uint32_t largest = 0;
     size_t total = 0;
-    for (const Item& it : items) largest = std::max(largest, it.count), total += it.count;
+    for (const Item& it : items) {
+        largest = std::max(largest, it.count);
+        total += it.count;
+    }
     // Triangles are already in cluster order: a cluster's are [first, first + count) of its mesh, read
     // through these ids from its first triangle on.
     std::vector<uint32_t> ids(largest);

@@ -29,19 +29,18 @@ struct BakeStats {
 bool is_closed(const uint32_t* indices, size_t corners, size_t vertices, unsigned threads);
 bool is_closed(const Mesh& mesh);
 
-// Mesh `m` of the scene in cluster order, ranges mesh-local.
-AssetMesh clustered_mesh(const Mesh& mesh, const Hierarchy& h);
-
-// Clusters every mesh of the scene. `progress(mesh, mesh_count, chunk, chunk_count)` when set.
+// Clusters every mesh of the scene on `threads` threads (0 = all); the result does not depend on the count.
+// `progress(mesh, mesh_count, chunk, chunk_count)` when set.
 std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& options, BakeStats& stats,
-                                     const std::function<void(size_t, size_t, size_t, size_t)>& progress = {});
+                                     const std::function<void(size_t, size_t, size_t, size_t)>& progress = {},
+                                     unsigned threads = 0);
 
 // The same, for a bake that needs the scene's geometry no longer: each mesh's positions move into its
 // clustered mesh and its indices are freed as soon as it is clustered, so the two never coexist. The scene
 // keeps its instances, names and report.
-std::vector<AssetMesh> cluster_scene_releasing(
-    Scene& scene, const ClusterOptions& options, BakeStats& stats,
-    const std::function<void(size_t, size_t, size_t, size_t)>& progress = {});
+std::vector<AssetMesh> cluster_scene_releasing(Scene& scene, const ClusterOptions& options, BakeStats& stats,
+                                               const std::function<void(size_t, size_t, size_t, size_t)>& progress = {},
+                                               unsigned threads = 0);
 
 // Fits the volumes in options.mask for every fine and coarse cluster of every mesh, in parallel over
 // clusters (`threads`, 0 = all); the result does not depend on the thread count. `progress(done, total)`,

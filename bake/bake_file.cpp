@@ -9,26 +9,13 @@
 #include <thread>
 
 #include "asset_file.h"
+#include "bake_options.h"
 #include "load.h"
 #include "parallel.h"
 #include "timing.h"
 
 namespace cb {
 namespace {
-
-std::string mask_text(uint32_t mask) {
-    static const char* names[] = {"obb", "sphere", "capsule", "cone", "slab"};
-    std::string out;
-    for (int b = 0; b < 5; ++b)
-        if (mask & (1u << b)) out += (out.empty() ? "" : ",") + std::string(names[b]);
-    return out.empty() ? "none" : out;
-}
-
-std::string number(double v) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%.17g", v);
-    return text;
-}
 
 // The file names a source section lists, in order.
 std::vector<std::string> source_names(const char* text, size_t size) {
@@ -91,7 +78,8 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
     result.meshes = scene.meshes.size();
     result.instances = scene.instances.size();
 
-    std::vector<AssetMesh> meshes = cluster_scene_releasing(scene, r.clustering, result.stats, progress.clustering);
+    std::vector<AssetMesh> meshes =
+        cluster_scene_releasing(scene, r.clustering, result.stats, progress.clustering, r.threads);
 
     // The geometry's encoding (vertex renumbering, serial) reads only what fitting reads and writes nothing
     // fitting reads: on a thread of its own beside the fitting when there is a core for it, taken from the
@@ -105,7 +93,7 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
             encode_failed = std::current_exception();
         }
     };
-    const unsigned threads = threads_or_all(r.clustering.threads);
+    const unsigned threads = threads_or_all(r.threads);
     CoreBudget* budget = thread_core_budget();
     std::thread encoding;
     // Joined however this scope is left (a fitting that throws, out of memory, must not leave it running).
@@ -120,7 +108,7 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
         ~Joined() { join(); }
     } joined{encoding, budget};
     if (r.fit && threads > 1 && (!budget || budget->try_take())) encoding = std::thread(encode);
-    if (r.fit) fit_scene_bounds(meshes, r.bounds, r.clustering.threads, result.stats, progress.bounds);
+    if (r.fit) fit_scene_bounds(meshes, r.bounds, r.threads, result.stats, progress.bounds);
 
     auto t1 = std::chrono::steady_clock::now();
     if (encoding.joinable())
@@ -128,9 +116,8 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
     else
         encode();
     if (encode_failed) std::rethrow_exception(encode_failed);
-    result.output_bytes =
-        write_asset(r.output, meshes, std::move(geometry), scene.instances,
-                    source_text(scene.report.source, r.clustering, r.bounds, r.fit), r.clustering.threads);
+    result.output_bytes = write_asset(r.output, meshes, std::move(geometry), scene.instances,
+                                      source_text(scene.report.source, r.clustering, r.bounds, r.fit), r.threads);
     result.write_seconds = seconds_since(t1);
     result.triangles = result.stats.triangles;
     result.fine_clusters = result.stats.fine_clusters;
@@ -158,21 +145,13 @@ const char* status_name(BakeStatus s) {
     return "?";
 }
 
-std::string options_text(const ClusterOptions& c, const BoundsOptions& b, bool fit) {
+std::string options_text(const ClusterOptions& clustering, const BoundsOptions& bounds, bool fit) {
+    BakeRequest r;
+    r.clustering = clustering;
+    r.bounds = bounds;
+    r.fit = fit;
     std::string out = fit ? "bake" : "cluster";
-    out += std::string(" --method ") + method_name(c.method);
-    out += " --coarse " + std::to_string(c.coarse_size) + " --fine " + std::to_string(c.fine_size);
-    // The method's own options only: the others change nothing, and the command line refuses them.
-    if (c.method == ClusterMethod::kmeans) {
-        out += " --seed " + std::to_string(c.seed) + " --k0 " + std::to_string(c.kmeans_branching);
-        out += " --iterations " + std::to_string(c.kmeans_max_iterations);
-        out += c.kmeans_coarse_from_tree ? " --presplit " + std::to_string(c.kmeans_presplit) : " --coarse-morton";
-    }
-    if (c.method == ClusterMethod::vco) out += " --cache " + std::to_string(c.vco_cache_size);
-    if (fit) {
-        out += " --bounds " + mask_text(b.mask) + " --obb " + obb_method_name(b.obb);
-        out += " --capsule-ratio " + number(b.capsule_ratio);
-    }
+    for (const std::string& word : options_argv(r)) out += " " + word;
     return out;
 }
 
@@ -188,6 +167,12 @@ std::string source_text(const SourceFiles& source, const ClusterOptions& cluster
 BakeResult bake_file(const BakeRequest& request, const BakeProgress& progress) {
     auto t0 = std::chrono::steady_clock::now();
     BakeResult result;
+    const std::string options_error = request_options_error(request);
+    if (!options_error.empty()) {  // before any work: nothing read, nothing written
+        result.error = request.input + ": " + options_error;
+        result.seconds = seconds_since(t0);
+        return result;
+    }
     try {
         if (!(request.if_changed && up_to_date(request, result))) bake_unguarded(request, progress, result);
     } catch (const LoadError& e) {

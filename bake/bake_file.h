@@ -21,10 +21,12 @@ const char* tool_version();
 struct BakeRequest {
     std::string input, output;
     ClusterOptions clustering;
-    BoundsOptions bounds;
-    bool fit = true;          // false: geometry and hierarchy only (`clusterbake cluster`)
-    bool if_changed = false;  // keep an up-to-date output
-    LoadOptions load;         // what the scene is trusted with (external files, memory)
+    BoundsOptions bounds = {bounds_auto};  // what `clusterbake bake` fits unless told otherwise
+    bool fit = true;                       // false: geometry and hierarchy only (`clusterbake cluster`)
+    bool if_changed = false;               // keep an up-to-date output
+    LoadOptions load;                      // what the scene is trusted with (external files, memory)
+    // Threads that cluster, fit and write, 0 = all hardware threads: the asset is the same for any count.
+    unsigned threads = 0;
 };
 
 enum class BakeStatus { baked, up_to_date, failed };
@@ -41,17 +43,17 @@ struct BakeResult {
     BakeStats stats;                                          // clustering and fitting (baked only)
 };
 
-// The options that shape the asset, as a `bake` (or `cluster`) command line in a fixed order: the method,
-// the cluster sizes, the method's own options (k-means: --seed --k0 --iterations, then --presplit or
-// --coarse-morton; vco: --cache; morton: none) and, when fitting, the bounds options. Not the thread
-// count, which changes nothing in the output, nor another method's options.
+// The options that shape the asset, as a `bake` (or `cluster`) command line: "bake" then options_argv's
+// words (bake_options.h): the method, the cluster sizes, the method's own options and, when fitting, the
+// bounds options. Not the thread count, which changes nothing in the output, nor another method's options.
 std::string options_text(const ClusterOptions& clustering, const BoundsOptions& bounds, bool fit);
 
 // The source section's text (docs/FORMAT.md): the tool, the options, the input hash and the files.
 std::string source_text(const SourceFiles& source, const ClusterOptions& clustering, const BoundsOptions& bounds,
                         bool fit);
 
-// Never throws: every failure (bad input, unwritable output, out of memory) comes back as `failed` with
+// Checks the request's options first (request_options_error, bake_options.h): broken ones fail before
+// any work. Never throws: every failure (bad input, unwritable output, out of memory) comes back as `failed` with
 // its line, and leaves whatever was at the output untouched.
 BakeResult bake_file(const BakeRequest& request, const BakeProgress& progress = {});
 

@@ -9,12 +9,12 @@
 namespace cb {
 
 BakedScene bake_in_memory(const Scene& scene, const ClusterOptions& clustering, const BoundsOptions& bounds,
-                          BakeStats* stats, const BakeProgress& progress) {
+                          BakeStats* stats, const BakeProgress& progress, unsigned threads) {
     BakeStats local;
     BakeStats& s = stats ? *stats : local;
     BakedScene out;
-    out.meshes = cluster_scene(scene, clustering, s, progress.clustering);
-    fit_scene_bounds(out.meshes, bounds, clustering.threads, s, progress.bounds);
+    out.meshes = cluster_scene(scene, clustering, s, progress.clustering, threads);
+    fit_scene_bounds(out.meshes, bounds, threads, s, progress.bounds);
     out.instances = scene.instances;
     return out;
 }
@@ -47,10 +47,11 @@ std::string mask_text(uint32_t mask) {
 }  // namespace
 
 BakedScene load_baked(const std::string& path, const ClusterOptions& clustering, const BoundsOptions& bounds,
-                      std::string* fitted_note, const BakeProgress& progress, const LoadOptions& load) {
+                      std::string* fitted_note, const BakeProgress& progress, const LoadOptions& load,
+                      unsigned threads) {
     if (!is_asset_file(path)) {
         Scene scene = load_scene(path, load);  // LoadError is a runtime_error naming the file
-        return bake_in_memory(scene, clustering, bounds, nullptr, progress);
+        return bake_in_memory(scene, clustering, bounds, nullptr, progress, threads);
     }
     LoadedAsset asset;
     std::string error;
@@ -63,7 +64,7 @@ BakedScene load_baked(const std::string& path, const ClusterOptions& clustering,
         BoundsOptions b = bounds;
         b.mask = missing;
         BakeStats ignored;
-        fit_scene_bounds(fitted, b, clustering.threads, ignored, progress.bounds);
+        fit_scene_bounds(fitted, b, threads, ignored, progress.bounds);
         for (size_t m = 0; m < fitted.size(); ++m)
             for (int level = 0; level < 2; ++level) {
                 LevelVolumes& to = level ? baked.meshes[m].coarse_volumes : baked.meshes[m].fine_volumes;

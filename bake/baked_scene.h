@@ -11,15 +11,16 @@
 
 namespace cb {
 
-// Clusters and fits the scene in memory (the same calls as `clusterbake bake`), reporting to `progress`.
+// Clusters and fits the scene in memory (the same calls as `clusterbake bake`) on `threads` threads (0 =
+// all), reporting to `progress`.
 BakedScene bake_in_memory(const Scene& scene, const ClusterOptions& clustering, const BoundsOptions& bounds,
-                          BakeStats* stats = nullptr, const BakeProgress& progress = {});
+                          BakeStats* stats = nullptr, const BakeProgress& progress = {}, unsigned threads = 0);
 
 // A scene file (clustered and fitted with the options) or an asset (its clusters and stored volumes as they
 // are; the kinds in bounds.mask it does not hold are fitted with `bounds`). A scene file is loaded as `load`
 // allows. Throws std::runtime_error with a one-line message naming the file.
 BakedScene load_baked(const std::string& path, const ClusterOptions& clustering, const BoundsOptions& bounds,
                       std::string* fitted_note = nullptr, const BakeProgress& progress = {},
-                      const LoadOptions& load = {});
+                      const LoadOptions& load = {}, unsigned threads = 0);
 
 }  // namespace cb

@@ -25,7 +25,10 @@ std::vector<BakeResult> run_batch(const std::vector<BakeRequest>& requests, cons
         bool holding = false;
         for (size_t k; (k = next.fetch_add(1)) < order.size();) {
             size_t i = order[k];
-            if (!holding) budget.take(), holding = true;
+            if (!holding) {
+                budget.take();
+                holding = true;
+            }
             {
                 std::lock_guard<std::mutex> lock(report);
                 if (started) started(i);

@@ -145,15 +145,15 @@ void run(const Input& in, uint32_t fine, int runs) {
         cb::Hierarchy h;
         Row r;
         r.method = std::string("clusterbake ") + cb::method_name(method);
-        o.threads = 1;
         mem.reset();
         r.seconds_1 = median_seconds(runs, [&] {
-            h = cb::build_hierarchy(in.positions.data(), in.vertices(), in.indices.data(), in.triangles(), o);
+            h = cb::build_hierarchy(in.positions.data(), in.vertices(), in.indices.data(), in.triangles(), o, nullptr,
+                                    {}, 1);
         });
         r.extra_mb = mem.extra_mb();
-        o.threads = hw;
         r.seconds_n = median_seconds(runs, [&] {
-            h = cb::build_hierarchy(in.positions.data(), in.vertices(), in.indices.data(), in.triangles(), o);
+            h = cb::build_hierarchy(in.positions.data(), in.vertices(), in.indices.data(), in.triangles(), o, nullptr,
+                                    {}, hw);
         });
         std::vector<uint32_t> ordered = permuted(in, h.order);
         r.acmr = cb::fifo_acmr(ordered.data(), in.triangles(), in.vertices(), 32);

@@ -44,7 +44,7 @@ struct Options {
     int copies = 25;             // copies of the dragon in the big scene (0: none)
     int view = 1024;             // bench_shadow: the camera's resolution
     std::string only;            // run only inputs whose name contains this
-    int one_sided = 0;           // bench_shadow: 1 builds one-sided trees (the thesis's mode for closed models)
+    int one_sided = 0;           // bench_shadow: 1 builds one-sided trees (chapter 2's mode for closed models)
     std::string level = "scan";  // bench_shadow: scan, trees, one-tree, mtsv, mtsv-two, or compare (all of them)
     int frames = 0;  // bench_shadow: N > 0 times only our frames (build and queries, one thread), N per light
 };

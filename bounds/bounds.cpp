@@ -70,11 +70,15 @@ void make_right_handed(Frame& f) {
 
 // Extents of the points along a frame: lo/hi per axis.
 void extents(const double* pts, size_t n, const Frame& f, double lo[3], double hi[3]) {
-    for (int i = 0; i < 3; ++i) lo[i] = INFINITY, hi[i] = -INFINITY;
+    for (int i = 0; i < 3; ++i) {
+        lo[i] = INFINITY;
+        hi[i] = -INFINITY;
+    }
     for (size_t v = 0; v < n; ++v)
         for (int i = 0; i < 3; ++i) {
             double d = dot3(pts + v * 3, f.axis[i]);
-            lo[i] = std::min(lo[i], d), hi[i] = std::max(hi[i], d);
+            lo[i] = std::min(lo[i], d);
+            hi[i] = std::max(hi[i], d);
         }
 }
 
@@ -187,7 +191,9 @@ Frame min_area_rect_frame(const double* pts, size_t n, const Frame& f, int fixed
         double area = (along(i, dx, dy) - along(k, dx, dy)) * (across(j, dx, dy) - lo1) / len2;
         if (area < best) {
             const double len = std::sqrt(len2);
-            best = area, best_c = dx / len, best_s = dy / len;
+            best = area;
+            best_c = dx / len;
+            best_s = dy / len;
         }
     }
     Frame out = f;
@@ -222,7 +228,11 @@ Frame frame_around(const Vec& n) {
     double ul = norm(u);
     Vec w = cross(n, {u[0] / ul, u[1] / ul, u[2] / ul});
     Frame f;
-    for (int j = 0; j < 3; ++j) f.axis[0][j] = n[j], f.axis[1][j] = u[j] / ul, f.axis[2][j] = w[j];
+    for (int j = 0; j < 3; ++j) {
+        f.axis[0][j] = n[j];
+        f.axis[1][j] = u[j] / ul;
+        f.axis[2][j] = w[j];
+    }
     return f;
 }
 
@@ -237,7 +247,8 @@ double soa_cost(const double* x, const double* y, const double* z, size_t n, con
 #if defined(__SSE2__)
     __m128d vlo[3], vhi[3], a[3][3];
     for (int i = 0; i < 3; ++i) {
-        vlo[i] = _mm_set1_pd(INFINITY), vhi[i] = _mm_set1_pd(-INFINITY);
+        vlo[i] = _mm_set1_pd(INFINITY);
+        vhi[i] = _mm_set1_pd(-INFINITY);
         for (int k = 0; k < 3; ++k) a[i][k] = _mm_set1_pd(f.axis[i][k]);
     }
     for (; v + 2 <= n; v += 2) {
@@ -245,19 +256,23 @@ double soa_cost(const double* x, const double* y, const double* z, size_t n, con
         for (int i = 0; i < 3; ++i) {
             __m128d d =
                 _mm_add_pd(_mm_add_pd(_mm_mul_pd(a[i][0], px), _mm_mul_pd(a[i][1], py)), _mm_mul_pd(a[i][2], pz));
-            vlo[i] = _mm_min_pd(vlo[i], d), vhi[i] = _mm_max_pd(vhi[i], d);
+            vlo[i] = _mm_min_pd(vlo[i], d);
+            vhi[i] = _mm_max_pd(vhi[i], d);
         }
     }
     for (int i = 0; i < 3; ++i) {
         double l[2], h[2];
-        _mm_storeu_pd(l, vlo[i]), _mm_storeu_pd(h, vhi[i]);
-        lo[i] = std::min(l[0], l[1]), hi[i] = std::max(h[0], h[1]);
+        _mm_storeu_pd(l, vlo[i]);
+        _mm_storeu_pd(h, vhi[i]);
+        lo[i] = std::min(l[0], l[1]);
+        hi[i] = std::max(h[0], h[1]);
     }
 #endif
     for (; v < n; ++v)
         for (int i = 0; i < 3; ++i) {
             double d = f.axis[i][0] * x[v] + f.axis[i][1] * y[v] + f.axis[i][2] * z[v];
-            lo[i] = std::min(lo[i], d), hi[i] = std::max(hi[i], d);
+            lo[i] = std::min(lo[i], d);
+            hi[i] = std::max(hi[i], d);
         }
     return (hi[0] - lo[0] + pad) * (hi[1] - lo[1] + pad) * (hi[2] - lo[2] + pad);
 }
@@ -275,16 +290,27 @@ double turned_area(const double* x, const double* y, size_t n, double c, double 
         __m128d px = _mm_loadu_pd(x + v), py = _mm_loadu_pd(y + v);
         __m128d a = _mm_add_pd(_mm_mul_pd(vc, px), _mm_mul_pd(vs, py));
         __m128d b = _mm_sub_pd(_mm_mul_pd(vc, py), _mm_mul_pd(vs, px));
-        lo0 = _mm_min_pd(lo0, a), hi0 = _mm_max_pd(hi0, a), lo1 = _mm_min_pd(lo1, b), hi1 = _mm_max_pd(hi1, b);
+        lo0 = _mm_min_pd(lo0, a);
+        hi0 = _mm_max_pd(hi0, a);
+        lo1 = _mm_min_pd(lo1, b);
+        hi1 = _mm_max_pd(hi1, b);
     }
     double l0[2], h0[2], l1[2], h1[2];
-    _mm_storeu_pd(l0, lo0), _mm_storeu_pd(h0, hi0), _mm_storeu_pd(l1, lo1), _mm_storeu_pd(h1, hi1);
-    lo[0] = std::min(l0[0], l0[1]), hi[0] = std::max(h0[0], h0[1]);
-    lo[1] = std::min(l1[0], l1[1]), hi[1] = std::max(h1[0], h1[1]);
+    _mm_storeu_pd(l0, lo0);
+    _mm_storeu_pd(h0, hi0);
+    _mm_storeu_pd(l1, lo1);
+    _mm_storeu_pd(h1, hi1);
+    lo[0] = std::min(l0[0], l0[1]);
+    hi[0] = std::max(h0[0], h0[1]);
+    lo[1] = std::min(l1[0], l1[1]);
+    hi[1] = std::max(h1[0], h1[1]);
 #endif
     for (; v < n; ++v) {
         double a = c * x[v] + s * y[v], b = c * y[v] - s * x[v];
-        lo[0] = std::min(lo[0], a), hi[0] = std::max(hi[0], a), lo[1] = std::min(lo[1], b), hi[1] = std::max(hi[1], b);
+        lo[0] = std::min(lo[0], a);
+        hi[0] = std::max(hi[0], a);
+        lo[1] = std::min(lo[1], b);
+        hi[1] = std::max(hi[1], b);
     }
     return (hi[0] - lo[0] + pad) * (hi[1] - lo[1] + pad);
 }
@@ -311,8 +337,14 @@ void extreme_points(const double* pts, size_t n, std::vector<double>& out) {
     thread_local std::vector<double> soa;
     keep.clear();
     soa.resize(n * 3);
-    const double *x = soa.data(), *y = x + n, *z = y + n;
-    for (size_t v = 0; v < n; ++v) soa[v] = pts[v * 3], soa[n + v] = pts[v * 3 + 1], soa[2 * n + v] = pts[v * 3 + 2];
+    const double* x = soa.data();
+    const double* y = x + n;
+    const double* z = y + n;
+    for (size_t v = 0; v < n; ++v) {
+        soa[v] = pts[v * 3];
+        soa[n + v] = pts[v * 3 + 1];
+        soa[2 * n + v] = pts[v * 3 + 2];
+    }
     for (const Vec& a : spread_directions()) {
         // The first point of the lowest and of the highest projection, as a scan keeping strict improvements
         // finds them: two points a step in SSE2 lanes, each lane keeping its own first, ties then going to the
@@ -333,18 +365,34 @@ void extreme_points(const double* pts, size_t n, std::vector<double>& out) {
             hi_at = _mm_or_pd(_mm_and_pd(above, index), _mm_andnot_pd(above, hi_at));
         }
         double l[2], h[2], li[2], hj[2];
-        _mm_storeu_pd(l, vlo), _mm_storeu_pd(h, vhi), _mm_storeu_pd(li, lo_at), _mm_storeu_pd(hj, hi_at);
+        _mm_storeu_pd(l, vlo);
+        _mm_storeu_pd(h, vhi);
+        _mm_storeu_pd(li, lo_at);
+        _mm_storeu_pd(hj, hi_at);
         for (int k = 0; k < 2 && v > 0; ++k) {
-            if (l[k] < lo || (l[k] == lo && size_t(li[k]) < at_lo)) lo = l[k], at_lo = size_t(li[k]);
-            if (h[k] > hi || (h[k] == hi && size_t(hj[k]) < at_hi)) hi = h[k], at_hi = size_t(hj[k]);
+            if (l[k] < lo || (l[k] == lo && size_t(li[k]) < at_lo)) {
+                lo = l[k];
+                at_lo = size_t(li[k]);
+            }
+            if (h[k] > hi || (h[k] == hi && size_t(hj[k]) < at_hi)) {
+                hi = h[k];
+                at_hi = size_t(hj[k]);
+            }
         }
 #endif
         for (; v < n; ++v) {
             double d = a[0] * x[v] + a[1] * y[v] + a[2] * z[v];
-            if (d < lo) lo = d, at_lo = v;
-            if (d > hi) hi = d, at_hi = v;
+            if (d < lo) {
+                lo = d;
+                at_lo = v;
+            }
+            if (d > hi) {
+                hi = d;
+                at_hi = v;
+            }
         }
-        keep.push_back(uint32_t(at_lo)), keep.push_back(uint32_t(at_hi));
+        keep.push_back(uint32_t(at_lo));
+        keep.push_back(uint32_t(at_hi));
     }
     std::sort(keep.begin(), keep.end());
     keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
@@ -363,7 +411,10 @@ Frame refined_frame(const double* pts, size_t n, const std::vector<Frame>& pca, 
 Frame best_frame(const double* pts, size_t n, ObbMethod method, const float* positions, const uint32_t* indices,
                  const uint32_t* tris, size_t count, const double* origin) {
     double lo = INFINITY, hi = -INFINITY;
-    for (size_t i = 0; i < n * 3; ++i) lo = std::min(lo, pts[i]), hi = std::max(hi, pts[i]);
+    for (size_t i = 0; i < n * 3; ++i) {
+        lo = std::min(lo, pts[i]);
+        hi = std::max(hi, pts[i]);
+    }
     double pad = std::max(hi - lo, 1e-300) * 1e-9;
 
     if (method == ObbMethod::cgal_optimal) {
@@ -396,13 +447,20 @@ Frame refined_frame(const double* pts, size_t n, const std::vector<Frame>& pca, 
                     const uint32_t* indices, const uint32_t* tris, size_t count) {
     thread_local std::vector<double> soa;
     soa.resize(n * 3);
-    for (size_t v = 0; v < n; ++v) soa[v] = pts[v * 3], soa[n + v] = pts[v * 3 + 1], soa[2 * n + v] = pts[v * 3 + 2];
+    for (size_t v = 0; v < n; ++v) {
+        soa[v] = pts[v * 3];
+        soa[n + v] = pts[v * 3 + 1];
+        soa[2 * n + v] = pts[v * 3 + 2];
+    }
     auto cost = [&](const Frame& f) { return soa_cost(soa.data(), soa.data() + n, soa.data() + 2 * n, n, f, pad); };
     Frame best = pca[0];
     double best_cost = cost(best);
     auto consider = [&](const Frame& f) {
         double c = cost(f);
-        if (c < best_cost) best_cost = c, best = f;
+        if (c < best_cost) {
+            best_cost = c;
+            best = f;
+        }
     };
     // Across every axis of the vertex PCA frame; across only the thinnest (the patch normal) of the
     // area-weighted one, whose other fixings rarely win.
@@ -433,7 +491,8 @@ Frame refined_frame(const double* pts, size_t n, const std::vector<Frame>& pca, 
         double lo = INFINITY, hi = -INFINITY;
         for (size_t v = 0; v < n; ++v) {
             p[v] = best.axis[i][0] * soa[v] + best.axis[i][1] * soa[n + v] + best.axis[i][2] * soa[2 * n + v];
-            lo = std::min(lo, p[v]), hi = std::max(hi, p[v]);
+            lo = std::min(lo, p[v]);
+            hi = std::max(hi, p[v]);
         }
         extent[i] = hi - lo;
     }
@@ -455,16 +514,22 @@ Frame refined_frame(const double* pts, size_t n, const std::vector<Frame>& pca, 
                     double* y = proj.data() + size_t(w) * n;
                     const double turned = (extent[k] + pad) * turned_area(x, y, n, c, sign * s, pad);
                     if (!(turned < best_cost)) continue;
-                    best_cost = turned, best = rotated(best, k, c, sign * s), improved = true;
+                    best_cost = turned;
+                    best = rotated(best, k, c, sign * s);
+                    improved = true;
                     // The winning try's projections, turned as turned_area turned them, become the current ones.
                     double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
                     for (size_t v = 0; v < n; ++v) {
                         const double a = c * x[v] + sign * s * y[v], b = c * y[v] - sign * s * x[v];
-                        x[v] = a, y[v] = b;
-                        lo[0] = std::min(lo[0], a), hi[0] = std::max(hi[0], a);
-                        lo[1] = std::min(lo[1], b), hi[1] = std::max(hi[1], b);
+                        x[v] = a;
+                        y[v] = b;
+                        lo[0] = std::min(lo[0], a);
+                        hi[0] = std::max(hi[0], a);
+                        lo[1] = std::min(lo[1], b);
+                        hi[1] = std::max(hi[1], b);
                     }
-                    extent[u] = hi[0] - lo[0], extent[w] = hi[1] - lo[1];
+                    extent[u] = hi[0] - lo[0];
+                    extent[w] = hi[1] - lo[1];
                 }
         }
     }
@@ -479,16 +544,28 @@ void pack_rotation(const Frame& f, PackedObb& out) {
     double q[4], t = m(0, 0) + m(1, 1) + m(2, 2);  // x, y, z, w
     if (t > 0) {
         double s = 2 * std::sqrt(t + 1);
-        q[3] = s / 4, q[0] = (m(2, 1) - m(1, 2)) / s, q[1] = (m(0, 2) - m(2, 0)) / s, q[2] = (m(1, 0) - m(0, 1)) / s;
+        q[3] = s / 4;
+        q[0] = (m(2, 1) - m(1, 2)) / s;
+        q[1] = (m(0, 2) - m(2, 0)) / s;
+        q[2] = (m(1, 0) - m(0, 1)) / s;
     } else if (m(0, 0) >= m(1, 1) && m(0, 0) >= m(2, 2)) {
         double s = 2 * std::sqrt(std::max(0.0, 1 + m(0, 0) - m(1, 1) - m(2, 2)));
-        q[3] = (m(2, 1) - m(1, 2)) / s, q[0] = s / 4, q[1] = (m(0, 1) + m(1, 0)) / s, q[2] = (m(0, 2) + m(2, 0)) / s;
+        q[3] = (m(2, 1) - m(1, 2)) / s;
+        q[0] = s / 4;
+        q[1] = (m(0, 1) + m(1, 0)) / s;
+        q[2] = (m(0, 2) + m(2, 0)) / s;
     } else if (m(1, 1) >= m(2, 2)) {
         double s = 2 * std::sqrt(std::max(0.0, 1 + m(1, 1) - m(0, 0) - m(2, 2)));
-        q[3] = (m(0, 2) - m(2, 0)) / s, q[0] = (m(0, 1) + m(1, 0)) / s, q[1] = s / 4, q[2] = (m(1, 2) + m(2, 1)) / s;
+        q[3] = (m(0, 2) - m(2, 0)) / s;
+        q[0] = (m(0, 1) + m(1, 0)) / s;
+        q[1] = s / 4;
+        q[2] = (m(1, 2) + m(2, 1)) / s;
     } else {
         double s = 2 * std::sqrt(std::max(0.0, 1 + m(2, 2) - m(0, 0) - m(1, 1)));
-        q[3] = (m(1, 0) - m(0, 1)) / s, q[0] = (m(0, 2) + m(2, 0)) / s, q[1] = (m(1, 2) + m(2, 1)) / s, q[2] = s / 4;
+        q[3] = (m(1, 0) - m(0, 1)) / s;
+        q[0] = (m(0, 2) + m(2, 0)) / s;
+        q[1] = (m(1, 2) + m(2, 1)) / s;
+        q[2] = s / 4;
     }
     int largest = 0;
     for (int i = 1; i < 4; ++i)
@@ -632,7 +709,10 @@ Ball min_ball(const double* pts, size_t n, int dims) {
         for (uint32_t v = 0; v < n; ++v) {
             Vec e = sub(pts + size_t(v) * 3, pts + size_t(from) * 3);
             double dd = dot3(e.data(), e.data());
-            if (dd > d) d = dd, best = v;
+            if (dd > d) {
+                d = dd;
+                best = v;
+            }
         }
         return best;
     };
@@ -678,8 +758,10 @@ Capsule fit_capsule(const Frame& f, int major, const double* local, size_t n, co
                     const double* world) {
     int u = (major + 1) % 3, w = (major + 2) % 3;
     std::vector<double> plane(n * 3, 0.0);
-    for (size_t v = 0; v < n; ++v)
-        plane[v * 3] = dot3(local + v * 3, f.axis[u]), plane[v * 3 + 1] = dot3(local + v * 3, f.axis[w]);
+    for (size_t v = 0; v < n; ++v) {
+        plane[v * 3] = dot3(local + v * 3, f.axis[u]);
+        plane[v * 3 + 1] = dot3(local + v * 3, f.axis[w]);
+    }
     Ball circle = min_ball(plane.data(), n, 2);
     double r = std::sqrt(std::max(0.0, circle.r2));
     double lo = INFINITY, hi = -INFINITY;  // t range the segment must cover
@@ -763,7 +845,8 @@ bool cone_axis(size_t planes, const Vec& sum, PackedCone& packed, Vec& axis) {
     double x = sum[0] / l1, y = sum[1] / l1;
     if (sum[2] < 0) {
         double fx = (1 - std::fabs(y)) * (x < 0 ? -1 : 1), fy = (1 - std::fabs(x)) * (y < 0 ? -1 : 1);
-        x = fx, y = fy;
+        x = fx;
+        y = fy;
     }
     packed.axis[0] = int16_t(std::clamp(std::round(x * 32767), -32767.0, 32767.0));
     packed.axis[1] = int16_t(std::clamp(std::round(y * 32767), -32767.0, 32767.0));
@@ -820,7 +903,8 @@ Slab fit_slab(const float axis_f[3], const double* world, size_t n) {
     double a[3] = {axis_f[0], axis_f[1], axis_f[2]}, lo = INFINITY, hi = -INFINITY, scale = 0;
     for (size_t v = 0; v < n; ++v) {
         double d = dot3(world + v * 3, a);
-        lo = std::min(lo, d), hi = std::max(hi, d);
+        lo = std::min(lo, d);
+        hi = std::max(hi, d);
         scale = std::max(
             scale,
             std::fabs(world[v * 3] * a[0]) + std::fabs(world[v * 3 + 1] * a[1]) + std::fabs(world[v * 3 + 2] * a[2]));
@@ -846,13 +930,40 @@ const char* obb_method_name(ObbMethod m) {
 
 bool parse_obb_method(const std::string& name, ObbMethod& out) {
     for (ObbMethod m : {ObbMethod::refined, ObbMethod::pca, ObbMethod::pca_area, ObbMethod::cgal_optimal})
-        if (name == obb_method_name(m)) return out = m, true;
+        if (name == obb_method_name(m)) {
+            out = m;
+            return true;
+        }
     return false;
 }
 
+BoundsOptionsError check_options(const BoundsOptions& o) {
+    if (o.mask & ~bounds_all) return BoundsOptionsError::mask_unknown_kind;
+    if (!(o.capsule_ratio >= 1 && std::isfinite(o.capsule_ratio))) return BoundsOptionsError::capsule_ratio_below_one;
+    return BoundsOptionsError::none;
+}
+
+std::string describe(BoundsOptionsError error, const std::function<std::string(const char* field)>& name) {
+    auto field = [&](const char* f) { return name ? name(f) : std::string(f); };
+    switch (error) {
+        case BoundsOptionsError::none: return {};
+        case BoundsOptionsError::mask_unknown_kind:
+            return field("mask") + " holds a bit of no volume kind (obb, sphere, capsule, cone, slab)";
+        case BoundsOptionsError::capsule_ratio_below_one:
+            return field("capsule_ratio") + " must be a finite number of at least 1";
+    }
+    return "unknown bounds options error";
+}
+
 bool parse_bounds_mask(const std::string& text, uint32_t& mask) {
-    if (text == "auto") return mask = bounds_auto, true;
-    if (text == "all") return mask = bounds_all, true;
+    if (text == "auto") {
+        mask = bounds_auto;
+        return true;
+    }
+    if (text == "all") {
+        mask = bounds_all;
+        return true;
+    }
     mask = 0;
     size_t at = 0;
     while (at <= text.size()) {
@@ -899,7 +1010,10 @@ Sphere ritter_sphere(const double* local, size_t n, const double* origin) {
         for (size_t v = 0; v < n; ++v) {
             Vec e = sub(local + v * 3, from);
             double dd = dot3(e.data(), e.data());
-            if (dd > d) d = dd, best = v;
+            if (dd > d) {
+                d = dd;
+                best = v;
+            }
         }
         return local + best * 3;
     };
@@ -928,7 +1042,10 @@ ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const 
     // of their box). A vertex is new when its stamp is not this call's: no sort, no clearing between calls.
     thread_local std::vector<uint32_t> stamp;
     thread_local uint32_t call = 0;
-    if (++call == 0) std::fill(stamp.begin(), stamp.end(), 0u), call = 1;
+    if (++call == 0) {
+        std::fill(stamp.begin(), stamp.end(), 0u);
+        call = 1;
+    }
     thread_local std::vector<uint32_t> ids;  // scratch, as the arrays below: no allocation per cluster
     thread_local std::vector<double> world, local;
     ids.clear();
@@ -936,18 +1053,26 @@ ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const 
         for (int k = 0; k < 3; ++k) {
             uint32_t v = indices[size_t(triangle_ids[i]) * 3 + k];
             if (v >= stamp.size()) stamp.resize(size_t(v) + 1 + stamp.size() / 2, 0u);
-            if (stamp[v] != call) stamp[v] = call, ids.push_back(v);
+            if (stamp[v] != call) {
+                stamp[v] = call;
+                ids.push_back(v);
+            }
         }
     size_t n = ids.size();
-    world.resize(n * 3), local.resize(n * 3);
+    world.resize(n * 3);
+    local.resize(n * 3);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t v = 0; v < n; ++v)
         for (int k = 0; k < 3; ++k) {
             world[v * 3 + k] = positions[size_t(ids[v]) * 3 + k];
-            lo[k] = std::min(lo[k], world[v * 3 + k]), hi[k] = std::max(hi[k], world[v * 3 + k]);
+            lo[k] = std::min(lo[k], world[v * 3 + k]);
+            hi[k] = std::max(hi[k], world[v * 3 + k]);
         }
     double origin[3], extent = 0;
-    for (int k = 0; k < 3; ++k) origin[k] = 0.5 * (lo[k] + hi[k]), extent = std::max(extent, hi[k] - lo[k]);
+    for (int k = 0; k < 3; ++k) {
+        origin[k] = 0.5 * (lo[k] + hi[k]);
+        extent = std::max(extent, hi[k] - lo[k]);
+    }
     for (size_t i = 0; i < n * 3; ++i) local[i] = world[i] - origin[i % 3];
     if (n == 0) return out;
 

@@ -16,6 +16,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
 
 namespace cb {
@@ -58,6 +59,19 @@ struct BoundsOptions {
     ObbMethod obb = ObbMethod::refined;
     double capsule_ratio = 2.0;
 };
+
+// The rules BoundsOptions must keep, each an error of its own; checked in this order.
+enum class BoundsOptionsError {
+    none,
+    mask_unknown_kind,        // mask holds a bit of no volume kind
+    capsule_ratio_below_one,  // capsule_ratio must be a finite number of at least 1 (a side against the others)
+};
+
+// The first rule `options` breaks, or none; fit_bounds's callers check it before any work.
+BoundsOptionsError check_options(const BoundsOptions& options);
+
+// The broken rule in one line, empty for none; fields named by `name` when set, by their own names otherwise.
+std::string describe(BoundsOptionsError error, const std::function<std::string(const char* field)>& name = {});
 
 // The triangles are `count` indices into `triangle_ids`, each a triangle of `indices` (3 per triangle)
 // over `positions` (xyz floats). Pure: no state, safe to call from many threads.

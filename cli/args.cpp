@@ -23,52 +23,55 @@ void add_load_flags(CLI::App* c, cb::LoadOptions& load) {
         ->transform(CLI::AsSizeValue(false));
 }
 
-void add_clustering_flags(CLI::App* c, ClusterArgs& a) {
-    c->add_option("--method", a.method, "kmeans (default), vco or morton");
-    c->add_option("--coarse", a.options.coarse_size, "Triangles per coarse cluster (default 2048)");
-    // 85 triangles have at most 255 distinct corners: every cluster fits the asset's 8-bit local indices.
-    c->add_option("--fine", a.options.fine_size, "Maximum triangles per fine cluster, 1 to 85 (default 16)")
-        ->check(CLI::Range(1, 85));
-    c->add_option("--threads", a.options.threads, threads_help("the output is identical for any count"));
-    c->add_option("--seed", a.options.seed, "Seed of k-means++ (default 1)");
-    c->add_option("--k0", a.options.kmeans_branching, "k-means children per node (default 8)");
-    c->add_option("--iterations", a.options.kmeans_max_iterations, "Cap on Lloyd iterations per node (default 16)");
-    c->add_flag_callback(
-        "--coarse-morton", [&a] { a.options.kmeans_coarse_from_tree = false; },
-        "kmeans: Morton chunks as the coarse level instead of the top of the k-means trees");
-    c->add_option("--presplit", a.options.kmeans_presplit,
-                  "kmeans: triangles per Morton chunk the trees grow in, in parallel (default 65536; 0: one tree)");
-    c->add_option("--cache", a.options.vco_cache_size, "vco: vertex cache size (default 32)");
+void add_bake_flags(CLI::App* c, BakeFlags& f, const std::function<bool(const cb::BakeOption&)>& takes) {
+    const std::vector<cb::BakeOption>& table = cb::bake_options();
+    for (size_t i = 0; i < table.size(); ++i) {
+        const cb::BakeOption& o = table[i];
+        if (!takes(o)) continue;
+        if (o.takes_value)
+            f.options[i] = c->add_option(o.flag, f.values[i], o.help + " (default " + o.default_value + ")")
+                               ->type_name(o.value_type);
+        else
+            f.options[i] = c->add_flag(o.flag, o.help);
+    }
 }
 
-const std::vector<std::string>& cluster_shape_flags() {
-    static const std::vector<std::string> names = {"--method",     "--coarse", "--fine",     "--seed",         "--k0",
-                                                   "--iterations", "--cache",  "--presplit", "--coarse-morton"};
-    return names;
+bool cluster_takes(const cb::BakeOption& o) { return o.use != cb::OptionUse::bounds; }
+
+bool bake_takes(const cb::BakeOption&) { return true; }
+
+bool stats_takes(const cb::BakeOption& o) {
+    return cluster_takes(o) || std::string(o.flag) == "--obb" || std::string(o.flag) == "--capsule-ratio";
 }
 
-std::string unused_by_method_error(const CLI::App* c, cb::ClusterMethod method) {
-    const std::string name = cb::method_name(method);
-    auto unused = [&](const std::vector<std::string>& names, const std::string& why) {
-        const std::string given = first_given(c, names);
-        return given.empty() ? given : given + " does nothing here: " + why;
-    };
-    std::string error;
-    if (method != cb::ClusterMethod::vco) error = unused({"--cache"}, "an option of vco, and the method is " + name);
-    if (error.empty() && method != cb::ClusterMethod::kmeans)
-        error = unused({"--seed", "--k0", "--iterations", "--presplit", "--coarse-morton"},
-                       "an option of kmeans, and the method is " + name);
-    if (error.empty() && !first_given(c, {"--coarse-morton"}).empty())
-        error = unused({"--presplit"}, "with --coarse-morton no k-means tree grows in presplit chunks");
-    return error;
+std::vector<std::string> given_flags(const BakeFlags& f) {
+    std::vector<std::string> given;
+    for (size_t i = 0; i < f.options.size(); ++i)
+        if (f.options[i] && f.options[i]->count() > 0) given.push_back(cb::bake_options()[i].flag);
+    return given;
 }
 
-bool refuse_unused_by_method(const CLI::App* c, cb::ClusterMethod method) {
-    return !usage_ok(unused_by_method_error(c, method));
+std::string given_or_default(const BakeFlags& f, const std::string& flag) {
+    const std::vector<cb::BakeOption>& table = cb::bake_options();
+    for (size_t i = 0; i < table.size(); ++i) {
+        if (flag != table[i].flag) continue;
+        return f.options[i] && f.options[i]->count() > 0 ? f.values[i] : table[i].default_value;
+    }
+    return {};
+}
+
+std::string apply_flags(const BakeFlags& f, cb::BakeRequest& r) {
+    const std::vector<cb::BakeOption>& table = cb::bake_options();
+    for (size_t i = 0; i < table.size(); ++i) {
+        if (!f.options[i] || f.options[i]->count() == 0) continue;
+        std::string error = table[i].set(r, f.values[i]);
+        if (!error.empty()) return error;
+    }
+    return cb::request_options_error(r);
 }
 
 std::string threads_help(const std::string& what) {
-    return "Worker threads, 0 = all hardware threads (default); " + what;
+    return "Worker threads, 0 = all hardware threads; " + what + " (default 0)";
 }
 
 std::string first_given(const CLI::App* c, const std::vector<std::string>& names) {
@@ -119,59 +122,17 @@ std::string scene_input_error(const std::string& file, const std::string& comman
         " clusters a scene file itself (.gltf .glb .obj .ply .off .stl)";
 }
 
-void add_bounds_flags(CLI::App* c, ClusterArgs& a) {
-    c->add_option("--bounds", a.bounds,
-                  "auto (what the shadow runtime reads: obb,cone), all, or a list of obb,sphere,capsule,cone,slab");
-    c->add_option("--obb", a.obb, "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow)");
-    c->add_option("--capsule-ratio", a.capsule_ratio,
-                  "Fit a capsule when the box's longest side is this many times each other (default 2)");
-}
-
-bool parse_obb(const std::string& text, cb::ObbMethod& out) {
-    if (cb::parse_obb_method(text, out)) return true;
-    std::fprintf(stderr, "clusterbake: --obb takes refined, pca, pca-area or cgal (got '%s')\n", text.c_str());
-    return false;
-}
-
-std::string clustering_error(const ClusterArgs& a, cb::ClusterOptions& clustering, cb::BoundsOptions& bounds) {
-    clustering = a.options;
-    // Ranges no algorithm can work with, refused before any work.
-    if (clustering.coarse_size == 0) return "--coarse must be at least 1";
-    if (clustering.coarse_size < clustering.fine_size) return "--coarse must be at least --fine";
-    if (clustering.kmeans_branching < 2) return "--k0 must be at least 2 (children per k-means node)";
-    if (clustering.vco_cache_size < 3) return "--cache must be at least 3 (a triangle's corners)";
-    if (!(a.capsule_ratio >= 1 && std::isfinite(a.capsule_ratio)))
-        return "--capsule-ratio must be a finite number of at least 1";
-    if (!cb::parse_method(a.method, clustering.method))
-        return "unknown method '" + a.method + "' (kmeans, vco, morton)";
-    bounds.capsule_ratio = a.capsule_ratio;
-    if (!cb::parse_obb_method(a.obb, bounds.obb))
-        return "--obb takes refined, pca, pca-area or cgal (got '" + a.obb + "')";
-    return {};
-}
-
-bool parse_clustering(const ClusterArgs& a, cb::ClusterOptions& clustering, cb::BoundsOptions& bounds) {
-    std::string error = clustering_error(a, clustering, bounds);
-    if (!error.empty()) std::fprintf(stderr, "clusterbake: %s\n", error.c_str());
-    return error.empty();
-}
-
 std::string request_error(const ClusterArgs& a, cb::BakeRequest& out) {
     out = cb::BakeRequest{};
     out.fit = a.fit;
     out.if_changed = a.if_changed;
     out.load = a.load;
-    std::string error = clustering_error(a, out.clustering, out.bounds);
-    if (error.empty() && a.fit && !cb::parse_bounds_mask(a.bounds, out.bounds.mask))
-        error = "--bounds takes auto, all or a list of obb,sphere,capsule,cone,slab (got '" + a.bounds + "')";
+    std::string error = apply_flags(a.flags, out);
+    if (error.empty()) error = cb::ignored_option_error(given_flags(a.flags), out);
     return error;
 }
 
-bool parse_request(const ClusterArgs& a, cb::BakeRequest& out) {
-    std::string error = request_error(a, out);
-    if (!error.empty()) std::fprintf(stderr, "clusterbake: %s\n", error.c_str());
-    return error.empty();
-}
+bool parse_request(const ClusterArgs& a, cb::BakeRequest& out) { return usage_ok(request_error(a, out)); }
 
 bool parse_light(const std::string& text, double* light) {
     char extra;
@@ -240,7 +201,10 @@ BakeProgress bake_progress(ProgressLine& line) {
     };
     progress.bounds = [&line, state, late](size_t done, size_t total) {
         if (!line.on()) return;
-        if (!state->fitting) line.restart(), state->fitting = true;  // the time left is the fitting's own
+        if (!state->fitting) {  // the time left is the fitting's own
+            line.restart();
+            state->fitting = true;
+        }
         if (!late()) return;
         line.show(total ? double(done) / double(total) : 1.0,
                   "fitting bounds: " + std::to_string(done / 1000) + "k of " + std::to_string(total / 1000) +

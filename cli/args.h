@@ -1,15 +1,17 @@
-// What the subcommands share: the exit code of bad input, the clustering and box-fitter options of
-// `cluster`, `bake` and `stats`, the checks of options and outputs made before any work, and the parsers
-// whose errors are one line on stderr.
+// What the subcommands share: the exit code of bad input, the bake options' flags (from the table of
+// bake_options.h) of `cluster`, `bake`, `batch`, `stats` and `heatmap`, the checks of options and outputs
+// made before any work, and the parsers whose errors are one line on stderr.
 #pragma once
 
 #include <CLI/CLI.hpp>
 
+#include <functional>
 #include <string>
 #include <vector>
 
 #include "asset_file.h"
 #include "bake_file.h"
+#include "bake_options.h"
 #include "bounds.h"
 #include "cluster.h"
 #include "progress.h"
@@ -20,33 +22,43 @@ namespace cb::cli {
 constexpr int exit_bad_input = 2;  // a file that does not load or is not valid
 constexpr int exit_usage = 2;      // an option or argument the command cannot take, found before any work
 
+// The bake options (bake_options.h) a command takes, each as its text on the command line.
+struct BakeFlags {
+    std::vector<std::string> values = std::vector<std::string>(cb::bake_options().size());
+    std::vector<const CLI::Option*> options = std::vector<const CLI::Option*>(cb::bake_options().size(), nullptr);
+};
+
 struct ClusterArgs {
-    std::string file, out, method = "kmeans";
-    cb::ClusterOptions options;
+    std::string file, out;
+    BakeFlags flags;
     cb::LoadOptions load;
     bool json = false, quiet = false;
     bool fit = false;  // bake: fit bounds too
     bool if_changed = false, force = false;
-    std::string bounds = "auto", obb = "refined";
-    double capsule_ratio = 2.0;
 };
 
 // What a command trusts its scene files with (--allow-outside-files, --memory-budget): every command
 // that loads scenes takes them.
 void add_load_flags(CLI::App* c, cb::LoadOptions& load);
 
-// The clustering options (--method, --coarse, --fine, --threads and the methods' own) of cluster, bake, stats.
-void add_clustering_flags(CLI::App* c, ClusterArgs& a);
+// The options of the table that `takes` accepts, as flags of `c` with their help and default.
+void add_bake_flags(CLI::App* c, BakeFlags& f, const std::function<bool(const cb::BakeOption&)>& takes);
 
-// What add_clustering_flags adds but --threads: the options that shape the clusters.
-const std::vector<std::string>& cluster_shape_flags();
+// Which options of the table a command takes: cluster (every one but the bounds'), bake and batch (every
+// one), stats (cluster's and the two that shape volumes fitted here, --obb and --capsule-ratio).
+bool cluster_takes(const cb::BakeOption& o);
+bool bake_takes(const cb::BakeOption& o);
+bool stats_takes(const cb::BakeOption& o);
 
-// When an option of another clustering method than `method` was given (--cache is vco's, --seed, --k0,
-// --iterations, --presplit and --coarse-morton k-means'), or --presplit with --coarse-morton: "NAME does
-// nothing here: WHY"; otherwise empty. refuse_unused_by_method prints it as refuse_given does, and says
-// whether it did.
-std::string unused_by_method_error(const CLI::App* c, ClusterMethod method);
-bool refuse_unused_by_method(const CLI::App* c, ClusterMethod method);
+// The flags of the table given on the command line, in the table's order.
+std::vector<std::string> given_flags(const BakeFlags& f);
+
+// The text given for `flag`, or its default in the table.
+std::string given_or_default(const BakeFlags& f, const std::string& flag);
+
+// The options given applied onto `r` in the table's order, then checked (request_options_error): the
+// one-line error, or empty.
+std::string apply_flags(const BakeFlags& f, cb::BakeRequest& r);
 
 // The help text of --threads: the same default, all hardware threads, in every command.
 std::string threads_help(const std::string& what);
@@ -72,21 +84,12 @@ bool usage_ok(const std::string& error);
 // Why `file` cannot be the scene `command` reads (it is an asset, whose clusters are already made), or empty.
 std::string scene_input_error(const std::string& file, const std::string& command);
 
-// The bounding volume options of bake and batch: --bounds, --obb, --capsule-ratio.
-void add_bounds_flags(CLI::App* c, ClusterArgs& a);
-
-// The box fitter's name; otherwise a one-line error and false.
-bool parse_obb(const std::string& text, ObbMethod& out);
-
-// The clustering method, ranges and box fitter named on the command line (bake, cluster, stats): what is
-// wrong with them in one line, or empty. parse_clustering prints the line ("clusterbake: ...") instead.
-std::string clustering_error(const ClusterArgs& a, ClusterOptions& clustering, BoundsOptions& bounds);
-bool parse_clustering(const ClusterArgs& a, ClusterOptions& clustering, BoundsOptions& bounds);
-
-// The clustering and bounds options of a bake (clustering_error, then --bounds when fitting), the same way.
-// Leaves the input and output paths empty.
-std::string request_error(const ClusterArgs& a, BakeRequest& out);
-bool parse_request(const ClusterArgs& a, BakeRequest& out);
+// The request of a bake, cluster or stats command line (`fit`, `if_changed` and `load` from `a`, the
+// options from its flags), checked before any work: the rules, then the options that would change
+// nothing. The one-line error, or empty; parse_request prints it ("clusterbake: ...") instead. Leaves the
+// input and output paths empty.
+std::string request_error(const ClusterArgs& a, cb::BakeRequest& out);
+bool parse_request(const ClusterArgs& a, cb::BakeRequest& out);
 
 // What a bake (bake, stats) draws on `line` once it has taken a second: the share of the clustering done,
 // then of the bounds fitting, each stage with its own time left.

@@ -27,9 +27,9 @@ std::string output_problem(const std::string& out, bool force) {
 }
 
 // `cluster` (geometry and hierarchy only) and `bake` (with bounds) share this.
-int run_bake(const CLI::App* c, const ClusterArgs& a) {
+int run_bake(const ClusterArgs& a) {
     cb::BakeRequest request;
-    if (!parse_request(a, request) || refuse_unused_by_method(c, request.clustering.method)) return exit_usage;
+    if (!parse_request(a, request)) return exit_usage;
     if (a.force && a.if_changed) {
         std::fprintf(stderr, "clusterbake: --force and --if-changed contradict each other\n");
         return exit_usage;
@@ -88,7 +88,7 @@ int run_bake(const CLI::App* c, const ClusterArgs& a) {
                   {"triangles_per_second", tps},
                   {"bytes_per_triangle", stats.triangles ? double(asset_bytes) / double(stats.triangles) : 0.0}});
         if (a.fit) {
-            j["bounds"] = a.bounds;
+            j["bounds"] = given_or_default(a.flags, "--bounds");
             j["fit_seconds"] = stats.fit_seconds;
             if (bounds.mask & cb::bounds_cone) j["valid_cones"] = stats.valid_cones;
             if (bounds.mask & cb::bounds_capsule) j["capsules"] = stats.capsules;
@@ -112,7 +112,8 @@ int run_bake(const CLI::App* c, const ClusterArgs& a) {
     if (options.method == cb::ClusterMethod::vco)
         std::printf("  ACMR (FIFO %u) %.3f -> %.3f\n", options.vco_cache_size, stats.acmr_before, stats.acmr_after);
     if (a.fit) {
-        std::printf("  bounds %s (obb %s): fitted in %.3f s", a.bounds.c_str(), a.obb.c_str(), stats.fit_seconds);
+        std::printf("  bounds %s (obb %s): fitted in %.3f s", given_or_default(a.flags, "--bounds").c_str(),
+                    given_or_default(a.flags, "--obb").c_str(), stats.fit_seconds);
         unsigned long long clusters = stats.fine_clusters + stats.coarse_clusters;
         if (bounds.mask & cb::bounds_cone)
             std::printf("; %llu of %llu clusters have a valid cone", (unsigned long long)stats.valid_cones, clusters);
@@ -131,7 +132,7 @@ int run_bake(const CLI::App* c, const ClusterArgs& a) {
 void add_common(CLI::App* c, ClusterArgs& a) {
     c->add_option("file", a.file, "Scene file")->required();
     c->add_option("-o,--output", a.out, "Output asset (.cbk); written atomically")->required();
-    add_clustering_flags(c, a);
+    add_bake_flags(c, a.flags, a.fit ? bake_takes : cluster_takes);
     add_load_flags(c, a.load);
     c->add_option("--files-root", a.load.root,
                   "External files a scene names must lie inside this folder (default: the scene's own folder)");
@@ -151,7 +152,7 @@ Command add_cluster(CLI::App& app) {
     CLI::App* c = app.add_subcommand("cluster",
                                      "Cluster every mesh into coarse and fine clusters and write an asset (no bounds)");
     add_common(c, *a);
-    return {c, [c, a] { return run_bake(c, *a); }};
+    return {c, [a] { return run_bake(*a); }};
 }
 
 Command add_bake(CLI::App& app) {
@@ -159,8 +160,7 @@ Command add_bake(CLI::App& app) {
     a->fit = true;
     CLI::App* c = app.add_subcommand("bake", "Load, cluster, fit bounding volumes and write the asset");
     add_common(c, *a);
-    add_bounds_flags(c, *a);
-    return {c, [c, a] { return run_bake(c, *a); }};
+    return {c, [a] { return run_bake(*a); }};
 }
 
 }  // namespace cb::cli

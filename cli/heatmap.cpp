@@ -17,7 +17,8 @@ namespace cb::cli {
 namespace {
 
 struct HeatmapArgs {
-    std::string file, out, light, obb = "refined";
+    std::string file, out, light;
+    BakeFlags flags;  // --coarse, --fine, --obb, --threads
     cb::HeatmapOptions options;
     cb::LoadOptions load;
     bool json = false, quiet = false;
@@ -29,13 +30,13 @@ bool parse_heatmap(HeatmapArgs& a) {
         if (!parse_light(a.light, a.options.light)) return false;
         a.options.has_light = true;
     }
-    if (!parse_obb(a.obb, a.options.obb)) return false;
+    cb::BakeRequest request;
+    if (!usage_ok(apply_flags(a.flags, request))) return false;
+    a.options.clustering = request.clustering;
+    a.options.obb = request.bounds.obb;
+    a.options.threads = request.threads;
     if (a.options.size < 8 || a.options.size > 4096) {
         std::fprintf(stderr, "clusterbake: --size takes 8 to 4096\n");
-        return false;
-    }
-    if (a.options.clustering.coarse_size < a.options.clustering.fine_size) {
-        std::fprintf(stderr, "clusterbake: --coarse must be at least --fine\n");
         return false;
     }
     return usage_ok(scene_input_error(a.file, "heatmap")) && usage_ok(output_file_error(a.out));
@@ -50,7 +51,7 @@ void print_json(const HeatmapArgs& a, const cb::Heatmap& h) {
                         {"light", {h.light[0], h.light[1], h.light[2]}},
                         {"fine_size", a.options.clustering.fine_size},
                         {"coarse_size", a.options.clustering.coarse_size},
-                        {"obb", a.obb},
+                        {"obb", given_or_default(a.flags, "--obb")},
                         {"one_sided", a.options.one_sided},
                         {"pixels", h.pixels},
                         {"mean_useless", {{"kmeans", h.mean_useless[0]}, {"vco", h.mean_useless[1]}}},
@@ -93,12 +94,11 @@ Command add_heatmap(CLI::App& app) {
     add_load_flags(c, a->load);
     c->add_option("--size", a->options.size, "Panel size in pixels (default 256)");
     c->add_option("--light", a->light, "Light position X,Y,Z (default: above the scene, as the report's first light)");
-    c->add_option("--fine", a->options.clustering.fine_size, "Maximum triangles per fine cluster, 1 to 85 (default 16)")
-        ->check(CLI::Range(1, 85));
-    c->add_option("--coarse", a->options.clustering.coarse_size, "Triangles per coarse cluster (default 2048)");
-    c->add_option("--obb", a->obb, "refined (default), pca, pca-area, or cgal");
+    add_bake_flags(c, a->flags, [](const cb::BakeOption& o) {
+        const std::string flag = o.flag;
+        return flag == "--coarse" || flag == "--fine" || flag == "--obb" || flag == "--threads";
+    });
     c->add_flag("--one-sided", a->options.one_sided, "One-sided occluders");
-    c->add_option("--threads", a->options.clustering.threads, threads_help("the picture does not depend on it"));
     c->add_flag("--json", a->json, "Print the summary as JSON");
     c->add_flag("-q,--quiet", a->quiet, "No progress on stderr");
     return {c, [a] { return run_heatmap(*a); }};

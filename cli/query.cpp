@@ -174,8 +174,11 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     cb::SceneQueryOptions options;
     cb::parse_traversal(a.traversal, options.traversal);           // CLI11 checked the name
     cb::parse_metric_build(a.metric_build, options.metric_build);  // CLI11 checked the name
-    options.one_sided = a.one_sided, options.threads = a.threads, options.reference = a.reference;
-    options.capsule_ratio = a.capsule_ratio, options.bias = a.bias;
+    options.one_sided = a.one_sided;
+    options.threads = a.threads;
+    options.reference = a.reference;
+    options.capsule_ratio = a.capsule_ratio;
+    options.bias = a.bias;
     cb::SceneQueryResult q = cb::query_level(level.level, light, pts.data(), pts.size() / 3, options);
     size_t shadowed = size_t(std::count(q.shadowed.begin(), q.shadowed.end(), uint8_t(1)));
     if (a.json) {

@@ -47,9 +47,13 @@ bool parse_size(const std::string& text, uint32_t& width, uint32_t& height) {
     unsigned w = 0, h = 0;
     char extra;
     int got = std::sscanf(text.c_str(), "%ux%u%c", &w, &h, &extra);
-    if (got == 1 && text.find('x') == std::string::npos) h = w, got = 2;
+    if (got == 1 && text.find('x') == std::string::npos) {
+        h = w;
+        got = 2;
+    }
     if (got == 2 && std::isdigit(static_cast<unsigned char>(text[0])) && w >= 16 && h >= 16 && w <= 4096 && h <= 4096) {
-        width = w, height = h;
+        width = w;
+        height = h;
         return true;
     }
     return usage_ok("--size takes W or WxH, each 16 to 4096 pixels (got '" + text + "')");
@@ -65,7 +69,8 @@ bool parse_area_light(const std::string& text, cb::AreaLight& out) {
                     &samples, &extra) == 5 &&
         std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]) && std::isfinite(size) && size > 0 &&
         samples >= 1 && samples <= 4096) {
-        out.size = size, out.samples = samples;
+        out.size = size;
+        out.samples = samples;
         return true;
     }
     return usage_ok("--area-light takes X,Y,Z,SIZE,N: a centre, a size above 0 and 1 to 4096 samples (got '" + text +
@@ -121,7 +126,9 @@ bool parse_render(const CLI::App* c, const RenderArgs& a, cb::RenderOptions& o) 
     if (!a.eye.empty() && !parse_triple("--eye", a.eye, o.eye)) return false;
     if (!a.target.empty() && !parse_triple("--target", a.target, o.target)) return false;
     if (!a.up.empty() && !parse_triple("--up", a.up, o.up)) return false;
-    o.has_eye = !a.eye.empty(), o.has_target = !a.target.empty(), o.has_up = !a.up.empty();
+    o.has_eye = !a.eye.empty();
+    o.has_target = !a.target.empty();
+    o.has_up = !a.up.empty();
     if (o.has_eye && o.has_target && o.eye[0] == o.target[0] && o.eye[1] == o.target[1] && o.eye[2] == o.target[2])
         return usage_ok("--eye and --target are the same point: no direction to look in");
     if (!(o.up[0] != 0 || o.up[1] != 0 || o.up[2] != 0)) return usage_ok("--up must not be zero");
@@ -129,7 +136,9 @@ bool parse_render(const CLI::App* c, const RenderArgs& a, cb::RenderOptions& o) 
         return usage_ok("--fov takes degrees above 0 and below 170 (got " + std::to_string(a.fov) + ")");
     o.fov_degrees = a.fov;
     if (!parse_size(a.size, o.width, o.height)) return false;
-    o.one_sided = a.one_sided, o.compare = a.compare, o.threads = a.threads;
+    o.one_sided = a.one_sided;
+    o.compare = a.compare;
+    o.threads = a.threads;
     if (!(a.bias >= 0 && a.bias < INFINITY))  // NaN too
         return usage_ok("--bias takes a distance of at least 0 (0: the scene's default)");
     o.bias = a.bias;

@@ -1,6 +1,5 @@
 // clusterbake report: the sweep of clustering method x fine size x box fitter, as a table and report files.
 #include <cstdio>
-#include <cstdlib>
 #include <iostream>
 #include <memory>
 #include <stdexcept>
@@ -59,15 +58,18 @@ bool usable(const CLI::App* c, const ReportArgs& a) {
 
 int run_report(const CLI::App* c, ReportArgs a) {
     cb::ReportOptions& o = a.options;
-    o.methods.clear(), o.fine_sizes.clear(), o.obbs.clear(), o.traversals.clear();
-    auto fine_size = [](const std::string& f, uint32_t& v) {  // the asset's 8-bit local indices, as for bake
-        char* end = nullptr;
-        unsigned long n = std::strtoul(f.c_str(), &end, 10);
-        v = uint32_t(n);
-        return !f.empty() && !*end && n >= 1 && n <= 85;
+    o.methods.clear();
+    o.fine_sizes.clear();
+    o.obbs.clear();
+    o.traversals.clear();
+    auto fine_size = [](const std::string& f, uint32_t& v) {
+        cb::BakeRequest r;
+        if (!cb::find_bake_option("--fine")->set(r, f).empty()) return false;
+        v = r.clustering.fine_size;
+        return true;
     };
     if (!parse_list(a.methods, "--method takes a list of kmeans, vco, morton", cb::parse_method, o.methods) ||
-        !parse_list(a.fine, "--fine takes a list of sizes from 1 to 85", fine_size, o.fine_sizes) ||
+        !parse_list(a.fine, "--fine takes a list of whole numbers", fine_size, o.fine_sizes) ||
         !parse_list(a.obbs, "--obb takes a list of refined, pca, pca-area, cgal", cb::parse_obb_method, o.obbs) ||
         !parse_list(a.traversals, "--traversal takes a list of scan, trees, one-tree, mtsv, mtsv-two",
                     cb::parse_traversal, o.traversals))
@@ -77,12 +79,18 @@ int run_report(const CLI::App* c, ReportArgs a) {
                      "clusterbake: --runs, --query-runs, --view, --frame-view and --lights must be at least 1\n");
         return exit_usage;
     }
-    for (uint32_t fine : o.fine_sizes)
-        if (o.coarse_size < fine) {
-            std::fprintf(stderr, "clusterbake: --coarse must be at least every --fine (got %u and %u)\n", o.coarse_size,
-                         fine);
+    // Every configuration of the sweep keeps the clustering's rules, checked before any work.
+    for (uint32_t fine : o.fine_sizes) {
+        cb::ClusterOptions clustering;
+        clustering.coarse_size = o.coarse_size;
+        clustering.fine_size = fine;
+        const std::string error = cb::describe(cb::check_options(clustering), cb::flag_of_field);
+        if (!error.empty()) {
+            std::fprintf(stderr, "clusterbake: the sweep's --coarse %u --fine %u: %s\n", o.coarse_size, fine,
+                         error.c_str());
             return exit_usage;
         }
+    }
     if (o.heatmap_size < 8 || o.heatmap_size > 4096) {
         std::fprintf(stderr, "clusterbake: --heatmap-size takes 8 to 4096\n");
         return exit_usage;
@@ -120,7 +128,9 @@ Command add_report(CLI::App& app) {
     c->add_option("-o,--output", a->out, "Output folder (created before the sweep)")->required();
     add_load_flags(c, a->options.load);
     c->add_option("--method", a->methods, "Comma list of clustering methods: kmeans, vco, morton (default all three)");
-    c->add_option("--fine", a->fine, "Comma list of maximum triangles per fine cluster, 1 to 85 (default 8,16,24,32)");
+    c->add_option("--fine", a->fine,
+                  "Comma list of maximum triangles per fine cluster, 1 to " + std::to_string(cb::max_fine_size) +
+                      " (default 8,16,24,32)");
     c->add_option("--obb", a->obbs, "Comma list of box fitters: refined, pca, pca-area, cgal (default refined,pca)");
     c->add_option("--traversal", a->traversals,
                   "Comma list of runtime traversals, each a configuration: scan, trees, one-tree, mtsv, mtsv-two "

@@ -18,7 +18,8 @@ namespace {
 // The volume kinds an asset stores at both levels.
 uint32_t stored_kinds(const cb::AssetView& view) {
     uint32_t mask = 0;
-    const cb::LevelBounds &fine = view.fine_bounds, &coarse = view.coarse_bounds;
+    const cb::LevelBounds& fine = view.fine_bounds;
+    const cb::LevelBounds& coarse = view.coarse_bounds;
     if (fine.obbs && coarse.obbs) mask |= cb::bounds_obb;
     if (fine.spheres && coarse.spheres) mask |= cb::bounds_sphere;
     if (fine.capsules && coarse.capsules) mask |= cb::bounds_capsule;
@@ -32,7 +33,10 @@ uint32_t stored_kinds(const cb::AssetView& view) {
 // True when one of them was given in vain, after saying so.
 bool refuse_unused_on_asset(const CLI::App* c, const std::string& file) {
     const std::string why = file + " is an asset, ";
-    if (refuse_given(c, cluster_shape_flags(), why + "clustered when it was baked")) return true;
+    std::vector<std::string> shape_flags;
+    for (const cb::BakeOption& o : cb::bake_options())
+        if (cb::shapes_clusters(o)) shape_flags.push_back(o.flag);
+    if (refuse_given(c, shape_flags, why + "clustered when it was baked")) return true;
     if (refuse_given(c, {"--allow-outside-files", "--memory-budget"}, why + "not a scene: nothing is loaded or baked"))
         return true;
     if (first_given(c, {"--obb", "--capsule-ratio"}).empty()) return false;
@@ -58,24 +62,27 @@ nlohmann::json stats_json(const ClusterArgs& a, const cb::SceneStats& s, const c
     j["method"] = cb::method_name(clustering.method);
     j["coarse_size"] = clustering.coarse_size;
     j["fine_size"] = clustering.fine_size;
-    j["obb"] = a.obb;
+    j["obb"] = given_or_default(a.flags, "--obb");
     return j;
 }
 
 int run_stats(const CLI::App* c, const ClusterArgs& a, cb::StatsOptions so) {
-    cb::ClusterOptions clustering;
-    cb::BoundsOptions bounds;
-    if (!parse_clustering(a, clustering, bounds)) return exit_usage;
+    // Every rule first; an asset's own refusals replace those of a scene's clustering method.
     bool asset = cb::is_asset_file(a.file);
-    if (asset ? refuse_unused_on_asset(c, a.file) : refuse_unused_by_method(c, clustering.method)) return exit_usage;
+    cb::BakeRequest request;
+    std::string error = apply_flags(a.flags, request);
+    if (error.empty() && !asset) error = cb::ignored_option_error(given_flags(a.flags), request);
+    if (!usage_ok(error) || (asset && refuse_unused_on_asset(c, a.file))) return exit_usage;
+    const cb::ClusterOptions& clustering = request.clustering;
+    cb::BoundsOptions bounds = request.bounds;
     bounds.mask = cb::bounds_all;
-    so.threads = clustering.threads;
+    so.threads = request.threads;
     ProgressLine progress(!a.quiet);
     progress.stage((asset ? "reading " : "clustering and fitting ") + a.file);
     cb::BakedScene baked;
     std::string note;
     try {
-        baked = cb::load_baked(a.file, clustering, bounds, &note, bake_progress(progress), a.load);
+        baked = cb::load_baked(a.file, clustering, bounds, &note, bake_progress(progress), a.load, request.threads);
     } catch (const std::runtime_error& e) {
         progress.clear();
         std::fprintf(stderr, "%s\n", e.what());
@@ -92,7 +99,7 @@ int run_stats(const CLI::App* c, const ClusterArgs& a, cb::StatsOptions so) {
         std::printf("%s: asset%s%s\n", a.file.c_str(), note.empty() ? "" : "; ", note.c_str());
     else
         std::printf("%s: method %s, coarse %u, fine %u, obb %s\n", a.file.c_str(), cb::method_name(clustering.method),
-                    clustering.coarse_size, clustering.fine_size, a.obb.c_str());
+                    clustering.coarse_size, clustering.fine_size, given_or_default(a.flags, "--obb").c_str());
     std::fputs(cb::to_text(s).c_str(), stdout);
     return 0;
 }
@@ -110,13 +117,8 @@ Command add_stats(CLI::App& app) {
     c->add_option("file", a->clustering.file,
                   "Scene file, or an asset (.cbk): its clusters and stored volumes as they are")
         ->required();
-    add_clustering_flags(c, a->clustering);
+    add_bake_flags(c, a->clustering.flags, stats_takes);  // for an asset, --obb shapes the volumes it does not store
     add_load_flags(c, a->clustering.load);
-    c->add_option("--obb", a->clustering.obb,
-                  "refined (default), pca, pca-area, or cgal (CGAL's optimum: slow); for an asset, the volumes it "
-                  "does not store");
-    c->add_option("--capsule-ratio", a->clustering.capsule_ratio,
-                  "Fit a capsule when the box's longest side is this many times each other (default 2)");
     c->add_option("--sample-lights", a->options.lights, "Random light positions per mesh (default 8)");
     c->add_option("--samples", a->options.samples,
                   "Points sampled in each cluster's shadow volume per light (default 32)");

@@ -7,12 +7,18 @@
 // permutation of the triangles plus two levels of ranges over it, identical for any thread count.
 #pragma once
 
+#include <cb_asset.h>  // max_cluster_vertices
+
 #include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
 
 namespace cb {
+
+// The most triangles a fine cluster may hold: even with no corner shared, its vertices fit the asset's 8-bit
+// local indices (85 triangles, 255 corners).
+constexpr uint32_t max_fine_size = max_cluster_vertices / 3;
 
 enum class ClusterMethod { kmeans, vco, morton };
 
@@ -30,8 +36,26 @@ struct ClusterOptions {
                                           // (0: one tree over the whole mesh, on one thread)
     uint32_t vco_cache_size = 32;
     uint64_t seed = 1;
-    unsigned threads = 0;  // 0: all hardware threads
 };
+
+// The rules ClusterOptions must keep, each an error of its own; checked in this order.
+enum class ClusterOptionsError {
+    none,
+    fine_size_zero,               // fine_size must be at least 1
+    fine_size_above_max,          // fine_size must be at most max_fine_size
+    coarse_size_zero,             // coarse_size must be at least 1
+    coarse_size_below_fine_size,  // coarse_size must be at least fine_size
+    kmeans_branching_below_two,   // a k-means node needs two children
+    vco_cache_size_below_three,   // the vertex cache must hold a triangle's corners
+};
+
+// The first rule `options` breaks, or none. build_hierarchy refuses options that break one; a caller checks
+// them before any work.
+ClusterOptionsError check_options(const ClusterOptions& options);
+
+// The broken rule in one line ("coarse_size must be at least fine_size"), empty for none. Each field is
+// named by `name` when set (a command line names it by its flag), by its own name otherwise.
+std::string describe(ClusterOptionsError error, const std::function<std::string(const char* field)>& name = {});
 
 // Ranges: fine cluster f holds triangles order[fine_offsets[f] .. fine_offsets[f+1]); coarse cluster c holds
 // fine clusters [coarse_offsets[c] .. coarse_offsets[c+1]), whose triangles are contiguous in `order`.
@@ -50,10 +74,12 @@ struct ClusterStats {
     double acmr_after = 0;         // ... and over the clustered order
 };
 
-// `progress`, when set, is called with (chunks done, chunk count) from the calling thread.
+// On `threads` worker threads (0: all hardware threads); the result is the same for any count. `progress`,
+// when set, is called with (chunks done, chunk count) from the calling thread. Throws
+// std::invalid_argument with describe()'s line, before any work, when check_options finds a broken rule.
 Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uint32_t* indices, size_t triangle_count,
                           const ClusterOptions& options, ClusterStats* stats = nullptr,
-                          const std::function<void(size_t, size_t)>& progress = {});
+                          const std::function<void(size_t, size_t)>& progress = {}, unsigned threads = 0);
 
 // ---- the building blocks, exposed for tests and benchmarks
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <numeric>
+#include <stdexcept>
 #include <thread>
 
 #include "cluster.h"
@@ -10,21 +11,6 @@
 #include "random.h"
 
 namespace cb {
-
-const char* method_name(ClusterMethod m) {
-    switch (m) {
-        case ClusterMethod::kmeans: return "kmeans";
-        case ClusterMethod::vco: return "vco";
-        case ClusterMethod::morton: return "morton";
-    }
-    return "?";
-}
-
-bool parse_method(const std::string& name, ClusterMethod& out) {
-    for (ClusterMethod m : {ClusterMethod::kmeans, ClusterMethod::vco, ClusterMethod::morton})
-        if (name == method_name(m)) return out = m, true;
-    return false;
-}
 
 void connected_patches(const uint32_t* indices, uint32_t* tris, size_t count, std::vector<uint32_t>& patch_sizes) {
     // Union-find over the slice; slices are small (fine_size triangles), so the pairwise test is cheap.
@@ -52,7 +38,10 @@ void connected_patches(const uint32_t* indices, uint32_t* tris, size_t count, st
         uint32_t r = root(uint32_t(i));
         size_t before = result.size();
         for (size_t j = i; j < count; ++j)
-            if (!taken[j] && root(uint32_t(j)) == r) taken[j] = 1, result.push_back(tris[j]);
+            if (!taken[j] && root(uint32_t(j)) == r) {
+                taken[j] = 1;
+                result.push_back(tris[j]);
+            }
         patch_sizes.push_back(uint32_t(result.size() - before));
     }
     std::copy(result.begin(), result.end(), tris);
@@ -123,10 +112,10 @@ void split_chunk(const float* positions, const uint32_t* indices, uint32_t* tris
 
 Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uint32_t* indices, size_t triangle_count,
                           const ClusterOptions& options, ClusterStats* stats,
-                          const std::function<void(size_t, size_t)>& progress) {
-    ClusterOptions o = options;
-    o.fine_size = std::max(1u, o.fine_size);
-    o.coarse_size = std::max(o.fine_size, o.coarse_size);
+                          const std::function<void(size_t, size_t)>& progress, unsigned threads) {
+    const ClusterOptionsError error = check_options(options);
+    if (error != ClusterOptionsError::none) throw std::invalid_argument(describe(error));
+    const ClusterOptions& o = options;
     Hierarchy h;
 
     // Coarse level.
@@ -136,17 +125,17 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
         std::iota(h.order.begin(), h.order.end(), 0u);
         kmeans_tris(positions, indices, h.order.data(), triangle_count, o.coarse_size, o, o.seed, chunk_sizes);
     } else if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree) {
-        h.order = morton_order(positions, indices, triangle_count, o.threads);
+        h.order = morton_order(positions, indices, triangle_count, threads);
         const size_t part = std::max<size_t>(o.kmeans_presplit, o.coarse_size),
                      parts = (triangle_count + part - 1) / part;
         std::vector<std::vector<uint32_t>> sizes(parts);
-        parallel_for(parts, o.threads, [&](size_t p) {
+        parallel_for(parts, threads, [&](size_t p) {
             kmeans_tris(positions, indices, h.order.data() + p * part, std::min(part, triangle_count - p * part),
                         o.coarse_size, o, splitmix(o.seed ^ (p + 1)), sizes[p]);
         });
         for (const auto& s : sizes) chunk_sizes.insert(chunk_sizes.end(), s.begin(), s.end());
     } else {
-        h.order = morton_order(positions, indices, triangle_count, o.threads);
+        h.order = morton_order(positions, indices, triangle_count, threads);
         for (size_t at = 0; at < triangle_count; at += o.coarse_size)
             chunk_sizes.push_back(uint32_t(std::min<size_t>(o.coarse_size, triangle_count - at)));
     }
@@ -157,7 +146,7 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
     std::vector<std::vector<uint32_t>> fine(chunk_sizes.size());
     std::atomic<size_t> done{0};
     const std::thread::id caller = std::this_thread::get_id();  // progress is reported from the caller only
-    parallel_for(chunk_sizes.size(), o.threads, [&](size_t c) {
+    parallel_for(chunk_sizes.size(), threads, [&](size_t c) {
         split_chunk(positions, indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
         size_t finished = done.fetch_add(1) + 1;
         if (progress && std::this_thread::get_id() == caller) progress(finished, chunk_sizes.size());

@@ -1,6 +1,6 @@
 // Hierarchical k-means++ over triangle boxes seen as 6-D points (min xyz, max xyz): the distance is
 // |min1 - min2|^2 + |max1 - max2|^2 and a centre is the mean box (Meister and Bittner's clustering of
-// triangles for BVH construction, used by the thesis, section 2.2.2).
+// triangles for BVH construction, used in section 2.2.2 of the thesis, chapter 2).
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -186,7 +186,10 @@ private:
                 float b[6];
                 mean_box(groups[g], b);
                 float d = distance2(a, b);
-                if (d < best_d) best_d = d, best = g;
+                if (d < best_d) {
+                    best_d = d;
+                    best = g;
+                }
             }
             if (best == SIZE_MAX) return;
             groups[best].insert(groups[best].end(), groups[smallest].begin(), groups[smallest].end());
@@ -207,7 +210,8 @@ private:
         for (size_t i = 0; i < n; ++i)
             for (int k = 0; k < 3; ++k) {
                 float c = centre(tris[i], k);
-                lo[k] = std::min(lo[k], c), hi[k] = std::max(hi[k], c);
+                lo[k] = std::min(lo[k], c);
+                hi[k] = std::max(hi[k], c);
             }
         int axis = 0;
         for (int k = 1; k < 3; ++k)

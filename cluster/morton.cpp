@@ -45,13 +45,17 @@ std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indic
         for (size_t t = first; t < last; ++t)
             for (int k = 0; k < 3; ++k) {
                 double m = doubled_centre(positions, indices + t * 3, k);
-                b[k] = std::min(b[k], m), b[3 + k] = std::max(b[3 + k], m);
+                b[k] = std::min(b[k], m);
+                b[3 + k] = std::max(b[3 + k], m);
             }
         part_bounds[p] = b;
     });
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (const auto& b : part_bounds)
-        for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], b[k]), hi[k] = std::max(hi[k], b[3 + k]);
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], b[k]);
+            hi[k] = std::max(hi[k], b[3 + k]);
+        }
     const double cells = double((1u << 21) - 1);
     double scale[3];
     for (int k = 0; k < 3; ++k) scale[k] = hi[k] > lo[k] ? cells / (hi[k] - lo[k]) : 0.0;

@@ -27,19 +27,28 @@ size_t assign_nearest_brute(const float* points, size_t n, const float* centres,
             for (int j = 0; j < 6; ++j) x[j][i] = points[(at + i) * 6 + j];
         for (size_t i = m; i < block; ++i)
             for (int j = 0; j < 6; ++j) x[j][i] = 0;
-        for (size_t i = 0; i < block; ++i) best[i] = INFINITY, best_c[i] = 0;
+        for (size_t i = 0; i < block; ++i) {
+            best[i] = INFINITY;
+            best_c[i] = 0;
+        }
         for (size_t c = 0; c < k; ++c) {
             const float* q = centres + c * 6;
             const float q0 = q[0], q1 = q[1], q2 = q[2], q3 = q[3], q4 = q[4], q5 = q[5];
             const uint32_t id = uint32_t(c);
             for (size_t i = 0; i < block; ++i) {
                 float d = 0, e;
-                e = x[0][i] - q0, d += e * e;
-                e = x[1][i] - q1, d += e * e;
-                e = x[2][i] - q2, d += e * e;
-                e = x[3][i] - q3, d += e * e;
-                e = x[4][i] - q4, d += e * e;
-                e = x[5][i] - q5, d += e * e;
+                e = x[0][i] - q0;
+                d += e * e;
+                e = x[1][i] - q1;
+                d += e * e;
+                e = x[2][i] - q2;
+                d += e * e;
+                e = x[3][i] - q3;
+                d += e * e;
+                e = x[4][i] - q4;
+                d += e * e;
+                e = x[5][i] - q5;
+                d += e * e;
                 // Branch-free so that the compiler keeps the lanes: an all-ones mask where nearer.
                 const uint32_t nearer = 0u - uint32_t(d < best[i]);
                 best_c[i] = (id & nearer) | (best_c[i] & ~nearer);

@@ -119,7 +119,10 @@ std::vector<uint32_t> forsyth_order(const uint32_t* indices, size_t triangle_cou
             for (uint32_t i = 0; i < valence[v]; ++i) {
                 uint32_t t = adjacency[first[v] + i];
                 triangle_score[t] += delta;
-                if (triangle_score[t] > best_score) best_score = triangle_score[t], best = t;
+                if (triangle_score[t] > best_score) {
+                    best_score = triangle_score[t];
+                    best = t;
+                }
             }
         }
         if (next_cache.size() > cache_size) next_cache.resize(cache_size);

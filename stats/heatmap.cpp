@@ -237,7 +237,7 @@ Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options,
         BoundsOptions b;
         b.mask = bounds_auto;
         b.obb = options.obb;
-        BakedScene baked = bake_in_memory(scene, c, b);
+        BakedScene baked = bake_in_memory(scene, c, b, nullptr, {}, options.threads);
         if (panel == 0) {  // the camera and the light from the world bounds; the same for both panels
             double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
             for (const Instance& inst : baked.instances) {
@@ -250,7 +250,7 @@ Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options,
             }
             if (!(lo[0] <= hi[0])) return h;
             cam = default_camera(lo, hi, options.size, options.size);
-            hits = first_hits(baked, cam, c.threads);
+            hits = first_hits(baked, cam, options.threads);
             if (options.has_light)
                 std::copy(options.light, options.light + 3, h.light);
             else {
@@ -260,7 +260,7 @@ Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options,
         }
         LoadedAsset asset;
         open_asset_copy(encode_asset(baked.meshes, baked.instances), asset);
-        counts[panel] = useless_tests(asset.view, h.light, hit_points(hits), options.one_sided, c.threads);
+        counts[panel] = useless_tests(asset.view, h.light, hit_points(hits), options.one_sided, options.threads);
     }
     h.pixels = counts[0].size();
     std::vector<uint32_t> all(counts[0]);

@@ -20,6 +20,7 @@ struct HeatmapOptions {
     bool has_light = false;
     double light[3] = {0, 0, 0};  // world; default: the report's first light
     bool one_sided = false;
+    unsigned threads = 0;  // 0: all hardware threads; the picture does not depend on it
 };
 
 // A rectangle of the picture, in pixels from its top-left corner.

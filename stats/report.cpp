@@ -138,11 +138,11 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
         // The query points: what the camera sees, found once (they do not depend on the clustering).
         ClusterOptions base;
         base.coarse_size = o.coarse_size;
-        base.threads = o.threads;
         BoundsOptions auto_bounds;
         auto_bounds.mask = bounds_auto;
-        std::vector<double> points = hit_points(
-            first_hits(bake_in_memory(scene, base, auto_bounds), default_camera(lo, hi, o.view, o.view), o.threads));
+        std::vector<double> points =
+            hit_points(first_hits(bake_in_memory(scene, base, auto_bounds, nullptr, {}, o.threads),
+                                  default_camera(lo, hi, o.view, o.view), o.threads));
         s.points = points.size() / 3;
 
         size_t total = o.methods.size() * o.fine_sizes.size() * o.obbs.size() * o.traversals.size(), done = 0;
@@ -177,7 +177,7 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                     for (int run = 0; run < std::max(1, o.runs); ++run) {
                         BakeStats bs;
                         auto t0 = std::chrono::steady_clock::now();
-                        baked.meshes = cluster_scene(scene, co, bs);
+                        baked.meshes = cluster_scene(scene, co, bs, {}, o.threads);
                         cluster_t.push_back(seconds_since(t0));
                     }
                     c.cluster_seconds = median(cluster_t);

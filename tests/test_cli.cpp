@@ -614,7 +614,8 @@ TEST(Cli, EveryCommandTakesJsonAndQuietAndNamesTheTool) {
 TEST(Cli, ThreadsMeanAllHardwareThreadsByDefaultEverywhere) {
     for (const char* command : {"cluster", "bake", "batch", "stats", "report", "heatmap", "query"}) {
         std::string line = help_line(run(std::string(command) + " --help").out, "--threads");
-        EXPECT_NE(line.find("0 = all hardware threads (default)"), std::string::npos) << command << ": " << line;
+        EXPECT_NE(line.find("0 = all hardware threads; "), std::string::npos) << command << ": " << line;
+        EXPECT_NE(line.find("(default 0)"), std::string::npos) << command << ": " << line;
     }
     std::string asset = scratch("threads.cbk").string(), pts = scratch("threads.txt").string();
     ASSERT_EQ(run("bake " + data("default_scene.glb") + " -o " + asset).code, 0);
@@ -894,4 +895,48 @@ TEST(Cli, ExportGltfUsageErrorsWriteNothing) {
     EXPECT_EQ(slurp_binary(other).substr(0, 4), "glTF");
     std::filesystem::remove(other);
     std::filesystem::remove(asset);
+}
+
+TEST(Cli, EveryCommandGivesTheLibrariesTextForABrokenRule) {
+    const std::string cube = data("small/cube.obj"), out = scratch("rules.cbk").string();
+    const std::string png = scratch("rules.png").string(), dir = scratch("rules_batch").string();
+    const std::string fine_text =
+        "clusterbake: --fine must be at most 85 (a fine cluster's corners must fit the asset's 8-bit local indices)\n";
+    for (const std::string& command : {"bake " + cube + " -o " + out, "cluster " + cube + " -o " + out, "stats " + cube,
+                                       "batch " + cube + " -o " + dir, "heatmap " + cube + " -o " + png}) {
+        CliRun fine = run(command + " --fine 86");
+        EXPECT_EQ(fine.code, 2) << command;
+        EXPECT_EQ(fine.err, fine_text) << command;
+        CliRun coarse = run(command + " --coarse 8 --fine 16");
+        EXPECT_EQ(coarse.code, 2) << command;
+        EXPECT_EQ(coarse.err, "clusterbake: --coarse must be at least --fine\n") << command;
+    }
+    CliRun k0 = run("bake " + cube + " -o " + out + " --k0 1");
+    EXPECT_EQ(k0.err, "clusterbake: --k0 must be at least 2 (children per k-means node)\n");
+    CliRun cache = run("cluster " + cube + " -o " + out + " --method vco --cache 2");
+    EXPECT_EQ(cache.err, "clusterbake: --cache must be at least 3 (a triangle's corners)\n");
+    CliRun ratio = run("bake " + cube + " -o " + out + " --capsule-ratio 0.5");
+    EXPECT_EQ(ratio.err, "clusterbake: --capsule-ratio must be a finite number of at least 1\n");
+    CliRun number = run("bake " + cube + " -o " + out + " --coarse many");
+    EXPECT_EQ(number.err, "clusterbake: --coarse takes a whole number from 0 to 4294967295 (got 'many')\n");
+    CliRun sweep = run("report " + cube + " -o " + scratch("rules_report").string() + " --coarse 12 --fine 8,16");
+    EXPECT_EQ(sweep.err, "clusterbake: the sweep's --coarse 12 --fine 16: --coarse must be at least --fine\n");
+    // A manifest line's options keep the same rules, named with the line.
+    const std::filesystem::path folder = scratch("rules_manifest");
+    std::filesystem::create_directories(folder);
+    std::filesystem::copy_file(cube, folder / "cube.obj", std::filesystem::copy_options::overwrite_existing);
+    const std::string manifest = (folder / "list.txt").string();
+    std::ofstream(manifest) << "cube.obj --fine 0\n";
+    EXPECT_EQ(run("batch " + manifest + " -o " + dir).err,
+              "clusterbake: " + manifest + ": line 1: --fine must be at least 1\n");
+    std::ofstream(manifest) << "cube.obj --fine 8 --fine 9\n";
+    EXPECT_EQ(run("batch " + manifest + " -o " + dir).err,
+              "clusterbake: " + manifest + ": line 1: --fine is given twice\n");
+    std::ofstream(manifest) << "cube.obj --jobs 3\n";
+    EXPECT_EQ(run("batch " + manifest + " -o " + dir).err,
+              "clusterbake: " + manifest + ": line 1: --jobs is not a bake option\n");
+    EXPECT_FALSE(std::filesystem::exists(out));
+    EXPECT_FALSE(std::filesystem::exists(png));
+    EXPECT_FALSE(std::filesystem::exists(dir));
+    std::filesystem::remove_all(folder);
 }

@@ -113,8 +113,9 @@ double mean_xy_extent(const float* positions, const uint32_t* indices, const cb:
 
 const cb::ClusterMethod all_methods[] = {cb::ClusterMethod::kmeans, cb::ClusterMethod::vco, cb::ClusterMethod::morton};
 
-cb::Hierarchy cluster(const TestMesh& m, cb::ClusterOptions o) {
-    return cb::build_hierarchy(m.positions.data(), m.vertices(), m.indices.data(), m.triangles(), o);
+cb::Hierarchy cluster(const TestMesh& m, cb::ClusterOptions o, unsigned threads = 0) {
+    return cb::build_hierarchy(m.positions.data(), m.vertices(), m.indices.data(), m.triangles(), o, nullptr, {},
+                               threads);
 }
 
 }  // namespace
@@ -192,11 +193,9 @@ TEST(Cluster, IdenticalForAnyThreadCount) {
         cb::ClusterOptions o;
         o.method = method;
         o.kmeans_presplit = 4096;  // k-means: trees grown in 6 Morton chunks at once
-        o.threads = 1;
-        cb::Hierarchy one = cluster(m, o);
+        cb::Hierarchy one = cluster(m, o, 1);
         for (unsigned threads : {2u, 3u, 8u}) {
-            o.threads = threads;
-            cb::Hierarchy many = cluster(m, o);
+            cb::Hierarchy many = cluster(m, o, threads);
             EXPECT_EQ(one.order, many.order) << cb::method_name(method) << " threads " << threads;
             EXPECT_EQ(one.fine_offsets, many.fine_offsets);
             EXPECT_EQ(one.coarse_offsets, many.coarse_offsets);

@@ -319,7 +319,7 @@ TEST(MetricTree, ConesAndSplitsHoldTheirClusters) {
     EXPECT_GT(capsules, 0u);
 }
 
-// The thesis's memory claim, on our trees: one 72-byte node per volume against a TOP-tree's four plane
+// The memory claim of the thesis's chapter 3, on our trees: one 72-byte node per volume against a TOP-tree's four plane
 // nodes and a cluster node of 32 bytes each.
 TEST(MetricTree, TakesAtMostHalfTheTopTreesBytes) {
     for (const std::string& file : scene_files()) {
