@@ -83,14 +83,9 @@ inline Expansion negated(Expansion e) {
     return e;
 }
 
-// e * s for a power of two s: every term scales exactly.
-inline Expansion scaled_by_power_of_two(Expansion e, double s) {
-    for (int i = 0; i < e.n; ++i) e.t[i] *= s;
-    return e;
-}
-
-// e with the same value in as few terms as the value needs (Shewchuk's Compress): a sum of expansions has up to
-// the count of both, and compressing first keeps scaled()'s doubling far below the capacity.
+// e with the same value in fewer terms (Shewchuk's Compress: a nonadjacent expansion, whose length the value's
+// exponent range bounds): a sum of expansions has up to the count of both, and compressing first keeps
+// scaled()'s doubling far below the capacity.
 inline Expansion compressed(const Expansion& e) {
     if (e.n < 2) return e;
     double g[256];
