@@ -53,11 +53,40 @@ inline std::vector<double> first_hits(RTCScene scene, const double* eye, const d
 
 // Points [first, last) of `pts` (xyz doubles) against `light`, by rtcOccluded1 (packet 1) or rtcOccluded16
 // (packet 16: 16 neighbouring points a packet): out[i] = 1 when the ray from point i to the light is blocked
-// past the runtime's self-shadowing start (cb::shadow_from of the point, the light and `bias`).
+// past the runtime's self-shadowing start (cb::shadow_from of the point, the light and `bias`). With `sun`,
+// `light` is the direction toward a sun: every ray runs along it, from cb::sun_from on, without end.
 inline void occluded_range(RTCScene scene, const double* pts, const double* light, size_t first, size_t last,
-                           int packet, double bias, uint8_t* out) {
+                           int packet, double bias, uint8_t* out, bool sun = false) {
     RTCIntersectContext c;
     rtcInitIntersectContext(&c);
+    if (sun) {
+        const float dx = float(light[0]), dy = float(light[1]), dz = float(light[2]),
+                    from = float(cb::sun_from(light, bias));
+        if (packet == 1) {
+            for (size_t i = first; i < last; ++i) {
+                RTCRay r{};
+                r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
+                r.dir_x = dx, r.dir_y = dy, r.dir_z = dz, r.tnear = from, r.tfar = INFINITY, r.mask = 0xffffffff;
+                rtcOccluded1(scene, &c, &r);
+                out[i] = r.tfar < 0;
+            }
+            return;
+        }
+        for (size_t at = first; at < last; at += 16) {
+            alignas(64) RTCRay16 r{};
+            alignas(64) int valid[16];
+            for (size_t k = 0; k < 16; ++k) {
+                const size_t i = std::min(at + k, last - 1);
+                valid[k] = at + k < last ? -1 : 0;
+                r.org_x[k] = float(pts[i * 3]), r.org_y[k] = float(pts[i * 3 + 1]), r.org_z[k] = float(pts[i * 3 + 2]);
+                r.dir_x[k] = dx, r.dir_y[k] = dy, r.dir_z[k] = dz, r.tnear[k] = from, r.tfar[k] = INFINITY;
+                r.mask[k] = 0xffffffff;
+            }
+            rtcOccluded16(valid, scene, &c, &r);
+            for (size_t k = 0; k < 16 && at + k < last; ++k) out[at + k] = r.tfar[k] < 0;
+        }
+        return;
+    }
     if (packet == 1) {
         for (size_t i = first; i < last; ++i) {
             RTCRay r{};

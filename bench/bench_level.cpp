@@ -5,7 +5,9 @@
 // Scenes: every scene of ../shared/data, data/default_scene.glb, and generated cities (a ground plane and
 // instances of 20 buildings, random yaw, every seventh mirrored) of 10 to 100,000 buildings. Points: the
 // first hits of a W x W view looking down at the scene's centre from a diagonal; lights: beside and above
-// the scene (outside), overhead, grazing the ground, and inside the bounds. Ours per light counts everything
+// the scene (outside), overhead, grazing the ground, and inside the bounds; and two suns, in the directions of
+// the outside and the grazing lights from the centre (Embree's rays along the same direction, without end).
+// Ours per light counts everything
 // a frame costs: ordering the points, culling the tiles, setting the instances met up for the light, and
 // the queries; on several threads each step runs in ranges on threads started for the pass (Embree's rays
 // too). Medians of --runs rounds, each running ours then Embree's. Also the cost of moving 1,000 instances
@@ -49,7 +51,8 @@ struct Settings {
     cb::ShadowBuildOptions options;
 };
 
-std::vector<double> ratios, threaded_ratios;  // ours / the fastest Embree, per scene and light
+// Ours / the fastest Embree, per scene and light: point lights, then suns.
+std::vector<double> ratios, threaded_ratios, sun_ratios, sun_threaded_ratios;
 
 // Embree scenes over the same triangles: one flattened BVH (when the level has at most `flat_limit`
 // triangles in it), and two levels (a BVH per mesh, instanced).
@@ -136,22 +139,26 @@ void on_threads(unsigned threads, Job job) {
 
 // Every point on `threads` threads, each a contiguous part of the view; returns the seconds taken.
 double embree_pass(RTCScene scene, const std::vector<double>& pts, const double* light, double bias, int packet,
-                   unsigned threads, std::vector<uint8_t>& out) {
+                   unsigned threads, std::vector<uint8_t>& out, bool sun) {
     const size_t n = pts.size() / 3;
     auto t0 = std::chrono::steady_clock::now();
     on_threads(threads, [&](unsigned t) {
         cb::bench::occluded_range(scene, pts.data(), light, n * t / threads / 16 * 16,
-                                  t + 1 == threads ? n : n * (t + 1) / threads / 16 * 16, packet, bias, out.data());
+                                  t + 1 == threads ? n : n * (t + 1) / threads / 16 * 16, packet, bias, out.data(),
+                                  sun);
     });
     return cb::seconds_since(t0);
 }
 
-// Ours for one light on `threads` threads: order (one thread), cull, set up and answer in ranges.
+// Ours for one light (or sun) on `threads` threads: order (one thread), cull, set up and answer in ranges.
 double our_pass(cb::LevelShadow& shadow, const cb::Level& level, const double* light, const std::vector<double>& pts,
-                const cb::ShadowBuildOptions& options, unsigned threads, std::vector<uint8_t>& out) {
+                const cb::ShadowBuildOptions& options, unsigned threads, std::vector<uint8_t>& out, bool sun) {
     const size_t n = pts.size() / 3;
     auto t0 = std::chrono::steady_clock::now();
-    shadow.begin(level, light, pts.data(), n, options);
+    if (sun)
+        shadow.begin_sun(level, light, pts.data(), n, options);
+    else
+        shadow.begin(level, light, pts.data(), n, options);
     const size_t tiles = shadow.tile_count();
     on_threads(threads, [&](unsigned t) { shadow.cull(tiles * t / threads, tiles * (t + 1) / threads); });
     const size_t built = shadow.gather();
@@ -177,7 +184,7 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
 
     auto l0 = std::chrono::steady_clock::now();
     cb::Level level;
-    level.add_baked(level.add_asset(asset, s.options.traversal == cb::Traversal::scan));
+    level.add_baked(level.add_asset(asset));  // the scan's bounds: the suns read them whatever the traversal
     level.commit();
     const double level_seconds = cb::seconds_since(l0);
 
@@ -222,7 +229,7 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
     const size_t n = pts.size() / 3;
     if (n == 0) return;
 
-    double lights[4][3];
+    double lights[6][3];
     for (int k = 0; k < 3; ++k) {
         lights[0][k] = centre[k], lights[1][k] = centre[k], lights[2][k] = centre[k], lights[3][k] = centre[k];
     }
@@ -232,29 +239,33 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
         lights[2][up_axis] = lo[up_axis] + 0.02 * (hi[up_axis] - lo[up_axis]) + 1e-3 * size;  // grazing
     lights[3][a1] += 0.1 * size, lights[3][a2] -= 0.07 * size,
         lights[3][up_axis] = lo[up_axis] + 0.3 * (hi[up_axis] - lo[up_axis]);  // inside
-    const char* light_names[4] = {"outside", "overhead", "grazing", "inside"};
+    // Suns: the directions from the centre toward the outside and the grazing lights.
+    for (int k = 0; k < 3; ++k) lights[4][k] = lights[0][k] - centre[k], lights[5][k] = lights[2][k] - centre[k];
+    const char* light_names[6] = {"outside", "overhead", "grazing", "inside", "sun high", "sun low"};
 
     uint32_t in_scene = 0;
     for (const cb::Instance& inst : scene.instances) in_scene += uint32_t(scene.meshes[inst.mesh].triangle_count());
     cb::LevelShadow shadow;
     std::vector<uint8_t> ours(n), ours_t(n), ref(n), other(n);
     const unsigned threads = std::max(1u, s.threads);
-    for (int li = 0; li < 4; ++li) {
+    for (int li = 0; li < 6; ++li) {
         const double* light = lights[li];
+        const bool sun = li >= 4;
         // Embree's four ways (flat or instanced, packets of 1 or 16), one thread and `threads`.
         std::vector<double> our_t, our_tt, embree_t[4], embree_tt[4];
         size_t met = 0, built = 0, bytes = 0;
         for (int r = 0; r < std::max(1, s.runs); ++r) {
-            our_t.push_back(our_pass(shadow, level, light, pts, s.options, 1, ours));
+            our_t.push_back(our_pass(shadow, level, light, pts, s.options, 1, ours, sun));
             met = shadow.instances_met(), built = shadow.build_count(), bytes = shadow.memory_bytes();
-            our_tt.push_back(our_pass(shadow, level, light, pts, s.options, threads, ours_t));
+            our_tt.push_back(our_pass(shadow, level, light, pts, s.options, threads, ours_t, sun));
             for (int way = 0; way < 4; ++way) {
                 RTCScene scene = way < 2 ? e.flat : e.instanced;
                 if (!scene) continue;
                 std::vector<uint8_t>& out = way == 0 || (way == 2 && !e.flat) ? ref : other;
-                embree_t[way].push_back(embree_pass(scene, pts, light, level.shadow_bias(), way % 2 ? 16 : 1, 1, out));
+                embree_t[way].push_back(
+                    embree_pass(scene, pts, light, level.shadow_bias(), way % 2 ? 16 : 1, 1, out, sun));
                 embree_tt[way].push_back(
-                    embree_pass(scene, pts, light, level.shadow_bias(), way % 2 ? 16 : 1, threads, other));
+                    embree_pass(scene, pts, light, level.shadow_bias(), way % 2 ? 16 : 1, threads, other, sun));
             }
         }
         double best = INFINITY, best_t = INFINITY, way_ms[4];
@@ -267,8 +278,8 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
         size_t differ = 0, dark = 0, threads_differ = 0;
         for (size_t k = 0; k < n; ++k)
             differ += ours[k] != ref[k], dark += ours[k], threads_differ += ours[k] != ours_t[k];
-        ratios.push_back(o / best);
-        threaded_ratios.push_back(ot / best_t);
+        (sun ? sun_ratios : ratios).push_back(o / best);
+        (sun ? sun_threaded_ratios : threaded_ratios).push_back(ot / best_t);
         auto ms = [](double v) {
             char text[32] = "-";
             if (v == v) std::snprintf(text, sizeof text, "%.2f", v);
@@ -385,15 +396,18 @@ int main(int argc, char** argv) {
         if (scene.instances.empty()) continue;
         run(name, scene, s);
     }
-    if (!ratios.empty()) {
-        std::vector<double> sorted = ratios;
+    auto summary = [&](const char* what, const std::vector<double>& one, const std::vector<double>& many) {
+        if (one.empty()) return;
+        std::vector<double> sorted = one;
         std::sort(sorted.begin(), sorted.end());
-        std::printf("\nratio ours / Embree over %zu scene-lights, one thread: median %.2f, worst %.2f, best %.2f\n",
-                    sorted.size(), cb::median(ratios), sorted.back(), sorted.front());
-        sorted = threaded_ratios;
+        std::printf("\nratio ours / Embree over %zu scene-%s, one thread: median %.2f, worst %.2f, best %.2f\n",
+                    sorted.size(), what, cb::median(one), sorted.back(), sorted.front());
+        sorted = many;
         std::sort(sorted.begin(), sorted.end());
         std::printf("ratio ours / Embree, %u threads: median %.2f, worst %.2f, best %.2f\n", s.threads,
-                    cb::median(threaded_ratios), sorted.back(), sorted.front());
-    }
+                    cb::median(many), sorted.back(), sorted.front());
+    };
+    summary("point lights", ratios, threaded_ratios);
+    summary("suns", sun_ratios, sun_threaded_ratios);
     return 0;
 }

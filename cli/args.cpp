@@ -143,6 +143,17 @@ bool parse_light(const std::string& text, double* light) {
     return false;
 }
 
+bool parse_sun(const std::string& text, double* toward) {
+    char extra;
+    if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &toward[0], &toward[1], &toward[2], &extra) == 3 &&
+        std::isfinite(toward[0]) && std::isfinite(toward[1]) && std::isfinite(toward[2]) &&
+        (toward[0] != 0 || toward[1] != 0 || toward[2] != 0))
+        return true;
+    std::fprintf(stderr, "clusterbake: --sun takes X,Y,Z, the direction toward the sun, not all zero (got '%s')\n",
+                 text.c_str());
+    return false;
+}
+
 bool load_asset(const std::string& file, cb::LoadedAsset& out) {
     std::string error;
     if (cb::read_asset_file(file, out, error)) return true;

@@ -98,6 +98,10 @@ BakeProgress bake_progress(ProgressLine& line);
 // "X,Y,Z", three finite numbers; otherwise a one-line error and false.
 bool parse_light(const std::string& text, double* light);
 
+// The direction toward a sun, --sun "X,Y,Z": three finite numbers, not all zero; otherwise a one-line error and
+// false.
+bool parse_sun(const std::string& text, double* toward);
+
 // The asset file read and opened; otherwise its one-line error on stderr.
 bool load_asset(const std::string& file, LoadedAsset& out);
 

@@ -1,4 +1,4 @@
-// clusterbake query: point-light shadow queries on an asset, one 0/1 line per point.
+// clusterbake query: shadow queries of a point light or a sun on an asset, one 0/1 line per point.
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -18,7 +18,7 @@ namespace cb::cli {
 namespace {
 
 struct QueryArgs {
-    std::string asset, light, points, traversal = "scan", fine, metric_build = "heuristic";
+    std::string asset, light, sun, points, traversal = "scan", fine, metric_build = "heuristic";
     double capsule_ratio = 4.0, bias = 0;
     bool binary = false, stats = false, reference = false, one_sided = false, json = false, quiet = false;
     unsigned threads = 0;
@@ -119,8 +119,11 @@ void print_json(const QueryArgs& a, const double* light, const cb::SceneQueryRes
     size_t n = q.shadowed.size();
     nlohmann::json j = {{"tool", cb::tool_version()},
                         {"asset", a.asset},
-                        {"light", {light[0], light[1], light[2]}},
-                        {"traversal", a.reference ? "reference" : a.traversal},
+                        {a.sun.empty() ? "light" : "sun", {light[0], light[1], light[2]}},
+                        {"traversal",
+                         a.reference         ? "reference"
+                             : a.sun.empty() ? a.traversal
+                                             : "sun"},
                         {"one_sided", a.one_sided},
                         {"bias", q.bias},
                         {"points", n},
@@ -151,8 +154,14 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     if (refuse_given(c, {"--fine"},
                      "the fine cluster size is fixed when the asset is baked (--traversal picks how a query finds "
                      "clusters)") ||
-        (a.reference && refuse_given(c, {"--traversal"}, "--reference walks every cluster box instead")))
+        (a.reference && refuse_given(c, {"--traversal"}, "--reference walks every cluster box instead")) ||
+        (!a.sun.empty() && refuse_given(c, {"--traversal"}, "a sun is answered by a scan of its own")))
         return exit_usage;
+    if (a.light.empty() == a.sun.empty()) {
+        std::fprintf(stderr,
+                     "clusterbake: query takes one light: --light X,Y,Z (a point) or --sun X,Y,Z (a direction)\n");
+        return exit_usage;
+    }
     if (a.traversal != "mtsv" && a.traversal != "mtsv-two" &&
         refuse_given(c, {"--capsule-ratio", "--mtsv-build"}, "they set up the metric trees of --traversal mtsv"))
         return exit_usage;
@@ -165,7 +174,7 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
         return exit_usage;
     }
     double light[3];
-    if (!parse_light(a.light, light)) return exit_usage;
+    if (a.sun.empty() ? !parse_light(a.light, light) : !parse_sun(a.sun, light)) return exit_usage;
     LoadedLevel level;
     if (!load_level(a.asset, level)) return exit_bad_input;
     std::vector<double> pts;
@@ -179,6 +188,7 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     options.reference = a.reference;
     options.capsule_ratio = a.capsule_ratio;
     options.bias = a.bias;
+    options.sun = !a.sun.empty();
     cb::SceneQueryResult q = cb::query_level(level.level, light, pts.data(), pts.size() / 3, options);
     size_t shadowed = size_t(std::count(q.shadowed.begin(), q.shadowed.end(), uint8_t(1)));
     if (a.json) {
@@ -197,12 +207,16 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
 
 Command add_query(CLI::App& app) {
     auto a = std::make_shared<QueryArgs>();
-    CLI::App* c = app.add_subcommand("query",
-                                     "Answer point-light shadow queries (exact; two-sided occluders unless "
-                                     "--one-sided): one 0/1 line per point on stdout");
+    CLI::App* c =
+        app.add_subcommand("query",
+                           "Answer shadow queries of a point light or a sun (exact; two-sided occluders unless "
+                           "--one-sided): one 0/1 line per point on stdout");
     c->add_option("asset", a->asset, "Asset (.cbk), or a level file placing several (JSON, docs/RUNTIME.md)")
         ->required();
-    c->add_option("--light", a->light, "Light position X,Y,Z in world space")->required();
+    c->add_option("--light", a->light, "Point light position X,Y,Z in world space (or --sun)");
+    c->add_option("--sun", a->sun,
+                  "A sun: a light at infinity, X,Y,Z the world direction from the scene toward it (any length); "
+                  "each point's ray runs that way (or --light)");
     c->add_option("--points", a->points,
                   "Points: text lines 'x y z', or float32 triples with --binary; - reads standard input")
         ->required();

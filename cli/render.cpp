@@ -26,7 +26,7 @@ namespace cb::cli {
 namespace {
 
 struct RenderArgs {
-    std::string asset, out, light, area_light, area_shape = "square", eye, target, up, size = "640x480";
+    std::string asset, out, light, sun, area_light, area_shape = "square", eye, target, up, size = "640x480";
     std::string write_points;
     double fov = 0, bias = 0;
     bool one_sided = false, compare = false, force = false, json = false, quiet = false;
@@ -118,6 +118,11 @@ bool parse_render(const CLI::App* c, const RenderArgs& a, cb::RenderOptions& o) 
         o.has_area_light = true;
     } else if (refuse_given(c, {"--area-shape"}, "it shapes the light of --area-light")) {
         return false;
+    }
+    if (!a.sun.empty()) {
+        if (!a.light.empty() || !a.area_light.empty()) return usage_ok("--sun and a light name two lights; give one");
+        if (!parse_sun(a.sun, o.light)) return false;
+        o.has_light = o.sun = true;
     }
     if (!a.light.empty()) {
         if (!parse_triple("--light", a.light, o.light)) return false;
@@ -219,7 +224,7 @@ void print_json(const RenderArgs& a, const cb::RenderOptions& o, const cb::Rende
                            {"samples", o.area_light.samples},
                            {"shape", a.area_shape}};
     else
-        j["light"] = {r.lights[0], r.lights[1], r.lights[2]};
+        j[o.sun ? "sun" : "light"] = {r.lights[0], r.lights[1], r.lights[2]};
     if (!a.write_points.empty()) j["points_output"] = a.write_points;
     if (o.compare)
         j["compare"] = {{"output", compare_path(a.out)},
@@ -244,7 +249,9 @@ void print_summary(const RenderArgs& a, const cb::RenderOptions& o, const cb::Re
         a.asset.c_str(), a.out.c_str(), r.width, r.height, r.fov_degrees, covered, (unsigned long long)r.clusters_drawn,
         (unsigned long long)r.triangles_drawn, r.visibility_seconds);
     std::printf("  %zu %s%s: %.2f%% of %llu point-light pairs in shadow (%s occluders)\n", lights,
-                lights == 1 ? "light" : "lights",
+                o.sun             ? "sun"
+                    : lights == 1 ? "light"
+                                  : "lights",
                 o.has_area_light ? (a.area_shape == "disc" ? " on a disc" : " on a square") : "",
                 r.queries ? 100.0 * double(r.shadowed) / double(r.queries) : 0.0, (unsigned long long)r.queries,
                 o.one_sided ? "one-sided" : "two-sided");
@@ -316,11 +323,12 @@ Command add_render(CLI::App& app) {
     auto a = std::make_shared<RenderArgs>();
     CLI::App* c = app.add_subcommand("render",
                                      "Render an asset or a level to PNG: Lambert shading, exact shadows of a point or "
-                                     "an area light from the runtime");
+                                     "an area light or a sun from the runtime");
     c->add_option("asset", a->asset, "Asset (.cbk), or a level file placing several (JSON, docs/RUNTIME.md)")
         ->required();
     c->add_option("-o,--output", a->out, "Output PNG (written atomically)")->required();
     c->add_option("--light", a->light, "Point light X,Y,Z (default: above the scene, as the report's first light)");
+    c->add_option("--sun", a->sun, "A sun: a light at infinity, X,Y,Z the world direction toward it (any length)");
     c->add_option("--area-light", a->area_light,
                   "Area light X,Y,Z,SIZE,N: a square of side SIZE (or a disc of that diameter) centred at X,Y,Z and "
                   "facing the scene's centre, sampled by N point lights (1 to 4096) on a jittered grid");

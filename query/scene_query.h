@@ -54,11 +54,13 @@ struct SceneQueryOptions {
     bool per_point = false;      // each point asks alone and keeps its own counts (a batch's tiles share theirs)
     double capsule_ratio = 4.0;  // mtsv: capsule-cones for clusters at least this elongated, else cones
     MetricBuild metric_build = MetricBuild::heuristic;  // mtsv: how the metric trees are built
-    double bias = 0;  // self-shadowing bias, world distance (cb_segment.h); 0: the level's, cb::Level::shadow_bias
+    double bias = 0;   // self-shadowing bias, world distance (cb_segment.h); 0: the level's, cb::Level::shadow_bias
+    bool sun = false;  // the light is a sun: its xyz is the direction toward it (cb_segment.h, "A sun"); the
+                       // sun's own traversal answers (cb_sun.h), whatever `traversal` names
 };
 
 struct SceneQueryResult {
-    std::vector<uint8_t> shadowed;        // per point, 1 when its segment to the light is blocked
+    std::vector<uint8_t> shadowed;        // per point, 1 when its segment to the light (ray to the sun) is blocked
     QueryStats stats;                     // summed over the points
     std::vector<QueryStats> point_stats;  // per point, with per_point
     double build_seconds = 0;             // every instance's structure for the light, the scan's bounds included

@@ -22,7 +22,7 @@ struct RuntimeLevel {
     Level level;
     RuntimeLevel(const LevelInput& input, const SceneQueryOptions& o) {
         for (const AssetView* view : input.assets)
-            level.add_asset(*view, o.traversal == Traversal::scan && !o.reference);
+            level.add_asset(*view, (o.traversal == Traversal::scan || o.sun) && !o.reference);
         for (const LevelInstance& placed : input.instances)
             level.add_instance(placed.asset, placed.mesh, placed.transform);
         level.commit();
@@ -44,13 +44,16 @@ ShadowBuildOptions build_options(const SceneQueryOptions& o) {
     return build;
 }
 
-// A batch through the scene: tiles of points by direction culled against the instances' hierarchy, the
+// A batch through the scene: tiles of points by direction (or, for a sun, by place across its direction) culled against the instances' hierarchy, the
 // instances met set up for the light, then the tiles answered; each step in ranges over the threads.
 void answer_batch(const Level& level, const double* light, const double* points, size_t n, const SceneQueryOptions& o,
                   unsigned thread_count, SceneQueryResult& r) {
     auto build_start = std::chrono::steady_clock::now();
     LevelShadow shadow;
-    shadow.begin(level, light, points, n, build_options(o));
+    if (o.sun)
+        shadow.begin_sun(level, light, points, n, build_options(o));
+    else
+        shadow.begin(level, light, points, n, build_options(o));
     const size_t tiles = shadow.tile_count();
     const size_t chunk = 64;  // tiles a culling job takes
     parallel_for((tiles + chunk - 1) / chunk, thread_count,
@@ -88,7 +91,10 @@ void answer_points(const Level& level, const double* light, const double* points
     ShadowBuildOptions build = build_options(o);
     for (uint32_t h = 0; h < trees.size(); ++h) {
         build.bounds = level.scan_bounds(level.asset_of(h));
-        trees[h].build(level.asset(level.asset_of(h)), level.placement(h), light, build);
+        if (o.sun)
+            trees[h].build_sun(level.asset(level.asset_of(h)), level.placement(h), light, build);
+        else
+            trees[h].build(level.asset(level.asset_of(h)), level.placement(h), light, build);
         r.skipped += trees[h].skipped_clusters(), r.nodes += trees[h].node_count();
         r.tree_bytes += trees[h].memory_bytes(), r.always_tested += trees[h].always_tested();
     }
@@ -107,7 +113,8 @@ void answer_points(const Level& level, const double* light, const double* points
             QueryStats* s = o.per_point ? &r.point_stats[i] : &counts[t];
             const double* p = &points[i * 3];
             if (o.reference) {
-                r.shadowed[i] = occluded_reference(level, p, light, o.bias, o.one_sided, s);
+                r.shadowed[i] = o.sun ? occluded_sun_reference(level, p, light, o.bias, o.one_sided, s)
+                                      : occluded_reference(level, p, light, o.bias, o.one_sided, s);
             } else {
                 for (const InstanceShadow& tree : trees)
                     if (!r.shadowed[i]) r.shadowed[i] = tree.occluded(p, stack.data(), s);

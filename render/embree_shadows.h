@@ -25,8 +25,10 @@ public:
 
     // Per point (xyz, world), 1 when the ray from it towards `light` hits a triangle at a parameter in
     // [shadow_from(point, light, bias), 1], the runtime's self-shadowing rule (cb_segment.h) in Embree's float
-    // arithmetic.
-    std::vector<uint8_t> occluded(const double* light, double bias, const double* points, size_t count) const;
+    // arithmetic. With `sun`, `light` is the direction toward a sun: the ray runs along it from
+    // sun_from(light, bias) on, without end.
+    std::vector<uint8_t> occluded(const double* light, double bias, const double* points, size_t count,
+                                  bool sun = false) const;
 
     double build_seconds() const { return build_seconds_; }
 

@@ -96,14 +96,14 @@ void classify(const LevelInput& level, const SceneQueryOptions& query, const dou
         const double* n = &surface.normals[i * 3];
         const bool tie = query_level(level, light, p, 1, exact).point_stats[0].touching > 0;
         double size = 0;
-        for (int k = 0; k < 3; ++k) size = std::max({size, std::fabs(p[k]), std::fabs(light[k])});
+        for (int k = 0; k < 3; ++k) size = std::max({size, std::fabs(p[k]), query.sun ? 0.0 : std::fabs(light[k])});
         const double step = 1e-6 * size;
         bool near = false;
         for (int m = 0; m < 8 && !tie && !near; ++m) {  // along the normal and the three axes, either way
             double moved_point[3], moved_light[3];
             for (int k = 0; k < 3; ++k) {
                 const double d = (m % 2 ? -step : step) * (m < 2 ? n[k] : double(k == m / 2 - 1));
-                moved_point[k] = p[k] + d, moved_light[k] = light[k] + d;
+                moved_point[k] = p[k] + d, moved_light[k] = query.sun ? light[k] : light[k] + d;  // a sun: its way
             }
             near = query_level(level, moved_light, moved_point, 1, exact).shadowed[0] != shadowed[i];
         }
@@ -156,7 +156,7 @@ RenderResult render_level(const LevelInput& level, const RenderOptions& o, const
     std::vector<double> diffuse(n, 0.0);
     std::vector<uint8_t> mark(n, 0);  // with compare: as classify marks
     SceneQueryOptions query;
-    query.one_sided = o.one_sided, query.threads = o.threads, query.bias = o.bias;
+    query.one_sided = o.one_sided, query.threads = o.threads, query.bias = o.bias, query.sun = o.sun;
     if (progress) progress("light 1 of " + std::to_string(light_count), 0);
     r.bounds_seconds = query_level_lights(
         level, r.lights.data(), light_count, surface.points.data(), n, query, [&](size_t l, const SceneQueryResult& q) {
@@ -172,6 +172,7 @@ RenderResult render_level(const LevelInput& level, const RenderOptions& o, const
                 const double* p = &surface.points[i * 3];
                 const double* normal = &surface.normals[i * 3];
                 double to_light[3] = {light[0] - p[0], light[1] - p[1], light[2] - p[2]};
+                if (o.sun) std::copy(light, light + 3, to_light);
                 double length =
                     std::sqrt(to_light[0] * to_light[0] + to_light[1] * to_light[1] + to_light[2] * to_light[2]);
                 double cosine = (normal[0] * to_light[0] + normal[1] * to_light[1] + normal[2] * to_light[2]) / length;
@@ -179,7 +180,7 @@ RenderResult render_level(const LevelInput& level, const RenderOptions& o, const
             }
             if (embree) {
                 auto embree_start = std::chrono::steady_clock::now();
-                const std::vector<uint8_t> theirs = embree->occluded(light, q.bias, surface.points.data(), n);
+                const std::vector<uint8_t> theirs = embree->occluded(light, q.bias, surface.points.data(), n, o.sun);
                 r.compare.query_seconds += seconds_since(embree_start);
                 r.compare.pairs += n;
                 std::vector<size_t> differing;

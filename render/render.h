@@ -26,8 +26,9 @@ struct RenderOptions {
     bool has_eye = false, has_target = false, has_up = false;
     double eye[3] = {0, 0, 0}, target[3] = {0, 0, 0}, up[3] = {0, 1, 0};
     double fov_degrees = 0;  // vertical; 0: the one that frames the box (60 when the eye is inside it)
-    // A point light, or an area light; neither: a point light above the scene, as the report's first light.
-    bool has_light = false, has_area_light = false;
+    // A point light, an area light, or a sun (`light` is then the direction toward it, cb_segment.h "A sun");
+    // none: a point light above the scene, as the report's first light.
+    bool has_light = false, has_area_light = false, sun = false;
     double light[3] = {0, 0, 0};
     AreaLight area_light;    // faces the world box's centre
     bool one_sided = false;  // one-sided occluders, as query --one-sided
@@ -56,7 +57,8 @@ struct RenderResult {
     std::vector<uint8_t> compare_rgb;  // with compare: the picture dimmed, differing pixels marked
     Camera camera;
     double fov_degrees = 0;
-    std::vector<double> lights;  // the point lights asked (xyz triples): one, or the area light's samples
+    std::vector<double> lights;  // the point lights asked (xyz triples): one, or the area light's samples; or the
+                                 // sun's direction
     std::vector<double> points;  // every covered pixel's visible point (xyz), in pixel order
     uint64_t clusters_drawn = 0, triangles_drawn = 0;
     uint64_t queries = 0, shadowed = 0;  // point and light pairs, and those in shadow

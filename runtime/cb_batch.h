@@ -95,6 +95,56 @@ inline void batch_order(const double* light, const double* points, size_t n, uin
     batch_order_from_keys(keys, n, order, scratch);
 }
 
+// The same for a sun (a light at infinity in direction `toward`, cb_segment.h): the points sorted by where
+// they lie across the direction (a Z-order curve over the rectangle that bounds their projections onto the
+// plane across it, 10 bits a side), since every point's ray runs the same way; points that are not finite
+// come last. `scratch` holds batch_order_scratch_size(n) words.
+inline void sun_batch_order(const double* toward, const double* points, size_t n, uint32_t* order, uint32_t* scratch) {
+    uint32_t* keys = scratch + n + 6144;  // past what batch_order_from_keys uses
+    double frame[3][3];
+    if (!direction_frame(toward, frame)) {
+        for (size_t i = 0; i < n; ++i) order[i] = uint32_t(i);
+        return;
+    }
+    auto spread = [](uint32_t v) {  // bit i of v to bit 2i
+        v = (v | v << 8) & 0x00ff00ffu, v = (v | v << 4) & 0x0f0f0f0fu;
+        v = (v | v << 2) & 0x33333333u, v = (v | v << 1) & 0x55555555u;
+        return v;
+    };
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (size_t i = 0; i < n; ++i) {
+        const double* p = points + i * 3;
+        const double a = p[0] * frame[1][0] + p[1] * frame[1][1] + p[2] * frame[1][2],
+                     b = p[0] * frame[2][0] + p[1] * frame[2][1] + p[2] * frame[2][2];
+        if (!(std::fabs(a) < INFINITY && std::fabs(b) < INFINITY)) continue;
+        lo[0] = std::min(lo[0], a), hi[0] = std::max(hi[0], a), lo[1] = std::min(lo[1], b), hi[1] = std::max(hi[1], b);
+    }
+    const double scale[2] = {hi[0] > lo[0] ? 1023.0 / (hi[0] - lo[0]) : 0.0,
+                             hi[1] > lo[1] ? 1023.0 / (hi[1] - lo[1]) : 0.0};
+    for (size_t i = 0; i < n; ++i) {
+        const double* p = points + i * 3;
+        const double a = p[0] * frame[1][0] + p[1] * frame[1][1] + p[2] * frame[1][2],
+                     b = p[0] * frame[2][0] + p[1] * frame[2][1] + p[2] * frame[2][2];
+        if (!(std::fabs(a) < INFINITY && std::fabs(b) < INFINITY)) {
+            keys[i] = 0x7fffffu;
+            continue;
+        }
+        const double ca = std::min(std::max((a - lo[0]) * scale[0], 0.0), 1023.0),
+                     cb = std::min(std::max((b - lo[1]) * scale[1], 0.0), 1023.0);  // NaN (inf - inf): 0
+        keys[i] = spread(uint32_t(ca)) | spread(uint32_t(cb)) << 1;
+    }
+    batch_order_from_keys(keys, n, order, scratch);
+}
+
+// The order a batch over `shadows` takes: batch_order from their light, or sun_batch_order for a sun.
+template <class Shadows>
+void batch_order_for(const Shadows& shadows, const double* points, size_t n, uint32_t* order, uint32_t* scratch) {
+    if (shadows.sun())
+        sun_batch_order(shadows.world_light(), points, n, order, scratch);
+    else
+        batch_order(shadows.world_light(), points, n, order, scratch);
+}
+
 // Words of scratch occluded_ordered needs: the stack and the tables kept from tile to tile.
 template <class Shadows>
 size_t ordered_scratch_size(const Shadows* trees, size_t tree_count) {
@@ -146,7 +196,7 @@ void occluded_batch(const Shadows* trees, size_t tree_count, const double* point
         return;
     }
     uint32_t* order = scratch;
-    batch_order(trees[0].world_light(), points, n, order, scratch + n);
+    batch_order_for(trees[0], points, n, order, scratch + n);
     occluded_ordered(trees, tree_count, points, order, n, out, scratch + n, stats);
 }
 

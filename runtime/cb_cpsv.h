@@ -10,6 +10,8 @@
 //   the light over the clusters' shadow volumes, built per light.
 // - cb_metric_tree.h, Traversal::mtsv and Traversal::mtsv_two: the thesis's second structure, ternary metric
 //   trees over the cones and capsule-cones of the clusters' spheres and capsules, by angle from the light.
+// - cb_sun.h, a sun (a light at infinity, given by its direction; build_sun): a scan of its own, the clusters'
+//   spheres against each tile's prism along the direction, whatever Traversal the options name.
 // - cb_tile.h: what they share (the instance's frame, the tile of points, the box filters, the cluster
 //   tests); cb_batch.h: batches of points, sorted by direction and taken in tiles.
 //
@@ -28,6 +30,7 @@
 #include "cb_batch.h"
 #include "detail/cb_metric_tree.h"
 #include "detail/cb_scan.h"
+#include "detail/cb_sun.h"
 #include "cb_scan_bounds.h"
 #include "cb_segment.h"
 #include "detail/cb_tile.h"
@@ -49,6 +52,7 @@ public:
 
     // The same for a mesh of the asset placed by the caller (a level's instance, cb_level.h).
     void build(const AssetView& view, Placement at, const double* world_light, const ShadowBuildOptions& options = {}) {
+        sun_ = false;
         traversal_ =
             options.traversal == Traversal::scan && !view.coarse_bounds.obbs ? Traversal::one_tree : options.traversal;
         switch (traversal_) {
@@ -60,8 +64,22 @@ public:
         }
     }
 
-    // The traversal built (Traversal::one_tree where the asset has no coarse boxes).
+    // One instance for a sun, given by `toward`, its world direction from the scene toward it (cb_segment.h,
+    // "A sun"): SunTraversal (cb_sun.h), whatever options.traversal names.
+    void build_sun(const AssetView& view, uint32_t instance, const double* toward,
+                   const ShadowBuildOptions& options = {}) {
+        build_sun(view, placement_of(view, instance), toward, options);
+    }
+    void build_sun(const AssetView& view, Placement at, const double* toward, const ShadowBuildOptions& options = {}) {
+        sun_ = true;
+        traversal_ = Traversal::scan;
+        build_as<SunTraversal>(view, at, toward, options);
+    }
+
+    // The traversal built (Traversal::one_tree where the asset has no coarse boxes; scan for a sun).
     Traversal traversal() const { return traversal_; }
+    // Built for a sun: world_light() is then the direction toward it.
+    bool sun() const { return sun_; }
 
     // Entries the query stack needs.
     size_t stack_size() const {
@@ -113,6 +131,7 @@ private:
     // f(the traversal held): one switch per call, then direct, inlinable calls.
     template <class F>
     auto visit(F f) const -> decltype(f(std::declval<const ScanTraversal&>())) {
+        if (sun_) return f(*std::get_if<SunTraversal>(&held_));
         switch (traversal_) {
             case Traversal::scan: return f(*std::get_if<ScanTraversal>(&held_));
             case Traversal::mtsv:
@@ -124,7 +143,8 @@ private:
     }
 
     Traversal traversal_ = Traversal::scan;
-    std::variant<ScanTraversal, TopTreeTraversal, MetricTreeTraversal> held_;
+    bool sun_ = false;
+    std::variant<ScanTraversal, TopTreeTraversal, MetricTreeTraversal, SunTraversal> held_;
 };
 
 }  // namespace CB_LANES

@@ -127,6 +127,53 @@ inline bool pyramid_meets_box(const WorldPyramid& w, const Box& b, double& near)
     return !(near > w.dmax + eps);
 }
 
+// A prism along a sun's direction in world space that holds the rays of some points: the rectangle [lo, hi]
+// across the direction (on the unit axes a, b) that bounds their projections, from `low` (the lowest point
+// along the unit direction z) up; `top` is the level's highest reach along z (an order for the instances met).
+struct WorldPrism {
+    double a[3], b[3], z[3], lo[2], hi[2], low, top, margin;
+};
+
+// False only when box b certainly lies outside the prism; `near` gets how far below `top` the box's top lies
+// (the sun's side first, never an answer).
+inline bool prism_meets_box(const WorldPrism& w, const Box& b, double& near) {
+    if (b.empty()) return false;
+    double c[3], h[3], size = w.margin;
+    for (int k = 0; k < 3; ++k) {
+        c[k] = 0.5 * (b.lo[k] + b.hi[k]), h[k] = 0.5 * (b.hi[k] - b.lo[k]);
+        size += 1e-9 * (std::fabs(c[k]) + h[k]);
+    }
+    auto reach = [&](const double* n) {
+        return std::fabs(n[0]) * h[0] + std::fabs(n[1]) * h[1] + std::fabs(n[2]) * h[2];
+    };
+    const double ca = math::dot3(c, w.a), ra = reach(w.a) + size, cb = math::dot3(c, w.b), rb = reach(w.b) + size;
+    const double up = math::dot3(c, w.z) + reach(w.z) + size;
+    if (ca + ra < w.lo[0] || ca - ra > w.hi[0] || cb + rb < w.lo[1] || cb - rb > w.hi[1] || up < w.low) return false;
+    near = w.top - up > 0 ? w.top - up : 0.0;  // NaN: 0
+    return true;
+}
+
+// False only when the ray p + t d (t >= 0) certainly misses the box (slabs, in double, widened by 1e-9 of the
+// sizes involved); anything not finite is kept.
+inline bool ray_meets_box(const double* p, const double* d, const Box& b) {
+    if (b.empty()) return false;
+    double t0 = 0, t1 = INFINITY;
+    for (int k = 0; k < 3; ++k) {
+        const double margin = 1e-9 * (std::fabs(p[k]) + std::fabs(b.lo[k]) + std::fabs(b.hi[k]));
+        const double lo = b.lo[k] - margin, hi = b.hi[k] + margin;
+        if (!(std::fabs(lo) < INFINITY && std::fabs(hi) < INFINITY && std::fabs(p[k]) < INFINITY)) return true;
+        if (!(std::fabs(d[k]) > 0)) {  // along the slab
+            if (p[k] < lo || p[k] > hi) return false;
+            continue;
+        }
+        double ta = (lo - p[k]) / d[k], tb = (hi - p[k]) / d[k];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+        if (t0 > t1) return false;
+    }
+    return true;
+}
+
 }  // namespace level_detail
 
 class Level {
@@ -255,6 +302,29 @@ public:
     void visit_pyramid(const level_detail::WorldPyramid& w, F f) const {
         visit([&](const level_detail::Box& b, double& near) { return level_detail::pyramid_meets_box(w, b, near); }, f);
     }
+
+    // f(handle, near) for each live instance whose world box may meet prism `w` (a sun's tile), near how far
+    // below the prism's top its box's top lies.
+    template <class F>
+    void visit_prism(const level_detail::WorldPrism& w, F f) const {
+        visit([&](const level_detail::Box& b, double& near) { return level_detail::prism_meets_box(w, b, near); }, f);
+    }
+
+    // f(handle, 0) for each live instance whose world box may meet the ray p + t d, t >= 0.
+    template <class F>
+    void visit_ray(const double* p, const double* d, F f) const {
+        visit(
+            [&](const level_detail::Box& b, double& near) {
+                near = 0;
+                return level_detail::ray_meets_box(p, d, b);
+            },
+            f);
+    }
+
+    // The hierarchy's root box (the union of the live instances' world boxes as of the last commit; empty,
+    // lo > hi, for an empty level).
+    const double* world_lo() const { return nodes_.empty() ? empty_.lo : nodes_[0].box.lo; }
+    const double* world_hi() const { return nodes_.empty() ? empty_.hi : nodes_[0].box.hi; }
 
     // f(handle, 0) for each live instance whose world box may meet the segment p-q.
     template <class F>
@@ -448,6 +518,7 @@ private:
     level_detail::LaneVector<uint8_t> marks_;
     uint32_t live_ = 0;
     bool rebuild_ = false;
+    level_detail::Box empty_;
 };
 
 // One light's shadows over a committed Level. Each frame (or light):
@@ -459,25 +530,24 @@ private:
 //   occluded(first, last, out, scratch)       tiles [first, last): out[i] = 1 when point i is in shadow
 //                                             (const, ranges, threads; scratch_size() words each)
 // occluded_batch() runs them all on the calling thread. The level and the points must stay unchanged from
-// begin() to the last answer. The answers are those of each instance's InstanceShadow for every point.
+// begin() to the last answer. The answers are those of each instance's InstanceShadow for every point. A sun
+// (a light at infinity, given by its direction) takes begin_sun() in place of begin(), or
+// occluded_sun_batch(), and the same steps after.
 class LevelShadow {
 public:
     void begin(const Level& level, const double* light, const double* points, size_t n,
                const ShadowBuildOptions& options = {}) {
-        level_ = &level;
-        points_ = points;
-        n_ = n;
-        options_ = options;
-        options_.bounds = nullptr;
-        if (!(options_.bias > 0)) options_.bias = level.shadow_bias();
-        for (int k = 0; k < 3; ++k) light_[k] = light[k];
-        order_.resize(n);
-        order_scratch_.resize(batch_order_scratch_size(n));
+        start(level, light, points, n, options, false);
         batch_order(light, points, n, order_.data(), order_scratch_.data());
-        const size_t tiles = (n + tile_capacity - 1) / tile_capacity;
-        if (tile_lists_.size() < tiles) tile_lists_.resize(tiles);
-        tile_count_ = tiles;
-        built_count_ = 0;
+    }
+
+    // The same steps for a sun, given by `toward`, its world direction from the scene toward it (cb_segment.h,
+    // "A sun"): the tiles are prisms along it, and each instance is set up with InstanceShadow::build_sun.
+    void begin_sun(const Level& level, const double* toward, const double* points, size_t n,
+                   const ShadowBuildOptions& options = {}) {
+        start(level, toward, points, n, options, true);
+        sun_batch_order(toward, points, n, order_.data(), order_scratch_.data());
+        sun_usable_ = finite3(toward) && direction_frame(toward, sun_frame_);
     }
 
     size_t tile_count() const { return tile_count_; }
@@ -517,7 +587,10 @@ public:
         for (size_t i = first; i < last; ++i) {
             const uint32_t h = needed_[i];
             o.bounds = level_->scan_bounds(level_->asset_of(h));
-            shadows_[i].build(level_->asset(level_->asset_of(h)), level_->placement(h), light_, o);
+            if (sun_)
+                shadows_[i].build_sun(level_->asset(level_->asset_of(h)), level_->placement(h), light_, o);
+            else
+                shadows_[i].build(level_->asset(level_->asset_of(h)), level_->placement(h), light_, o);
         }
     }
 
@@ -534,17 +607,20 @@ public:
                 TileCache;
         cache->clear();
         alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];
+        double across[tile_capacity][3];
         for (size_t t = first; t < last; ++t) {
             const size_t begin = t * tile_capacity;
             const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
             const uint32_t* index = order_.data() + begin;
             uint64_t alive = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1, shadowed = 0;
-            const uint64_t regular = directions(index, count, ex, ey, ez, fd);
+            const uint64_t regular = sun_ ? sun_across(index, count, across) : directions(index, count, ex, ey, ez, fd);
             for (uint64_t slot : tile_lists_[t]) {
                 if (!alive) break;
                 // Only the points whose segment may meet the instance's sphere enter it: an instance's set-up
                 // per tile costs per point.
-                const uint64_t in = alive & instance_points(needed_[slot], regular, ex, ey, ez, fd);
+                const uint64_t in = alive &
+                    (sun_ ? sun_instance_points(needed_[slot], regular, count, across)
+                          : instance_points(needed_[slot], regular, ex, ey, ez, fd));
                 if (!in) continue;
                 const uint64_t s = shadows_[slot].occluded_tile(points_, index, count, in, stack, stats, cache);
                 shadowed |= s, alive &= ~s;
@@ -557,6 +633,16 @@ public:
     void occluded_batch(const Level& level, const double* light, const double* points, size_t n, uint8_t* out,
                         const ShadowBuildOptions& options = {}, QueryStats* stats = nullptr) {
         begin(level, light, points, n, options);
+        cull(0, tile_count());
+        build(0, gather());
+        level_detail::LaneVector<uint32_t> scratch(scratch_size());
+        occluded(0, tile_count(), out, scratch.data(), stats);
+    }
+
+    // The same for a sun in world direction `toward` (from the scene toward it).
+    void occluded_sun_batch(const Level& level, const double* toward, const double* points, size_t n, uint8_t* out,
+                            const ShadowBuildOptions& options = {}, QueryStats* stats = nullptr) {
+        begin_sun(level, toward, points, n, options);
         cull(0, tile_count());
         build(0, gather());
         level_detail::LaneVector<uint32_t> scratch(scratch_size());
@@ -586,6 +672,113 @@ public:
 
 private:
     static constexpr uint32_t none = 0xffffffffu;
+
+    void start(const Level& level, const double* light, const double* points, size_t n,
+               const ShadowBuildOptions& options, bool sun) {
+        level_ = &level;
+        points_ = points;
+        n_ = n;
+        sun_ = sun;
+        options_ = options;
+        options_.bounds = nullptr;
+        if (!(options_.bias > 0)) options_.bias = level.shadow_bias();
+        for (int k = 0; k < 3; ++k) light_[k] = light[k];
+        order_.resize(n);
+        order_scratch_.resize(batch_order_scratch_size(n));
+        const size_t tiles = (n + tile_capacity - 1) / tile_capacity;
+        if (tile_lists_.size() < tiles) tile_lists_.resize(tiles);
+        tile_count_ = tiles;
+        built_count_ = 0;
+    }
+
+    // A sun's tile: each point's coordinates in the sun's frame (across: a, b; along: z, up toward the sun);
+    // returns the points whose coordinates are finite and within 1e30 (the others meet every instance).
+    uint64_t sun_across(const uint32_t* index, uint32_t count, double (*across)[3]) const {
+        uint64_t regular = 0;
+        for (uint32_t i = 0; i < count; ++i) {
+            const double* p = points_ + size_t(index[i]) * 3;
+            across[i][0] = math::dot3(p, sun_frame_[1]), across[i][1] = math::dot3(p, sun_frame_[2]),
+            across[i][2] = math::dot3(p, sun_frame_[0]);
+            if (std::fabs(across[i][0]) + std::fabs(across[i][1]) + std::fabs(across[i][2]) < 1e30)
+                regular |= uint64_t(1) << i;
+        }
+        return regular;
+    }
+
+    // The tile's points whose ray toward the sun may meet instance h's sphere (in double, the radius grown by
+    // 1e-9 of the sizes involved), and every point that is not regular.
+    uint64_t sun_instance_points(uint32_t h, uint64_t regular, uint32_t count, const double (*across)[3]) const {
+        const double* sphere = level_->world_sphere(h);
+        const double c[3] = {math::dot3(sphere, sun_frame_[1]), math::dot3(sphere, sun_frame_[2]),
+                             math::dot3(sphere, sun_frame_[0])};
+        const double size = std::fabs(sphere[0]) + std::fabs(sphere[1]) + std::fabs(sphere[2]) + sphere[3];
+        if (!(size < 1e30)) return ~uint64_t(0);
+        uint64_t in = 0;
+        for (uint64_t b = regular; b; b &= b - 1) {
+            const uint32_t i = math::lowest_bit(b);
+            const double* q = across[i];
+            const double r = sphere[3] + 1e-9 * (size + std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]));
+            const double du = c[0] - q[0], dv = c[1] - q[1];
+            if (du * du + dv * dv <= r * r && q[2] <= c[2] + r) in |= uint64_t(1) << i;
+        }
+        const uint64_t all = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1;
+        return in | (all & ~regular);
+    }
+
+    // The instances a sun's tile t meets: those whose box meets the prism of its regular points, the sun's
+    // side first, and for the other finite points those whose box their ray may meet.
+    void cull_sun_tile(size_t t, level_detail::LaneVector<uint64_t>& list) {
+        const size_t begin = t * tile_capacity;
+        const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
+        const uint32_t* index = order_.data() + begin;
+        if (!sun_usable_) return;
+        double across[tile_capacity][3];
+        const uint64_t regular = sun_across(index, count, across);
+        level_detail::WorldPrism w;
+        for (int k = 0; k < 3; ++k) w.a[k] = sun_frame_[1][k], w.b[k] = sun_frame_[2][k], w.z[k] = sun_frame_[0][k];
+        w.lo[0] = w.lo[1] = w.low = INFINITY;
+        w.hi[0] = w.hi[1] = -INFINITY;
+        double size = 0;
+        for (uint64_t b = regular; b; b &= b - 1) {
+            const double* q = across[math::lowest_bit(b)];
+            w.lo[0] = std::min(w.lo[0], q[0]), w.hi[0] = std::max(w.hi[0], q[0]);
+            w.lo[1] = std::min(w.lo[1], q[1]), w.hi[1] = std::max(w.hi[1], q[1]);
+            w.low = std::min(w.low, q[2]);
+            size = std::max(size, std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]));
+        }
+        w.margin = 1e-9 * size;
+        const double *lo = level_->world_lo(), *hi = level_->world_hi();
+        double centre[3], reach = 0;
+        for (int k = 0; k < 3; ++k)
+            centre[k] = 0.5 * (lo[k] + hi[k]), reach += std::fabs(w.z[k]) * 0.5 * (hi[k] - lo[k]);
+        w.top = math::dot3(centre, w.z) + reach;
+        auto entry = [](double near, uint32_t h) {
+            const float key = near > 0 ? float(near) : 0.0f;  // NaN: 0
+            uint32_t bits;
+            std::memcpy(&bits, &key, 4);
+            return uint64_t(bits) << 32 | h;
+        };
+        if (regular) level_->visit_prism(w, [&](uint32_t h, double near) { list.push_back(entry(near, h)); });
+        uint64_t alone = 0;
+        for (uint32_t i = 0; i < count; ++i)
+            if (!(regular >> i & 1) && finite3(points_ + size_t(index[i]) * 3)) alone |= uint64_t(1) << i;
+        for (uint64_t b = alone; b; b &= b - 1) {
+            const double* p = points_ + size_t(index[math::lowest_bit(b)]) * 3;
+            level_->visit_ray(p, light_, [&](uint32_t h, double) { list.push_back(entry(0, h)); });
+        }
+        if (alone) once_each(list);
+        std::sort(list.begin(), list.end(), [](uint64_t x, uint64_t y) { return x < y; });
+    }
+
+    // Keeps each handle's first entry in the order of the entries (its nearest, once sorted).
+    static void once_each(level_detail::LaneVector<uint64_t>& list) {
+        auto handle = [](uint64_t x) { return uint32_t(x); };
+        std::sort(list.begin(), list.end(),
+                  [&](uint64_t x, uint64_t y) { return handle(x) < handle(y) || (handle(x) == handle(y) && x < y); });
+        list.erase(
+            std::unique(list.begin(), list.end(), [&](uint64_t x, uint64_t y) { return handle(x) == handle(y); }),
+            list.end());
+    }
 
     // The tile's points from the light in float (lanes past `count` and irregular points: distance -1, in no
     // sphere); returns the regular ones, whose distance lies between the float filters' bounds
@@ -629,6 +822,7 @@ private:
     void cull_tile(size_t t) {
         level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
         list.clear();
+        if (sun_) return cull_sun_tile(t, list);
         const size_t begin = t * tile_capacity;
         const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
         const uint32_t* index = order_.data() + begin;
@@ -661,15 +855,7 @@ private:
             const double* p = points_ + size_t(index[math::lowest_bit(b)]) * 3;
             level_->visit_segment(p, light_, [&](uint32_t h, double) { list.push_back(entry(0, h)); });
         }
-        if (alone) {  // once each, at its nearest
-            auto handle = [](uint64_t x) { return uint32_t(x); };
-            std::sort(list.begin(), list.end(), [&](uint64_t x, uint64_t y) {
-                return handle(x) < handle(y) || (handle(x) == handle(y) && x < y);
-            });
-            list.erase(
-                std::unique(list.begin(), list.end(), [&](uint64_t x, uint64_t y) { return handle(x) == handle(y); }),
-                list.end());
-        }
+        if (alone) once_each(list);  // once each, at its nearest
         // A comparator of this namespace's own: std::sort's instantiation for plain integers would be shared
         // with the builds for other lanes (cb_simd.h), and the linker could keep a wider build's copy.
         std::sort(list.begin(), list.end(), [](uint64_t x, uint64_t y) { return x < y; });
@@ -717,7 +903,9 @@ private:
     const Level* level_ = nullptr;
     const double* points_ = nullptr;
     size_t n_ = 0, tile_count_ = 0, built_count_ = 0;
-    double light_[3] = {0, 0, 0};
+    double light_[3] = {0, 0, 0};  // the light, or the direction toward the sun
+    bool sun_ = false, sun_usable_ = false;
+    double sun_frame_[3][3] = {};  // the sun's direction and two unit axes across it (direction_frame)
     ShadowBuildOptions options_;
     level_detail::LaneVector<uint32_t> order_, order_scratch_;
     level_detail::LaneVector<level_detail::LaneVector<uint64_t>>

@@ -224,6 +224,36 @@ private:
     using Primitive = CGAL::AABB_triangle_primitive<Epick, Triangles::const_iterator>;
     using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Epick, Primitive>>;
 
+    // The tree's triangles in the nodes whose boxes the ray p + t d (t >= 0) may meet, by slabs in double
+    // widened by 1e-9 of the sizes involved: CGAL's own Ray_3 from a point and a vector would hold p + d
+    // rounded, a ray in another direction, and miss triangles that the exact ray meets near their box's side.
+    struct RayCandidates {
+        const double *p, *d;
+        const Triangles* triangles;
+        std::vector<size_t>* out;
+        bool go_further() const { return true; }
+        void intersection(int, const Primitive& primitive) {
+            out->push_back(size_t(primitive.id() - triangles->begin()));
+        }
+        template <class Node>
+        bool do_intersect(int, const Node& node) const {
+            const CGAL::Bbox_3 b = node.bbox();
+            double t0 = 0, t1 = INFINITY;
+            for (int k = 0; k < 3; ++k) {
+                const double margin = 1e-9 * (std::fabs(p[k]) + std::fabs(b.min(k)) + std::fabs(b.max(k))) + 1e-300;
+                const double lo = b.min(k) - margin, hi = b.max(k) + margin;
+                if (d[k] == 0) {
+                    if (p[k] < lo || p[k] > hi) return false;
+                    continue;
+                }
+                double ta = (lo - p[k]) / d[k], tb = (hi - p[k]) / d[k];
+                if (ta > tb) std::swap(ta, tb);
+                t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+            }
+            return t0 <= t1 * (1 + 1e-9);
+        }
+    };
+
     struct MeshTree {
         Triangles triangles;                // the mesh's triangles with an area, in index order
         std::vector<uint8_t> double_sided;  // per kept triangle, from its primitive
@@ -287,12 +317,13 @@ private:
             if (use_trees) {
                 std::vector<Triangles::const_iterator> met;
                 const Epick::Point_3 start(lp[0], lp[1], lp[2]);
-                if (sun)
-                    m.tree.all_intersected_primitives(Epick::Ray_3(start, Epick::Vector_3(ll[0], ll[1], ll[2])),
-                                                      std::back_inserter(met));
-                else
+                if (sun) {
+                    RayCandidates near{lp, ll, &m.triangles, &candidates};
+                    m.tree.traversal(0, near);
+                } else {
                     m.tree.all_intersected_primitives(Epick::Segment_3(start, Epick::Point_3(ll[0], ll[1], ll[2])),
                                                       std::back_inserter(met));
+                }
                 for (Triangles::const_iterator t : met) candidates.push_back(size_t(t - m.triangles.begin()));
             } else {
                 for (size_t k = 0; k < m.triangles.size(); ++k) candidates.push_back(k);

@@ -258,6 +258,51 @@ TEST(Cli, QueryBiasIsAWorldDistance) {
     std::filesystem::remove_all(dir);
 }
 
+TEST(Cli, QuerySunAnswersAsItsReference) {
+    // --sun: a light at infinity by its direction. Under blob_a with the sun straight up, and a low sun from
+    // either side; the grid of points answered as --reference answers it, on 1 and 3 threads, both modes; bad
+    // suns and light pairs refused.
+    const auto dir = std::filesystem::temp_directory_path() / ("cb_cli_sun_" + std::to_string(getpid()));
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    const std::string asset = (dir / "scene.cbk").string(), pts = (dir / "points.txt").string();
+    ASSERT_EQ(run("bake " + data("default_scene.glb") + " -o " + asset).code, 0);
+    std::ofstream(pts) << "-4 0.05 2\n-4 5 2\n15 0.01 15\n";
+    CliRun up = run("query " + asset + " --sun 0,1,0 --points " + pts + " --stats");
+    EXPECT_EQ(up.code, 0) << up.err;
+    EXPECT_EQ(up.out, "1\n0\n0\n");
+    EXPECT_EQ(run("query " + asset + " --sun 0,3e-9,0 --points " + pts).out, up.out);  // any length
+    {
+        std::ofstream grid(pts);
+        for (int i = 0; i < 40; ++i)
+            for (int j = 0; j < 40; ++j)
+                grid << -18 + 0.9 * i << " " << 0.02 + 0.05 * ((i * 7 + j) % 5) << " " << -18 + 0.9 * j << "\n";
+    }
+    size_t dark = 0;
+    for (const char* sun : {"0.3,1,0.2", "-1,0.15,0.3", "1,0.05,-0.2"})
+        for (const char* mode : {"", " --one-sided"}) {
+            SCOPED_TRACE(std::string(sun) + mode);
+            const std::string q = "query " + asset + " --points " + pts + " --sun " + sun + mode;
+            const CliRun one = run(q), three = run(q + " --threads 3"), ref = run(q + " --reference");
+            EXPECT_EQ(one.code, 0) << one.err;
+            EXPECT_EQ(one.out.size(), 1600u * 2);
+            EXPECT_EQ(three.out, one.out);
+            EXPECT_EQ(ref.out, one.out);
+            dark += size_t(std::count(one.out.begin(), one.out.end(), '1'));
+        }
+    EXPECT_GT(dark, 6u * 1600 / 50);  // shadows to get wrong
+    CliRun json = run("query " + asset + " --points " + pts + " --sun 0,1,0 --json");
+    EXPECT_NE(json.out.find("\"sun\":[0.0,1.0,0.0]"), std::string::npos) << json.out;
+    EXPECT_NE(json.out.find("\"traversal\":\"sun\""), std::string::npos) << json.out;
+    for (const char* bad : {" --sun 0,0,0", " --sun 1,2", " --sun nan,1,0", " --sun 0,1,0 --light 0,5,0", "",
+                            " --sun 0,1,0 --traversal trees"}) {
+        CliRun r = run("query " + asset + " --points " + pts + bad);
+        EXPECT_EQ(r.code, 2) << bad;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    }
+    std::filesystem::remove_all(dir);
+}
+
 TEST(Cli, QueryTakesALevelFile) {
     const auto dir = std::filesystem::temp_directory_path() / ("cb_cli_level_" + std::to_string(getpid()));
     std::filesystem::remove_all(dir);

@@ -71,6 +71,30 @@ std::vector<uint8_t> answer(cb::Level& level, const double* light, const Points&
     return out;
 }
 
+// The level's answers for a sun in direction `toward`.
+std::vector<uint8_t> answer_sun(cb::Level& level, const double* toward, const Points& p, bool one_sided,
+                                cb::QueryStats* stats = nullptr) {
+    cb::LevelShadow shadow;
+    cb::ShadowBuildOptions o;
+    o.one_sided = one_sided;
+    std::vector<uint8_t> out(p.size(), 2);
+    shadow.occluded_sun_batch(level, toward, p[0].data(), p.size(), out.data(), o, stats);
+    return out;
+}
+
+// Counts the points whose answer for the sun differs from the exact oracle's.
+size_t sun_disagreements(const SceneOracle& oracle, const double* toward, const Points& p,
+                         const std::vector<uint8_t>& got, bool one_sided, size_t* shadowed = nullptr) {
+    size_t wrong = 0, dark = 0;
+    for (size_t i = 0; i < p.size(); ++i) {
+        const bool expect = oracle.occluded_sun(p[i].data(), toward, one_sided).blocked;
+        wrong += got[i] != uint8_t(expect);
+        dark += expect;
+    }
+    if (shadowed) *shadowed = dark;
+    return wrong;
+}
+
 // Counts the points whose answer differs from the exact oracle's.
 size_t disagreements(const SceneOracle& oracle, const double* light, const Points& p, const std::vector<uint8_t>& got,
                      bool one_sided, size_t* shadowed = nullptr) {
@@ -127,6 +151,28 @@ TEST(Level, CityAnswersEqualTheExactOracle) {
     }
 }
 
+TEST(Level, SunAnswersEqualTheExactOracle) {
+    // Suns over the city: overhead, low, grazing the ground (1e-9 off its plane), exactly along the ground,
+    // straight down the walls, and along a diagonal of the grid; points on the surfaces, on the ground and
+    // above it; both modes.
+    const std::unique_ptr<CityLevel> c = city_level(60, 3);
+    cb::Level& level = c->level;
+    const SceneOracle oracle(c->city, level.shadow_bias());
+    const Points p = level_points(c->city, 3000, 7);
+    const double suns[][3] = {{0.3, 0.2, 1}, {-1, 0.05, 0.12}, {1, 0.7, 1e-9}, {1, 0.3, 0}, {0, 0, 1}, {1, 1, 0.5}};
+    for (const auto& sun : suns) {
+        for (bool one_sided : {false, true}) {
+            size_t dark = 0;
+            const std::vector<uint8_t> got = answer_sun(level, sun, p, one_sided);
+            EXPECT_EQ(sun_disagreements(oracle, sun, p, got, one_sided, &dark), 0u)
+                << "sun " << sun[0] << "," << sun[1] << "," << sun[2] << (one_sided ? " one-sided" : "");
+            if (!one_sided && sun[2] > 0.1) {
+                EXPECT_GT(dark, p.size() / 50);  // shadows to get wrong
+            }
+        }
+    }
+}
+
 TEST(Level, MovedRemovedAndAddedInstancesOfTwoAssets) {
     // Two assets: the city, and a second one of three towers; instances moved to mirrored and sheared
     // transforms, some removed, some added, over three frames, each checked against the oracle of the
@@ -158,6 +204,10 @@ TEST(Level, MovedRemovedAndAddedInstancesOfTwoAssets) {
             for (bool one_sided : {false, true})
                 EXPECT_EQ(disagreements(oracle, light, p, answer(level, light, p, t, one_sided), one_sided), 0u)
                     << "frame " << frame << " traversal " << int(t) << (one_sided ? " one-sided" : "");
+        const double sun[3] = {0.4, -0.3, 1};
+        for (bool one_sided : {false, true})
+            EXPECT_EQ(sun_disagreements(oracle, sun, p, answer_sun(level, sun, p, one_sided), one_sided), 0u)
+                << "frame " << frame << " sun" << (one_sided ? " one-sided" : "");
         // Next frame: move 8 buildings (sheared or mirrored), remove 2, add 2 towers.
         for (int k = 0; k < 8; ++k) {
             const uint32_t h = city_handles[1 + (frame * 8 + k) % 24];
@@ -202,6 +252,8 @@ TEST(Level, SingularAndFarInstancesBlockNothingOrAnswerExactly) {
     const double light[3] = {far + 100, far + 30, 60};
     for (cb::Traversal t : all_traversals)
         EXPECT_EQ(disagreements(oracle, light, p, answer(level, light, p, t, false), false), 0u) << int(t);
+    const double sun[3] = {0.5, 0.2, 0.6};
+    EXPECT_EQ(sun_disagreements(oracle, sun, p, answer_sun(level, sun, p, false), false), 0u);
 }
 
 TEST(Level, ShadowsSettleAsTheLightMovesAway) {
@@ -236,6 +288,9 @@ TEST(Level, ShadowsSettleAsTheLightMovesAway) {
     const double bias = level.shadow_bias();
     for (const auto& q : p) sun_dark += cb::occluded_sun_reference(level, q.data(), dir, bias);
     const double sun_share = double(sun_dark) / double(p.size());
+    size_t clustered_dark = 0;
+    for (uint8_t g : answer_sun(level, dir, p, false)) clustered_dark += g;
+    EXPECT_EQ(clustered_dark, sun_dark);  // the clustered sun's answers count the same
     std::printf("the sun: %.2f%% in shadow\n", 100 * sun_share);
     EXPECT_LT(std::fabs(share[5] - sun_share), 0.002);
     EXPECT_LT(std::fabs(share[3] - sun_share), 0.01);
@@ -250,16 +305,23 @@ TEST(Level, ConcurrentQueriesFromEightThreadsGiveTheSingleThreadedAnswers) {
     const cb::Scene& city = c->city;
     cb::Level& level = c->level;
     const Points p = level_points(city, 20000, 8);
-    const double light[3] = {100, -60, 150};
-    for (cb::Traversal t : {cb::Traversal::scan, cb::Traversal::trees, cb::Traversal::mtsv}) {
+    const double light[3] = {100, -60, 150}, sun[3] = {0.3, -0.4, 1};
+    for (int k = 0; k < 4; ++k) {  // three traversals, then the sun
+        const cb::Traversal t = k == 1 ? cb::Traversal::trees : k == 2 ? cb::Traversal::mtsv : cb::Traversal::scan;
         cb::ShadowBuildOptions o;
         o.traversal = t;
         cb::LevelShadow shadow;
         std::vector<uint8_t> one(p.size()), many(p.size(), 2);
-        shadow.occluded_batch(level, light, p[0].data(), p.size(), one.data(), o);
+        if (k == 3)
+            shadow.occluded_sun_batch(level, sun, p[0].data(), p.size(), one.data(), o);
+        else
+            shadow.occluded_batch(level, light, p[0].data(), p.size(), one.data(), o);
         // The same steps in ranges: culling and building on 8 threads, then 8 threads answering interleaved
         // tile ranges of the same const structure.
-        shadow.begin(level, light, p[0].data(), p.size(), o);
+        if (k == 3)
+            shadow.begin_sun(level, sun, p[0].data(), p.size(), o);
+        else
+            shadow.begin(level, light, p[0].data(), p.size(), o);
         const size_t tiles = shadow.tile_count();
         std::vector<std::thread> pool;
         for (size_t w = 0; w < 8; ++w) pool.emplace_back([&, w] { shadow.cull(tiles * w / 8, tiles * (w + 1) / 8); });
@@ -278,7 +340,7 @@ TEST(Level, ConcurrentQueriesFromEightThreadsGiveTheSingleThreadedAnswers) {
                     shadow.occluded(first, first + 1, many.data(), own.data());
             });
         for (std::thread& th : pool) th.join();
-        EXPECT_EQ(one, many) << int(t);
+        EXPECT_EQ(one, many) << k;
     }
 }
 

@@ -336,6 +336,36 @@ TEST(Render, CompareWithEmbreeDiffersOnlyInTiesAndNearTies) {
     EXPECT_EQ(s["ties"].get<uint64_t>() + s["near_ties"].get<uint64_t>(), s["differing"].get<uint64_t>()) << s.dump();
 }
 
+TEST(Render, SunShadowsAgreeWithQueryAndEmbree) {
+    // --sun: the picture's shadows are those clusterbake query --sun gives its points, the JSON names the
+    // sun, and Embree's rays along the same direction differ only in ties and near ties.
+    const fs::path dir = output_dir("sun");
+    const std::string png = (dir / "sun.png").string(), points = (dir / "points.txt").string();
+    for (const char* sun : {"0.8,0.5,0.3", "-1,0.2,0.5"}) {  // 1.1% and 6% of the points in shadow
+        SCOPED_TRACE(sun);
+        CliRun r = run_cli("render " + default_asset + " -o " + png + " --size 240x180 --sun " + sun +
+                           " --write-points " + points + " --compare --json -q");
+        ASSERT_EQ(r.code, 0) << r.err;
+        const nlohmann::json j = nlohmann::json::parse(r.out);
+        ASSERT_TRUE(j.contains("sun")) << r.out;
+        EXPECT_FALSE(j.contains("light"));
+        const uint64_t shadowed = j["shadowed"], covered = j["pixels_covered"];
+        EXPECT_GT(shadowed, covered / 200);
+        EXPECT_LT(shadowed, covered);
+        CliRun q = run_cli("query " + default_asset + " --sun " + sun + " --points " + points + " --json");
+        ASSERT_EQ(q.code, 0) << q.err;
+        EXPECT_EQ(nlohmann::json::parse(q.out)["shadowed"].get<uint64_t>(), shadowed);
+        const nlohmann::json c = j["compare"];
+        EXPECT_EQ(c["pixels_other"], 0) << c.dump();
+        EXPECT_EQ(c["ties"].get<uint64_t>() + c["near_ties"].get<uint64_t>(), c["differing"].get<uint64_t>())
+            << c.dump();
+    }
+    for (const char* bad : {" --sun 0,0,0", " --sun 0,1,0 --light 0,5,0", " --sun 0,1,0 --area-light 0,9,0,1,4"}) {
+        CliRun r = run_cli("render " + default_asset + " -o " + png + bad);
+        EXPECT_EQ(r.code, 2) << bad;
+    }
+}
+
 TEST(Render, OptionsAreCheckedBeforeAnyWork) {
     const fs::path dir = output_dir("errors");
     const std::string out = (dir / "out.png").string();

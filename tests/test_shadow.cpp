@@ -636,7 +636,7 @@ Baked bumpy_grid(double offset, double dx, double dy, double height, double wave
 
 }  // namespace
 
-TEST(Shadow, SunReferenceAgreesWithExactOracle) {
+TEST(Shadow, SunAgreesWithExactOracle) {
     // Suns over the default scene, the hard cases (flat grids at the origin and 1e6 from it, layers 1e-12 and
     // 1e-23 apart, needles) and shared scenes when present: overhead, low, grazing a flat grid (1e-9 off its
     // plane), exactly in a triangle's plane (points on faces parallel to the sun), and along a triangle's
@@ -653,7 +653,7 @@ TEST(Shadow, SunReferenceAgreesWithExactOracle) {
             std::printf("skipped %s: ../shared/data is not here\n", f);
     std::mt19937 rng(43);
     std::uniform_real_distribution<double> u(-1, 1);
-    size_t queries = 0, wrong = 0, shadowed = 0, touching = 0, brute_wrong = 0;
+    size_t queries = 0, wrong = 0, shadowed = 0, touching = 0, brute_wrong = 0, traversal_wrong = 0;
     for (const auto& [name, b] : scenes) {
         SCOPED_TRACE(name);
         ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
@@ -679,7 +679,9 @@ TEST(Shadow, SunReferenceAgreesWithExactOracle) {
                                   {1, 0.4, 1e-9},
                                   {in_plane[0], in_plane[1], in_plane[2]},
                                   {edge[0], edge[1], edge[2]}};
-        for (const auto& sun : suns)
+        for (const auto& sun : suns) {
+            std::vector<double> asked;       // the points, for the sun's traversal afterwards
+            std::vector<uint8_t> expect[2];  // the oracle's answers, two- then one-sided
             for (int k = 0; k < 120; ++k) {
                 double p[3];
                 if (k % 3 == 0) {
@@ -692,20 +694,43 @@ TEST(Shadow, SunReferenceAgreesWithExactOracle) {
                     for (int j = 0; j < 3; ++j)
                         p[j] = 0.5 * (world.lo[j] + world.hi[j]) + (world.hi[j] - world.lo[j] + 1) * u(rng);
                 }
+                asked.insert(asked.end(), p, p + 3);
                 for (bool one_sided : {false, true}) {
                     const bool ours = cb::occluded_sun_reference(v, p, sun, bias, one_sided);
                     const cb::test::OracleAnswer exact = oracle.occluded_sun(p, sun, one_sided);
                     wrong += ours != exact.blocked;
                     shadowed += exact.blocked, touching += exact.touching, ++queries;
+                    expect[one_sided].push_back(exact.blocked);
                     if (k % 10 == 0)
                         brute_wrong += oracle.occluded_sun_brute_force(p, sun, one_sided).blocked != exact.blocked;
                 }
             }
+            // The sun's traversal (cb_sun.h) on the same points: as a batch over every instance, and point by
+            // point.
+            for (bool one_sided : {false, true}) {
+                cb::ShadowBuildOptions o;
+                o.one_sided = one_sided, o.bias = bias;
+                std::vector<cb::InstanceShadow> shadows(v.instance_count);
+                for (uint32_t i = 0; i < v.instance_count; ++i) shadows[i].build_sun(v, i, sun, o);
+                const size_t n = expect[one_sided].size();
+                std::vector<uint32_t> scratch(cb::batch_scratch_size(shadows.data(), shadows.size(), n));
+                std::vector<uint8_t> got(n, 2);
+                cb::occluded_batch(shadows.data(), shadows.size(), asked.data(), n, got.data(), scratch.data());
+                for (size_t k = 0; k < n; ++k) {
+                    traversal_wrong += got[k] != expect[one_sided][k];
+                    bool alone = false;
+                    for (const cb::InstanceShadow& sh : shadows)
+                        alone = alone || sh.occluded(&asked[k * 3], scratch.data());
+                    traversal_wrong += alone != bool(expect[one_sided][k]);
+                }
+            }
+        }
     }
     std::printf("%zu sun queries on %zu scenes: %zu in shadow, %zu touching; %zu disagreements\n", queries,
                 scenes.size(), shadowed, touching, wrong);
     EXPECT_EQ(wrong, 0u);
     EXPECT_EQ(brute_wrong, 0u);
+    EXPECT_EQ(traversal_wrong, 0u);     // the sun's traversal, batched and point by point
     EXPECT_GT(shadowed, queries / 20);  // 9.6% on the scenes of this repository alone
     EXPECT_GT(touching, 10u);
 }

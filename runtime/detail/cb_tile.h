@@ -160,6 +160,7 @@ public:
     static constexpr uint32_t none = 0xffffffffu;
 
     const double* world_light() const { return world_light_; }
+    bool sun() const { return false; }                    // a point light (cb_sun.h answers suns)
     size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the light sees from the front
     size_t capsules() const { return capsules_; }         // volumes taken as capsule-cones (metric trees)
 
