@@ -120,7 +120,8 @@ inline double sun_from(const double* toward, double bias) {
 }
 
 // The ray p + t d (t >= from) against the closed triangle a, b, c, exactly (the sun's rules above; from is
-// sun_from's). With D(x) = orient3d(a, b, c, x) = N . (a - x), N = (b - a) x (c - a): D(p + t d) = D(p) +
+// sun_from's). `touching` reports boundary contacts the ray may count: where the ray is already past the
+// triangle's plane at `from`, nothing is examined. With D(x) = orient3d(a, b, c, x) = N . (a - x), N = (b - a) x (c - a): D(p + t d) = D(p) +
 // t D_d with D_d = det(-d, b - a, c - a) = -N . d, the side the ray heads for.
 inline SegmentTest ray_triangle(const double* p, const double* d, const double* a, const double* b, const double* c,
                                 double from, bool two_sided = true) {
@@ -128,6 +129,11 @@ inline SegmentTest ray_triangle(const double* p, const double* d, const double* 
     const double minus_d[3] = {-d[0], -d[1], -d[2]};
     const exact::Row side_rows[3] = {{minus_d, nullptr}, {b, a}, {c, a}};
     double bp, bd, ep = exact::orient3d_estimate(a, b, c, p, bp), ed = exact::det3_estimate(side_rows, bd);
+    // At `from` the ray is strictly past the plane and heading away (D(p) + from D_d has D_d's sign, both
+    // settled in double): no contact can count. Most often p lies on this triangle (or its plane), where
+    // D(p)'s own sign would need the exact path; such a contact is not examined, nor reported as touching.
+    const double f0 = from, ahead = ep + f0 * ed, ahead_bound = bp + f0 * bd + 4e-16 * (std::fabs(ep) + f0 * std::fabs(ed));
+    if (f0 >= 0 && ((ed > bd && ahead > ahead_bound) || (-ed > bd && -ahead > ahead_bound))) return r;
     int sp = ep > bp ? 1 : -ep > bp ? -1 : exact::sign(exact::orient3d_exact(a, b, c, p));
     int sd = ed > bd ? 1 : -ed > bd ? -1 : exact::sign(exact::det3_exact(side_rows));
     if (!two_sided && sd != 1) return r;  // one-sided: the sun sees its front, or grazes its plane

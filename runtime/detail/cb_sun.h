@@ -4,8 +4,8 @@
 // points is a prism too: the rectangle that bounds their projections across the direction, from the lowest of
 // them up toward the sun. A tile scans the coarse clusters' spheres (ScanBounds, made once per asset) against
 // its prism, each point against the spheres that pass, then the fine spheres of the coarse clusters entered,
-// nearest the sun first, and tests the clusters found for each point still lit: the ray against the cluster's
-// box, then its triangles exactly (ray_triangle). The answers are those of occluded_sun_reference
+// nearest the sun first, each sphere's points against its box in float, and tests the clusters found for each
+// point still lit, their triangles exactly (ray_triangle). The answers are those of occluded_sun_reference
 // (cb_shadow.h). Header-only C++17, no exceptions; building allocates, queries do not. MIT licensed
 // (runtime/LICENSE).
 #pragma once
@@ -52,6 +52,10 @@ public:
         const ScanBounds& s = bounds();
         spheres_ = s.source_fine != nullptr && s.extent < INFINITY;
         if (!spheres_) return;
+        // blocking_start along the unit direction, lowered by 1e-6 of itself: the float filter then tests a
+        // little more of each ray, never less.
+        start_ = blocking_start(from_) * std::sqrt(math::dot3(toward_, toward_)) * (1 - 1e-6);
+        boxes_small_ = s.extent < float_safe && start_ < float_safe;
         coarse_.resize(mesh_->coarse_count);
         for (uint32_t c = 0; c < mesh_->coarse_count; ++c) coarse_[c] = across(s.coarse_first + c);
     }
@@ -99,6 +103,14 @@ public:
             }
             t.alive |= uint64_t(1) << i;
         }
+        t.size = 0;
+        for (uint32_t i = 0; i < tile_capacity; ++i) {
+            const bool in = t.alive >> i & 1;
+            t.x[i] = in ? float(t.p[i][0] - s.origin[0]) : 0.0f, t.y[i] = in ? float(t.p[i][1] - s.origin[1]) : 0.0f,
+            t.z[i] = in ? float(t.p[i][2] - s.origin[2]) : 0.0f;
+            t.size = std::max(t.size, std::fabs(t.x[i]) + std::fabs(t.y[i]) + std::fabs(t.z[i]));
+        }
+        t.small = t.size < float_safe && boxes_small_;
         if (t.alive) {
             scan_coarse(t);
             walk_entered(t);
@@ -121,6 +133,9 @@ private:
         double p[tile_capacity][3];                                   // in the mesh's frame
         double u[tile_capacity], v[tile_capacity], w[tile_capacity];  // in the sun's frame, from the bounds' origin
         double lo[2], hi[2], low, margin;                             // the prism of the points walking now
+        alignas(64) float x[tile_capacity], y[tile_capacity], z[tile_capacity];  // p from the bounds' origin
+        float size;  // the largest |x|_1 + |y|_1 + |z|_1 of the tile's points (boxes' float margins)
+        bool small;  // every coordinate and box within float_safe: the float box filter applies
         struct Entry {
             double near;  // how far below the highest sphere the list may hold: the sun's side first
             uint32_t id;
@@ -177,6 +192,85 @@ private:
         return s.u + r >= t.lo[0] && s.u - r <= t.hi[0] && s.v + r >= t.lo[1] && s.v - r <= t.hi[1] && s.w + r >= t.low;
     }
 
+    // A cluster's box set up for the float test of box_points: its centre from the bounds' origin, its axes,
+    // each axis's padded half extent (infinite where the ray runs nearly across it: no test there) with the
+    // side the ray heads to (sign) and how far along the axis it has gone at blocking_start (lift), and the
+    // axes z x a_k with the box's support on them.
+    struct SunBox {
+        float c[3], a[3][3], h[3], sign[3], lift[3], w[3][3], support[3], scale;
+    };
+
+    SunBox sun_box(const Obb& box) const {
+        SunBox b;
+        const ScanBounds& s = bounds();
+        double h[3];
+        padded_halves(box, h);
+        const double* z = frame_[0];
+        double scale = h[0] + h[1] + h[2];
+        for (int k = 0; k < 3; ++k) {
+            const double a[3] = {box.axis[k][0], box.axis[k][1], box.axis[k][2]}, c = box.center[k] - s.origin[k];
+            b.c[k] = float(c), scale += std::fabs(c);
+            for (int j = 0; j < 3; ++j) b.a[k][j] = box.axis[k][j];
+            const double zk = math::dot3(a, z);
+            b.sign[k] = zk > 1e-6 ? 1.0f : zk < -1e-6 ? -1.0f : 0.0f;
+            b.h[k] = b.sign[k] != 0 ? float(h[k]) : INFINITY;
+            b.lift[k] = float(start_ * zk);
+            double w[3];
+            math::cross3(z, a, w);
+            for (int j = 0; j < 3; ++j) b.w[k][j] = float(w[j]);
+        }
+        for (int k = 0; k < 3; ++k) {
+            const double w[3] = {b.w[k][0], b.w[k][1], b.w[k][2]};
+            double support = 0;
+            for (int j = 0; j < 3; ++j) {
+                const double a[3] = {box.axis[j][0], box.axis[j][1], box.axis[j][2]};
+                support += h[j] * std::fabs(math::dot3(w, a));
+            }
+            b.support[k] = float(support);
+        }
+        b.scale = float(scale);
+        return b;
+    }
+
+    // The points of `subset` whose ray, from blocking_start on, may touch box b: separating axes in float over
+    // the subset's lanes, the box's three axes (the ray, from where it starts to count, heads one way along
+    // each: it must start on the box's near side of its far face) and z x each (the ray projects to one value
+    // there). The margin, 1e-6 of the coordinates' and the box's sizes, holds the float roundings (below 1e-7 of
+    // them each) and the float direction's departure from the ray's (6e-8 of the way to the box).
+    static uint64_t box_points(const SunBox& b, uint64_t subset, const Tile& t) {
+        using simd::Floats;
+        uint32_t begin, end;
+        simd::lane_span(subset, begin, end);
+        if (!(b.scale + t.size > 1e-30f)) return subset;  // a margin that float's subnormals could swallow
+        const Floats m = simd::splat(1e-6f * (b.scale + t.size)), zero = simd::splat(0.0f);
+        uint64_t keep = 0;
+        for (uint32_t i = begin; i < end; i += simd::width) {
+            if (!simd::group(subset, i)) continue;
+            const Floats qx = simd::load(t.x + i) - simd::splat(b.c[0]), qy = simd::load(t.y + i) - simd::splat(b.c[1]),
+                         qz = simd::load(t.z + i) - simd::splat(b.c[2]);
+            Floats worst = simd::splat(INFINITY);
+            for (int k = 0; k < 3; ++k) {
+                const Floats g = simd::dot(qx, qy, qz, b.a[k][0], b.a[k][1], b.a[k][2]) + simd::splat(b.lift[k]);
+                worst = simd::min(worst, (simd::splat(b.h[k]) + m) - simd::splat(b.sign[k]) * g);
+                const Floats across = simd::abs(simd::dot(qx, qy, qz, b.w[k][0], b.w[k][1], b.w[k][2]));
+                worst = simd::min(worst, (simd::splat(b.support[k]) + m) - across);
+            }
+            keep |= uint64_t(simd::bits(worst >= zero)) << i;
+        }
+        return subset & keep;
+    }
+
+    // The points of `subset` whose ray may touch `box`: in float when the tile allows, else in double.
+    uint64_t points_near_box(const Obb& box, uint64_t subset, const Tile& t) const {
+        if (!subset) return 0;
+        if (t.small) return box_points(sun_box(box), subset, t);
+        for (uint64_t b = subset; b; b &= b - 1) {
+            const uint32_t i = math::lowest_bit(b);
+            if (!ray_may_touch_box(box, t.p[i], toward_, blocking_start(from_))) subset &= ~(uint64_t(1) << i);
+        }
+        return subset;
+    }
+
     // Sorts a list by `near`, ties in list order (insertion: the lists are short).
     static void sort_by_near(Tile::Entry* a, uint32_t n) {
         for (uint32_t i = 1; i < n; ++i) {
@@ -192,7 +286,7 @@ private:
         for (uint32_t c = 0; c < mesh_->coarse_count && t.alive; ++c) {
             const Sphere& s = coarse_[c];
             if (!meets_prism(s, t)) continue;
-            const uint64_t points = sphere_points(s, t.alive, t);
+            const uint64_t points = points_near_box(bounds().coarse_obbs[c], sphere_points(s, t.alive, t), t);
             if (!points) continue;
             if (t.entered_count == Tile::entered_capacity) walk_entered(t);
             t.entered[t.entered_count++] = {-(s.w + s.r), c, points};
@@ -211,7 +305,9 @@ private:
             const ClusterRange& r = view_->coarse[mesh_->first_coarse + t.entered[e].id];
             for (uint32_t f = r.first; f < r.first + r.count; ++f) {
                 const Sphere sphere = across(f);
-                const uint64_t points = sphere_points(sphere, in & t.alive, t);
+                if (!meets_prism(sphere, t)) continue;
+                const uint64_t points =
+                    points_near_box(bounds().fine_obbs[f], sphere_points(sphere, in & t.alive, t), t);
                 if (!points) continue;
                 if (t.pending_count == Tile::pending_capacity) test_pending(t);
                 t.pending[t.pending_count++] = {-(sphere.w + sphere.r), f, points};
@@ -220,8 +316,7 @@ private:
         }
     }
 
-    // The pending fine clusters, the sun's side first: for each point still lit, the ray against the box, then
-    // the triangles exactly.
+    // The pending fine clusters, the sun's side first: for each point still lit, the triangles exactly.
     void test_pending(Tile& t) const {
         const uint32_t count = t.pending_count;
         t.pending_count = 0;
@@ -231,7 +326,9 @@ private:
             const uint32_t f = t.pending[e].id;
             for (uint64_t b = t.pending[e].points & t.alive; b; b &= b - 1) {
                 const uint32_t i = math::lowest_bit(b);
-                if (!ray_may_touch_box(boxes[f], t.p[i], toward_, blocking_start(from_))) continue;
+                // The box again, in double: the float filter's margin lets through the cluster a point lies on,
+                // whose ray leaves the thin box soon after it starts to count; its triangles cost far more.
+                if (t.small && !ray_may_touch_box(boxes[f], t.p[i], toward_, blocking_start(from_))) continue;
                 if (cluster_blocks_sun(*view_, *mesh_, f, t.p[i], toward_, from_, one_sided_, t.stats, nullptr)) {
                     t.shadowed |= uint64_t(1) << i;
                     t.alive &= ~(uint64_t(1) << i);
@@ -254,7 +351,9 @@ private:
     const AssetView* view_ = nullptr;
     const MeshRecord* mesh_ = nullptr;
     double inverse_[12] = {}, toward_[3] = {}, world_toward_[3] = {}, frame_[3][3] = {}, from_ = 0;
-    bool usable_ = false, one_sided_ = false, spheres_ = false;
+    double start_ = 0;  // blocking_start(from_) along the unit direction frame_[0]
+    bool usable_ = false, one_sided_ = false, spheres_ = false, boxes_small_ = false;
+    static constexpr double float_safe = 1e9;  // sizes below which the float box filter cannot overflow
     const ScanBounds* shared_bounds_ = nullptr;
     ScanBounds own_bounds_;
     std::vector<Sphere> coarse_;  // the coarse spheres in the sun's frame
