@@ -43,7 +43,7 @@ void walk(const cb::AssetView& v) {
 
 // What a consumer does next with an accepted asset: a shadow tree per instance (first few), in each tree
 // structure and both sidedness modes, a few queries one by one and as a batch (tiles, including points at
-// the light, not finite, or in opposite directions), and culling; none may read outside what open_asset
+// the light, not finite, or in opposite directions), the same through a level, for a sun too, and culling; none may read outside what open_asset
 // vouched for.
 void query(const cb::AssetView& v) {
     const double light[3] = {0.3, 2.5, -1.7},
@@ -76,6 +76,10 @@ void query(const cb::AssetView& v) {
     cb::LevelShadow through_level;
     through_level.occluded_batch(level, light, batch.data(), n, shadow.data());
     for (uint8_t o : shadow) sink = sink + float(o);
+    // And a sun (its own traversal, prisms along the direction), the light's position taken as a direction.
+    through_level.occluded_sun_batch(level, light, batch.data(), n, shadow.data());
+    for (uint8_t o : shadow) sink = sink + float(o);
+    for (const double* p : points) sink = sink + float(cb::occluded_sun_reference(v, p, light, 0.0));
     for (const double* p : points) sink = sink + float(cb::occluded_reference(v, p, light, 0.0));
     cb::Frustum f{};
     f.count = 1;

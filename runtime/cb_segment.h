@@ -120,8 +120,8 @@ inline double sun_from(const double* toward, double bias) {
 }
 
 // The ray p + t d (t >= from) against the closed triangle a, b, c, exactly (the sun's rules above; from is
-// sun_from's). `touching` reports boundary contacts the ray may count: where the ray is already past the
-// triangle's plane at `from`, nothing is examined. With D(x) = orient3d(a, b, c, x) = N . (a - x), N = (b - a) x (c - a): D(p + t d) = D(p) +
+// sun_from's). `touching` is set for a boundary contact that blocks (one at t >= from): contacts nearer than
+// `from` are not examined where the ray is already past the triangle's plane there. With D(x) = orient3d(a, b, c, x) = N . (a - x), N = (b - a) x (c - a): D(p + t d) = D(p) +
 // t D_d with D_d = det(-d, b - a, c - a) = -N . d, the side the ray heads for.
 inline SegmentTest ray_triangle(const double* p, const double* d, const double* a, const double* b, const double* c,
                                 double from, bool two_sided = true) {
@@ -132,7 +132,8 @@ inline SegmentTest ray_triangle(const double* p, const double* d, const double* 
     // At `from` the ray is strictly past the plane and heading away (D(p) + from D_d has D_d's sign, both
     // settled in double): no contact can count. Most often p lies on this triangle (or its plane), where
     // D(p)'s own sign would need the exact path; such a contact is not examined, nor reported as touching.
-    const double f0 = from, ahead = ep + f0 * ed, ahead_bound = bp + f0 * bd + 4e-16 * (std::fabs(ep) + f0 * std::fabs(ed));
+    const double f0 = from, ahead = ep + f0 * ed,
+                 ahead_bound = bp + f0 * bd + 4e-16 * (std::fabs(ep) + f0 * std::fabs(ed));
     if (f0 >= 0 && ((ed > bd && ahead > ahead_bound) || (-ed > bd && -ahead > ahead_bound))) return r;
     int sp = ep > bp ? 1 : -ep > bp ? -1 : exact::sign(exact::orient3d_exact(a, b, c, p));
     int sd = ed > bd ? 1 : -ed > bd ? -1 : exact::sign(exact::det3_exact(side_rows));
@@ -147,22 +148,22 @@ inline SegmentTest ray_triangle(const double* p, const double* d, const double* 
     };
     const int e0 = edge(a, b), e1 = edge(b, c), e2 = edge(c, a);
     if ((e0 > 0 || e1 > 0 || e2 > 0) && (e0 < 0 || e1 < 0 || e2 < 0)) return r;
-    r.touching = sp == 0 || e0 == 0 || e1 == 0 || e2 == 0;
+    const bool touching = sp == 0 || e0 == 0 || e1 == 0 || e2 == 0;
+    auto answer = [&](bool blocks) {
+        r.blocks = blocks, r.touching = touching && blocks;
+        return r;
+    };
     if (!(std::fabs(from) < INFINITY)) return r;  // not a number
-    if (sp == 0) return r.blocks = from <= 0, r;  // at the query point itself: t = 0
+    if (sp == 0) return answer(from <= 0);        // at the query point itself: t = 0
     // The crossing is at t = -D(p) / D_d; it counts when t >= f, that is when D(p) + f D_d has D(p)'s sign or
     // is zero. In double first, then exactly.
     const double f = from;
     const double mix_estimate = ep + f * ed, mix_bound = bp + f * bd + 4e-16 * (std::fabs(ep) + f * std::fabs(ed));
-    if (std::fabs(mix_estimate) > mix_bound) {
-        r.blocks = (mix_estimate > 0 ? 1 : -1) == sp;
-        return r;
-    }
+    if (std::fabs(mix_estimate) > mix_bound) return answer((mix_estimate > 0 ? 1 : -1) == sp);
     exact::Expansion mix = exact::scaled(exact::compressed(exact::det3_exact(side_rows)), f);
     exact::add(mix, exact::orient3d_exact(a, b, c, p));
     const int s = exact::sign(mix);
-    r.blocks = s == 0 || s == sp;
-    return r;
+    return answer(s == 0 || s == sp);
 }
 
 // Where one instance of a mesh stands: the mesh's index in the asset and its world transform (affine,

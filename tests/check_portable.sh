@@ -6,7 +6,8 @@
 #   2. Emulated as an older processor (qemu-user: Westmere, without AVX; qemu64, baseline x86-64 only), the
 #      binary bakes the default scene byte for byte as natively and answers queries on SSE2 lanes with the
 #      native answers.
-#   3. CLUSTERBAKE_LANES=sse2, avx2 and avx512 (those this processor runs) give the same answers.
+#   3. CLUSTERBAKE_LANES=sse2, avx2 and avx512 (those this processor runs) give the same answers, for a point
+#      light and for a sun.
 # Usage: check_portable.sh CLUSTERBAKE SOURCE_DIR WORK_DIR
 set -euo pipefail
 tool=$1
@@ -60,6 +61,18 @@ for cap in sse2 avx2 avx512; do
   echo "CLUSTERBAKE_LANES=$cap: $picked lanes, the same answers"
 done
 [ "$(query sse2 "$work/sse2-again.txt")" = sse2 ] || { echo "CLUSTERBAKE_LANES=sse2 did not pick SSE2"; exit 1; }
+sun_query() {  # LANES_CAP FILE [runner...]: a sun's answers (its own traversal, float box filters)
+  local cap=$1 out=$2
+  shift 2
+  CLUSTERBAKE_LANES=$cap "$@" "$tool" query "$work/native.cbk" --sun -1,0.4,0.3 --points "$work/points.txt" >"$out"
+}
+sun_query "" "$work/sun.txt"
+[ "$(grep -c '^1$' "$work/sun.txt" || true)" -gt 0 ]
+for cap in sse2 avx2 avx512; do
+  sun_query "$cap" "$work/sun-$cap.txt"
+  cmp -s "$work/sun.txt" "$work/sun-$cap.txt" || { echo "CLUSTERBAKE_LANES=$cap: the sun's answers differ"; exit 1; }
+done
+echo "a sun: the same answers on every lanes cap"
 if CLUSTERBAKE_LANES=avx3 "$tool" query "$work/native.cbk" --light -4,30,2 --points "$work/points.txt" \
   >/dev/null 2>"$work/bad.log"; then
   echo "CLUSTERBAKE_LANES=avx3 was accepted"
@@ -77,5 +90,7 @@ for cpu in Westmere qemu64; do
   picked=$(query "" "$work/$cpu.txt" qemu-x86_64 -cpu "$cpu")
   [ "$picked" = sse2 ] || { echo "$cpu: picked $picked lanes"; exit 1; }
   cmp -s "$work/native.txt" "$work/$cpu.txt" || { echo "$cpu: answers differ from the native ones"; exit 1; }
+  sun_query "" "$work/sun-$cpu.txt" qemu-x86_64 -cpu "$cpu"
+  cmp -s "$work/sun.txt" "$work/sun-$cpu.txt" || { echo "$cpu: the sun's answers differ from the native ones"; exit 1; }
   echo "$cpu (emulated): the same asset, and the same answers on sse2 lanes"
 done

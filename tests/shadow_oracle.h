@@ -72,9 +72,9 @@ inline cb::SegmentTest oracle_ray(const double* p, const double* d, const double
     const Epeck::Point_3* x = boost::get<Epeck::Point_3>(&*hit);
     if (!x) return r;
     const bool on_edge = CGAL::collinear(A, B, *x) || CGAL::collinear(B, C, *x) || CGAL::collinear(C, A, *x);
-    r.touching = on_edge || op == CGAL::COPLANAR;
     const Epeck::FT tt = ((*x - P) * D) / (D * D);
     r.blocks = std::isfinite(from) && tt >= Epeck::FT(from);
+    r.touching = r.blocks && (on_edge || op == CGAL::COPLANAR);  // a boundary contact that counts
     return r;
 }
 
