@@ -138,3 +138,37 @@ def test_stats_equal_the_command_line(scene_asset, scene_asset_file):
     printed.pop("file")
     assert ours == printed
     assert ours["fine"]["clusters"] == scene_asset.info["fine_clusters"]
+
+
+def traced_peak(call):
+    """The most bytes Python and NumPy held at once during call(), over what they held before it."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        call()
+        return tracemalloc.get_traced_memory()[1] - before
+    finally:
+        tracemalloc.stop()
+
+
+def test_contiguous_points_are_read_in_place(scene_asset):
+    pts = scene_points(200_000, seed=3)  # 4.8 MB of float64; the answers take 0.2 MB
+    fortran = np.asfortranarray(pts)
+    in_place = traced_peak(lambda: scene_asset.occluded(pts, LIGHTS[0]))
+    copied = traced_peak(lambda: scene_asset.occluded(fortran, LIGHTS[0]))
+    assert in_place < pts.nbytes / 4
+    assert copied > pts.nbytes  # the same measure sees a copy where one is made
+
+
+def test_threads_query_one_asset_at_once(scene_asset, points):
+    from concurrent.futures import ThreadPoolExecutor
+
+    pts, _ = points
+    expected = [scene_asset.occluded(pts, light, threads=1) for light in LIGHTS]
+    with ThreadPoolExecutor(3) as pool:
+        answers = list(pool.map(lambda light: scene_asset.occluded(pts, light, threads=1), LIGHTS * 4))
+    for i, a in enumerate(answers):
+        assert np.array_equal(a, expected[i % len(LIGHTS)])
