@@ -37,9 +37,9 @@ namespace {
     throw py::error_already_set();
 }
 
-// A str or os.PathLike as a path.
+// A str, bytes or os.PathLike as a path (os.fsdecode: bytes decoded as the file system names them).
 std::string fspath(const py::object& path) {
-    return py::str(py::module_::import("os").attr("fspath")(path)).cast<std::string>();
+    return py::module_::import("os").attr("fsdecode")(path).cast<std::string>();
 }
 
 // An asset's bytes, held aligned and opened. Held by shared_ptr, so that a Level keeps its assets alive;

@@ -41,6 +41,7 @@ def test_save_open_and_facts(tmp_path, scene_asset):
     scene_asset.save(path)
     assert path.read_bytes() == scene_asset.to_bytes()
     again = clusterbake.Asset.open(str(path))
+    assert clusterbake.Asset.open(os.fsencode(path)).to_bytes() == scene_asset.to_bytes()
     assert again.to_bytes() == scene_asset.to_bytes()
     assert clusterbake.Asset.from_bytes(path.read_bytes()).info == scene_asset.info
     info = scene_asset.info
