@@ -94,7 +94,17 @@ std::string option_text(const py::handle& value) {
 
 // The keyword options as a command line's words, in the table's order, then applied and checked as the
 // command line does (cli/args.cpp: the values, the rules, then the options that would change nothing).
-cb::BakeRequest request_from(const py::kwargs& options, bool fit) {
+cb::BakeRequest request_from(const py::kwargs& kwargs, bool fit) {
+    py::dict options = kwargs.attr("copy")();
+    // What the scene file is trusted with (the command line's --allow-outside-files and --files-root, which
+    // are load options, not rows of the table).
+    cb::LoadOptions load;
+    if (options.contains("allow_outside_files")) {
+        const py::object value = options.attr("pop")("allow_outside_files");
+        if (!py::isinstance<py::bool_>(value)) throw py::value_error("allow_outside_files takes True or False");
+        load.allow_outside_files = value.cast<bool>();
+    }
+    if (options.contains("files_root")) load.root = fspath(options.attr("pop")("files_root"));
     for (const auto& item : options) {
         const std::string flag = "--" + [](std::string s) {
             std::replace(s.begin(), s.end(), '_', '-');
@@ -121,6 +131,7 @@ cb::BakeRequest request_from(const py::kwargs& options, bool fit) {
     }
     cb::BakeRequest r;
     r.fit = fit;
+    r.load = load;
     std::vector<std::string> given;
     std::string error = cb::apply_options(argv, r, &given);
     if (error.empty()) error = cb::request_options_error(r);
@@ -208,6 +219,8 @@ AssetPtr bake(const py::object& source, bool fit, const py::kwargs& options) {
     if (py::isinstance<py::tuple>(source) || py::isinstance<py::list>(source)) {
         if (py::len(source) != 2) throw py::type_error("bake takes a path or (positions, indices) numpy arrays");
         name = "arrays";
+        if (options.contains("allow_outside_files") || options.contains("files_root"))
+            throw py::value_error("allow_outside_files and files_root do nothing here: arrays name no files");
         cb::SourceFiles files;
         scene = scene_from_arrays(source[py::int_(0)], source[py::int_(1)], files);
         scene.report.source = files;
@@ -524,7 +537,8 @@ PYBIND11_MODULE(clusterbake, m) {
         "bake", [](const py::object& source, const py::kwargs& options) { return bake(source, true, options); },
         py::arg("source"),
         "Bakes a scene file, or (positions (n, 3) float, indices (m, 3) int) arrays, into an Asset. Options by "
-        "the command line's names (fine=8, bounds='all', coarse_morton=True).");
+        "the command line's names (fine=8, bounds='all', coarse_morton=True), and for a file allow_outside_files "
+        "and files_root.");
     m.def(
         "cluster", [](const py::object& source, const py::kwargs& options) { return bake(source, false, options); },
         py::arg("source"), "As bake, without bounding volumes (`clusterbake cluster`).");

@@ -235,3 +235,40 @@ def test_no_triangles_is_an_empty_asset_with_a_warning():
     assert asset.info["triangles"] == 0
     answers = asset.occluded(np.zeros((5, 3)), (0, 10, 0))
     assert answers.dtype == bool and answers.shape == (5,) and not answers.any()
+
+
+def external_gltf(folder, buffer_uri):
+    """A one-triangle glTF whose buffer is the file buffer_uri names (relative to folder)."""
+    import json
+
+    positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], "<f4").tobytes()
+    doc = {
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": buffer_uri, "byteLength": len(positions)}],
+        "bufferViews": [{"buffer": 0, "byteLength": len(positions)}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "nodes": [{"mesh": 0}],
+        "scenes": [{"nodes": [0]}],
+    }
+    (folder / "scene.gltf").write_text(json.dumps(doc))
+    return positions
+
+
+def test_files_outside_the_scene_folder(tmp_path):
+    scene_dir = tmp_path / "scene"
+    scene_dir.mkdir()
+    (tmp_path / "shared.bin").write_bytes(external_gltf(scene_dir, "../shared.bin"))
+    scene = scene_dir / "scene.gltf"
+    code, _, err = run_cli("bake", scene, "-o", tmp_path / "x.cbk", check=False)
+    assert code == 2
+    with pytest.raises(ValueError) as e:
+        clusterbake.bake(scene)
+    assert str(e.value) == err.strip()
+    run_cli("bake", scene, "-o", tmp_path / "cli.cbk", "-q", "--allow-outside-files")
+    assert clusterbake.bake(scene, allow_outside_files=True).to_bytes() == (tmp_path / "cli.cbk").read_bytes()
+    run_cli("bake", scene, "-o", tmp_path / "root.cbk", "-q", "--files-root", tmp_path)
+    assert clusterbake.bake(scene, files_root=tmp_path).to_bytes() == (tmp_path / "root.cbk").read_bytes()
+    with pytest.raises(ValueError, match="arrays name no files"):
+        clusterbake.bake((np.eye(3, dtype=np.float32), np.array([[0, 1, 2]])), allow_outside_files=True)
