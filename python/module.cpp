@@ -527,8 +527,11 @@ PYBIND11_MODULE(clusterbake, m) {
         .def(
             "occluded",
             [](const Level& l, const py::handle& points, const py::handle& light, bool one_sided,
-               const std::string& traversal, unsigned threads,
-               double bias) { return occluded(l.input, points, light, one_sided, traversal, threads, bias); },
+               const std::string& traversal, unsigned threads, double bias) {
+                // A copy taken with the GIL held: another thread may add to the level while this one asks.
+                const cb::LevelInput snapshot = l.input;
+                return occluded(snapshot, points, light, one_sided, traversal, threads, bias);
+            },
             py::arg("points"), py::arg("light"), py::kw_only(), py::arg("one_sided") = false,
             py::arg("traversal") = "scan", py::arg("threads") = 0, py::arg("bias") = 0.0,
             "As Asset.occluded, over every instance of the level.");

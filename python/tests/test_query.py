@@ -172,3 +172,21 @@ def test_threads_query_one_asset_at_once(scene_asset, points):
         answers = list(pool.map(lambda light: scene_asset.occluded(pts, light, threads=1), LIGHTS * 4))
     for i, a in enumerate(answers):
         assert np.array_equal(a, expected[i % len(LIGHTS)])
+
+
+def test_adding_to_a_level_while_it_answers(scene_asset, points):
+    from concurrent.futures import ThreadPoolExecutor
+
+    pts, _ = points
+    level = clusterbake.Level()
+    level.add(scene_asset)
+    alone = level.occluded(pts, LIGHTS[0], threads=1)
+    far = np.eye(4)
+    far[:3, 3] = [1000, 0, 0]  # copies far away: no shadow on the points
+    with ThreadPoolExecutor(2) as pool:
+        answers = pool.submit(lambda: [level.occluded(pts, LIGHTS[0], threads=1) for _ in range(20)])
+        for _ in range(200):
+            level.add(scene_asset, far)
+        for a in answers.result():
+            assert np.array_equal(a, alone)
+    assert level.instance_count == 201 * scene_asset.info["instances"]
