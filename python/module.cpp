@@ -140,6 +140,14 @@ cb::BakeRequest request_from(const py::kwargs& kwargs, bool fit) {
     return r;
 }
 
+// `a` as a C-contiguous array of `dtype`: `a` itself when it is one already, else numpy's copy. Raises
+// numpy's own error when the copy cannot be made (MemoryError for a broadcast view of 10^12 rows).
+py::array contiguous(const py::array& a, const char* dtype) {
+    return py::module_::import("numpy").attr("ascontiguousarray")(a, py::arg("dtype") = dtype).cast<py::array>();
+}
+
+const double* doubles(const py::array& a) { return static_cast<const double*>(a.data()); }
+
 // --- bake ----------------------------------------------------------------------------------------------
 
 // A mesh from the caller's arrays, as a loader makes one: float32 positions keep their values exactly
@@ -164,10 +172,10 @@ cb::Scene scene_from_arrays(const py::handle& positions_obj, const py::handle& i
     const size_t n = size_t(positions.shape(0)), m = size_t(indices.shape(0));
     if (n > UINT32_MAX || m > UINT32_MAX / 3) throw py::value_error("arrays: more than 2^32 vertices or corners");
 
-    auto idx = py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(indices);
+    const py::array idx = contiguous(indices, "int64");
     cb::Mesh mesh;
     mesh.indices.resize(m * 3);
-    const int64_t* in = idx.data();
+    const int64_t* in = static_cast<const int64_t*>(idx.data());
     for (size_t i = 0; i < m * 3; ++i) {
         if (in[i] < 0 || uint64_t(in[i]) >= n)
             throw py::value_error(name + ": mesh 0: triangle " + std::to_string(i / 3) + ": index " +
@@ -177,11 +185,12 @@ cb::Scene scene_from_arrays(const py::handle& positions_obj, const py::handle& i
     cb::SourceHasher hasher;
     cb::Origin origin{0, 0, 0};
     if (positions.itemsize() == 4) {
-        auto p = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(positions);
-        mesh.positions.assign(p.data(), p.data() + n * 3);
+        const py::array p = contiguous(positions, "float32");
+        const float* f = static_cast<const float*>(p.data());
+        mesh.positions.assign(f, f + n * 3);
     } else {
-        auto p = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(positions);
-        std::vector<double> xyz(p.data(), p.data() + n * 3);
+        const py::array p = contiguous(positions, "float64");
+        std::vector<double> xyz(doubles(p), doubles(p) + n * 3);
         for (size_t i = 0; i < xyz.size(); ++i)
             if (!std::isfinite(xyz[i]))
                 throw py::value_error(name + ": mesh 0: vertex " + std::to_string(i / 3) + ": position is not finite");
@@ -258,14 +267,12 @@ AssetPtr bake(const py::object& source, bool fit, const py::kwargs& options) {
 // --- queries -------------------------------------------------------------------------------------------
 
 // Points as (n, 3) float64, read in place when C-contiguous float64, else copied; every coordinate finite.
-py::array_t<double, py::array::c_style> points_array(const py::handle& obj, const char* what) {
+py::array points_array(const py::handle& obj, const char* what) {
     py::array a = py::array::ensure(obj);
     if (!a) throw py::type_error(std::string(what) + " must be a numpy array of floats");
     if (a.dtype().kind() != 'f' && a.dtype().kind() != 'i' && a.dtype().kind() != 'u')
         throw py::type_error(std::string(what) + " must be numbers (got " + std::string(py::str(a.dtype())) + ")");
-    auto p = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
-    if (!p) throw py::type_error(std::string(what) + " cannot be read as float64");
-    return p;
+    return contiguous(a, "float64");
 }
 
 void check_finite(const double* v, size_t count, const char* what) {
@@ -299,14 +306,14 @@ py::array occluded(const cb::LevelInput& level, const py::handle& points_obj, co
         throw py::value_error("light must have shape (3,), or (k, 3) for several (got " +
                               std::string(py::str(lights.attr("shape"))) + ")");
     const size_t n = size_t(points.shape(0)), k = one_light ? 1 : size_t(lights.shape(0));
-    check_finite(points.data(), n * 3, "points");
-    check_finite(lights.data(), k * 3, "light");
+    check_finite(doubles(points), n * 3, "points");
+    check_finite(doubles(lights), k * 3, "light");
 
     py::array_t<bool> answers = one_light ? py::array_t<bool>(std::vector<py::ssize_t>{py::ssize_t(n)})
                                           : py::array_t<bool>(std::vector<py::ssize_t>{py::ssize_t(k), py::ssize_t(n)});
     bool* out = answers.mutable_data();
-    const double* p = points.data();
-    const double* l = lights.data();
+    const double* p = doubles(points);
+    const double* l = doubles(lights);
     {
         py::gil_scoped_release release;
         if (n > 0 && k > 0) {
@@ -341,7 +348,7 @@ struct Level {
         if (m.ndim() != 2 || m.shape(1) != 4 || (m.shape(0) != 3 && m.shape(0) != 4))
             throw py::value_error("matrix must have shape (4, 4) or (3, 4) (got " +
                                   std::string(py::str(m.attr("shape"))) + ")");
-        const double* v = m.data();
+        const double* v = doubles(m);
         check_finite(v, size_t(m.shape(0)) * 4, "matrix");
         if (m.shape(0) == 4 && !(v[12] == 0 && v[13] == 0 && v[14] == 0 && v[15] == 1))
             throw py::value_error("matrix: the last row must be 0, 0, 0, 1 (an affine transform)");

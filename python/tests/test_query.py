@@ -72,6 +72,7 @@ BAD_QUERIES = [
     (np.array([["a", "b", "c"]]), (0, 10, 0), {}, TypeError, "points must be numbers"),
     (np.zeros((4, 3), bool), (0, 10, 0), {}, TypeError, "points must be numbers"),
     (np.zeros((4, 3), complex), (0, 10, 0), {}, TypeError, "points must be numbers"),
+    (np.broadcast_to(np.zeros(3), (2**40, 3)), (0, 10, 0), {}, MemoryError, ""),  # a 24 TiB copy refused
     (np.zeros((4, 3)), (0, 10), {}, ValueError, r"light must have shape \(3,\)"),
     (np.zeros((4, 3)), np.zeros((2, 4)), {}, ValueError, "light must have shape"),
     (np.zeros((4, 3)), (0, np.nan, 0), {}, ValueError, "light: row 0: coordinate is not finite"),
