@@ -56,7 +56,12 @@ BakedScene load_baked(const std::string& path, const ClusterOptions& clustering,
     LoadedAsset asset;
     std::string error;
     if (!read_asset_file(path, asset, error)) throw std::runtime_error(error);
-    BakedScene baked = baked_scene_from_asset(asset.view);
+    return baked_from_asset(asset.view, bounds, fitted_note, progress, threads);
+}
+
+BakedScene baked_from_asset(const AssetView& view, const BoundsOptions& bounds, std::string* fitted_note,
+                            const BakeProgress& progress, unsigned threads) {
+    BakedScene baked = baked_scene_from_asset(view);
     uint32_t missing = bounds.mask & ~kinds_present(baked.meshes);
     if (missing) {
         // Fit the missing kinds on a copy (fitting replaces every volume) and take only those.

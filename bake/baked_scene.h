@@ -23,4 +23,9 @@ BakedScene load_baked(const std::string& path, const ClusterOptions& clustering,
                       std::string* fitted_note = nullptr, const BakeProgress& progress = {},
                       const LoadOptions& load = {}, unsigned threads = 0);
 
+// An opened asset decoded back (its clusters and stored volumes as they are), with the kinds in bounds.mask
+// it does not hold fitted with `bounds`, as load_baked does for an asset file; `fitted_note` says which.
+BakedScene baked_from_asset(const AssetView& view, const BoundsOptions& bounds, std::string* fitted_note = nullptr,
+                            const BakeProgress& progress = {}, unsigned threads = 0);
+
 }  // namespace cb

@@ -16,6 +16,7 @@ packages=(
   clang-format               # the format test (scripts/check-format.sh)
   assimp-testmodels          # real broken and Draco glTF files the tests read in place
   nodejs                     # the tests' npm packages: the glTF validator, gltfpack, glTF-Transform
+  pybind11-dev python3-dev python3-pybind11 python3-numpy python3-pytest   # the Python module and its tests
 )
 # Some builds of nodejs bring npm themselves and conflict with Debian's npm package: ask for it only when
 # there is no npm.
