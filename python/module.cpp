@@ -281,10 +281,14 @@ void check_finite(const double* v, size_t count, const char* what) {
             throw py::value_error(std::string(what) + ": row " + std::to_string(i / 3) + ": coordinate is not finite");
 }
 
-cb::SceneQueryOptions query_options(bool one_sided, const std::string& traversal, unsigned threads, double bias) {
+cb::SceneQueryOptions query_options(bool one_sided, const std::string& traversal, unsigned threads, double bias,
+                                    bool sun) {
     cb::SceneQueryOptions o;
     if (!cb::parse_traversal(traversal, o.traversal))
         throw py::value_error("traversal takes scan, trees, one-tree, mtsv or mtsv-two (got '" + traversal + "')");
+    if (sun && o.traversal != cb::Traversal::scan)
+        throw py::value_error("a sun is answered by a scan of its own: sun=True takes no traversal");
+    o.sun = sun;
     if (!(bias >= 0 && bias < INFINITY))
         throw py::value_error("bias takes a distance of at least 0 (0: the level's default)");
     o.one_sided = one_sided;
@@ -293,10 +297,11 @@ cb::SceneQueryOptions query_options(bool one_sided, const std::string& traversal
     return o;
 }
 
-// Points against one light ((3,): answers (n,)) or several ((k, 3): answers (k, n)), over the level.
+// Points against one light ((3,): answers (n,)) or several ((k, 3): answers (k, n)), over the level. With
+// `sun`, each light is the direction toward a sun (cb_segment.h, "A sun").
 py::array occluded(const cb::LevelInput& level, const py::handle& points_obj, const py::handle& light_obj,
-                   bool one_sided, const std::string& traversal, unsigned threads, double bias) {
-    const cb::SceneQueryOptions options = query_options(one_sided, traversal, threads, bias);
+                   bool one_sided, const std::string& traversal, unsigned threads, double bias, bool sun) {
+    const cb::SceneQueryOptions options = query_options(one_sided, traversal, threads, bias, sun);
     auto points = points_array(points_obj, "points");
     if (points.ndim() != 2 || points.shape(1) != 3)
         throw py::value_error("points must have shape (n, 3) (got " + std::string(py::str(points.attr("shape"))) + ")");
@@ -308,6 +313,11 @@ py::array occluded(const cb::LevelInput& level, const py::handle& points_obj, co
     const size_t n = size_t(points.shape(0)), k = one_light ? 1 : size_t(lights.shape(0));
     check_finite(doubles(points), n * 3, "points");
     check_finite(doubles(lights), k * 3, "light");
+    for (size_t i = 0; sun && i < k; ++i) {
+        const double* d = doubles(lights) + i * 3;
+        if (d[0] == 0 && d[1] == 0 && d[2] == 0)
+            throw py::value_error("light: row " + std::to_string(i) + ": a sun's direction has no length");
+    }
 
     py::array_t<bool> answers = one_light ? py::array_t<bool>(std::vector<py::ssize_t>{py::ssize_t(n)})
                                           : py::array_t<bool>(std::vector<py::ssize_t>{py::ssize_t(k), py::ssize_t(n)});
@@ -517,13 +527,14 @@ PYBIND11_MODULE(clusterbake, m) {
         .def(
             "occluded",
             [](const Asset& a, const py::handle& points, const py::handle& light, bool one_sided,
-               const std::string& traversal, unsigned threads, double bias) {
-                return occluded(cb::baked_level(a.loaded.view), points, light, one_sided, traversal, threads, bias);
+               const std::string& traversal, unsigned threads, double bias, bool sun) {
+                return occluded(cb::baked_level(a.loaded.view), points, light, one_sided, traversal, threads, bias,
+                                sun);
             },
             py::arg("points"), py::arg("light"), py::kw_only(), py::arg("one_sided") = false,
-            py::arg("traversal") = "scan", py::arg("threads") = 0, py::arg("bias") = 0.0,
+            py::arg("traversal") = "scan", py::arg("threads") = 0, py::arg("bias") = 0.0, py::arg("sun") = false,
             "Whether each point is in the shadow of the light, exactly: a bool array of shape (n,) for a light "
-            "(3,), (k, n) for lights (k, 3).");
+            "(3,), (k, n) for lights (k, 3). With sun=True each light is the direction toward a sun.");
 
     py::class_<Level, std::shared_ptr<Level>>(m, "Level", "Assets placed in one world under affine transforms.")
         .def(py::init<>())
@@ -534,13 +545,13 @@ PYBIND11_MODULE(clusterbake, m) {
         .def(
             "occluded",
             [](const Level& l, const py::handle& points, const py::handle& light, bool one_sided,
-               const std::string& traversal, unsigned threads, double bias) {
+               const std::string& traversal, unsigned threads, double bias, bool sun) {
                 // A copy taken with the GIL held: another thread may add to the level while this one asks.
                 const cb::LevelInput snapshot = l.input;
-                return occluded(snapshot, points, light, one_sided, traversal, threads, bias);
+                return occluded(snapshot, points, light, one_sided, traversal, threads, bias, sun);
             },
             py::arg("points"), py::arg("light"), py::kw_only(), py::arg("one_sided") = false,
-            py::arg("traversal") = "scan", py::arg("threads") = 0, py::arg("bias") = 0.0,
+            py::arg("traversal") = "scan", py::arg("threads") = 0, py::arg("bias") = 0.0, py::arg("sun") = false,
             "As Asset.occluded, over every instance of the level.");
 
     m.def(

@@ -39,6 +39,29 @@ def test_answers_equal_the_command_line(scene_asset, scene_asset_file, points, l
     assert np.array_equal(ours, theirs)
 
 
+SUNS = [(-1.0, 0.4, 0.3), (0.3, 1.0, 0.2)]
+
+
+@pytest.mark.parametrize("sun", SUNS)
+@pytest.mark.parametrize("options, flags", [({}, []), ({"one_sided": True}, ["--one-sided"])])
+def test_suns_equal_the_command_line(scene_asset, scene_asset_file, points, sun, options, flags):
+    pts, path = points
+    ours = scene_asset.occluded(pts, sun, sun=True, **options)
+    _, out, _ = run_cli("query", scene_asset_file, "--sun", ",".join(map(repr, sun)), "--points", path, *flags)
+    theirs = np.array([line == "1" for line in out.split()], dtype=bool)
+    assert 0 < ours.sum() < len(pts)
+    assert np.array_equal(ours, theirs)
+    together = scene_asset.occluded(pts, np.array(SUNS), sun=True, **options)
+    assert np.array_equal(together[SUNS.index(sun)], ours)
+
+
+def test_bad_suns_raise(scene_asset):
+    with pytest.raises(ValueError, match="a sun's direction has no length"):
+        scene_asset.occluded(np.zeros((4, 3)), (0, 0, 0), sun=True)
+    with pytest.raises(ValueError, match="a sun is answered by a scan of its own"):
+        scene_asset.occluded(np.zeros((4, 3)), (0, 1, 0), sun=True, traversal="trees")
+
+
 def test_several_lights_at_once(scene_asset, points):
     pts, _ = points
     lights = np.array(LIGHTS)
