@@ -43,8 +43,8 @@ void walk(const cb::AssetView& v) {
 
 // What a consumer does next with an accepted asset: a shadow tree per instance (first few), in each tree
 // structure and both sidedness modes, a few queries one by one and as a batch (tiles, including points at
-// the light, not finite, or in opposite directions), the same through a level, for a sun too, and culling; none may read outside what open_asset
-// vouched for.
+// the light, not finite, or in opposite directions), the same through a level, for a sun too, and culling;
+// none may read outside what open_asset vouched for.
 void query(const cb::AssetView& v) {
     const double light[3] = {0.3, 2.5, -1.7},
                  points[4][3] = {{0, 0, 0}, {0.5, -0.25, 0.125}, {-3, 1, 2}, {0.3, 2.5, -1.7}};

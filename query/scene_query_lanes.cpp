@@ -44,8 +44,9 @@ ShadowBuildOptions build_options(const SceneQueryOptions& o) {
     return build;
 }
 
-// A batch through the scene: tiles of points by direction (or, for a sun, by place across its direction) culled against the instances' hierarchy, the
-// instances met set up for the light, then the tiles answered; each step in ranges over the threads.
+// A batch through the scene: tiles of points by direction (for a sun, by place across its direction) culled
+// against the instances' hierarchy, the instances met set up for the light, then the tiles answered; each
+// step in ranges over the threads.
 void answer_batch(const Level& level, const double* light, const double* points, size_t n, const SceneQueryOptions& o,
                   unsigned thread_count, SceneQueryResult& r) {
     auto build_start = std::chrono::steady_clock::now();

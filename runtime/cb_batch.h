@@ -129,9 +129,8 @@ inline void sun_batch_order(const double* toward, const double* points, size_t n
             keys[i] = 0x7fffffu;
             continue;
         }
-        const double ca = std::min(std::max((a - lo[0]) * scale[0], 0.0), 1023.0),
-                     cb = std::min(std::max((b - lo[1]) * scale[1], 0.0), 1023.0);  // NaN (inf - inf): 0
-        keys[i] = spread(uint32_t(ca)) | spread(uint32_t(cb)) << 1;
+        auto cell = [](double x) { return x > 0 ? (x < 1023 ? uint32_t(x) : 1023u) : 0u; };  // NaN (inf x 0): 0
+        keys[i] = spread(cell((a - lo[0]) * scale[0])) | spread(cell((b - lo[1]) * scale[1])) << 1;
     }
     batch_order_from_keys(keys, n, order, scratch);
 }

@@ -1,6 +1,6 @@
-// Point-light shadow queries over the asset's two-level cluster hierarchy, after the thesis's clustered
-// partitioned shadow volumes (CPSV, chapter 2): for one light, find the few clusters whose shadow volume
-// may hold a point and test only their triangles, exactly (cb_lit_triangles.h), so that the answers are
+// Shadow queries of point lights (and suns, below) over the asset's two-level cluster hierarchy, after the
+// thesis's clustered partitioned shadow volumes (CPSV, chapter 2): for one light, find the few clusters whose
+// shadow volume may hold a point and test only their triangles, exactly (cb_lit_triangles.h), so that the answers are
 // those of occluded_reference (cb_shadow.h), faster. InstanceShadow holds one traversal, chosen at build
 // time by ShadowBuildOptions::traversal, and forwards the query interface to it:
 //

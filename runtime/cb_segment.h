@@ -121,8 +121,9 @@ inline double sun_from(const double* toward, double bias) {
 
 // The ray p + t d (t >= from) against the closed triangle a, b, c, exactly (the sun's rules above; from is
 // sun_from's). `touching` is set for a boundary contact that blocks (one at t >= from): contacts nearer than
-// `from` are not examined where the ray is already past the triangle's plane there. With D(x) = orient3d(a, b, c, x) = N . (a - x), N = (b - a) x (c - a): D(p + t d) = D(p) +
-// t D_d with D_d = det(-d, b - a, c - a) = -N . d, the side the ray heads for.
+// `from` are not examined where the ray is already past the triangle's plane there. With D(x) = orient3d(a,
+// b, c, x) = N . (a - x), N = (b - a) x (c - a): D(p + t d) = D(p) + t D_d with D_d = det(-d, b - a, c - a) =
+// -N . d, the side the ray heads for.
 inline SegmentTest ray_triangle(const double* p, const double* d, const double* a, const double* b, const double* c,
                                 double from, bool two_sided = true) {
     SegmentTest r;
