@@ -490,7 +490,9 @@ void save_asset(const Asset& a, const std::string& path) {
 }  // namespace
 
 PYBIND11_MODULE(clusterbake, m) {
-    m.doc() = "Bakes triangle scenes into clusterbake assets and answers exact point-light shadow queries on them.";
+    m.doc() =
+        "Bakes triangle scenes into clusterbake assets and answers exact shadow queries of point lights and suns on "
+        "them.";
     m.attr("__version__") = std::string(cb::tool_version()).substr(std::strlen("clusterbake "));
     m.attr("asset_format") = cb::asset_version;
 

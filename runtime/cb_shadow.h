@@ -53,7 +53,7 @@ inline bool occluded_reference(const AssetView& v, const double* p, const double
 }
 
 // Suns (cb_segment.h: a light at infinity in direction `toward`): the same reference, each triangle of the
-// clusters whose box the ray may touch by ray_triangle. The clustered traversals take point lights only.
+// clusters whose box the ray may touch by ray_triangle. A sun's clustered traversal is SunTraversal (cb_sun.h).
 inline bool cluster_blocks_sun(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double* p,
                                const double* toward, double from, bool one_sided, QueryStats* stats, bool* touched) {
     const FineCluster& c = v.fine[mesh.first_fine + f];
