@@ -57,43 +57,22 @@ inline std::vector<double> first_hits(RTCScene scene, const double* eye, const d
 // `light` is the direction toward a sun: every ray runs along it, from cb::sun_from on, without end.
 inline void occluded_range(RTCScene scene, const double* pts, const double* light, size_t first, size_t last,
                            int packet, double bias, uint8_t* out, bool sun = false) {
+    // Point i's ray in float: from the point toward the light (its far end at 1) or along the sun (no end).
+    auto ray = [&](size_t i, float* dir, float& tnear, float& tfar) {
+        const double* p = pts + i * 3;
+        for (int k = 0; k < 3; ++k) dir[k] = float(sun ? light[k] : light[k] - p[k]);
+        tnear = float(sun ? cb::sun_from(light, bias) : cb::shadow_from(p, light, bias));
+        tfar = sun ? INFINITY : 1.0f;
+    };
     RTCIntersectContext c;
     rtcInitIntersectContext(&c);
-    if (sun) {
-        const float dx = float(light[0]), dy = float(light[1]), dz = float(light[2]),
-                    from = float(cb::sun_from(light, bias));
-        if (packet == 1) {
-            for (size_t i = first; i < last; ++i) {
-                RTCRay r{};
-                r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
-                r.dir_x = dx, r.dir_y = dy, r.dir_z = dz, r.tnear = from, r.tfar = INFINITY, r.mask = 0xffffffff;
-                rtcOccluded1(scene, &c, &r);
-                out[i] = r.tfar < 0;
-            }
-            return;
-        }
-        for (size_t at = first; at < last; at += 16) {
-            alignas(64) RTCRay16 r{};
-            alignas(64) int valid[16];
-            for (size_t k = 0; k < 16; ++k) {
-                const size_t i = std::min(at + k, last - 1);
-                valid[k] = at + k < last ? -1 : 0;
-                r.org_x[k] = float(pts[i * 3]), r.org_y[k] = float(pts[i * 3 + 1]), r.org_z[k] = float(pts[i * 3 + 2]);
-                r.dir_x[k] = dx, r.dir_y[k] = dy, r.dir_z[k] = dz, r.tnear[k] = from, r.tfar[k] = INFINITY;
-                r.mask[k] = 0xffffffff;
-            }
-            rtcOccluded16(valid, scene, &c, &r);
-            for (size_t k = 0; k < 16 && at + k < last; ++k) out[at + k] = r.tfar[k] < 0;
-        }
-        return;
-    }
     if (packet == 1) {
         for (size_t i = first; i < last; ++i) {
             RTCRay r{};
+            float dir[3];
             r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
-            r.dir_x = float(light[0] - pts[i * 3]), r.dir_y = float(light[1] - pts[i * 3 + 1]),
-            r.dir_z = float(light[2] - pts[i * 3 + 2]);
-            r.tnear = float(cb::shadow_from(pts + i * 3, light, bias)), r.tfar = 1.0f, r.mask = 0xffffffff;
+            ray(i, dir, r.tnear, r.tfar);
+            r.dir_x = dir[0], r.dir_y = dir[1], r.dir_z = dir[2], r.mask = 0xffffffff;
             rtcOccluded1(scene, &c, &r);
             out[i] = r.tfar < 0;
         }
@@ -104,11 +83,11 @@ inline void occluded_range(RTCScene scene, const double* pts, const double* ligh
         alignas(64) int valid[16];
         for (size_t k = 0; k < 16; ++k) {
             const size_t i = std::min(at + k, last - 1);
+            float dir[3];
             valid[k] = at + k < last ? -1 : 0;
             r.org_x[k] = float(pts[i * 3]), r.org_y[k] = float(pts[i * 3 + 1]), r.org_z[k] = float(pts[i * 3 + 2]);
-            r.dir_x[k] = float(light[0] - pts[i * 3]), r.dir_y[k] = float(light[1] - pts[i * 3 + 1]),
-            r.dir_z[k] = float(light[2] - pts[i * 3 + 2]);
-            r.tnear[k] = float(cb::shadow_from(pts + i * 3, light, bias)), r.tfar[k] = 1.0f, r.mask[k] = 0xffffffff;
+            ray(i, dir, r.tnear[k], r.tfar[k]);
+            r.dir_x[k] = dir[0], r.dir_y[k] = dir[1], r.dir_z[k] = dir[2], r.mask[k] = 0xffffffff;
         }
         rtcOccluded16(valid, scene, &c, &r);
         for (size_t k = 0; k < 16 && at + k < last; ++k) out[at + k] = r.tfar[k] < 0;

@@ -82,25 +82,14 @@ std::vector<uint8_t> answer_sun(cb::Level& level, const double* toward, const Po
     return out;
 }
 
-// Counts the points whose answer for the sun differs from the exact oracle's.
-size_t sun_disagreements(const SceneOracle& oracle, const double* toward, const Points& p,
-                         const std::vector<uint8_t>& got, bool one_sided, size_t* shadowed = nullptr) {
-    size_t wrong = 0, dark = 0;
-    for (size_t i = 0; i < p.size(); ++i) {
-        const bool expect = oracle.occluded_sun(p[i].data(), toward, one_sided).blocked;
-        wrong += got[i] != uint8_t(expect);
-        dark += expect;
-    }
-    if (shadowed) *shadowed = dark;
-    return wrong;
-}
-
-// Counts the points whose answer differs from the exact oracle's.
+// Counts the points whose answer differs from the exact oracle's (for the sun in direction `light` with `sun`).
 size_t disagreements(const SceneOracle& oracle, const double* light, const Points& p, const std::vector<uint8_t>& got,
-                     bool one_sided, size_t* shadowed = nullptr) {
+                     bool one_sided, size_t* shadowed = nullptr, bool sun = false) {
     size_t wrong = 0, dark = 0;
     for (size_t i = 0; i < p.size(); ++i) {
-        const bool expect = oracle.occluded(p[i].data(), light, one_sided).blocked;
+        const bool expect =
+            (sun ? oracle.occluded_sun(p[i].data(), light, one_sided) : oracle.occluded(p[i].data(), light, one_sided))
+                .blocked;
         wrong += got[i] != uint8_t(expect);
         dark += expect;
     }
@@ -164,7 +153,7 @@ TEST(Level, SunAnswersEqualTheExactOracle) {
         for (bool one_sided : {false, true}) {
             size_t dark = 0;
             const std::vector<uint8_t> got = answer_sun(level, sun, p, one_sided);
-            EXPECT_EQ(sun_disagreements(oracle, sun, p, got, one_sided, &dark), 0u)
+            EXPECT_EQ(disagreements(oracle, sun, p, got, one_sided, &dark, true), 0u)
                 << "sun " << sun[0] << "," << sun[1] << "," << sun[2] << (one_sided ? " one-sided" : "");
             if (!one_sided && sun[2] > 0.1) {
                 EXPECT_GT(dark, p.size() / 50);  // shadows to get wrong
@@ -206,7 +195,7 @@ TEST(Level, MovedRemovedAndAddedInstancesOfTwoAssets) {
                     << "frame " << frame << " traversal " << int(t) << (one_sided ? " one-sided" : "");
         const double sun[3] = {0.4, -0.3, 1};
         for (bool one_sided : {false, true})
-            EXPECT_EQ(sun_disagreements(oracle, sun, p, answer_sun(level, sun, p, one_sided), one_sided), 0u)
+            EXPECT_EQ(disagreements(oracle, sun, p, answer_sun(level, sun, p, one_sided), one_sided, nullptr, true), 0u)
                 << "frame " << frame << " sun" << (one_sided ? " one-sided" : "");
         // Next frame: move 8 buildings (sheared or mirrored), remove 2, add 2 towers.
         for (int k = 0; k < 8; ++k) {
@@ -253,7 +242,7 @@ TEST(Level, SingularAndFarInstancesBlockNothingOrAnswerExactly) {
     for (cb::Traversal t : all_traversals)
         EXPECT_EQ(disagreements(oracle, light, p, answer(level, light, p, t, false), false), 0u) << int(t);
     const double sun[3] = {0.5, 0.2, 0.6};
-    EXPECT_EQ(sun_disagreements(oracle, sun, p, answer_sun(level, sun, p, false), false), 0u);
+    EXPECT_EQ(disagreements(oracle, sun, p, answer_sun(level, sun, p, false), false, nullptr, true), 0u);
 }
 
 TEST(Level, ShadowsSettleAsTheLightMovesAway) {
