@@ -74,9 +74,12 @@ int run_report(const CLI::App* c, ReportArgs a) {
         !parse_list(a.traversals, "--traversal takes a list of scan, trees, one-tree, mtsv, mtsv-two",
                     cb::parse_traversal, o.traversals))
         return exit_usage;
-    if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.frame_view < 1 || o.lights < 1) {
-        std::fprintf(stderr,
-                     "clusterbake: --runs, --query-runs, --view, --frame-view and --lights must be at least 1\n");
+    if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.frame_view < 1) {
+        std::fprintf(stderr, "clusterbake: --runs, --query-runs, --view and --frame-view must be at least 1\n");
+        return exit_usage;
+    }
+    if (o.lights + o.suns < 1) {
+        std::fprintf(stderr, "clusterbake: --lights and --suns are both 0: nothing lights the queries\n");
         return exit_usage;
     }
     // Every configuration of the sweep keeps the clustering's rules, checked before any work.
@@ -144,6 +147,8 @@ Command add_report(CLI::App& app) {
     c->add_option("--frame-view", a->options.frame_view,
                   "Frame time is for a view of this resolution: build + its visible points' queries (default 1024)");
     c->add_option("--lights", a->options.lights, "Lights around each scene (default 2)");
+    c->add_option("--suns", a->options.suns,
+                  "Suns (fixed directions, high first) measured beside the lights (default 0)");
     c->add_flag("--one-sided", a->options.one_sided, "Query with one-sided occluders");
     c->add_option("--samples", a->options.stats.samples, "Shadow-volume samples per cluster and light (default 8)");
     c->add_option("--sample-lights", a->options.stats.lights,

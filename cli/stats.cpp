@@ -120,8 +120,9 @@ Command add_stats(CLI::App& app) {
     add_bake_flags(c, a->clustering.flags, stats_takes);  // for an asset, --obb shapes the volumes it does not store
     add_load_flags(c, a->clustering.load);
     c->add_option("--sample-lights", a->options.lights, "Random light positions per mesh (default 8)");
+    c->add_option("--sample-suns", a->options.suns, "Random sun directions per mesh (default 8)");
     c->add_option("--samples", a->options.samples,
-                  "Points sampled in each cluster's shadow volume per light (default 32)");
+                  "Points sampled in each cluster's shadow volume per light and sun (default 32)");
     c->add_option("--light-seed", a->options.seed, "Seed of the lights and samples (default 1)");
     c->add_option("--acmr-cache", a->options.acmr_cache, "FIFO cache size for the ACMR (default 32)");
     c->add_flag("--json", a->clustering.json, "Print the statistics as JSON");

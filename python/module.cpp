@@ -439,9 +439,10 @@ py::dict asset_info(const Asset& a) {
 
 // The figures of `clusterbake stats --json ASSET` with the same options.
 py::object asset_stats(const Asset& a, uint32_t sample_lights, uint32_t samples, uint64_t light_seed,
-                       uint32_t acmr_cache, unsigned threads) {
+                       uint32_t acmr_cache, unsigned threads, uint32_t sample_suns) {
     cb::StatsOptions so;
     so.lights = sample_lights;
+    so.suns = sample_suns;
     so.samples = samples;
     so.seed = light_seed;
     so.acmr_cache = acmr_cache;
@@ -524,7 +525,7 @@ PYBIND11_MODULE(clusterbake, m) {
             },
             "What the asset was made from (the source section's text), or None.")
         .def("stats", &asset_stats, py::kw_only(), py::arg("sample_lights") = 8, py::arg("samples") = 32,
-             py::arg("light_seed") = 1, py::arg("acmr_cache") = 32, py::arg("threads") = 0,
+             py::arg("light_seed") = 1, py::arg("acmr_cache") = 32, py::arg("threads") = 0, py::arg("sample_suns") = 8,
              "Cluster-quality figures, as `clusterbake stats --json` prints them for the asset.")
         .def(
             "occluded",

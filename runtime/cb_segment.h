@@ -316,6 +316,18 @@ inline bool light_in_front_cone(const Cone& c, const double* light) {
     return v[0] * a[0] + v[1] * a[1] + v[2] * a[2] > al * vl * (double(c.cos_half_angle) + 1e-9);
 }
 
+// The same for a sun toward `toward`: the direction clearly inside the front cone's angle. Every point
+// front_apex + s toward (s > 0) is then in the cone, so each triangle's normal n has n . toward >= 0 (the
+// limit as s grows): the sun is never strictly behind a triangle, and none blocks one-sided.
+inline bool sun_in_front_cone(const Cone& c, const double* toward) {
+    if (!c.valid) return false;
+    const double a[3] = {c.axis[0], c.axis[1], c.axis[2]};
+    const double tl = std::sqrt(toward[0] * toward[0] + toward[1] * toward[1] + toward[2] * toward[2]),
+                 al = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    if (!(tl > 0 && tl < INFINITY) || !(al > 0)) return false;
+    return toward[0] * a[0] + toward[1] * a[1] + toward[2] * a[2] > al * tl * (double(c.cos_half_angle) + 1e-9);
+}
+
 }  // namespace CB_LANES
 
 // What queries counted (every traversal, any lanes; outside the lanes' namespace, see cb_simd.h).

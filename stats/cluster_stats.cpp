@@ -2,6 +2,7 @@
 
 #include <cb_shadow.h>
 #include <detail/cb_math.h>
+#include <detail/cb_tile.h>
 
 #include <algorithm>
 #include <cmath>
@@ -13,6 +14,7 @@
 #include "cluster.h"
 #include "parallel.h"
 #include "random.h"
+#include "runtime_cost.h"
 #include "timing.h"
 
 namespace cb {
@@ -62,6 +64,7 @@ struct ClusterFigures {
     uint32_t triangles = 0, vertices = 0, components = 0;
     double area = 0;
     uint64_t samples = 0, useless = 0, lights_skipping = 0, no_volume = 0;
+    uint64_t sun_samples = 0, sun_useless = 0, suns_skipping = 0;
 };
 
 struct MeshContext {
@@ -69,6 +72,7 @@ struct MeshContext {
     std::vector<uint32_t> weld;
     double lo[3], hi[3];
     std::vector<double> lights;  // xyz per light, mesh frame
+    std::vector<double> suns;    // unit xyz toward each sun, mesh frame
 };
 
 bool has_double_sided(const AssetMesh& m, TriangleRange r) {
@@ -125,6 +129,52 @@ void sample_shadow_volume(const MeshContext& ctx, const Obb& box, const double* 
     out.samples += accepted;
 }
 
+// Uniform points in the prism a sun casts from `box` (those whose ray toward the sun meets the box), clipped
+// to the mesh bounds; counts those whose ray no triangle of the cluster blocks (exactly, two-sided).
+void sample_sun_prism(const MeshContext& ctx, const Obb& box, const double* toward, TriangleRange r, uint32_t wanted,
+                      SplitMix& rng, ClusterFigures& out) {
+    double frame[3][3];  // along the direction, then across it
+    if (!direction_frame(toward, frame)) return;
+    // The box's rectangle across the direction and its top along it; the mesh bounds' bottom.
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY}, top = -INFINITY, bottom = INFINITY;
+    for (int c = 0; c < 8; ++c) {
+        double corner[3], bound[3];
+        for (int k = 0; k < 3; ++k) {
+            corner[k] = box.center[k];
+            for (int a = 0; a < 3; ++a) corner[k] += (c >> a & 1 ? 1.0 : -1.0) * double(box.half[a]) * box.axis[a][k];
+            bound[k] = c >> k & 1 ? ctx.hi[k] : ctx.lo[k];
+        }
+        for (int j = 0; j < 2; ++j)
+            lo[j] = std::min(lo[j], dot3(corner, frame[1 + j])), hi[j] = std::max(hi[j], dot3(corner, frame[1 + j]));
+        top = std::max(top, dot3(corner, frame[0])), bottom = std::min(bottom, dot3(bound, frame[0]));
+    }
+    if (!(top > bottom)) return;
+    const float* pos = ctx.mesh->positions.data();
+    const uint32_t* tri = ctx.mesh->triangles.data();
+    uint32_t accepted = 0;
+    for (uint32_t attempt = 0; attempt < wanted * 16 && accepted < wanted; ++attempt) {
+        const double x = lo[0] + rng.uniform() * (hi[0] - lo[0]), y = lo[1] + rng.uniform() * (hi[1] - lo[1]),
+                     z = bottom + rng.uniform() * (top - bottom);
+        double p[3];
+        bool inside_bounds = true;
+        for (int k = 0; k < 3; ++k) {
+            p[k] = z * frame[0][k] + x * frame[1][k] + y * frame[2][k];
+            inside_bounds &= p[k] >= ctx.lo[k] && p[k] <= ctx.hi[k];
+        }
+        if (!inside_bounds || !(ray_box_entry(box, p, toward) < INFINITY)) continue;
+        ++accepted;
+        bool shadowed = false;
+        for (uint32_t t = r.first; t < r.first + r.count && !shadowed; ++t) {
+            double c[3][3];
+            for (int k = 0; k < 3; ++k)
+                for (int j = 0; j < 3; ++j) c[k][j] = pos[size_t(tri[size_t(t) * 3 + k]) * 3 + j];
+            shadowed = ray_triangle(p, toward, c[0], c[1], c[2], 0.0).blocks;
+        }
+        out.sun_useless += shadowed ? 0 : 1;
+    }
+    out.sun_samples += accepted;
+}
+
 ClusterFigures cluster_figures(const MeshContext& ctx, const LevelVolumes& volumes, uint32_t index, TriangleRange r,
                                const StatsOptions& options, uint64_t seed) {
     const AssetMesh& m = *ctx.mesh;
@@ -166,6 +216,14 @@ ClusterFigures cluster_figures(const MeshContext& ctx, const LevelVolumes& volum
         if (!volumes.obbs.empty())
             sample_shadow_volume(ctx, unpack_obb(volumes.obbs[index]), light, r, options.samples, rng, f);
     }
+    for (size_t l = 0; l < ctx.suns.size() / 3; ++l) {
+        const double* toward = &ctx.suns[l * 3];
+        if (!volumes.cones.empty() && !sided &&
+            sun_in_front_cone(unpack_cone(volumes.cones[index], volumes.obbs[index]), toward))
+            ++f.suns_skipping;
+        if (!volumes.obbs.empty())
+            sample_sun_prism(ctx, unpack_obb(volumes.obbs[index]), toward, r, options.samples, rng, f);
+    }
     return f;
 }
 
@@ -198,11 +256,13 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
     s.clusters = items.size();
     std::vector<double> tris, verts, comps, cone_degrees;
     uint64_t total_tris = 0, total_verts = 0, samples = 0, useless = 0, skips = 0, no_volume = 0, pairs = 0;
+    uint64_t sun_samples = 0, sun_useless = 0, sun_skips = 0;
     for (const ClusterFigures& f : figures) {
         tris.push_back(f.triangles), verts.push_back(f.vertices), comps.push_back(f.components);
         total_tris += f.triangles, total_verts += f.vertices;
         s.split_clusters += f.components > 1;
         samples += f.samples, useless += f.useless, skips += f.lights_skipping, no_volume += f.no_volume;
+        sun_samples += f.sun_samples, sun_useless += f.sun_useless, sun_skips += f.suns_skipping;
     }
     s.triangles = distribution(tris, true);
     s.vertices = distribution(verts, true);
@@ -280,8 +340,11 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
         s.obb_area_relative = ratio(world_area, scene_area);
         s.useless_share = samples ? double(useless) / double(samples) : NAN;
         s.volume_samples = samples;
+        s.sun_useless_share = sun_samples ? double(sun_useless) / double(sun_samples) : NAN;
+        s.sun_prism_samples = sun_samples;
     }
     size_t lights = contexts.empty() ? 0 : contexts[0].lights.size() / 3;
+    const uint64_t sun_pairs = uint64_t(items.size()) * (contexts.empty() ? 0 : contexts[0].suns.size() / 3);
     pairs = uint64_t(items.size()) * lights;
     if (all_have(&LevelVolumes::obbs) && pairs) s.no_volume_share = double(no_volume) / double(pairs);
     if (all_have(&LevelVolumes::cones)) {
@@ -303,6 +366,7 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
         }
         s.no_cone_share = double(invalid) / double(items.size());
         if (pairs) s.light_skip_share = double(skips) / double(pairs);
+        if (sun_pairs) s.sun_skip_share = double(sun_skips) / double(sun_pairs);
     }
     return s;
 }
@@ -386,6 +450,15 @@ SceneStats cluster_statistics(const std::vector<AssetMesh>& meshes, const std::v
             }
             if (!inside) c.lights.insert(c.lights.end(), p, p + 3);
         }
+        // Suns from every direction alike: points of the unit ball, away from its centre, made unit.
+        SplitMix sun_rng{splitmix(options.seed ^ 0x73756e ^ splitmix(m))};
+        while (c.suns.size() < size_t(options.suns) * 3) {
+            double d[3];
+            for (double& x : d) x = 2 * sun_rng.uniform() - 1;
+            const double l = length(d);
+            if (l > 0.01 && l <= 1)
+                for (double x : d) c.suns.push_back(x / l);
+        }
     }
     s.acmr = s.triangles ? acmr_weighted / double(s.triangles) : 0;
     s.coarse = level_statistics(contexts, instances, false, scene_volume, scene_area, options);
@@ -431,7 +504,9 @@ nlohmann::json to_json(const LevelStats& l) {
         {"shadow_volume",
          {{"useless_share", number(l.useless_share)},
           {"samples", l.volume_samples},
-          {"no_volume_share", number(l.no_volume_share)}}}};
+          {"no_volume_share", number(l.no_volume_share)}}},
+        {"sun_skip_share", number(l.sun_skip_share)},
+        {"sun_prism", {{"useless_share", number(l.sun_useless_share)}, {"samples", l.sun_prism_samples}}}};
 }
 
 std::string fmt(const char* format, double x) {
@@ -467,7 +542,11 @@ nlohmann::json to_json(const SceneStats& s) {
              {{"min", {s.bounds_min[0], s.bounds_min[1], s.bounds_min[2]}},
               {"max", {s.bounds_max[0], s.bounds_max[1], s.bounds_max[2]}}}},
             {"acmr", {{"cache", s.acmr_cache}, {"fifo", s.acmr}}},
-            {"options", {{"lights", s.options.lights}, {"samples", s.options.samples}, {"seed", s.options.seed}}},
+            {"options",
+             {{"lights", s.options.lights},
+              {"suns", s.options.suns},
+              {"samples", s.options.samples},
+              {"seed", s.options.seed}}},
             {"coarse", to_json(s.coarse)},
             {"fine", to_json(s.fine)}};
 }
@@ -521,6 +600,9 @@ std::string to_text(const SceneStats& s) {
                       fmt("%.1f%%", 100 * l->useless_share).c_str(), (unsigned long long)l->volume_samples,
                       fmt("%.1f%%", 100 * l->no_volume_share).c_str());
         out += buf;
+        out += "    a sun skips " + fmt("%.1f%%", 100 * l->sun_skip_share) + " of clusters (one-sided, mean over " +
+            std::to_string(s.options.suns) + " suns)\n    sun prisms: " + fmt("%.1f%%", 100 * l->sun_useless_share) +
+            " of " + std::to_string(l->sun_prism_samples) + " sampled points are not shadowed by their cluster\n";
     }
     return out;
 }

@@ -9,6 +9,8 @@
 //   the instance transform) over the world box of the scene.
 // - Lights are random (fixed seed) in each mesh's own frame, in the box three times its bounds and outside
 //   the bounds themselves; shadow-volume samples are uniform in the volume, clipped to the mesh bounds.
+//   Suns are random directions, uniform over the sphere; a box's sun prism (the points whose ray toward the
+//   sun meets it) is sampled the same way.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -24,10 +26,11 @@ namespace cb {
 
 struct StatsOptions {
     uint32_t lights = 8;       // random light positions per mesh
-    uint32_t samples = 32;     // points sampled in each cluster's shadow volume, per light
+    uint32_t samples = 32;     // points sampled in each cluster's shadow volume, per light and per sun
     uint32_t acmr_cache = 32;  // FIFO cache size for the ACMR of the cluster order
     uint64_t seed = 1;
     unsigned threads = 0;  // 0: all hardware threads (figures do not depend on it)
+    uint32_t suns = 8;     // random sun directions per mesh
 };
 
 // min / mean / max of a per-cluster figure and a histogram of it: counts[i] holds values in
@@ -53,12 +56,15 @@ struct LevelStats {
     double sphere_over_obb_median = NAN, capsule_over_obb_median = NAN;  // per cluster (flat boxes left out)
     double fill = NAN, fill_mean = NAN;  // triangle area / OBB surface: summed, per cluster
     Distribution
-        normal_cone_degrees;        // valid cones: the widest normal from the axis (90 degrees - the front half-angle)
-    double no_cone_share = NAN;     // clusters without a valid cone
-    double light_skip_share = NAN;  // clusters a light skips (one-sided, light in the front cone), mean over lights
-    double useless_share = NAN;     // sampled points in a cluster's shadow volume its triangles do not shadow
-    uint64_t volume_samples = 0;    // how many points that share is over
-    double no_volume_share = NAN;   // (cluster, light) pairs with no shadow volume (light in or level with the box)
+        normal_cone_degrees;         // valid cones: the widest normal from the axis (90 degrees - the front half-angle)
+    double no_cone_share = NAN;      // clusters without a valid cone
+    double light_skip_share = NAN;   // clusters a light skips (one-sided, light in the front cone), mean over lights
+    double useless_share = NAN;      // sampled points in a cluster's shadow volume its triangles do not shadow
+    uint64_t volume_samples = 0;     // how many points that share is over
+    double no_volume_share = NAN;    // (cluster, light) pairs with no shadow volume (light in or level with the box)
+    double sun_skip_share = NAN;     // clusters a sun skips (one-sided, the sun in the front cone), mean over suns
+    double sun_useless_share = NAN;  // sampled points in a cluster's sun prism its triangles do not shadow
+    uint64_t sun_prism_samples = 0;
 };
 
 struct SceneStats {

@@ -34,6 +34,14 @@ std::vector<double> report_lights(const double* lo, const double* hi, uint32_t c
     return out;
 }
 
+std::vector<double> report_suns(uint32_t count) {
+    static const double directions[6][3] = {{-0.4, 1.0, 0.3},  {1.0, 0.2, -0.5}, {0.3, 0.7, 1.0},
+                                            {-1.0, 0.5, -0.2}, {0.1, 1.0, -0.9}, {0.8, 0.1, 0.9}};
+    std::vector<double> out;
+    for (uint32_t i = 0; i < count; ++i) out.insert(out.end(), directions[i % 6], directions[i % 6] + 3);
+    return out;
+}
+
 std::string ConfigResult::name() const {
     return std::string(method_name(method)) + "/" + std::to_string(fine_size) + "/" + obb_method_name(obb) +
         (traversal == Traversal::scan ? "" : std::string("/") + traversal_name(traversal));
@@ -135,6 +143,7 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
         }
         if (!(lo[0] <= hi[0])) throw std::runtime_error(file + ": no triangles to report on");
         s.lights = report_lights(lo, hi, o.lights);
+        s.suns = report_suns(o.suns);
         // The query points: what the camera sees, found once (they do not depend on the clustering).
         ClusterOptions base;
         base.coarse_size = o.coarse_size;
@@ -153,7 +162,7 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
         std::vector<std::vector<double>> build_t(total), query_t(total);
         bool interleave = true;
         auto measure_round = [&](size_t i, const AssetView& view) {
-            RuntimeCost cost = measure_runtime(view, s.lights, points, 1, o.one_sided, s.configs[i].traversal);
+            RuntimeCost cost = measure_runtime(view, s.lights, s.suns, points, 1, o.one_sided, s.configs[i].traversal);
             build_t[i].push_back(cost.build_seconds), query_t[i].push_back(cost.query_seconds);
             if (build_t[i].size() > 1) return;
             ConfigResult& c = s.configs[i];
@@ -204,6 +213,7 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                         if (!measured) {
                             StatsOptions so = o.stats;
                             so.threads = o.threads;
+                            so.suns = 0;  // the tightness figure is the point lights' shadow volumes
                             SceneStats st = cluster_statistics(baked.meshes, baked.instances, so);
                             c.fine_clusters = st.fine.clusters, c.coarse_clusters = st.coarse.clusters;
                             c.obb_volume_relative = st.fine.obb_volume_relative;
@@ -245,8 +255,8 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
             HeatmapOptions ho;
             ho.clustering = base;
             ho.size = o.heatmap_size;
-            ho.has_light = true;
-            std::copy(s.lights.begin(), s.lights.begin() + 3, ho.light);
+            ho.has_light = !s.lights.empty();  // else the heat map's own default light
+            if (ho.has_light) std::copy(s.lights.begin(), s.lights.begin() + 3, ho.light);
             ho.one_sided = o.one_sided;
             Heatmap h = render_heatmap(scene, ho);
             s.heatmap_png = h.png;
@@ -395,9 +405,10 @@ std::string report_table(const Report& r) {
     for (const SceneReport& s : r.scenes) {
         Fronts f = fronts(s, r.options);
         std::snprintf(buf, sizeof buf,
-                      "%s: %llu triangles, %llu query points (%ux%u view; frame ms for %ux%u), %u light(s)\n\n",
+                      "%s: %llu triangles, %llu query points (%ux%u view; frame ms for %ux%u), %u light(s), "
+                      "%u sun(s)\n\n",
                       s.file.c_str(), (unsigned long long)s.triangles, (unsigned long long)s.points, r.options.view,
-                      r.options.view, r.options.frame_view, r.options.frame_view, r.options.lights);
+                      r.options.view, r.options.frame_view, r.options.frame_view, r.options.lights, r.options.suns);
         out += buf;
         std::vector<const Column*> shown = shown_columns(s, false, nullptr);
         out += "| config |";
@@ -435,6 +446,7 @@ nlohmann::json report_json(const Report& r) {
                     {"view", o.view},
                     {"frame_view", o.frame_view},
                     {"lights", o.lights},
+                    {"suns", o.suns},
                     {"one_sided", o.one_sided},
                     {"stats_lights", o.stats.lights},
                     {"stats_samples", o.stats.samples},
@@ -447,9 +459,10 @@ nlohmann::json report_json(const Report& r) {
     j["scenes"] = nlohmann::json::array();
     for (const SceneReport& s : r.scenes) {
         Fronts f = fronts(s, o);
-        nlohmann::json js = {
-            {"file", s.file},     {"name", s.name},     {"triangles", s.triangles},          {"instances", s.instances},
-            {"points", s.points}, {"lights", s.lights}, {"configs", nlohmann::json::array()}};
+        nlohmann::json js = {{"file", s.file},           {"name", s.name},
+                             {"triangles", s.triangles}, {"instances", s.instances},
+                             {"points", s.points},       {"lights", s.lights},
+                             {"suns", s.suns},           {"configs", nlohmann::json::array()}};
         for (size_t i = 0; i < s.configs.size(); ++i) {
             const ConfigResult& c = s.configs[i];
             auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
@@ -570,6 +583,7 @@ std::string report_html(const Report& r) {
     row("view (query points)", std::to_string(o.view) + " x " + std::to_string(o.view));
     row("frame time for a view of", std::to_string(o.frame_view) + " x " + std::to_string(o.frame_view));
     row("lights", std::to_string(o.lights));
+    row("suns", std::to_string(o.suns));
     row("occluders", o.one_sided ? "one-sided" : "two-sided");
     row("shadow-volume samples",
         std::to_string(o.stats.lights) + " lights x " + std::to_string(o.stats.samples) + " points per cluster");
@@ -587,8 +601,8 @@ std::string report_html(const Report& r) {
             "</h2>\n";
         h += "<p>" + html_escape(s.file) + ": " + std::to_string(s.triangles) + " triangles in the scene, " +
             std::to_string(s.instances) + " instance(s), " + std::to_string(s.points) +
-            " camera-visible query points, " + std::to_string(s.lights.size() / 3) +
-            " light(s).</p>\n<div class=\"plots\">\n";
+            " camera-visible query points, " + std::to_string(s.lights.size() / 3) + " light(s), " +
+            std::to_string(s.suns.size() / 3) + " sun(s).</p>\n<div class=\"plots\">\n";
         Plot bake{s.name + ": bake time against error", "bake time per configuration (ms)",
                   "useless cluster tests per query", plot_points(s, o, false, r.recommended)};
         Plot frame{s.name + ": runtime cost against error",

@@ -33,6 +33,7 @@ struct ReportOptions {
     uint32_t view = 128;                      // the camera's resolution; its first hits are the query points
     uint32_t frame_view = 1024;  // frame time is for this resolution: build + its visible points / queries per second
     uint32_t lights = 2;         // fixed light positions around the scene (report_lights)
+    uint32_t suns = 0;           // fixed sun directions (report_suns), measured beside the lights
     bool one_sided = false;      // query mode
     LoadOptions load;            // what the scene files are trusted with (docs/SECURITY.md)
     StatsOptions stats{4, 8};    // lights and samples of the shadow-volume conservativeness
@@ -44,6 +45,9 @@ struct ReportOptions {
 // Fixed light positions around the world box [lo, hi]: above and to one side, then others around it.
 std::vector<double> report_lights(const double* lo, const double* hi, uint32_t count);
 
+// Fixed sun directions (toward the sun, +y up as glTF has it): high, then low, then others around.
+std::vector<double> report_suns(uint32_t count);
+
 struct ConfigResult {
     ClusterMethod method;
     uint32_t fine_size;
@@ -54,7 +58,7 @@ struct ConfigResult {
     double bytes_per_triangle = 0;                // the asset as io/asset_writer encodes it, boxes and cones
     double obb_volume_relative = 0;               // fine boxes over the scene box
     double useless_share = 0;                     // sampled, fine level (cluster_stats.h)
-    double build_seconds = 0;                     // per light, all instances
+    double build_seconds = 0;                     // per light (lights and suns alike), all instances
     double queries_per_second = 0;
     double nodes_per_query = 0, clusters_per_query = 0, useless_per_query = 0, triangles_per_query = 0;
     double shadowed_share = 0;
@@ -66,7 +70,7 @@ struct ConfigResult {
 struct SceneReport {
     std::string file, name;
     uint64_t triangles = 0, instances = 0, points = 0;
-    std::vector<double> lights;
+    std::vector<double> lights, suns;
     std::vector<ConfigResult> configs;
     std::vector<uint8_t> heatmap_png;  // empty unless asked for
     uint32_t heatmap_width = 0, heatmap_height = 0;

@@ -19,9 +19,9 @@ void normalise(double* v) {
 using math::cross3;
 using math::dot3;
 
-// Entry distance of the ray o + t v (t >= 0) into the box, or INFINITY when it misses. Boxes are already
-// conservative; the small widening keeps grazing rays from slipping between neighbours.
-double ray_box(const Obb& b, const double* o, const double* v) {
+}  // namespace
+
+double ray_box_entry(const Obb& b, const double* o, const double* v) {
     double t0 = 0, t1 = INFINITY;
     for (int i = 0; i < 3; ++i) {
         const double a[3] = {b.axis[i][0], b.axis[i][1], b.axis[i][2]};
@@ -38,6 +38,8 @@ double ray_box(const Obb& b, const double* o, const double* v) {
     }
     return t0;
 }
+
+namespace {
 
 // Moller-Trumbore in double; INFINITY when missed.
 double ray_triangle(const double* o, const double* v, const double* a, const double* b, const double* c) {
@@ -114,9 +116,9 @@ std::vector<double> first_hits(const BakedScene& baked, const Camera& cam, unsig
                 apply_instance(inv, cam.eye, o);
                 for (int k = 0; k < 3; ++k) v[k] = inv[k] * dir[0] + inv[3 + k] * dir[1] + inv[6 + k] * dir[2];
                 for (size_t c = 0; c < m.coarse.size(); ++c) {
-                    if (ray_box(unpack_obb(m.coarse_volumes.obbs[c]), o, v) >= best) continue;
+                    if (ray_box_entry(unpack_obb(m.coarse_volumes.obbs[c]), o, v) >= best) continue;
                     for (uint32_t f = m.coarse[c].first; f < m.coarse[c].first + m.coarse[c].count; ++f) {
-                        if (ray_box(unpack_obb(m.fine_volumes.obbs[f]), o, v) >= best) continue;
+                        if (ray_box_entry(unpack_obb(m.fine_volumes.obbs[f]), o, v) >= best) continue;
                         for (uint32_t t = m.fine[f].first; t < m.fine[f].first + m.fine[f].count; ++t) {
                             double p[3][3];
                             for (int k = 0; k < 3; ++k)
@@ -143,19 +145,22 @@ std::vector<double> hit_points(const std::vector<double>& hits) {
     return out;
 }
 
-RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& lights, const std::vector<double>& points,
-                            int runs, bool one_sided, Traversal traversal) {
+RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& lights, const std::vector<double>& suns,
+                            const std::vector<double>& points, int runs, bool one_sided, Traversal traversal) {
     RuntimeCost cost;
     size_t n = points.size() / 3;
-    cost.lights = uint32_t(lights.size() / 3);
+    const uint32_t point_lights = uint32_t(lights.size() / 3);
+    cost.lights = point_lights + uint32_t(suns.size() / 3);
     SceneQueryOptions options;
     options.one_sided = one_sided;
     options.traversal = traversal;
     options.threads = 1;  // the rates are per thread
     for (uint32_t l = 0; l < cost.lights; ++l) {
+        options.sun = l >= point_lights;
+        const double* light = options.sun ? &suns[size_t(l - point_lights) * 3] : &lights[size_t(l) * 3];
         std::vector<double> build_times, query_times;
         for (int r = 0; r < std::max(1, runs); ++r) {
-            SceneQueryResult q = query_scene(view, &lights[size_t(l) * 3], points.data(), n, options);
+            SceneQueryResult q = query_scene(view, light, points.data(), n, options);
             build_times.push_back(q.build_seconds), query_times.push_back(q.query_seconds);
             if (r == 0) {  // the counts are the same every run
                 cost.stats.nodes_visited += q.stats.nodes_visited,

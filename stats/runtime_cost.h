@@ -24,6 +24,10 @@ struct Camera {
 // Looking at the centre of the world box [lo, hi] from a diagonal above it, the box's corners just in view.
 Camera default_camera(const double* lo, const double* hi, uint32_t width, uint32_t height);
 
+// Where the ray o + t v (t >= 0) enters box b, INFINITY when it misses: in double, each half extent widened
+// by 1e-9 of itself and 1e-12, so that grazing rays do not slip between neighbouring boxes.
+double ray_box_entry(const Obb& b, const double* o, const double* v);
+
 // The world point each pixel's ray first hits (xyz per pixel, NaN where it hits nothing): a double-precision
 // ray cast over the triangles of the fine clusters whose box the ray meets, coarse boxes first. Needs fine
 // and coarse OBBs.
@@ -33,9 +37,9 @@ std::vector<double> first_hits(const BakedScene& baked, const Camera& camera, un
 std::vector<double> hit_points(const std::vector<double>& hits);
 
 struct RuntimeCost {
-    double build_seconds = 0;  // all instances' trees for one light: median over runs, mean over lights
-    double query_seconds = 0;  // every point once, one thread: median over runs, mean over lights
-    uint64_t queries = 0;      // points x lights
+    double build_seconds = 0;  // all instances' trees for one light: median over runs, mean over lights and suns
+    double query_seconds = 0;  // every point once, one thread: median over runs, mean over lights and suns
+    uint64_t queries = 0;      // points x (lights + suns)
     uint64_t shadowed = 0;
     QueryStats stats;  // summed over points and lights
     // A shadowed query stops at its one blocking cluster; every other cluster test found nothing.
@@ -45,13 +49,15 @@ struct RuntimeCost {
     double queries_per_second() const {
         return query_seconds > 0 && queries ? double(queries) / double(lights) / query_seconds : 0;
     }
-    uint32_t lights = 0;
+    uint32_t lights = 0;  // point lights and suns
 };
 
-// For each light (xyz triples, world), builds every instance's structure and queries every point (xyz,
-// world) on one thread, `runs` times, through query_scene with the given traversal.
-RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& lights, const std::vector<double>& points,
-                            int runs, bool one_sided = false, Traversal traversal = Traversal::scan);
+// For each light (xyz triples, world) and each sun (xyz toward it), builds every instance's structure and
+// queries every point (xyz, world) on one thread, `runs` times, through query_scene with the given traversal
+// (a sun has its own).
+RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& lights, const std::vector<double>& suns,
+                            const std::vector<double>& points, int runs, bool one_sided = false,
+                            Traversal traversal = Traversal::scan);
 
 // Per point, the cluster tests whose triangles did not block it (the heat map's figure), on `threads`
 // threads (0: all); the counts do not depend on them.

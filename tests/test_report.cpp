@@ -15,9 +15,13 @@
 #include <set>
 #include <sstream>
 
+#include "asset_file.h"
+#include "baked_scene.h"
 #include "plot_checks.h"
 #include "png_writer.h"
 #include "report.h"
+#include "runtime_cost.h"
+#include "scene_query.h"
 #include "stats_helpers.h"
 #include "svg_plot.h"
 
@@ -225,6 +229,71 @@ TEST(Report, OverTheMemoryBudgetConfigurationsAreMeasuredOneAtATime) {
         EXPECT_EQ(a.useless_per_query, b.useless_per_query);
         EXPECT_EQ(a.triangles_per_query, b.triangles_per_query);
     }
+}
+
+TEST(Report, SunsCountAsTheirExactReferenceCounts) {
+    // The runtime cost over suns, beside a light or alone: the sun's traversal on the camera's points, its
+    // shadowed count that of the exact reference for each sun.
+    cb::Scene scene = cb::load_scene(data("default_scene.glb"));
+    cb::BoundsOptions bounds;
+    bounds.mask = cb::bounds_auto;
+    cb::BakedScene baked = cb::bake_in_memory(scene, {}, bounds);
+    cb::LoadedAsset asset;
+    ASSERT_EQ(cb::open_asset_copy(cb::encode_asset(baked.meshes, baked.instances), asset), cb::AssetError::ok);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (const cb::Instance& inst : scene.instances) {
+        const cb::Mesh& m = scene.meshes[inst.mesh];
+        for (size_t v = 0; v < m.vertex_count(); ++v) {
+            auto p =
+                cb::transform_point(inst.world, m.positions[v * 3], m.positions[v * 3 + 1], m.positions[v * 3 + 2]);
+            for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
+        }
+    }
+    const std::vector<double> points = cb::hit_points(cb::first_hits(baked, cb::default_camera(lo, hi, 96, 96)));
+    const size_t n = points.size() / 3;
+    ASSERT_GT(n, 1000u);
+    auto reference_count = [&](const double* light, bool sun) {
+        cb::SceneQueryOptions o;
+        o.reference = true, o.sun = sun;
+        const std::vector<uint8_t> s = cb::query_scene(asset.view, light, points.data(), n, o).shadowed;
+        return uint64_t(std::count(s.begin(), s.end(), uint8_t(1)));
+    };
+    const std::vector<double> suns = cb::report_suns(2), lights = cb::report_lights(lo, hi, 1);
+    const uint64_t high = reference_count(&suns[0], true), low = reference_count(&suns[3], true);
+    EXPECT_GT(high, 0u);
+    EXPECT_GT(low, high);  // the low sun's shadows are longer
+    const cb::RuntimeCost alone = cb::measure_runtime(asset.view, {}, suns, points, 1);
+    EXPECT_EQ(alone.lights, 2u);
+    EXPECT_EQ(alone.queries, 2 * n);
+    EXPECT_EQ(alone.shadowed, high + low);
+    const cb::RuntimeCost beside = cb::measure_runtime(asset.view, lights, suns, points, 1, true);
+    cb::SceneQueryOptions one_sided;
+    one_sided.reference = true, one_sided.one_sided = true;
+    uint64_t expected = 0;
+    for (const double* light : {&lights[0], &suns[0], &suns[3]}) {
+        one_sided.sun = light != &lights[0];
+        const std::vector<uint8_t> s = cb::query_scene(asset.view, light, points.data(), n, one_sided).shadowed;
+        expected += uint64_t(std::count(s.begin(), s.end(), uint8_t(1)));
+    }
+    EXPECT_EQ(beside.lights, 3u);
+    EXPECT_EQ(beside.shadowed, expected);
+
+    // Through the command line: suns alone, and no light at all refused.
+    fs::path out = fs::path(CB_TEST_OUTPUT) / "report_suns";
+    const std::string quick =
+        " --method kmeans --fine 16 --obb refined --traversal scan --runs 1 --query-runs 1 --view 24 -q --json";
+    CliRun r = run_cli("report " + data("default_scene.glb") + " -o " + out.string() + quick + " --lights 0 --suns 2");
+    ASSERT_EQ(r.code, 0) << r.err;
+    nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["options"]["suns"], 2);
+    EXPECT_EQ(j["scenes"][0]["suns"].size(), 6u);
+    EXPECT_EQ(j["scenes"][0]["lights"].size(), 0u);
+    EXPECT_GT(j["scenes"][0]["configs"][0]["queries_per_second"].get<double>(), 0);
+    EXPECT_GT(j["scenes"][0]["configs"][0]["shadowed_share"].get<double>(), 0);
+    CliRun none = run_cli("report " + data("default_scene.glb") + " -o " + out.string() + quick + " --lights 0");
+    EXPECT_EQ(none.code, 2);
+    EXPECT_NE(none.err.find("nothing lights the queries"), std::string::npos) << none.err;
+    fs::remove_all(out);
 }
 
 TEST(Report, BadInputIsOneLineNamingTheFile) {

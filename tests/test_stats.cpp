@@ -62,13 +62,17 @@ TEST(Stats, SingleClusterCube) {
         // them (only points within the self-shadowing distance of a face escape).
         EXPECT_GT(l->volume_samples, 100u);
         EXPECT_LT(l->useless_share, 0.02);
+        // The same for suns: no cone to skip by, and every ray from the cube's prism passes through it.
+        EXPECT_EQ(l->sun_skip_share, 0.0);
+        EXPECT_GT(l->sun_prism_samples, 100u);
+        EXPECT_LT(l->sun_useless_share, 0.02);
     }
     EXPECT_EQ(s.triangles, 12u);
 }
 
 TEST(Stats, OneTriangle) {
     cb::StatsOptions so;
-    so.lights = 200;
+    so.lights = 200, so.suns = 200;
     cb::SceneStats s = stats_of(scene_of(mesh_of({0, 0, 0, 1, 0, 0, 0, 1, 0}, {0, 1, 2})), 16, so);
     const cb::LevelStats& f = s.fine;
     EXPECT_EQ(f.clusters, 1u);
@@ -80,6 +84,7 @@ TEST(Stats, OneTriangle) {
     EXPECT_NEAR(f.normal_cone_degrees.max, 0.0, 1e-3);
     // Lights all around a flat triangle: about half are on its front side, and those skip it.
     EXPECT_NEAR(f.light_skip_share, 0.5, 0.1);
+    EXPECT_NEAR(f.sun_skip_share, 0.5, 0.1);  // suns from every direction: half see its front
     // A flat scene has no volume: relative volume cannot be computed (NaN, null in JSON).
     EXPECT_TRUE(std::isnan(f.obb_volume_relative));
     EXPECT_TRUE(cb::to_json(s)["fine"]["obb"]["volume_relative_to_scene"].is_null());
@@ -143,6 +148,8 @@ TEST(Stats, ScannedMeshesFinerIsTighter) {
     EXPECT_LT(s8.fine.obb_volume_relative, s32.fine.obb_volume_relative);
     EXPECT_LT(s8.fine.useless_share, s32.fine.useless_share);
     EXPECT_GT(s8.fine.light_skip_share, s32.fine.light_skip_share);  // narrower cones skip more often
+    EXPECT_LT(s8.fine.sun_useless_share, s32.fine.sun_useless_share);
+    EXPECT_GT(s8.fine.sun_skip_share, s32.fine.sun_skip_share);
 }
 
 TEST(StatsCli, JsonIsWellFormedAndDeterministic) {
@@ -155,7 +162,7 @@ TEST(StatsCli, JsonIsWellFormedAndDeterministic) {
     for (const char* level : {"coarse", "fine"}) {
         ASSERT_TRUE(j.contains(level));
         for (const char* key : {"clusters", "triangles", "vertices", "components", "obb", "fill", "normal_cone_degrees",
-                                "no_cone_share", "light_skip_share", "shadow_volume"})
+                                "no_cone_share", "light_skip_share", "shadow_volume", "sun_skip_share", "sun_prism"})
             EXPECT_TRUE(j[level].contains(key)) << level << "." << key;
     }
     EXPECT_EQ(j["input"], "scene");
@@ -164,6 +171,7 @@ TEST(StatsCli, JsonIsWellFormedAndDeterministic) {
     ASSERT_EQ(text.code, 0);
     EXPECT_NE(text.out.find("fine: "), std::string::npos);
     EXPECT_NE(text.out.find("shadow volumes:"), std::string::npos);
+    EXPECT_NE(text.out.find("sun prisms:"), std::string::npos);
 }
 
 // Equal JSON, except that numbers may differ in their last digits: the asset stores its vertices in

@@ -162,6 +162,11 @@ def test_stats_equal_the_command_line(scene_asset, scene_asset_file):
     printed.pop("file")
     assert ours == printed
     assert ours["fine"]["clusters"] == scene_asset.info["fine_clusters"]
+    assert ours["fine"]["sun_prism"]["samples"] > 0
+    _, out, _ = run_cli("stats", scene_asset_file, "--json", "-q", "--samples", "4", "--sample-suns", "3")
+    printed = json.loads(out)
+    printed.pop("file")
+    assert scene_asset.stats(samples=4, sample_suns=3) == printed
 
 
 def traced_peak(call):

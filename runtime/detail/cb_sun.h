@@ -35,6 +35,8 @@ public:
         view_ = &view;
         one_sided_ = options.one_sided;
         coarse_.clear();
+        coarse_skipped_.clear();
+        skipped_ = 0;
         for (int k = 0; k < 3; ++k) world_toward_[k] = toward[k];
         const double bias = options.bias > 0 ? options.bias : default_shadow_bias(asset_world_size(view));
         from_ = finite3(toward) ? sun_from(toward, bias) : NAN;
@@ -57,7 +59,13 @@ public:
         start_ = blocking_start(from_) * std::sqrt(math::dot3(toward_, toward_)) * (1 - 1e-6);
         boxes_small_ = s.extent < float_safe && start_ < float_safe;
         coarse_.resize(mesh_->coarse_count);
-        for (uint32_t c = 0; c < mesh_->coarse_count; ++c) coarse_[c] = across(s.coarse_first + c);
+        coarse_skipped_.assign(mesh_->coarse_count, 0);
+        for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
+            coarse_[c] = across(s.coarse_first + c);
+            if (one_sided_ &&
+                faces_the_sun(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangle_range(view, *mesh_, c)))
+                skipped_ += view.coarse[mesh_->first_coarse + c].count, coarse_skipped_[c] = 1;
+        }
     }
 
     bool sun() const { return true; }
@@ -65,9 +73,11 @@ public:
     size_t stack_size() const { return 4; }                      // no tree: the stack is passed along only
     size_t node_count() const { return 0; }
     size_t always_tested() const { return 0; }
-    size_t skipped_clusters() const { return 0; }
+    size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the sun sees from the front
     size_t capsules() const { return 0; }
-    size_t memory_bytes() const { return own_bounds_.memory_bytes() + coarse_.capacity() * sizeof(Sphere); }
+    size_t memory_bytes() const {
+        return own_bounds_.memory_bytes() + coarse_.capacity() * sizeof(Sphere) + coarse_skipped_.capacity();
+    }
 
     // True when the ray from world point p toward the sun is blocked by this instance.
     bool occluded(const double* world_p, uint32_t* stack, QueryStats* stats = nullptr) const {
@@ -148,6 +158,16 @@ private:
     };
 
     const ScanBounds& bounds() const { return shared_bounds_ ? *shared_bounds_ : own_bounds_; }
+
+    // One-sided: a cluster the sun sees entirely from the front, with no double-sided triangle.
+    bool faces_the_sun(const LevelBounds& b, uint32_t index, IndexRange triangles) const {
+        return b.cones && sun_in_front_cone(b.cone(index), toward_) && all_single_sided(*view_, *mesh_, triangles);
+    }
+    bool fine_faces_the_sun(uint32_t f) const {
+        if (!one_sided_) return false;
+        const FineCluster& r = view_->fine[mesh_->first_fine + f];
+        return faces_the_sun(view_->fine_bounds, mesh_->first_fine + f, {r.first_triangle, r.triangle_count});
+    }
 
     // Sphere i of bounds() in the sun's frame.
     Sphere across(uint32_t i) const {
@@ -285,7 +305,7 @@ private:
         make_prism(t, t.alive, bounds().extent);
         for (uint32_t c = 0; c < mesh_->coarse_count && t.alive; ++c) {
             const Sphere& s = coarse_[c];
-            if (!meets_prism(s, t)) continue;
+            if (coarse_skipped_[c] || !meets_prism(s, t)) continue;
             const uint64_t points = points_near_box(bounds().coarse_obbs[c], sphere_points(s, t.alive, t), t);
             if (!points) continue;
             if (t.entered_count == Tile::entered_capacity) walk_entered(t);
@@ -305,7 +325,7 @@ private:
             const ClusterRange& r = view_->coarse[mesh_->first_coarse + t.entered[e].id];
             for (uint32_t f = r.first; f < r.first + r.count; ++f) {
                 const Sphere sphere = across(f);
-                if (!meets_prism(sphere, t)) continue;
+                if (!meets_prism(sphere, t) || fine_faces_the_sun(f)) continue;
                 const uint64_t points =
                     points_near_box(bounds().fine_obbs[f], sphere_points(sphere, in & t.alive, t), t);
                 if (!points) continue;
@@ -356,7 +376,9 @@ private:
     static constexpr double float_safe = 1e9;  // sizes below which the float box filter cannot overflow
     const ScanBounds* shared_bounds_ = nullptr;
     ScanBounds own_bounds_;
-    std::vector<Sphere> coarse_;  // the coarse spheres in the sun's frame
+    std::vector<Sphere> coarse_;           // the coarse spheres in the sun's frame
+    std::vector<uint8_t> coarse_skipped_;  // one-sided: coarse clusters the sun sees from the front
+    size_t skipped_ = 0;
 };
 
 }  // namespace CB_LANES

@@ -104,6 +104,22 @@ struct IndexRange {
     uint32_t first = 0, count = 0;
 };
 
+// The triangles of coarse cluster c of a mesh: its fine clusters' triangles follow one another.
+inline IndexRange coarse_triangle_range(const AssetView& v, const MeshRecord& mesh, uint32_t c) {
+    const ClusterRange& r = v.coarse[mesh.first_coarse + c];
+    const FineCluster& a = v.fine[mesh.first_fine + r.first];
+    const FineCluster& z = v.fine[mesh.first_fine + r.first + r.count - 1];
+    return {a.first_triangle, z.first_triangle + z.triangle_count - a.first_triangle};
+}
+
+// No triangle of the range is double-sided: a light that sees them all from the front cannot be blocked by
+// them one-sided.
+inline bool all_single_sided(const AssetView& v, const MeshRecord& mesh, IndexRange triangles) {
+    for (uint32_t t = triangles.first; t < triangles.first + triangles.count; ++t)
+        if (v.double_sided(size_t(mesh.first_triangle) + t)) return false;
+    return true;
+}
+
 // A frame about the direction m (its length does not matter): frame[0] the unit z along m, frame[1] and
 // frame[2] unit axes across it (z x the coordinate axis m leans along least, then z x that). False when m
 // has no length (or is not finite). Tiles of points (TraversalBase) and a level's tiles (cb_level.h) take
@@ -550,19 +566,12 @@ protected:
         return fine_obbs ? fine_obbs[f] : view_->fine_bounds.obb(mesh_->first_fine + f);
     }
 
-    IndexRange coarse_triangles(uint32_t c) const {
-        const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
-        const FineCluster& a = view_->fine[mesh_->first_fine + r.first];
-        const FineCluster& z = view_->fine[mesh_->first_fine + r.first + r.count - 1];
-        return {a.first_triangle, z.first_triangle + z.triangle_count - a.first_triangle};
-    }
+    IndexRange coarse_triangles(uint32_t c) const { return coarse_triangle_range(*view_, *mesh_, c); }
 
     // One-sided: a cluster the light sees entirely from the front, with no double-sided triangle.
     bool skippable(const LevelBounds& bounds, uint32_t index, IndexRange triangles) const {
-        if (!bounds.cones || !light_in_front_cone(bounds.cone(index), light_)) return false;
-        for (uint32_t t = triangles.first; t < triangles.first + triangles.count; ++t)
-            if (view_->double_sided(size_t(mesh_->first_triangle) + t)) return false;
-        return true;
+        return bounds.cones && light_in_front_cone(bounds.cone(index), light_) &&
+            all_single_sided(*view_, *mesh_, triangles);
     }
 
     bool skippable_fine(uint32_t f) const {
