@@ -928,37 +928,29 @@ inline size_t cull_clusters(const Level& level, const Frustum& f, bool backface,
     return count;
 }
 
+// The level's live instances, in handle order, for reference_query (cb_shadow.h).
+inline auto level_placements(const Level& level) {
+    return [&level](auto visit) {
+        for (uint32_t h = 0; h < level.handle_limit(); ++h)
+            if (level.alive(h) && !visit(level.asset(level.asset_of(h)), level.placement(h))) return;
+    };
+}
+
 // The reference query over a level: every live instance, in handle order, as instance_occludes_reference
 // (cb_shadow.h) tests it, with the self-shadowing `bias` (zero or less: the level's shadow_bias()); no
 // hierarchy, no per-light structure. Returns true when p is in shadow.
 inline bool occluded_reference(const Level& level, const double* p, const double* light, double bias,
                                bool one_sided = false, QueryStats* stats = nullptr) {
-    bool touched = false, blocked = false;
-    if (!finite3(p) || !finite3(light)) return false;  // nothing is in shadow of, or from, a point at infinity
-    const double from = shadow_from(p, light, bias > 0 ? bias : level.shadow_bias());
-    if (!may_block(from)) return false;
-    for (uint32_t h = 0; h < level.handle_limit() && !blocked; ++h)
-        if (level.alive(h))
-            blocked = instance_occludes_reference(level.asset(level.asset_of(h)), level.placement(h), p, light, from,
-                                                  one_sided, stats, &touched);
-    if (stats && touched) ++stats->touching;
-    return blocked;
+    return reference_query(level_placements(level), p, light, bias > 0 ? bias : level.shadow_bias(), false, one_sided,
+                           stats);
 }
 
 // The sun's reference query over a level (cb_shadow.h, occluded_sun_reference), every live instance in
 // handle order, with the self-shadowing `bias` (zero or less: the level's shadow_bias()).
 inline bool occluded_sun_reference(const Level& level, const double* p, const double* toward, double bias,
                                    bool one_sided = false, QueryStats* stats = nullptr) {
-    bool touched = false, blocked = false;
-    if (!finite3(p) || !finite3(toward)) return false;
-    const double from = sun_from(toward, bias > 0 ? bias : level.shadow_bias());
-    if (!(from < INFINITY)) return false;
-    for (uint32_t h = 0; h < level.handle_limit() && !blocked; ++h)
-        if (level.alive(h))
-            blocked = instance_occludes_sun_reference(level.asset(level.asset_of(h)), level.placement(h), p, toward,
-                                                      from, one_sided, stats, &touched);
-    if (stats && touched) ++stats->touching;
-    return blocked;
+    return reference_query(level_placements(level), p, toward, bias > 0 ? bias : level.shadow_bias(), true, one_sided,
+                           stats);
 }
 
 }  // namespace CB_LANES

@@ -147,7 +147,9 @@ inline SegmentTest ray_triangle(const double* p, const double* d, const double* 
         const exact::Row rows[3] = {{p, v}, {d, nullptr}, {u, v}};
         return exact::det3_sign(rows);
     };
-    const int e0 = edge(a, b), e1 = edge(b, c), e2 = edge(c, a);
+    const int e0 = edge(a, b), e1 = edge(b, c);
+    if (e0 * e1 < 0) return r;  // two edges of opposite strict signs: a miss, whatever the third
+    const int e2 = edge(c, a);
     if ((e0 > 0 || e1 > 0 || e2 > 0) && (e0 < 0 || e1 < 0 || e2 < 0)) return r;
     const bool touching = sp == 0 || e0 == 0 || e1 == 0 || e2 == 0;
     auto answer = [&](bool blocks) {

@@ -357,15 +357,9 @@ private:
         }
     }
 
-    // One point in the mesh's frame, as the reference walks it: every fine cluster whose box the ray may touch.
+    // One point in the mesh's frame, as the reference walks it.
     bool walk_alone(const double* p, QueryStats* stats) const {
-        for (uint32_t f = 0; f < mesh_->fine_count; ++f) {
-            if (view_->fine_bounds.obbs &&
-                !ray_may_touch_box(view_->fine_bounds.obb(mesh_->first_fine + f), p, toward_, blocking_start(from_)))
-                continue;
-            if (cluster_blocks_sun(*view_, *mesh_, f, p, toward_, from_, one_sided_, stats, nullptr)) return true;
-        }
-        return false;
+        return mesh_occludes_reference(*view_, *mesh_, p, toward_, true, from_, one_sided_, stats, nullptr);
     }
 
     const AssetView* view_ = nullptr;
