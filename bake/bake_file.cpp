@@ -27,7 +27,8 @@ std::vector<std::string> source_names(const char* text, size_t size) {
 }
 
 // True, with the result filled from the stored asset, when `output` holds an asset whose source section is
-// the one this request would write.
+// the one this request would write: the same build id (line 1), options and input bytes. An asset written
+// before source sections carried a build id, or by another build, is baked again.
 bool up_to_date(const BakeRequest& r, BakeResult& result) {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(r.output, ec)) return false;
@@ -157,7 +158,8 @@ std::string options_text(const ClusterOptions& clustering, const BoundsOptions& 
 
 std::string source_text(const SourceFiles& source, const ClusterOptions& clustering, const BoundsOptions& bounds,
                         bool fit) {
-    std::string out = std::string(tool_version()) + ", asset format " + std::to_string(asset_version) + "\n";
+    std::string out = std::string(tool_version()) + ", asset format " + std::to_string(asset_version) + ", build " +
+        build_id() + "\n";
     out += options_text(clustering, bounds, fit) + "\n";
     out += "input xxh3-128 " + source.hash + ", " + std::to_string(source.bytes) + " bytes\n";
     for (const std::string& name : source.names) out += "file " + name + "\n";

@@ -1,6 +1,6 @@
 // One scene file to one asset file, as `clusterbake bake` and `clusterbake batch` both do it: load, cluster,
 // fit, encode with a source section, write atomically. With `if_changed`, an output made from the same
-// input bytes, options and tool is kept and the bake skipped.
+// input bytes, options and build of the tool is kept and the bake skipped.
 #pragma once
 
 #include <cstdint>
@@ -17,6 +17,11 @@ namespace cb {
 
 // "clusterbake 0.1.2": the tool version written into every source section.
 const char* tool_version();
+
+// The build id, 16 lowercase hex digits: a hash of the sources the bake and the command line are compiled
+// from (bake/CMakeLists.txt), the same for every build of one source tree. Written into every source
+// section, so that an output another build made is not taken as up to date.
+const char* build_id();
 
 struct BakeRequest {
     std::string input, output;
@@ -48,7 +53,8 @@ struct BakeResult {
 // bounds options. Not the thread count, which changes nothing in the output, nor another method's options.
 std::string options_text(const ClusterOptions& clustering, const BoundsOptions& bounds, bool fit);
 
-// The source section's text (docs/FORMAT.md): the tool, the options, the input hash and the files.
+// The source section's text (docs/FORMAT.md): the tool and its build id, the options, the input hash and the
+// files.
 std::string source_text(const SourceFiles& source, const ClusterOptions& clustering, const BoundsOptions& bounds,
                         bool fit);
 

@@ -30,8 +30,8 @@ int main(int argc, char** argv) {
         } catch (const std::exception& e) {
             lanes = e.what();
         }
-        return "clusterbake " CB_VERSION " (asset format " + std::to_string(cb::asset_version) +
-            ", shadow queries on " + lanes + " lanes)";
+        return "clusterbake " CB_VERSION " (asset format " + std::to_string(cb::asset_version) + ", build " +
+            cb::build_id() + ", shadow queries on " + lanes + " lanes)";
     });
     using namespace cb::cli;
     const Command commands[] = {add_info(app),  add_cluster(app),     add_bake(app),    add_batch(app),

@@ -29,7 +29,8 @@ struct RenderArgs {
     std::string asset, out, light, sun, area_light, area_shape = "square", eye, target, up, size = "640x480";
     std::string write_points;
     double fov = 0, bias = 0;
-    bool one_sided = false, compare = false, force = false, json = false, quiet = false;
+    unsigned aa = 0;  // 0: not given
+    bool one_sided = false, compare = false, ground = false, force = false, json = false, quiet = false;
     unsigned threads = 0;
 };
 
@@ -141,6 +142,20 @@ bool parse_render(const CLI::App* c, const RenderArgs& a, cb::RenderOptions& o) 
         return usage_ok("--fov takes degrees above 0 and below 170 (got " + std::to_string(a.fov) + ")");
     o.fov_degrees = a.fov;
     if (!parse_size(a.size, o.width, o.height)) return false;
+    // Samples: at most 4096 x 4096 of them, as the largest picture of one sample a pixel. By default 2 x 2
+    // a pixel, or 1 where that would be more.
+    const uint64_t pixels = uint64_t(o.width) * o.height, most = uint64_t(4096) * 4096;
+    if (!first_given(c, {"--aa"}).empty()) {
+        if (a.aa < 1 || a.aa > 4)
+            return usage_ok("--aa takes 1 to 4 samples a pixel side (got " + std::to_string(a.aa) + ")");
+        if (pixels * a.aa * a.aa > most)
+            return usage_ok("--aa " + std::to_string(a.aa) + " at --size " + a.size +
+                            " is over 4096 x 4096 samples; a smaller --aa or --size");
+        o.aa = a.aa;
+    } else {
+        o.aa = pixels * 4 <= most ? 2 : 1;
+    }
+    o.ground = a.ground;
     o.one_sided = a.one_sided;
     o.compare = a.compare;
     o.threads = a.threads;
@@ -206,7 +221,14 @@ void print_json(const RenderArgs& a, const cb::RenderOptions& o, const cb::Rende
                         {"bias", r.bias},
                         {"lights", r.lights.size() / 3},
                         {"light_positions", r.lights},
-                        {"pixels_covered", r.points.size() / 3},
+                        {"aa", r.aa},
+                        {"pixels_covered", r.pixels_covered},
+                        {"points", r.points.size() / 3},
+                        {"framed_box",
+                         {{"lo", {r.frame_lo[0], r.frame_lo[1], r.frame_lo[2]}},
+                          {"hi", {r.frame_hi[0], r.frame_hi[1], r.frame_hi[2]}}}},
+                        {"ground_instances", r.ground_instances},
+                        {"ground", r.ground},
                         {"clusters_drawn", r.clusters_drawn},
                         {"triangles_drawn", r.triangles_drawn},
                         {"queries", r.queries},
@@ -242,12 +264,17 @@ void print_json(const RenderArgs& a, const cb::RenderOptions& o, const cb::Rende
 }
 
 void print_summary(const RenderArgs& a, const cb::RenderOptions& o, const cb::RenderResult& r) {
-    const size_t lights = r.lights.size() / 3, covered = r.points.size() / 3;
+    const size_t lights = r.lights.size() / 3, points = r.points.size() / 3;
     const LightTimes t = light_times(r);
     std::printf(
-        "%s -> %s (%ux%u, %.1f degrees): %zu pixels see the scene; %llu clusters, %llu triangles drawn in %.3f s\n",
-        a.asset.c_str(), a.out.c_str(), r.width, r.height, r.fov_degrees, covered, (unsigned long long)r.clusters_drawn,
-        (unsigned long long)r.triangles_drawn, r.visibility_seconds);
+        "%s -> %s (%ux%u, %.1f degrees, %ux%u samples a pixel): %llu pixels see the scene, %zu points%s; %llu "
+        "clusters, %llu triangles drawn in %.3f s\n",
+        a.asset.c_str(), a.out.c_str(), r.width, r.height, r.fov_degrees, r.aa, r.aa,
+        (unsigned long long)r.pixels_covered, points, r.ground ? " (ground plane added)" : "",
+        (unsigned long long)r.clusters_drawn, (unsigned long long)r.triangles_drawn, r.visibility_seconds);
+    if (r.ground_instances)
+        std::printf("  framed the objects: %zu ground instance%s left out of the framed box\n", r.ground_instances,
+                    r.ground_instances == 1 ? "" : "s");
     std::printf("  %zu %s%s: %.2f%% of %llu point-light pairs in shadow (%s occluders)\n", lights,
                 o.sun             ? "sun"
                     : lights == 1 ? "light"
@@ -327,17 +354,26 @@ Command add_render(CLI::App& app) {
     c->add_option("asset", a->asset, "Asset (.cbk), or a level file placing several (JSON, docs/RUNTIME.md)")
         ->required();
     c->add_option("-o,--output", a->out, "Output PNG (written atomically)")->required();
-    c->add_option("--light", a->light, "Point light X,Y,Z (default: above the scene, as the report's first light)");
+    c->add_option("--light", a->light,
+                  "Point light X,Y,Z (default: above the framed objects, 45 degrees to the camera's left, 50 up)");
     c->add_option("--sun", a->sun, "A sun: a light at infinity, X,Y,Z the world direction toward it (any length)");
     c->add_option("--area-light", a->area_light,
                   "Area light X,Y,Z,SIZE,N: a square of side SIZE (or a disc of that diameter) centred at X,Y,Z and "
                   "facing the scene's centre, sampled by N point lights (1 to 4096) on a jittered grid");
     c->add_option("--area-shape", a->area_shape, "square (default) or disc")->check(CLI::IsMember({"square", "disc"}));
-    c->add_option("--eye", a->eye, "Camera position X,Y,Z (default: a diagonal above the scene)");
-    c->add_option("--target", a->target, "Point the camera looks at X,Y,Z (default: the scene's centre)");
+    c->add_option("--eye", a->eye,
+                  "Camera position X,Y,Z (default: a diagonal above the scene, or its objects when a ground is "
+                  "left out)");
+    c->add_option("--target", a->target, "Point the camera looks at X,Y,Z (default: the framed box's centre)");
     c->add_option("--up", a->up, "Direction kept upright in the picture X,Y,Z (default 0,1,0)");
     c->add_option("--fov", a->fov, "Vertical field of view in degrees (default: what holds the whole scene)");
     c->add_option("--size", a->size, "Picture size W or WxH in pixels, 16 to 4096 (default 640x480)");
+    c->add_option("--aa", a->aa,
+                  "Anti-aliasing: N x N samples a pixel on a regular grid, 1 to 4 (default 2; 1 above 2048x2048 "
+                  "pixels)");
+    c->add_flag("--ground", a->ground,
+                "Add a ground plane just under the scene's box, lit and shadowed as the scene (the asset is "
+                "unchanged)");
     c->add_flag("--one-sided", a->one_sided,
                 "One-sided occluders: a triangle blocks only when the light is behind it "
                 "(double-sided glTF primitives stay two-sided)");

@@ -496,6 +496,7 @@ PYBIND11_MODULE(clusterbake, m) {
         "them.";
     m.attr("__version__") = std::string(cb::tool_version()).substr(std::strlen("clusterbake "));
     m.attr("asset_format") = cb::asset_version;
+    m.attr("build_id") = std::string(cb::build_id());  // in every source section, as the command line's
 
     py::class_<Asset, AssetPtr>(m, "Asset", "A baked asset, held in memory and validated as the runtime reads it.")
         .def_static("open", &open_asset_file, py::arg("path"), "Reads and validates an asset file (.cbk).")

@@ -258,7 +258,10 @@ TEST(BatchSource, BakeFileKeepsOnlyOutputsMadeFromTheSameInputsOptionsAndTool) {
     std::string error;
     ASSERT_TRUE(cb::read_asset_file(r.output, asset, error)) << error;
     std::string source(asset.view.source, asset.view.source_size);
-    EXPECT_EQ(source.find(std::string(cb::tool_version()) + ", asset format 3\nbake --method kmeans"), 0u) << source;
+    EXPECT_EQ(source.find(std::string(cb::tool_version()) + ", asset format 3, build " + cb::build_id() +
+                          "\nbake --method kmeans"),
+              0u)
+        << source;
     EXPECT_NE(source.find("\nfile tri.gltf\nfile tri.bin\n"), std::string::npos) << source;
 
     cb::BakeRequest threads = r;

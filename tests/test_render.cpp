@@ -13,6 +13,7 @@
 #include <cmath>
 #include <filesystem>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include "area_light.h"
@@ -188,9 +189,12 @@ TEST(Render, DefaultSceneShadowsAgreeWithQuery) {
     const Rgb img = read_png(png);
     ASSERT_EQ(img.width, 320u);
     ASSERT_EQ(img.height, 240u);
-    const uint64_t covered = j["pixels_covered"];
+    const uint64_t covered = j["pixels_covered"], asked = j["points"];
     EXPECT_GT(covered, 320u * 240u / 8);
     EXPECT_GE(scene_pixels(img), covered * 9 / 10);
+    EXPECT_EQ(j["aa"], 2) << "2 x 2 samples a pixel by default";
+    EXPECT_GT(asked, 3 * covered);
+    EXPECT_LE(asked, 4 * covered);
     EXPECT_GT(cb::test::grey_variance(img), 50);
     std::set<uint32_t> shades;
     for (size_t i = 0; i < img.pixels.size(); i += 3)
@@ -199,20 +203,28 @@ TEST(Render, DefaultSceneShadowsAgreeWithQuery) {
 
     // The same points asked of clusterbake query: the same number in shadow, one-sided too.
     const std::string text = cb::test::slurp(points);
-    EXPECT_EQ(line_count(text), covered);
-    EXPECT_EQ(j["queries"], covered);
+    EXPECT_EQ(line_count(text), asked);
+    EXPECT_EQ(j["queries"], asked);
     const uint64_t shadowed = j["shadowed"];
     EXPECT_GT(shadowed, 0u);
-    EXPECT_LT(shadowed, covered);
+    EXPECT_LT(shadowed, asked);
     EXPECT_EQ(query_shadowed(points, light_text(j["light"])), shadowed);
-    EXPECT_DOUBLE_EQ(j["shadowed_fraction"].get<double>(), double(shadowed) / double(covered));
+    EXPECT_DOUBLE_EQ(j["shadowed_fraction"].get<double>(), double(shadowed) / double(asked));
 
-    // --up turns the default light with it: a quarter turn about x takes +y to +z.
-    CliRun up =
-        run_cli("render " + default_asset + " -o " + (dir / "z_up.png").string() + " --size 64 --up 0,0,1 --json -q");
-    ASSERT_EQ(up.code, 0) << up.err;
-    const std::vector<double> l = j["light"], turned = nlohmann::json::parse(up.out)["light"];
-    const double centre[3] = {0, 0.5 * (-0.163507044 + 2.19828421), 0};  // the world box's (info)
+    // --up turns the default camera, and the light placed from it, about the framed box's centre: a quarter
+    // turn about x takes +y to +z. An object alone (the default scene's ground is flat along y, not z).
+    const std::string cube = (dir / "cube.cbk").string();
+    ASSERT_EQ(run_cli("bake " + std::string(CB_SOURCE_DIR) + "/data/small/cube.obj -o " + cube + " -q").code, 0);
+    CliRun y_up = run_cli("render " + cube + " -o " + (dir / "cube.png").string() + " --size 64 --json -q");
+    CliRun z_up =
+        run_cli("render " + cube + " -o " + (dir / "cube_z_up.png").string() + " --size 64 --up 0,0,1 --json -q");
+    ASSERT_EQ(y_up.code, 0) << y_up.err;
+    ASSERT_EQ(z_up.code, 0) << z_up.err;
+    const nlohmann::json a = nlohmann::json::parse(y_up.out), b = nlohmann::json::parse(z_up.out);
+    EXPECT_EQ(a["framed_box"], b["framed_box"]);
+    const std::vector<double> l = a["light"], turned = b["light"], lo = a["framed_box"]["lo"],
+                              hi = a["framed_box"]["hi"];
+    const double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
     EXPECT_NEAR(turned[0], l[0], 1e-9);
     EXPECT_NEAR(turned[1] - centre[1], -(l[2] - centre[2]), 1e-6);
     EXPECT_NEAR(turned[2] - centre[2], l[1] - centre[1], 1e-6);
@@ -243,7 +255,7 @@ TEST(Render, LevelFilePlacesEveryAsset) {
 
     const std::string points = (dir / "points.txt").string(), level = (dir / "three.json").string();
     CliRun three = run_cli("render " + level + " -o " + (dir / "three.png").string() +
-                           " --size 320x240 --light 16,30,20 --json -q --write-points " + points);
+                           " --size 320x240 --aa 1 --light 16,30,20 --json -q --write-points " + points);
     ASSERT_EQ(three.code, 0) << three.err;
     const nlohmann::json j = nlohmann::json::parse(three.out), a = nlohmann::json::parse(asset.out);
     EXPECT_GT(j["triangles_drawn"].get<uint64_t>(), 2 * a["triangles_drawn"].get<uint64_t>()) << "every copy in view";
@@ -256,7 +268,9 @@ TEST(Render, LevelFilePlacesEveryAsset) {
 TEST(Render, AreaLightIsSoftAndEachSampleAgreesWithQuery) {
     const fs::path dir = output_dir("area");
     const std::string points = (dir / "points.txt").string();
-    const std::string common = " --size 200x150 --eye 6,5,12 --target -1,0.5,0 --fov 40 --area-light -4,12,2,5,9";
+    // One sample a pixel: the soft shadow's shades, not the edges', are counted below.
+    const std::string common =
+        " --size 200x150 --aa 1 --eye 6,5,12 --target -1,0.5,0 --fov 40 --area-light -4,12,2,5,9";
     CliRun r = run_cli("render " + default_asset + " -o " + (dir / "soft.png").string() + common + " --write-points " +
                        points + " --threads 1 --json");
     ASSERT_EQ(r.code, 0) << r.err;
@@ -274,7 +288,7 @@ TEST(Render, AreaLightIsSoftAndEachSampleAgreesWithQuery) {
     for (size_t l = 0; l < lights.size(); l += 3)
         total += query_shadowed(points, light_text(nlohmann::json{lights[l], lights[l + 1], lights[l + 2]}));
     EXPECT_EQ(total, j["shadowed"].get<uint64_t>());
-    EXPECT_EQ(j["queries"].get<uint64_t>(), 9 * j["pixels_covered"].get<uint64_t>());
+    EXPECT_EQ(j["queries"].get<uint64_t>(), 9 * j["points"].get<uint64_t>());
 
     // Soft: some points are reached by some samples and not others. The picture does not depend on threads.
     CliRun again = run_cli("render " + default_asset + " -o " + (dir / "soft2.png").string() + common +
@@ -282,7 +296,7 @@ TEST(Render, AreaLightIsSoftAndEachSampleAgreesWithQuery) {
     ASSERT_EQ(again.code, 0) << again.err;
     EXPECT_EQ(cb::test::slurp((dir / "soft.png").string()), cb::test::slurp((dir / "soft2.png").string()));
     CliRun hard = run_cli("render " + default_asset + " -o " + (dir / "hard.png").string() +
-                          " --size 200x150 --eye 6,5,12 --target -1,0.5,0 --fov 40 --light -4,12,2 --json -q");
+                          " --size 200x150 --aa 1 --eye 6,5,12 --target -1,0.5,0 --fov 40 --light -4,12,2 --json -q");
     ASSERT_EQ(hard.code, 0) << hard.err;
     const Rgb soft = read_png((dir / "soft.png").string()), sharp = read_png((dir / "hard.png").string());
     std::set<uint8_t> soft_greys, sharp_greys;  // shades of the ground's pale grey between lit and shadowed
@@ -303,7 +317,7 @@ TEST(Render, CompareWithEmbreeDiffersOnlyInTiesAndNearTies) {
     ASSERT_EQ(r.code, 0) << r.err;
     const nlohmann::json c = nlohmann::json::parse(r.out)["compare"];
     EXPECT_EQ(c["output"], (dir / "default.compare.png").string());
-    EXPECT_EQ(c["pairs"], nlohmann::json::parse(r.out)["pixels_covered"]);
+    EXPECT_EQ(c["pairs"], nlohmann::json::parse(r.out)["points"]);
     EXPECT_EQ(c["pixels_other"], 0) << c.dump();
     EXPECT_EQ(c["differing"].get<uint64_t>(), c["runtime_only"].get<uint64_t>() + c["embree_only"].get<uint64_t>());
     const Rgb diff = read_png(c["output"].get<std::string>());
@@ -389,6 +403,9 @@ TEST(Render, OptionsAreCheckedBeforeAnyWork) {
     refused(a + " --size 100x", "--size takes W or WxH");
     refused(a + " --size 5000x100", "--size takes W or WxH");
     refused(a + " --fov 170", "--fov takes degrees");
+    refused(a + " --aa 0", "--aa takes 1 to 4");
+    refused(a + " --aa 5", "--aa takes 1 to 4");
+    refused(a + " --size 4096x2048 --aa 2", "over 4096 x 4096 samples");
     refused(a + " --eye 1,2,3 --target 1,2,3", "no direction");
     refused(a + " --up 0,0,0", "--up must not be zero");
     refused(a + " --eye 1,nan,3", "--eye takes X,Y,Z");
@@ -433,4 +450,135 @@ TEST(Render, SharedDragonHardAndSoft) {
         // Embree's float rays part from the exact answers only in ties and near ties.
         EXPECT_EQ(j["compare"]["pixels_other"], 0) << j["compare"].dump();
     }
+}
+
+// The default scene's first picture: the 40 m ground is left out of the framing, so its objects fill the
+// view; the default light is above the camera's side, so the sides seen are lit and the shadows fall on the
+// ground in view.
+TEST(Render, DefaultViewFramesTheObjectsAndLightsTheSideSeen) {
+    const fs::path dir = output_dir("default_view");
+    const std::string png = (dir / "default.png").string();
+    CliRun r = run_cli("render " + default_asset + " -o " + png + " --json -q");
+    ASSERT_EQ(r.code, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    std::printf("artefact: %s\n", png.c_str());
+    EXPECT_EQ(j["ground_instances"], 1);
+    const std::vector<double> lo = j["framed_box"]["lo"], hi = j["framed_box"]["hi"], light = j["light"],
+                              eye = j["camera"]["eye"];
+    EXPECT_LT(hi[0] - lo[0], 30) << "not the whole 40 m ground";
+    EXPECT_LT(hi[2] - lo[2], 30);
+    EXPECT_GT(hi[0] - lo[0], 17) << "every object: the fence and the colonnade span 17 m";
+    EXPECT_GT(j["pixels_covered"].get<uint64_t>(), 640u * 480u / 2) << "the ground fills most of the view";
+    double to_light[3], to_eye[3];
+    for (int k = 0; k < 3; ++k)
+        to_light[k] = light[k] - 0.5 * (lo[k] + hi[k]), to_eye[k] = eye[k] - 0.5 * (lo[k] + hi[k]);
+    EXPECT_GT(cb::math::dot3(to_light, to_eye), 0) << "the light is on the camera's side";
+    EXPECT_GT(light[1], hi[1]);
+    const double fraction = j["shadowed_fraction"];
+    EXPECT_GT(fraction, 0.005) << "shadows on the ground";
+    EXPECT_LT(fraction, 0.05);
+}
+
+// --aa N: each pixel is the mean, in linear light, of the N x N samples a picture N times as wide and high
+// has at its pixels' centres; the same picture on any number of threads.
+TEST(Render, AntiAliasingAveragesTheSamplesOfAFinerPicture) {
+    const fs::path dir = output_dir("aa");
+    const std::string view = " --eye 6,5,12 --target -1,0.5,0 --fov 40 --light -4,12,2 -q";
+    ASSERT_EQ(run_cli("render " + default_asset + " -o " + (dir / "aa2.png").string() + " --size 160x120" + view +
+                      " --threads 1")
+                  .code,
+              0);
+    ASSERT_EQ(run_cli("render " + default_asset + " -o " + (dir / "aa2_threads.png").string() +
+                      " --size 160x120 --aa 2" + view + " --threads 2")
+                  .code,
+              0);
+    ASSERT_EQ(
+        run_cli("render " + default_asset + " -o " + (dir / "aa1.png").string() + " --size 160x120 --aa 1" + view).code,
+        0);
+    ASSERT_EQ(
+        run_cli("render " + default_asset + " -o " + (dir / "fine.png").string() + " --size 320x240 --aa 1" + view)
+            .code,
+        0);
+    std::printf("artefacts: %s/{aa1,aa2,fine}.png\n", dir.c_str());
+    EXPECT_EQ(cb::test::slurp((dir / "aa2.png").string()), cb::test::slurp((dir / "aa2_threads.png").string()));
+    const Rgb aa2 = read_png((dir / "aa2.png").string()), aa1 = read_png((dir / "aa1.png").string()),
+              fine = read_png((dir / "fine.png").string());
+    ASSERT_EQ(fine.width, 2 * aa2.width);
+    auto linear = [](uint8_t c) { return std::pow(c / 255.0, 2.2); };
+    int worst = 0;
+    size_t blended = 0;  // pixels whose samples differ by more than a few levels: edges, smoothed
+    for (uint32_t y = 0; y < aa2.height; ++y)
+        for (uint32_t x = 0; x < aa2.width; ++x)
+            for (int k = 0; k < 3; ++k) {
+                double mean = 0;
+                int lo = 255, hi = 0;
+                for (uint32_t s = 0; s < 4; ++s) {
+                    const uint8_t c = fine.pixels[(size_t(2 * y + s / 2) * fine.width + 2 * x + s % 2) * 3 + k];
+                    mean += linear(c) / 4, lo = std::min<int>(lo, c), hi = std::max<int>(hi, c);
+                }
+                const int expected = int(std::lround(255 * std::pow(mean, 1 / 2.2)));
+                // The background's rows are those of the coarse picture: a level apart at most.
+                worst = std::max(worst, std::abs(int(aa2.pixels[(size_t(y) * aa2.width + x) * 3 + k]) - expected));
+                blended += k == 0 && hi - lo > 16;
+            }
+    EXPECT_LE(worst, 2);
+    EXPECT_GT(blended, 200u);
+    EXPECT_NE(aa1.pixels, aa2.pixels);
+}
+
+// --ground: a plane under an object alone takes its shadow. The ground is drawn and asked as part of the
+// level: the picture's answers are clusterbake query's on the asset alone (a ground under every point does
+// not block a light above it), and Embree's over the same level.
+TEST(Render, GroundPlaneTakesTheObjectsShadow) {
+    const fs::path dir = output_dir("ground");
+    const std::string cube = (dir / "cube.cbk").string(), points = (dir / "points.txt").string();
+    ASSERT_EQ(run_cli("bake " + std::string(CB_SOURCE_DIR) + "/data/small/cube.obj -o " + cube + " -q").code, 0);
+    CliRun bare = run_cli("render " + cube + " -o " + (dir / "bare.png").string() + " --size 200x150 --json -q");
+    CliRun r = run_cli("render " + cube + " -o " + (dir / "ground.png").string() +
+                       " --size 200x150 --ground --compare --json -q --write-points " + points);
+    ASSERT_EQ(bare.code, 0) << bare.err;
+    ASSERT_EQ(r.code, 0) << r.err;
+    std::printf("artefacts: %s/{bare,ground,ground.compare}.png\n", dir.c_str());
+    const nlohmann::json j = nlohmann::json::parse(r.out), b = nlohmann::json::parse(bare.out);
+    EXPECT_EQ(j["ground"], true);
+    EXPECT_EQ(j["light"], b["light"]) << "the ground changes neither the camera nor the light";
+    EXPECT_EQ(j["bias"], b["bias"]) << "nor the bias";
+    EXPECT_GT(j["points"].get<uint64_t>(), 2 * b["points"].get<uint64_t>());
+    EXPECT_EQ(j["compare"]["pixels_other"], 0) << j["compare"].dump();
+
+    CliRun q = run_cli("query " + cube + " --light " + light_text(j["light"]) + " --points " + points);
+    ASSERT_EQ(q.code, 0) << q.err;
+    const std::vector<double> lo = j["framed_box"]["lo"];
+    std::istringstream answers(q.out), xyz(cb::test::slurp(points));
+    uint64_t shadowed = 0, ground_shadowed = 0, ground_lit = 0;
+    double p[3];
+    for (int answer; answers >> answer && xyz >> p[0] >> p[1] >> p[2];) {
+        shadowed += answer;
+        if (p[1] < lo[1]) (answer ? ground_shadowed : ground_lit) += 1;
+    }
+    EXPECT_EQ(shadowed, j["shadowed"].get<uint64_t>());
+    EXPECT_GT(ground_shadowed, 500u) << "the cube's shadow on the ground";
+    EXPECT_GT(ground_lit, 2 * ground_shadowed);
+}
+
+// A scanned statue as a new user first renders it: the default light lights what the camera sees; with
+// --ground and its own up, its shadow lies on the ground.
+TEST(Render, SharedStatueIsLitAndCastsAShadow) {
+    const fs::path horse = fs::path(CB_SHARED_DATA) / "scanned/horse.ply";
+    if (!fs::exists(horse)) GTEST_SKIP() << "shared data absent: " << horse;
+    const fs::path dir = output_dir("statue");
+    const std::string asset = (dir / "horse.cbk").string();
+    ASSERT_EQ(run_cli("bake " + horse.string() + " -o " + asset + " -q").code, 0);
+    CliRun plain = run_cli("render " + asset + " -o " + (dir / "horse.png").string() + " --json -q");
+    CliRun ground = run_cli("render " + asset + " -o " + (dir / "horse_ground.png").string() +
+                            " --up 0,0,1 --ground --compare --json -q");
+    ASSERT_EQ(plain.code, 0) << plain.err;
+    ASSERT_EQ(ground.code, 0) << ground.err;
+    std::printf("artefacts: %s/{horse,horse_ground}.png\n", dir.c_str());
+    const nlohmann::json p = nlohmann::json::parse(plain.out), g = nlohmann::json::parse(ground.out);
+    EXPECT_LT(p["shadowed_fraction"].get<double>(), 0.4) << "not a dark silhouette";
+    EXPECT_GT(p["shadowed_fraction"].get<double>(), 0.02) << "the legs shadow the body";
+    EXPECT_GT(g["shadowed_fraction"].get<double>(), 0.03);
+    EXPECT_EQ(g["compare"]["pixels_other"], 0) << g["compare"].dump();
+    EXPECT_GT(cb::test::grey_variance(read_png((dir / "horse_ground.png").string())), 50);
 }

@@ -58,7 +58,11 @@ def test_save_open_and_facts(tmp_path, scene_asset):
         assert printed[key] == value, key
     lines = scene_asset.source.splitlines()
     assert lines == printed["source"]
-    assert lines[0] == f"clusterbake {clusterbake.__version__}, asset format 3"
+    assert lines[0] == f"clusterbake {clusterbake.__version__}, asset format 3, build {clusterbake.build_id}"
+    # One source tree, one build id: the command line's --version names the module's.
+    _, version, _ = run_cli("--version")
+    assert f"(asset format 3, build {clusterbake.build_id}, " in version
+    assert len(clusterbake.build_id) == 16 and int(clusterbake.build_id, 16) >= 0
     assert lines[1].startswith("bake --method kmeans --coarse 2048 --fine 16")
     assert lines[3] == "file " + os.path.basename(SCENE)
 

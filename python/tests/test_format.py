@@ -171,7 +171,7 @@ def test_source_section_grammar(scene_bytes):
     text = bytes(section(scene_bytes, 20, "u1")).decode()
     lines = text.split("\n")
     assert lines[-1] == ""  # every line ends in \n
-    assert lines[0] == f"clusterbake {clusterbake.__version__}, asset format 3"
+    assert lines[0] == f"clusterbake {clusterbake.__version__}, asset format 3, build {clusterbake.build_id}"
     words = lines[2].split(" ")
     assert words[:2] == ["input", "xxh3-128"] and len(words[2]) == 33 and words[2].endswith(",")
     assert int(words[3]) == os.path.getsize(SCENE) and words[4] == "bytes"
