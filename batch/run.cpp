@@ -165,6 +165,11 @@ std::vector<BakeResult> run_batch(const std::vector<BakeRequest>& requests, cons
     // A thread just joined may still be counted for a moment while the kernel releases it.
     for (int wait = 0; wait < 100 && thread_count() > 1; ++wait) ::usleep(1000);
     if (thread_count() > 1) throw std::logic_error("run_batch: the calling process runs other threads; it must not");
+    // Children ignored (SIGCHLD set to SIG_IGN, which a program inherits) are reaped by the kernel, and
+    // waitpid would then never tell how one ended.
+    struct sigaction child_signal {};
+    if (::sigaction(SIGCHLD, nullptr, &child_signal) == 0 && child_signal.sa_handler == SIG_IGN)
+        ::signal(SIGCHLD, SIG_DFL);
     const unsigned cores = threads_or_all(run.cores);
     const unsigned slots = unsigned(std::min<size_t>(run.jobs ? run.jobs : cores, order.size()));
     SharedCores shared(cores, slots);
