@@ -391,20 +391,18 @@ TEST(BatchRun, ACoreBudgetViewCountsWhatItHoldsSoThatItCanBeReclaimed) {
     EXPECT_FALSE(budget.try_take());
 }
 
-// An item that throws (std::bad_alloc under a memory limit) stops the others and is rethrown once every
-// thread has joined, under a budget or not, and the budget gets its cores back.
+// An item that throws (std::bad_alloc under a memory limit) is rethrown once every thread has joined, under
+// a budget or not, and the budget gets its cores back. (How many items still run meanwhile depends on the
+// machine's load: not asserted.)
 TEST(BatchRun, ParallelForRethrowsAnItemsExceptionOnceItsThreadsJoined) {
     for (bool budgeted : {false, true}) {
         cb::CoreBudget budget(4);
         cb::thread_core_budget() = budgeted ? &budget : nullptr;
-        std::atomic<int> ran{0};
         EXPECT_THROW(cb::parallel_for(10000, 4,
                                       [&](size_t i) {
-                                          ++ran;
                                           if (i == 100) throw std::bad_alloc();
                                       }),
                      std::bad_alloc);
-        EXPECT_LT(ran, 10000);
         cb::thread_core_budget() = nullptr;
         for (int k = 0; k < 4; ++k) EXPECT_TRUE(budget.try_take());
         EXPECT_FALSE(budget.try_take());
