@@ -1,11 +1,18 @@
 #include "bake_file.h"
 
+#include <pthread.h>
+#include <sys/resource.h>
+
+#include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <new>
 #include <sstream>
+#include <system_error>
 #include <thread>
 
 #include "asset_file.h"
@@ -16,6 +23,28 @@
 
 namespace cb {
 namespace {
+
+// The budget limit_process_memory enforces in this process, 0 when none: a failed allocation is then that.
+std::atomic<uint64_t> hard_budget{0};
+
+// VmData of /proc/self/status: the process's private writable memory, which RLIMIT_DATA bounds; 0 if unknown.
+uint64_t data_bytes() {
+    std::ifstream status("/proc/self/status");
+    for (std::string line; std::getline(status, line);)
+        if (line.compare(0, 7, "VmData:") == 0) return std::strtoull(line.c_str() + 7, nullptr, 10) << 10;
+    return 0;
+}
+
+// The stack each new thread gets: private writable memory, so counted against RLIMIT_DATA.
+uint64_t thread_stack_bytes() {
+    pthread_attr_t attr;
+    size_t size = 8u << 20;
+    if (pthread_getattr_default_np(&attr) == 0) {
+        pthread_attr_getstacksize(&attr, &size);
+        pthread_attr_destroy(&attr);
+    }
+    return size;
+}
 
 // The file names a source section lists, in order.
 std::vector<std::string> source_names(const char* text, size_t size) {
@@ -108,7 +137,13 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
         }
         ~Joined() { join(); }
     } joined{encoding, budget};
-    if (r.fit && threads > 1 && (!budget || budget->try_take())) encoding = std::thread(encode);
+    if (r.fit && threads > 1 && (!budget || budget->try_take())) {
+        try {
+            encoding = std::thread(encode);
+        } catch (const std::system_error&) {  // no thread to be had: encoded below, on this one
+            if (budget) budget->give();
+        }
+    }
     if (r.fit) fit_scene_bounds(meshes, r.bounds, r.threads, result.stats, progress.bounds);
 
     auto t1 = std::chrono::steady_clock::now();
@@ -133,7 +168,40 @@ void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResu
     for (const std::string& w : scene.report.warnings) result.warning += (result.warning.empty() ? "" : "; ") + w;
 }
 
+// ": over the memory budget of 4 GiB (--memory-budget)" when a hard limit is in force, for a failed
+// allocation; empty otherwise.
+std::string over_budget_text() {
+    const uint64_t budget = hard_budget;
+    return budget ? ": over the memory budget of " + byte_size_text(budget) + " (--memory-budget)" : std::string();
+}
+
 }  // namespace
+
+uint64_t limit_process_memory(uint64_t budget, unsigned threads) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return 0;  // the sanitizer's shadow and quarantine are memory of its own, out of any budget
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || __has_feature(memory_sanitizer)
+    return 0;
+#endif
+#endif
+    const uint64_t now = data_bytes();
+    if (now == 0) return 0;
+    // The threads a bake starts besides this one: parallel_for's helpers and the encoder side by side, and
+    // one more for the writer that follows them; none on one thread.
+    const unsigned count = threads_or_all(threads);
+    const uint64_t stacks = count > 1 ? uint64_t(count + 1) * thread_stack_bytes() : 0;
+    const uint64_t limit = now + budget + memory_limit_margin + stacks;
+    if (limit < budget) return 0;  // wrapped: a budget no machine has, nothing to enforce
+    struct rlimit current;
+    if (getrlimit(RLIMIT_DATA, &current) != 0) return 0;
+    if (current.rlim_cur != RLIM_INFINITY && current.rlim_cur <= limit) return 0;  // a lower limit of the user's
+    struct rlimit wanted = current;
+    wanted.rlim_cur = rlim_t(limit);
+    if (setrlimit(RLIMIT_DATA, &wanted) != 0) return 0;
+    hard_budget = budget;
+    return limit;
+}
 
 const char* tool_version() { return "clusterbake " CB_VERSION; }
 
@@ -177,10 +245,17 @@ BakeResult bake_file(const BakeRequest& request, const BakeProgress& progress) {
     }
     try {
         if (!(request.if_changed && up_to_date(request, result))) bake_unguarded(request, progress, result);
+    } catch (const LoadOutOfMemory& e) {
+        result.error = e.what() + over_budget_text();
     } catch (const LoadError& e) {
         result.error = e.what();  // already "FILE: ELEMENT: PROBLEM"
     } catch (const std::bad_alloc&) {
-        result.error = request.input + ": out of memory";
+        result.error = request.input + ": out of memory" + over_budget_text();
+    } catch (const std::system_error& e) {  // a thread not started: under a limit, memory ran out
+        const bool resources =
+            e.code() == std::errc::resource_unavailable_try_again || e.code() == std::errc::not_enough_memory;
+        result.error =
+            request.input + ": " + (resources && hard_budget ? "out of memory" + over_budget_text() : e.what());
     } catch (const std::exception& e) {
         std::string what = e.what();
         // write_file_atomic names the output; anything else is about the input.

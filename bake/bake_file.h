@@ -58,6 +58,20 @@ std::string options_text(const ClusterOptions& clustering, const BoundsOptions& 
 std::string source_text(const SourceFiles& source, const ClusterOptions& clustering, const BoundsOptions& bounds,
                         bool fit);
 
+// What a process baking one file may hold beyond the file's memory budget and its threads' stacks under
+// limit_process_memory: the allocator's slack and the libraries' buffers. Every scene of the test data
+// bakes with its budget set to bake_file's own estimate for it and no margin at all.
+constexpr uint64_t memory_limit_margin = uint64_t(16) << 20;
+
+// Makes the memory budget a hard limit on this process, which is to bake one file on `threads` threads (0:
+// every hardware thread): its private writable memory (RLIMIT_DATA: heap, arrays, thread stacks; not the
+// program, its libraries or a mapped input file) may grow by the budget, plus memory_limit_margin and a
+// thread stack for each thread the bake may start, over what it holds now. A bake that needs more fails
+// with one line ("FILE: out of memory: over the memory budget of 4 GiB (--memory-budget)") instead of
+// taking the machine's memory. Returns the limit set, or 0 when none is: a lower limit is already in force,
+// /proc cannot be read, or a sanitizer build (whose shadow memory is no scene's).
+uint64_t limit_process_memory(uint64_t budget, unsigned threads);
+
 // Checks the request's options first (request_options_error, bake_options.h): broken ones fail before
 // any work. Never throws: every failure (bad input, unwritable output, out of memory) comes back as `failed` with
 // its line, and leaves whatever was at the output untouched.

@@ -38,6 +38,10 @@ int run_bake(const ClusterArgs& a) {
     request.output = a.out;
     if (!usage_ok(output_problem(a.out, a.force))) return exit_usage;
 
+    // The memory budget as a hard limit on this process too, as for each file of a batch: a file bakes
+    // alone exactly when it bakes in a batch.
+    cb::limit_process_memory(request.load.memory_budget, request.threads);
+
     // Progress once a bake has taken a second, on a terminal only: one line redrawn in place on stderr.
     ProgressLine line(!a.quiet);
     cb::BakeResult r = cb::bake_file(request, bake_progress(line));

@@ -302,9 +302,9 @@ bool write_at(int fd, const uint8_t* bytes, uint64_t size, uint64_t offset) {
 // The name of this process's temporary for `path`: `path` + ".tmp" + the process id.
 std::string temporary_name(const std::string& path) { return path + ".tmp" + std::to_string(getpid()); }
 
-// Removes temporaries of `path` left by processes that no longer run (killed between naming their file
-// and renaming it over `path`).
-void remove_stale_temporaries(const std::string& path) {
+}  // namespace
+
+void remove_dead_temporaries(const std::string& path) {
     namespace fs = std::filesystem;
     const fs::path target(path);
     const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
@@ -320,8 +320,6 @@ void remove_stale_temporaries(const std::string& path) {
     }
 }
 
-}  // namespace
-
 void write_file_atomic(const std::string& path, const std::vector<uint8_t>& bytes) {
     write_file_atomic(path, [&](int fd) { return write_at(fd, bytes.data(), bytes.size(), 0); });
 }
@@ -332,7 +330,7 @@ void write_file_atomic(const std::string& path, const std::function<bool(int)>& 
     struct stat st;
     if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
         throw std::runtime_error(path + ": not a regular file (a device, FIFO or directory); refusing to replace it");
-    remove_stale_temporaries(path);
+    remove_dead_temporaries(path);
     const std::filesystem::path target(path);
     const std::string dir = target.has_parent_path() ? target.parent_path().string() : std::string(".");
     const std::string tmp = temporary_name(path);

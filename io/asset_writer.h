@@ -53,6 +53,10 @@ std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const st
 // `path` that exists and is not a regular file. Throws std::runtime_error naming the path.
 void write_file_atomic(const std::string& path, const std::vector<uint8_t>& bytes);
 
+// Removes the temporaries of `path` that processes no longer running left (killed between naming their file
+// and renaming it over `path`), as every write_file_atomic of `path` does first.
+void remove_dead_temporaries(const std::string& path);
+
 // The same, with the contents written by `fill(fd)` (from offset 0 of a new, empty file), which returns false
 // with errno set when it fails.
 void write_file_atomic(const std::string& path, const std::function<bool(int fd)>& fill);

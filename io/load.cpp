@@ -106,7 +106,7 @@ Scene load_scene(const std::string& path, const LoadOptions& options) {
         return load_scene_unguarded(path, options);
     } catch (const std::bad_alloc&) {
         // A file can still describe more than this machine holds; say so rather than crash.
-        throw LoadError(path + ": out of memory while loading");
+        throw LoadOutOfMemory(path + ": out of memory while loading");
     }
 }
 

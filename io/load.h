@@ -32,6 +32,12 @@ struct LoadError : std::runtime_error {
     }
 };
 
+// A load that ran out of memory ("FILE: out of memory while loading"): under a hard limit on the process
+// (bake_file.h, limit_process_memory), a file over its memory budget.
+struct LoadOutOfMemory : LoadError {
+    using LoadError::LoadError;
+};
+
 enum class FileFormat { gltf, glb, obj, ply, off, stl, unknown };
 
 // The bytes a load may hold for what a file declares (decoded arrays, instances) when no other budget is

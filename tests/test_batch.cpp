@@ -8,6 +8,7 @@
 #include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <sstream>
 #include <thread>
 
@@ -371,4 +372,56 @@ TEST(BatchRun, ParallelForUnderABudgetUsesOnlyIdleCoresAndGivesThemBack) {
     EXPECT_TRUE(budget.try_take());
     EXPECT_TRUE(budget.try_take());
     EXPECT_FALSE(budget.try_take());
+}
+
+// A batch's files bake in processes of their own, each drawing on the shared budget through a view: what a
+// view holds is counted, so that the cores of a process that died holding them come back.
+TEST(BatchRun, ACoreBudgetViewCountsWhatItHoldsSoThatItCanBeReclaimed) {
+    cb::CoreBudget budget(3);
+    std::atomic<int> held{0};
+    cb::CoreBudget view(budget, held);
+    budget.take();  // the slot's own core, held by the batch
+    EXPECT_TRUE(view.try_take());
+    EXPECT_TRUE(view.try_take());
+    EXPECT_FALSE(view.try_take());
+    EXPECT_EQ(held, 2);
+    view.give();
+    EXPECT_EQ(held, 1);
+    budget.reclaim(held);  // its process ended holding one
+    EXPECT_EQ(held, 0);
+    EXPECT_TRUE(budget.try_take());
+    EXPECT_TRUE(budget.try_take());
+    EXPECT_FALSE(budget.try_take());
+}
+
+// An item that throws (std::bad_alloc under a memory limit) is rethrown once every thread has joined, under
+// a budget or not, and the budget gets its cores back. (How many items still run meanwhile depends on the
+// machine's load: not asserted.)
+TEST(BatchRun, ParallelForRethrowsAnItemsExceptionOnceItsThreadsJoined) {
+    for (bool budgeted : {false, true}) {
+        cb::CoreBudget budget(4);
+        cb::thread_core_budget() = budgeted ? &budget : nullptr;
+        EXPECT_THROW(cb::parallel_for(10000, 4,
+                                      [&](size_t i) {
+                                          if (i == 100) throw std::bad_alloc();
+                                      }),
+                     std::bad_alloc);
+        cb::thread_core_budget() = nullptr;
+        for (int k = 0; k < 4; ++k) EXPECT_TRUE(budget.try_take());
+        EXPECT_FALSE(budget.try_take());
+    }
+}
+
+// A child forked from a process that runs other threads copies one of them and whatever locks the others
+// held: run_batch refuses to fork there.
+TEST(BatchRun, RunBatchRefusesToForkBesideOtherThreads) {
+    std::promise<void> release;
+    std::thread other([done = release.get_future()] { done.wait(); });
+    cb::BakeRequest r;
+    r.input = small("cube.obj").string();
+    r.output = (fs::temp_directory_path() / ("cb_batch_threads_" + std::to_string(getpid()) + ".cbk")).string();
+    EXPECT_THROW(cb::run_batch({r}, {0}, cb::BatchRun{1, 1}, {}, {}), std::logic_error);
+    release.set_value();
+    other.join();
+    EXPECT_FALSE(fs::exists(r.output));
 }
