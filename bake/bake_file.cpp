@@ -84,21 +84,6 @@ bool up_to_date(const BakeRequest& r, BakeResult& result) {
 // side by side), measured with some margin: about 80 on a 2 M-triangle grid.
 constexpr uint64_t bake_bytes_per_triangle = 128;
 
-// Refuses, before any clustering, a scene whose bake would take more than the request's memory budget.
-void check_bake_memory(const Scene& scene, const BakeRequest& r) {
-    uint64_t triangles = 0, held = 0;
-    for (const Mesh& m : scene.meshes) {
-        triangles += m.triangle_count();
-        held += m.positions.size() * sizeof(float) + m.indices.size() * sizeof(uint32_t);
-    }
-    held += scene.instances.size() * sizeof(Instance);
-    const uint64_t need = held + triangles * bake_bytes_per_triangle;
-    if (need <= r.load.memory_budget) return;
-    throw LoadError(r.input + ": " + std::to_string(triangles) + " triangles need about " + byte_size_text(need) +
-                    " to bake, over the memory budget of " + byte_size_text(r.load.memory_budget) +
-                    " (--memory-budget)");
-}
-
 void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResult& result) {
     auto t0 = std::chrono::steady_clock::now();
     Scene scene = load_scene(r.input, r.load);
@@ -176,6 +161,20 @@ std::string over_budget_text() {
 }
 
 }  // namespace
+
+void check_bake_memory(const Scene& scene, const BakeRequest& r) {
+    uint64_t triangles = 0, held = 0;
+    for (const Mesh& m : scene.meshes) {
+        triangles += m.triangle_count();
+        held += m.positions.size() * sizeof(float) + m.indices.size() * sizeof(uint32_t);
+    }
+    held += scene.instances.size() * sizeof(Instance);
+    const uint64_t need = held + triangles * bake_bytes_per_triangle;
+    if (need <= r.load.memory_budget) return;
+    throw LoadError(r.input + ": " + std::to_string(triangles) + " triangles need about " + byte_size_text(need) +
+                    " to bake, over the memory budget of " + byte_size_text(r.load.memory_budget) +
+                    " (--memory-budget)");
+}
 
 uint64_t limit_process_memory(uint64_t budget, unsigned threads) {
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)

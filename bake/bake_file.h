@@ -72,6 +72,11 @@ constexpr uint64_t memory_limit_margin = uint64_t(16) << 20;
 // /proc cannot be read, or a sanitizer build (whose shadow memory is no scene's).
 uint64_t limit_process_memory(uint64_t budget, unsigned threads);
 
+// Throws LoadError, naming r.input, when baking `scene` would take more than r.load.memory_budget by
+// bake_file's estimate (what the scene holds, and 128 bytes a triangle for the bake): checked before any
+// clustering, as bake_file checks it.
+void check_bake_memory(const Scene& scene, const BakeRequest& r);
+
 // Checks the request's options first (request_options_error, bake_options.h): broken ones fail before
 // any work. Never throws: every failure (bad input, unwritable output, out of memory) comes back as `failed` with
 // its line, and leaves whatever was at the output untouched.

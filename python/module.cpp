@@ -105,6 +105,21 @@ cb::BakeRequest request_from(const py::kwargs& kwargs, bool fit) {
         load.allow_outside_files = value.cast<bool>();
     }
     if (options.contains("files_root")) load.root = fspath(options.attr("pop")("files_root"));
+    if (options.contains("memory_budget")) {  // bytes, as --memory-budget's value after its unit
+        const py::object value = options.attr("pop")("memory_budget");
+        uint64_t bytes = 0;
+        if (py::isinstance<py::int_>(value) && !py::isinstance<py::bool_>(value) &&
+            value.cast<py::int_>() > py::int_(0)) {
+            try {
+                bytes = value.cast<uint64_t>();
+            } catch (const py::cast_error&) {  // past 2^64: no budget to hold to
+            }
+        }
+        if (!bytes)
+            throw py::value_error("memory_budget takes a whole number of bytes from 1 to 2^64 - 1 (got '" +
+                                  option_text(value) + "')");
+        load.memory_budget = bytes;
+    }
     for (const auto& item : options) {
         const std::string flag = "--" + [](std::string s) {
             std::replace(s.begin(), s.end(), '_', '-');
@@ -247,6 +262,12 @@ AssetPtr bake(const py::object& source, bool fit, const py::kwargs& options) {
             }
         }
         if (!error.empty()) throw py::value_error(error);
+    }
+    r.input = name;
+    try {
+        cb::check_bake_memory(scene, r);
+    } catch (const cb::LoadError& e) {
+        throw py::value_error(e.what());
     }
     std::vector<uint8_t> bytes;
     uint64_t triangles = 0;

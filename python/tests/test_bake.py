@@ -276,3 +276,22 @@ def test_files_outside_the_scene_folder(tmp_path):
     assert clusterbake.bake(scene, files_root=tmp_path).to_bytes() == (tmp_path / "root.cbk").read_bytes()
     with pytest.raises(ValueError, match="arrays name no files"):
         clusterbake.bake((np.eye(3, dtype=np.float32), np.array([[0, 1, 2]])), allow_outside_files=True)
+
+
+def test_memory_budget_refuses_as_the_command_line(tmp_path):
+    # The budget's estimate, before any clustering: the command line's line, and its refusal of the bytes
+    # the default scene's 33,952 triangles need.
+    code, _, err = run_cli("bake", SCENE, "-o", tmp_path / "x.cbk", "--memory-budget", "1MB", check=False)
+    assert code == 2
+    with pytest.raises(ValueError) as e:
+        clusterbake.bake(SCENE, memory_budget=1 << 20)
+    assert str(e.value) == err.strip()
+    assert "over the memory budget of 1 MiB" in str(e.value)
+    positions = np.random.default_rng(1).random((30000, 3))
+    indices = np.arange(30000).reshape(-1, 3)
+    with pytest.raises(ValueError, match="over the memory budget"):
+        clusterbake.bake((positions, indices), memory_budget=1 << 20)
+    assert clusterbake.bake(SCENE, memory_budget=1 << 30).to_bytes() == clusterbake.bake(SCENE).to_bytes()
+    for bad in (0, -5, 1.5, "1MB", True, 1 << 70):
+        with pytest.raises(ValueError, match="memory_budget takes a whole number of bytes"):
+            clusterbake.bake(SCENE, memory_budget=bad)
