@@ -105,7 +105,7 @@ inline auto asset_placements(const AssetView& v) {
 // the asset). Returns true when p is in shadow; one-sided occluders as cb_segment.h says.
 inline bool occluded_reference(const AssetView& v, const double* p, const double* light, double bias,
                                bool one_sided = false, QueryStats* stats = nullptr) {
-    if (!finite3(p) || !finite3(light)) return false;  // before the pass over the asset a default bias costs
+    if (!finite3(p) || !finite3(light)) return false;  // answered before a default bias's pass over the asset
     const double b = bias > 0 ? bias : default_shadow_bias(asset_world_size(v));
     return reference_query(asset_placements(v), p, light, b, false, one_sided, stats);
 }
