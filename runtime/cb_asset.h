@@ -164,8 +164,17 @@ static_assert(sizeof(AssetHeader) == 64 && sizeof(SectionEntry) == 32 && sizeof(
 // ---- decoding boxes and cones. Deterministic double arithmetic rounded to float; the fitter measures
 // its stored extents and apexes against these decoded values with a margin of a few float steps, so a
 // compiler that contracts a multiply-add here differently still decodes a conservative volume.
+//
+// The decoders are always inlined: a program that builds the query for wider lanes (AVX2, AVX-512) beside
+// its baseline code must not end up with one out-of-line copy of them compiled for the wider lanes, which
+// the linker could keep for every caller (tests/check_portable.sh).
+#if defined(__GNUC__)
+#define CB_DECODE_INLINE inline __attribute__((always_inline))
+#else
+#define CB_DECODE_INLINE inline
+#endif
 
-inline Obb unpack_obb(const PackedObb& p) {
+CB_DECODE_INLINE Obb unpack_obb(const PackedObb& p) {
     double q[4], sum = 0;
     for (int i = 0, k = 0; i < 4; ++i) {
         if (i == int(p.largest & 3)) continue;
@@ -198,7 +207,7 @@ inline void padded_halves(const Obb& b, double out[3]) {
 }
 
 // The unit axis of an octahedral pair.
-inline void unpack_octahedral(const int16_t* e, double* out) {
+CB_DECODE_INLINE void unpack_octahedral(const int16_t* e, double* out) {
     double x = double(e[0]) / 32767.0, y = double(e[1]) / 32767.0, z = 1 - std::fabs(x) - std::fabs(y);
     if (z < 0) {
         double fx = (1 - std::fabs(y)) * (x < 0 ? -1 : 1), fy = (1 - std::fabs(x)) * (y < 0 ? -1 : 1);
@@ -208,7 +217,7 @@ inline void unpack_octahedral(const int16_t* e, double* out) {
     out[0] = x / len, out[1] = y / len, out[2] = z / len;
 }
 
-inline Cone unpack_cone(const PackedCone& p, const PackedObb& box) {
+CB_DECODE_INLINE Cone unpack_cone(const PackedCone& p, const PackedObb& box) {
     Cone c{};
     if (!(p.cos_half_angle <= 1)) return c;  // stored 2: no valid cone
     double a[3];
@@ -235,8 +244,8 @@ struct LevelBounds {
     const PackedCone* cones = nullptr;  // only with obbs
     const Slab* slabs = nullptr;
 
-    Obb obb(uint32_t i) const { return unpack_obb(obbs[i]); }
-    Cone cone(uint32_t i) const { return unpack_cone(cones[i], obbs[i]); }
+    CB_DECODE_INLINE Obb obb(uint32_t i) const { return unpack_obb(obbs[i]); }
+    CB_DECODE_INLINE Cone cone(uint32_t i) const { return unpack_cone(cones[i], obbs[i]); }
 };
 
 enum class AssetError {
