@@ -971,6 +971,94 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
     EXPECT_LT(blocked, answers - answers / 50);
 }
 
+// The sun's float line test (cb_sun_triangles.h) rules a triangle out only when the ray misses it exactly,
+// and cluster_blocks_sun_points answers as ray_triangle on every triangle. Suns in random directions, grazing
+// a triangle's plane (within 1e-9), along one of its edges (in its plane) and of lengths from 1e-3 to 1e3;
+// points on the triangle, on rays through one of its edges or corners (edge signs of zero), near the cluster
+// and far back along the ray; grids at offsets up to 3e7.
+TEST(Shadow, SunLineTestsRuleOutOnlyMisses) {
+    std::mt19937 rng(23);
+    std::uniform_real_distribution<double> u(0, 1);
+    size_t pairs = 0, ruled_out = 0, wrong = 0, answers = 0, blocked = 0;
+    for_each_grid_cluster(
+        {0.0, 1e6, 3e7}, 1, 1, 0.3, 1.7, 120, rng,
+        [&](double, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
+            const cb::FineCluster& c = v.fine[m.first_fine + f];
+            double q[3][3];
+            triangle_corners(v, m, f, c.first_triangle + uint32_t(rng() % c.triangle_count), q);
+            double e1[3], e2[3], normal[3], toward[3], frame[3][3];
+            for (int k = 0; k < 3; ++k) {
+                e1[k] = q[1][k] - q[0][k];
+                e2[k] = q[2][k] - q[0][k];
+            }
+            cb::math::cross3(e1, e2, normal);
+            const double nl = std::sqrt(cb::math::dot3(normal, normal)), el = std::sqrt(cb::math::dot3(e1, e1));
+            for (int k = 0; k < 3; ++k) toward[k] = u(rng) - 0.5;
+            if (trial % 4 == 1) {  // grazing: in the plane, tilted by 1e-9 out of it
+                const double along = cb::math::dot3(toward, normal) / (nl * nl), tilt = u(rng) < 0.5 ? -1e-9 : 1e-9;
+                for (int k = 0; k < 3; ++k) toward[k] += (tilt - along) * normal[k];
+            } else if (trial % 4 == 2) {  // along the edge from corner 0 to corner 1, either way
+                for (int k = 0; k < 3; ++k) toward[k] = (trial % 8 == 2 ? 1 : -1) * e1[k];
+            } else if (trial % 4 == 3) {
+                for (double& x : toward) x *= std::pow(10.0, 6 * u(rng) - 3);
+            }
+            if (!cb::direction_frame(toward, frame)) return;
+            const double from = trial % 5 == 0 ? 0.0 : cb::sun_from(toward, 1e-4 * el * u(rng));
+            const double tl = std::sqrt(cb::math::dot3(toward, toward));
+            double p[64][3];
+            for (int i = 0; i < 64; ++i) {
+                const double s = u(rng), t = u(rng) * (1 - s), back = el * std::pow(10.0, 4 * u(rng) - 2) / tl;
+                for (int k = 0; k < 3; ++k) {
+                    const double on = q[0][k] + s * e1[k] + t * e2[k];
+                    switch (i % 5) {
+                        case 0: p[i][k] = on; break;                                      // on the triangle
+                        case 1: p[i][k] = q[0][k] + s * e1[k] - back * toward[k]; break;  // its ray through an edge
+                        case 2: p[i][k] = q[i % 3][k] - back * toward[k]; break;          // through a corner
+                        case 3: p[i][k] = on + el * (u(rng) - 0.5) - back * toward[k]; break;
+                        default: p[i][k] = on + el * (u(rng) - 0.5) - 1e4 * back * toward[k];  // far back
+                    }
+                }
+            }
+            for (bool one_sided : {false, true}) {
+                for (uint32_t first = 0; first < c.triangle_count; first += cb::sun_lit::capacity) {
+                    const uint32_t count = std::min<uint32_t>(cb::sun_lit::capacity, c.triangle_count - first);
+                    cb::sun_lit::SunTriangles lit;
+                    cb::sun_lit::sun_triangles(v, m, c, first, count, toward, frame[0], one_sided, lit);
+                    for (int i = 0; i < 64; ++i) {
+                        const uint32_t kept = cb::sun_lit::sun_line_tests(lit, p[i]);
+                        for (uint32_t k = 0; k < count; ++k) {
+                            ++pairs;
+                            if (kept >> k & 1) continue;
+                            ++ruled_out;
+                            double x[3][3];
+                            triangle_corners(v, m, f, c.first_triangle + first + k, x);
+                            wrong += cb::ray_triangle(p[i], toward, x[0], x[1], x[2], from, !one_sided).blocks;
+                        }
+                    }
+                }
+                const uint64_t ours =
+                    cb::cluster_blocks_sun_points(v, m, f, p, ~uint64_t(0), toward, frame[0], from, one_sided, nullptr);
+                for (int i = 0; i < 64; ++i) {
+                    bool exact = false;
+                    for (uint32_t k = c.first_triangle; k < c.first_triangle + c.triangle_count && !exact; ++k) {
+                        double x[3][3];
+                        triangle_corners(v, m, f, k, x);
+                        exact = cb::ray_triangle(p[i], toward, x[0], x[1], x[2], from, !one_sided).blocks;
+                    }
+                    ++answers;
+                    blocked += exact;
+                    wrong += bool(ours >> i & 1) != exact;
+                }
+            }
+        });
+    std::printf("%zu point and triangle pairs, %zu ruled out in float; %zu answers (%zu blocked)\n", pairs, ruled_out,
+                answers, blocked);
+    EXPECT_EQ(wrong, 0u);
+    EXPECT_GT(ruled_out, pairs / 2);
+    EXPECT_GT(blocked, answers / 20);
+    EXPECT_LT(blocked, answers - answers / 20);
+}
+
 TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
     // cluster_blocks decides most triangles in double with error bounds; segments built to pass within
     // rounding of a triangle's plane, of its edge lines, or with the light on the plane, or to cross a

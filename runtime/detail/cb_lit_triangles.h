@@ -132,11 +132,10 @@ inline void prefetch(const AssetView& v, const MeshRecord& mesh, const FineClust
     }
 }
 
-// Triangles [first, first + count) of fine cluster c (count <= capacity), from the light: the corners
-// gathered first, then every term in loops over the triangles that the compiler runs several to an instruction.
-inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first,
-                            uint32_t count, const double* light, bool one_sided, Triangles& out) {
-    out.count = count;
+// The corners of triangles [first, first + count) of fine cluster c (count <= capacity), and in bit t of
+// `two_sided` whether triangle t blocks from both sides (always, unless one-sided and not double-sided).
+inline void cluster_corners(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first,
+                            uint32_t count, bool one_sided, const float* (*corner)[3], uint32_t& two_sided) {
     const uint8_t* local = v.triangles + (size_t(mesh.first_triangle) + c.first_triangle + first) * 3;
     // The cluster's vertex list (its new vertices, then those it reuses), resolved once rather than per corner.
     const float* list[max_cluster_vertices];
@@ -144,18 +143,28 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     for (uint32_t i = 0; i < c.vertex_count; ++i) list[i] = fresh + size_t(i) * 3;
     const uint16_t* back = v.vertex_refs + size_t(mesh.first_ref) + c.first_ref;
     for (uint32_t r = 0; r < c.ref_count; ++r) list[c.vertex_count + r] = v.position(mesh, c.first_vertex - back[r]);
+    two_sided = 0;
+    for (uint32_t t = 0; t < count; ++t) {
+        for (int k = 0; k < 3; ++k) corner[t][k] = list[local[t * 3 + k]];
+        two_sided |= uint32_t(!one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t))
+            << t;
+    }
+}
+
+// Triangles [first, first + count) of fine cluster c (count <= capacity), from the light: the corners
+// gathered first, then every term in loops over the triangles that the compiler runs several to an instruction.
+inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first,
+                            uint32_t count, const double* light, bool one_sided, Triangles& out) {
+    out.count = count;
+    cluster_corners(v, mesh, c, first, count, one_sided, out.corner, out.two_sided);
     // Corner k of each triangle (zero past `count`: such edges are unusable, below).
     alignas(64) float px[3][capacity] = {}, py[3][capacity] = {}, pz[3][capacity] = {};
-    out.two_sided = 0;
-    for (uint32_t t = 0; t < count; ++t) {
+    for (uint32_t t = 0; t < count; ++t)
         for (int k = 0; k < 3; ++k) {
-            const float* at = list[local[t * 3 + k]];
-            out.corner[t][k] = at;
-            px[k][t] = at[0], py[k][t] = at[1], pz[k][t] = at[2];
+            px[k][t] = out.corner[t][k][0];
+            py[k][t] = out.corner[t][k][1];
+            pz[k][t] = out.corner[t][k][2];
         }
-        out.two_sided |=
-            uint32_t(!one_sided || v.double_sided(size_t(mesh.first_triangle) + c.first_triangle + first + t)) << t;
-    }
     // Edge k runs from corner k to corner j = k + 1; with u = corner k - light, the plane through the light and
     // the edge has normal u x (corner j - corner k), equal to u x v. In float, a vector of triangles an
     // instruction: u rounded from its double value, the edge a float difference of two floats (each within

@@ -4,10 +4,10 @@
 // points is a prism too: the rectangle that bounds their projections across the direction, from the lowest of
 // them up toward the sun. A tile scans the coarse clusters' spheres (ScanBounds, made once per asset) against
 // its prism, each point against the spheres that pass, then the fine spheres of the coarse clusters entered,
-// nearest the sun first, each sphere's points against its box in float, and tests the clusters found for each
-// point still lit, their triangles exactly (ray_triangle). The answers are those of occluded_sun_reference
-// (cb_shadow.h). Header-only C++17, no exceptions; building allocates, queries do not. MIT licensed
-// (runtime/LICENSE).
+// nearest the sun first, each sphere's points against its box in float, and tests the clusters found against
+// the points still lit (cb_sun_triangles.h: a float line test, then ray_triangle exactly). The answers are
+// those of occluded_sun_reference (cb_shadow.h). Header-only C++17, no exceptions; building allocates,
+// queries do not. MIT licensed (runtime/LICENSE).
 #pragma once
 
 #include <algorithm>
@@ -20,6 +20,7 @@
 #include "../cb_segment.h"
 #include "../cb_shadow.h"
 #include "cb_math.h"
+#include "cb_sun_triangles.h"
 #include "cb_tile.h"
 
 namespace cb {
@@ -336,7 +337,8 @@ private:
         }
     }
 
-    // The pending fine clusters, the sun's side first: for each point still lit, the triangles exactly.
+    // The pending fine clusters, the sun's side first: the points still lit against their triangles, set up
+    // once per cluster (cluster_blocks_sun_points).
     void test_pending(Tile& t) const {
         const uint32_t count = t.pending_count;
         t.pending_count = 0;
@@ -344,16 +346,18 @@ private:
         const std::vector<Obb>& boxes = bounds().fine_obbs;
         for (uint32_t e = 0; e < count && t.alive; ++e) {
             const uint32_t f = t.pending[e].id;
-            for (uint64_t b = t.pending[e].points & t.alive; b; b &= b - 1) {
+            uint64_t points = t.pending[e].points & t.alive;
+            // The box again, in double: the float filter's margin lets through the cluster a point lies on,
+            // whose ray leaves the thin box soon after it starts to count; its triangles cost far more.
+            for (uint64_t b = t.small ? points : 0; b; b &= b - 1) {
                 const uint32_t i = math::lowest_bit(b);
-                // The box again, in double: the float filter's margin lets through the cluster a point lies on,
-                // whose ray leaves the thin box soon after it starts to count; its triangles cost far more.
-                if (t.small && !ray_may_touch_box(boxes[f], t.p[i], toward_, blocking_start(from_))) continue;
-                if (cluster_blocks_sun(*view_, *mesh_, f, t.p[i], toward_, from_, one_sided_, t.stats, nullptr)) {
-                    t.shadowed |= uint64_t(1) << i;
-                    t.alive &= ~(uint64_t(1) << i);
-                }
+                if (!ray_may_touch_box(boxes[f], t.p[i], toward_, blocking_start(from_))) points &= ~(uint64_t(1) << i);
             }
+            if (!points) continue;
+            const uint64_t blocked = cluster_blocks_sun_points(*view_, *mesh_, f, t.p, points, toward_, frame_[0],
+                                                               from_, one_sided_, t.stats);
+            t.shadowed |= blocked;
+            t.alive &= ~blocked;
         }
     }
 

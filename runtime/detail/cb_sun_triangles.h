@@ -1,0 +1,176 @@
+// The test of one fine cluster's triangles against many points' rays toward a sun (cb_segment.h, "A sun"), as
+// SunTraversal runs it (cluster_blocks_sun_points). Every ray runs along one direction d, so the test of the
+// line through p against triangle edge u -> v, orient3d(p, p + d, u, v) = (p - v) . (d x (u - v)), is one
+// dot product per point with a normal that the whole tile shares: set up once per group of up to 16
+// triangles, in float, and settled against an error bound a vector of triangles an instruction. A line that
+// surely misses a triangle (two edge signs settled and opposite) needs nothing else; the rest go to the exact
+// ray_triangle. The answers are those of ray_triangle on each triangle. Header-only C++17, no dependencies,
+// no exceptions, no allocation. MIT licensed (runtime/LICENSE).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+#include "../cb_asset.h"
+#include "../cb_segment.h"
+#include "cb_exact.h"
+#include "cb_lit_triangles.h"
+#include "cb_math.h"
+#include "cb_simd.h"
+
+namespace cb {
+inline namespace CB_LANES {
+namespace sun_lit {
+
+constexpr uint32_t capacity = lit::capacity;
+
+// Up to 16 triangles of a cluster seen along a sun's direction. Triangle t's edge k runs from corner k (u) to
+// corner j = k + 1 mod 3 (v), as in ray_triangle: with r = v - origin and q = p - origin, its edge sign for a
+// point p is that of m . (q - r), m = d x (u - v).
+//
+// Error bound: m is computed in float from the unit direction rounded to float and the edge a float
+// difference of float corners; q and r are rounded to float from their double values. With A = |d| x |u - v|
+// (component x: |d_y e_z| + |d_z e_y|, at least |m_x|), each component of m is within 4.001 2^-24 A of the
+// exact d x (u - v)'s (rounding d, the edge, the products and their difference), rounding q and r adds
+// 2^-24 max(A) (|q|_1 + |r|_1), the two dot products at most 3 roundings of each term, and their difference
+// one more: in all under 9.01 2^-24 max(A) (|q|_1 + |r|_1) = 5.4e-7 max(A) (|q|_1 + |r|_1). The bound takes
+// 7e-7 (the float evaluation of the bound itself and of A stay within that room), plus 1e-30 for products
+// that fall to float's subnormals (each off by at most 2^-149). An edge is usable (a finite bound) when
+// 1e-18 <= max(A) <= 1e30 and |u - v|_1, |r|_1 <= 1e20; a point when |q|_1 <= 1e20 and |q|_1 max(A) <= 1e30
+// for every usable edge: nothing overflows. The sign is that of the exact orientation for the direction d
+// scaled by any positive factor, so the unit direction stands for the caller's.
+struct SunTriangles {
+    uint32_t count = 0;
+    uint32_t may_block = 0;  // bit t: triangle t can block at all (one-sided, not when the sun surely sees its front)
+    uint32_t two_sided = 0;  // bit t: triangle t blocks from both sides
+    const float* corner[capacity][3];
+    double origin[3];  // corner 0 of the first triangle
+    alignas(64) float mx[3][capacity], my[3][capacity], mz[3][capacity], w[3][capacity];  // w = m . r
+    alignas(64) float slope[3][capacity], rest[3][capacity];  // bound = |q|_1 slope + rest (infinite: never settled)
+    float scale = 0;                                          // the largest usable max(A)
+};
+
+// Triangles [first, first + count) of fine cluster c (count <= capacity), for the sun toward `toward` (the
+// exact direction, in the mesh's frame) whose unit vector is `unit`.
+inline void sun_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first,
+                          uint32_t count, const double* toward, const double* unit, bool one_sided, SunTriangles& out) {
+    out.count = count;
+    lit::cluster_corners(v, mesh, c, first, count, one_sided, out.corner, out.two_sided);
+    for (int k = 0; k < 3; ++k) out.origin[k] = out.corner[0][0][k];
+    // Corner k of each triangle from the origin, in float (zero past `count`: unusable edges, below).
+    alignas(64) float rx[3][capacity] = {}, ry[3][capacity] = {}, rz[3][capacity] = {};
+    alignas(64) float px[3][capacity] = {}, py[3][capacity] = {}, pz[3][capacity] = {}, r1[3][capacity] = {};
+    out.may_block = 0;
+    for (uint32_t t = 0; t < count; ++t) {
+        double x[3][3];
+        for (int k = 0; k < 3; ++k) {
+            const float* at = out.corner[t][k];
+            px[k][t] = at[0];
+            py[k][t] = at[1];
+            pz[k][t] = at[2];
+            for (int j = 0; j < 3; ++j) x[k][j] = at[j];
+            const double ox = x[k][0] - out.origin[0], oy = x[k][1] - out.origin[1], oz = x[k][2] - out.origin[2];
+            rx[k][t] = float(ox);
+            ry[k][t] = float(oy);
+            rz[k][t] = float(oz);
+            r1[k][t] = float((std::fabs(ox) + std::fabs(oy) + std::fabs(oz)) * 1.000001);
+        }
+        // One-sided, a triangle whose front the sun surely sees never blocks (ray_triangle's side of d).
+        const double minus_d[3] = {-toward[0], -toward[1], -toward[2]};
+        const exact::Row rows[3] = {{minus_d, nullptr}, {x[1], x[0]}, {x[2], x[0]}};
+        double bound;
+        const double side = exact::det3_estimate(rows, bound);
+        const bool front = -side > bound;
+        out.may_block |= uint32_t((out.two_sided >> t & 1) || !front) << t;
+    }
+    const float dx = float(unit[0]), dy = float(unit[1]), dz = float(unit[2]);
+    alignas(64) float widest[capacity] = {};
+    for (int k = 0; k < 3; ++k) {
+        const int j = (k + 1) % 3;
+        for (uint32_t t = 0; t < capacity; ++t) {
+            const float ex = px[k][t] - px[j][t], ey = py[k][t] - py[j][t], ez = pz[k][t] - pz[j][t];
+            const float ax = std::fabs(dy * ez) + std::fabs(dz * ey), ay = std::fabs(dz * ex) + std::fabs(dx * ez),
+                        az = std::fabs(dx * ey) + std::fabs(dy * ex);
+            const float amax = std::max(std::max(ax, ay), az);
+            const bool usable = t < count && amax >= 1e-18f && amax <= 1e30f &&
+                std::fabs(ex) + std::fabs(ey) + std::fabs(ez) <= 1e20f && r1[j][t] <= 1e20f;
+            const float mx = dy * ez - dz * ey, my = dz * ex - dx * ez, mz = dx * ey - dy * ex;
+            out.mx[k][t] = mx;
+            out.my[k][t] = my;
+            out.mz[k][t] = mz;
+            out.w[k][t] = mx * rx[j][t] + my * ry[j][t] + mz * rz[j][t];
+            out.slope[k][t] = usable ? 7e-7f * amax : INFINITY;
+            out.rest[k][t] = usable ? 7e-7f * amax * r1[j][t] + 1e-30f : INFINITY;
+            widest[t] = std::max(widest[t], usable ? amax : 0.0f);
+        }
+    }
+    for (uint32_t half = capacity / 2; half > 0; half /= 2)
+        for (uint32_t t = 0; t < half; ++t) widest[t] = std::max(widest[t], widest[t + half]);
+    out.scale = widest[0];
+}
+
+// The triangles of `lit` whose line through p the float test cannot rule out (bits; not the padding): a
+// line is ruled out when two edge signs are settled beyond their bounds and opposite.
+inline uint32_t sun_line_tests(const SunTriangles& lit, const double* p) {
+    const uint32_t all = (1u << lit.count) - 1;  // (capacity < 32)
+    const double q0 = p[0] - lit.origin[0], q1 = p[1] - lit.origin[1], q2 = p[2] - lit.origin[2];
+    const double q_l1 = std::fabs(q0) + std::fabs(q1) + std::fabs(q2);
+    if (!(q_l1 <= 1e20 && q_l1 * lit.scale <= 1e30)) return all & lit.may_block;
+    const simd::Floats x = simd::splat(float(q0)), y = simd::splat(float(q1)), z = simd::splat(float(q2));
+    const simd::Floats l1 = simd::splat(float(q_l1 * 1.000001)), zero = simd::splat(0.0f);
+    uint32_t missed = 0;
+    for (uint32_t t = 0; t < lit.count; t += simd::width) {
+        uint32_t positive = 0, negative = 0;
+        for (int k = 0; k < 3; ++k) {
+            const simd::Floats o =
+                simd::dot(x, y, z, simd::load(lit.mx[k] + t), simd::load(lit.my[k] + t), simd::load(lit.mz[k] + t)) -
+                simd::load(lit.w[k] + t);
+            const simd::Floats bound = simd::fma(l1, simd::load(lit.slope[k] + t), simd::load(lit.rest[k] + t));
+            positive |= simd::bits(o > bound);
+            negative |= simd::bits(zero - o > bound);
+        }
+        missed |= (positive & negative) << t;
+    }
+    return all & lit.may_block & ~missed;
+}
+
+}  // namespace sun_lit
+
+// Which of the points p[i], i in `which` (bits of a mask), the triangles of fine cluster `f` (mesh-local) of
+// `mesh` shadow from the sun toward `toward` (in the mesh's frame; `unit` its unit vector), contacts counting
+// from `from` on (sun_from): the same answers as ray_triangle on each triangle. The sun's terms are set up
+// once for all the points, 16 triangles at a time.
+inline uint64_t cluster_blocks_sun_points(const AssetView& v, const MeshRecord& mesh, uint32_t f, const double (*p)[3],
+                                          uint64_t which, const double* toward, const double* unit, double from,
+                                          bool one_sided, QueryStats* stats) {
+    using namespace sun_lit;
+    const FineCluster& c = v.fine[mesh.first_fine + f];
+    const uint32_t points = math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32));
+    if (stats) stats->clusters_tested += points;
+    uint64_t blocked = 0;
+    SunTriangles lit;
+    for (uint32_t first = 0; first < c.triangle_count && which; first += capacity) {
+        const uint32_t count = std::min<uint32_t>(capacity, c.triangle_count - first);
+        sun_triangles(v, mesh, c, first, count, toward, unit, one_sided, lit);
+        if (stats) stats->triangles_tested += uint64_t(count) * points;
+        for (uint64_t b = which; b; b &= b - 1) {
+            const uint32_t i = math::lowest_bit(b);
+            for (uint32_t m = sun_line_tests(lit, p[i]); m; m &= m - 1) {
+                const uint32_t t = math::lowest_bit(m);
+                double x[3][3];
+                for (int k = 0; k < 3; ++k)
+                    for (int j = 0; j < 3; ++j) x[k][j] = lit.corner[t][k][j];
+                if (ray_triangle(p[i], toward, x[0], x[1], x[2], from, lit.two_sided >> t & 1).blocks) {
+                    blocked |= uint64_t(1) << i;
+                    break;
+                }
+            }
+        }
+        which &= ~blocked;
+    }
+    return blocked;
+}
+
+}  // namespace CB_LANES
+}  // namespace cb
