@@ -17,7 +17,7 @@ namespace cb::cli {
 namespace {
 
 struct HeatmapArgs {
-    std::string file, out, light;
+    std::string file, out, light, sun;
     BakeFlags flags;  // --coarse, --fine, --obb, --threads
     cb::HeatmapOptions options;
     cb::LoadOptions load;
@@ -26,9 +26,14 @@ struct HeatmapArgs {
 
 // The options as the renderer takes them, and the input and output usable; false after one line on stderr.
 bool parse_heatmap(HeatmapArgs& a) {
+    if (!a.light.empty() && !a.sun.empty()) return usage_ok("--sun and --light name two lights; give one");
     if (!a.light.empty()) {
         if (!parse_light(a.light, a.options.light)) return false;
         a.options.has_light = true;
+    }
+    if (!a.sun.empty()) {
+        if (!parse_sun(a.sun, a.options.light)) return false;
+        a.options.has_light = a.options.sun = true;
     }
     cb::BakeRequest request;
     if (!usage_ok(apply_flags(a.flags, request))) return false;
@@ -48,7 +53,7 @@ void print_json(const HeatmapArgs& a, const cb::Heatmap& h) {
                         {"output", a.out},
                         {"width", h.width},
                         {"height", h.height},
-                        {"light", {h.light[0], h.light[1], h.light[2]}},
+                        {h.sun ? "sun" : "light", {h.light[0], h.light[1], h.light[2]}},
                         {"fine_size", a.options.clustering.fine_size},
                         {"coarse_size", a.options.clustering.coarse_size},
                         {"obb", given_or_default(a.flags, "--obb")},
@@ -94,6 +99,7 @@ Command add_heatmap(CLI::App& app) {
     add_load_flags(c, a->load);
     c->add_option("--size", a->options.size, "Panel size in pixels (default 256)");
     c->add_option("--light", a->light, "Light position X,Y,Z (default: above the scene, as the report's first light)");
+    c->add_option("--sun", a->sun, "A sun in place of the light: X,Y,Z the world direction toward it (any length)");
     add_bake_flags(c, a->flags, [](const cb::BakeOption& o) {
         const std::string flag = o.flag;
         return flag == "--coarse" || flag == "--fine" || flag == "--obb" || flag == "--threads";

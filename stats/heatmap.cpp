@@ -63,9 +63,9 @@ Projection project(const Camera& cam, const double* p) {
 }
 
 // The light in a panel at (ox, oy), n pixels square: a cyan disc where it appears, or, out of view, a cyan
-// arrow at the panel's edge pointing its way; "LIGHT" beside either, on the panel's side. Returns the
-// marker's box.
-PixelBox mark_light(RgbImage& img, int ox, int oy, int n, const Projection& p, int s) {
+// arrow at the panel's edge pointing its way; `label` ("LIGHT" or "SUN") beside either, on the panel's side.
+// Returns the marker's box.
+PixelBox mark_light(RgbImage& img, int ox, int oy, int n, const Projection& p, int s, const std::string& label) {
     double c = n / 2.0, lx, ly;  // the label's anchor, inside the panel
     PixelBox box;
     if (p.in_front && p.x >= 0 && p.x < n && p.y >= 0 && p.y < n) {
@@ -101,7 +101,6 @@ PixelBox mark_light(RgbImage& img, int ox, int oy, int n, const Projection& p, i
         lx = tail_x, ly = tail_y;
     }
     // The label on the side of the marker that faces the panel's centre, kept inside the panel.
-    const std::string label = "LIGHT";
     int w = text_width(label, s), h = glyph_rows * s, gap = 4 * s + 2;
     double tx = lx < c ? lx + gap : lx - gap - w, ty = ly < c ? ly + gap : ly - gap - h;
     tx = std::clamp(tx, double(s), double(n - w - s)), ty = std::clamp(ty, double(s), double(n - h - s));
@@ -131,9 +130,10 @@ std::string Heatmap::caption() const {
     char buf[400];
     std::snprintf(
         buf, sizeof buf,
-        "Useless cluster tests per pixel (light at %.4g, %.4g, %.4g): k-means (left) mean %.2f, VCO (right) mean %.2f "
-        "over %llu pixels; colour bar from 0 (dark) to %u or more (bright); grey: no surface; cyan: the light%s",
-        light[0], light[1], light[2], mean_useless[0], mean_useless[1], (unsigned long long)pixels, scale_max,
+        "Useless cluster tests per pixel (%s %.4g, %.4g, %.4g): k-means (left) mean %.2f, VCO (right) mean %.2f "
+        "over %llu pixels; colour bar from 0 (dark) to %u or more (bright); grey: no surface; cyan: the %s%s",
+        sun ? "sun toward" : "light at", light[0], light[1], light[2], mean_useless[0], mean_useless[1],
+        (unsigned long long)pixels, scale_max, sun ? "sun" : "light",
         layout.light_in_view ? "" : " (out of view: the arrows point to it)");
     return buf;
 }
@@ -195,10 +195,13 @@ void compose(Heatmap& h, const std::vector<uint32_t> counts[2], const std::vecto
         }
         L.titles[panel] = {ox, margin, title_w, int(lines.size() - 1) * line_h + glyph_rows * s};
     }
-    Projection light = project(cam, h.light);
+    // A sun shows where its direction vanishes: the projection of eye + toward, whatever toward's length.
+    double at[3];
+    for (int k = 0; k < 3; ++k) at[k] = h.sun ? cam.eye[k] + h.light[k] : h.light[k];
+    Projection light = project(cam, at);
     L.light_in_view = light.in_front && light.x >= 0 && light.x < n && light.y >= 0 && light.y < n;
     for (int panel = 0; panel < 2; ++panel)
-        L.light_marks[panel] = mark_light(img, L.panels[panel].x, panel_y, n, light, s);
+        L.light_marks[panel] = mark_light(img, L.panels[panel].x, panel_y, n, light, s, h.sun ? "SUN" : "LIGHT");
 
     // The colour bar, inset so the numbers at its ends stay in the picture.
     const int top = int(h.scale_max);
@@ -251,6 +254,7 @@ Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options,
             if (!(lo[0] <= hi[0])) return h;
             cam = default_camera(lo, hi, options.size, options.size);
             hits = first_hits(baked, cam, options.threads);
+            h.sun = options.sun && options.has_light;
             if (options.has_light)
                 std::copy(options.light, options.light + 3, h.light);
             else {
@@ -260,7 +264,7 @@ Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options,
         }
         LoadedAsset asset;
         open_asset_copy(encode_asset(baked.meshes, baked.instances), asset);
-        counts[panel] = useless_tests(asset.view, h.light, hit_points(hits), options.one_sided, options.threads);
+        counts[panel] = useless_tests(asset.view, h.light, hit_points(hits), options.one_sided, options.threads, h.sun);
     }
     h.pixels = counts[0].size();
     std::vector<uint32_t> all(counts[0]);

@@ -19,6 +19,7 @@ struct HeatmapOptions {
     uint32_t size = 256;  // each panel is size x size
     bool has_light = false;
     double light[3] = {0, 0, 0};  // world; default: the report's first light
+    bool sun = false;             // `light` is a sun's direction toward it (cb_segment.h, "A sun"); needs has_light
     bool one_sided = false;
     unsigned threads = 0;  // 0: all hardware threads; the picture does not depend on it
 };
@@ -46,13 +47,14 @@ struct Heatmap {
     uint32_t scale_max = 0;           // the colour ramp's top (brightest): this many useless tests or more
     double mean_useless[2] = {0, 0};  // per covered pixel: k-means, VCO
     uint64_t pixels = 0;              // pixels that see the scene
-    double light[3] = {0, 0, 0};
+    double light[3] = {0, 0, 0};      // or, for a sun, the direction toward it
+    bool sun = false;
     HeatmapLayout layout;
     std::string caption() const;
 };
 
 // Left panel k-means, right panel VCO, each titled with its method and mean; the light marked in both (an
-// arrow at the panel's edge pointing to it when it is out of view); a numbered colour bar along the bottom
+// arrow at the panel's edge pointing to it when it is out of view; a sun where its direction vanishes); a numbered colour bar along the bottom
 // (dark: 0, bright: scale_max or more). Pixels that miss the scene are grey, as the key beside the bar
 // says. Each stage of the work is named to `progress` when set.
 Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options,

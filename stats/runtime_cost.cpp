@@ -177,9 +177,10 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
 }
 
 std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, const std::vector<double>& points,
-                                    bool one_sided, unsigned threads) {
+                                    bool one_sided, unsigned threads, bool sun) {
     SceneQueryOptions options;
     options.one_sided = one_sided;
+    options.sun = sun;
     options.per_point = true;  // the counts are per point
     options.threads = threads;
     SceneQueryResult q = query_scene(view, light, points.data(), points.size() / 3, options);

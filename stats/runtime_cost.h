@@ -60,8 +60,8 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
                             Traversal traversal = Traversal::scan);
 
 // Per point, the cluster tests whose triangles did not block it (the heat map's figure), on `threads`
-// threads (0: all); the counts do not depend on them.
+// threads (0: all); the counts do not depend on them. With `sun`, `light` is the direction toward a sun.
 std::vector<uint32_t> useless_tests(const AssetView& view, const double* light, const std::vector<double>& points,
-                                    bool one_sided = false, unsigned threads = 0);
+                                    bool one_sided = false, unsigned threads = 0, bool sun = false);
 
 }  // namespace cb

@@ -740,6 +740,9 @@ TEST(Cli, OptionsACommandWouldIgnoreAreRefused) {
     // heatmap and report cluster a scene themselves: an asset is refused before any work.
     std::string png = scratch("ignored.png").string(), dir = scratch("ignored_report").string();
     expect_usage_error(run("heatmap " + asset + " -o " + png), "is a clusterbake asset", "heatmap ASSET");
+    expect_usage_error(run("heatmap " + cube + " -o " + png + " --sun 0,1,0 --light 0,9,0"), "name two lights",
+                       "heatmap --sun --light");
+    expect_usage_error(run("heatmap " + cube + " -o " + png + " --sun 0,0,0"), "--sun takes X,Y,Z", "heatmap --sun 0");
     expect_usage_error(run("report " + cube + " " + asset + " -o " + dir), "is a clusterbake asset", "report ASSET");
     expect_usage_error(run("report " + cube + " -o " + dir + " --heatmap-size 64"), "--heatmap-size does nothing here",
                        "--heatmap-size alone");

@@ -1,6 +1,7 @@
 // What makes the pictures readable, checked on their output: the bitmap font, the heat map's titles, light
 // marker and numbered colour bar, and the SVG plots' log axes, ringed Pareto points, recommended point and
 // labels that overlap nothing.
+#include <array>
 #include <gtest/gtest.h>
 #include <png.h>
 
@@ -170,6 +171,38 @@ TEST_F(HeatmapPicture, LightIsMarkedInBothPanels) {
         }
         // The panels mark the same place.
         EXPECT_EQ(h.layout.light_marks[1].x - h.layout.light_marks[0].x, h.layout.panels[1].x - h.layout.panels[0].x);
+    }
+}
+
+// A sun's heat map counts the sun's own traversal: not the point light its vector would name as a position,
+// and on this scene no more useless tests than a light 10 km out in its direction (whose pyramids from the
+// light are wider than the sun's prisms); marked where its direction vanishes, labelled as a sun.
+TEST(HeatmapSun, CountsTheSunsTraversalAndIsMarked) {
+    cb::Scene scene = cb::load_scene(data("default_scene.glb"));
+    for (const std::array<double, 3>& toward :
+         {std::array<double, 3>{1, 0.15, 0.4}, std::array<double, 3>{-0.5, 0.3, -1}}) {
+        cb::HeatmapOptions o;
+        o.size = 80;
+        o.has_light = o.sun = true;
+        std::copy(toward.begin(), toward.end(), o.light);
+        const cb::Heatmap sun = cb::render_heatmap(scene, o);
+        o.sun = false;  // the same three numbers as a position
+        const cb::Heatmap near = cb::render_heatmap(scene, o);
+        for (int k = 0; k < 3; ++k) o.light[k] = 1e4 * toward[k];
+        const cb::Heatmap far = cb::render_heatmap(scene, o);
+        EXPECT_TRUE(sun.sun);
+        EXPECT_FALSE(far.sun);
+        for (int panel = 0; panel < 2; ++panel) {
+            EXPECT_GT(sun.mean_useless[panel], 0.05);
+            EXPECT_NE(sun.mean_useless[panel], near.mean_useless[panel]);
+            EXPECT_LE(sun.mean_useless[panel], far.mean_useless[panel] + 0.01);
+            const cb::RgbImage img = decode(sun.png, sun.width, sun.height);
+            size_t cyan = 0;
+            for (cb::Colour c : crop(img, sun.layout.light_marks[panel])) cyan += c == cb::Colour{0, 230, 255};
+            EXPECT_GT(cyan, 10u) << "panel " << panel;
+        }
+        EXPECT_NE(sun.caption().find("sun toward"), std::string::npos) << sun.caption();
+        EXPECT_NE(sun.caption().find("cyan: the sun"), std::string::npos) << sun.caption();
     }
 }
 
