@@ -22,6 +22,7 @@
 #include <type_traits>
 
 #include "asset_writer.h"
+#include "core_budget.h"
 #include "parallel.h"
 #include "timing.h"
 

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "vec3.h"
+
 namespace cb {
 
 namespace {
@@ -31,11 +33,6 @@ void square_to_disc(double a, double b, double& x, double& y) {
     else
         r = b, phi = pi / 2 - pi / 4 * (a / b);
     x = r * std::cos(phi), y = r * std::sin(phi);
-}
-
-void normalise(double* v) {
-    double l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    for (int k = 0; k < 3; ++k) v[k] /= l;
 }
 
 }  // namespace

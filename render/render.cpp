@@ -16,7 +16,9 @@
 #include "embree_shadows.h"
 #include "scene_query.h"
 #include "timing.h"
+#include "vec3.h"
 #include "visibility.h"
+#include "world_box.h"
 
 namespace cb {
 
@@ -43,37 +45,12 @@ void background(uint32_t y, uint32_t height, uint8_t* px) {
     for (int k = 0; k < 3; ++k) px[k] = uint8_t(std::lround(top[k] + s * (bottom[k] - top[k])));
 }
 
-void normalise(double* v) {
-    const double l = std::sqrt(dot3(v, v));
-    if (l > 0)
-        for (int k = 0; k < 3; ++k) v[k] /= l;
-}
-
 // The world axis nearest `up`.
 int up_axis(const double* up) {
     int u = 0;
     for (int k = 1; k < 3; ++k)
         if (std::fabs(up[k]) > std::fabs(up[u])) u = k;
     return u;
-}
-
-// The world box of instance i's vertices, as level_world_box makes the level's.
-void instance_box(const LevelInput& level, size_t i, double* lo, double* hi) {
-    const LevelInstance& placed = level.instances[i];
-    const AssetView& view = *level.assets[placed.asset];
-    const MeshRecord& mesh = view.meshes[placed.mesh];
-    for (int k = 0; k < 3; ++k) lo[k] = INFINITY, hi[k] = -INFINITY;
-    for (uint32_t v = 0; v < mesh.vertex_count; ++v) {
-        const float* p = view.position(mesh, v);
-        const double local[3] = {p[0], p[1], p[2]};
-        double w[3];
-        apply_instance(placed.transform, local, w);
-        for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], w[k]), hi[k] = std::max(hi[k], w[k]);
-    }
-}
-
-void grow(double* lo, double* hi, const double* box_lo, const double* box_hi) {
-    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], box_lo[k]), hi[k] = std::max(hi[k], box_hi[k]);
 }
 
 // The ground plane of RenderOptions::ground, appended to `level` as an asset of its own (`asset` holds it):
@@ -204,21 +181,19 @@ void classify(const LevelInput& level, const SceneQueryOptions& query, const dou
 
 }  // namespace
 
-size_t frame_box(const LevelInput& level, const double* up, const double* lo, const double* hi, double* frame_lo,
-                 double* frame_hi) {
+size_t frame_box(const std::vector<std::array<double, 6>>& boxes, const double* up, const double* lo, const double* hi,
+                 double* frame_lo, double* frame_hi) {
     std::copy(lo, lo + 3, frame_lo), std::copy(hi, hi + 3, frame_hi);
     const int u = up_axis(up), a = (u + 1) % 3, b = (u + 2) % 3;
     const double sign = up[u] < 0 ? -1 : 1;
-    const size_t n = level.instances.size();
-    std::vector<std::array<double, 6>> boxes(n);
+    const size_t n = boxes.size();
     std::vector<char> flat(n), ground(n, 0);
     double solid_lo[3] = {INFINITY, INFINITY, INFINITY}, solid_hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t i = 0; i < n; ++i) {
-        double* box = boxes[i].data();
-        instance_box(level, i, box, box + 3);
+        const double* box = boxes[i].data();
         const double width_a = box[3 + a] - box[a], width_b = box[3 + b] - box[b];
         flat[i] = box[3 + u] - box[u] <= 0.01 * std::min(width_a, width_b) && width_a > 0 && width_b > 0;
-        if (!flat[i]) grow(solid_lo, solid_hi, box, box + 3);
+        if (!flat[i]) grow_box(solid_lo, solid_hi, box, box + 3);
     }
     if (!(solid_lo[0] <= solid_hi[0])) return 0;  // nothing but flat instances: no object to frame
     size_t grounds = 0;
@@ -229,12 +204,12 @@ size_t frame_box(const LevelInput& level, const double* up, const double* lo, co
         ground[i] = flat[i] && box[3 + a] - box[a] >= 1.5 * (solid_hi[a] - solid_lo[a]) &&
             box[3 + b] - box[b] >= 1.5 * (solid_hi[b] - solid_lo[b]) &&
             sign * 0.5 * (solid_lo[u] + solid_hi[u]) > sign * top;
-        if (ground[i]) ++grounds, grow(ground_lo, ground_hi, box, box + 3);
+        if (ground[i]) ++grounds, grow_box(ground_lo, ground_hi, box, box + 3);
     }
     if (!grounds) return 0;
     double objects_lo[3] = {INFINITY, INFINITY, INFINITY}, objects_hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t i = 0; i < n; ++i)
-        if (!ground[i]) grow(objects_lo, objects_hi, boxes[i].data(), boxes[i].data() + 3);
+        if (!ground[i]) grow_box(objects_lo, objects_hi, boxes[i].data(), boxes[i].data() + 3);
     const double height = objects_hi[u] - objects_lo[u];
     for (int k : {a, b}) {
         frame_lo[k] = std::max(ground_lo[k], objects_lo[k] - height);
@@ -272,9 +247,10 @@ RenderResult render_level(const LevelInput& level, const RenderOptions& o, const
     RenderResult r;
     r.width = o.width, r.height = o.height;
     r.aa = std::max(1u, o.aa);
+    std::vector<std::array<double, 6>> boxes;  // each instance's world box, for the level's and the framing
     double lo[3], hi[3];
-    if (!level_world_box(level, lo, hi)) throw std::runtime_error("no vertex to look at");
-    r.ground_instances = frame_box(level, o.up, lo, hi, r.frame_lo, r.frame_hi);
+    if (!instance_world_boxes(level, boxes, lo, hi)) throw std::runtime_error("no vertex to look at");
+    r.ground_instances = frame_box(boxes, o.up, lo, hi, r.frame_lo, r.frame_hi);
     r.camera = choose_camera(o, r.frame_lo, r.frame_hi, r.fov_degrees);
 
     // The lights: one point, or the area light's samples facing the scene's centre.

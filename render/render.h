@@ -6,13 +6,14 @@
 
 #include <cb_asset.h>
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
 
 #include "area_light.h"
-#include "runtime_cost.h"
+#include "camera.h"
 #include "scene_query.h"
 
 namespace cb {
@@ -40,15 +41,16 @@ struct RenderOptions {
     unsigned threads = 0;    // 0: all; the picture does not depend on it
 };
 
-// The box the default camera frames, from the level's world box [lo, hi] (of every instance): the box of
-// the instances that are not a ground, when some are. A ground is an instance flat along the world axis
-// nearest `up` (its extent there at most 1% of both others), at least 1.5 times as wide on both other axes
-// as the box of every instance that is not flat, and whose top is below that box's centre. The framed box
+// The box the default camera frames, from the world boxes of the level's instances and of them all, [lo, hi]
+// (instance_world_boxes): the box of the instances that are not a ground, when some are. A ground is an
+// instance flat along the world axis nearest `up` (its extent there at most 1% of both others), at least 1.5
+// times as wide on both other axes as the box of every instance that is not flat, and whose top is below that
+// box's centre. The framed box
 // then reaches past the other instances' box on those two axes by its height (so that shadows as long as
 // the objects are tall stay in view), within the ground's box, and down to the ground's top. Returns the
 // number of instances taken as a ground (0: the framed box is the world box).
-size_t frame_box(const LevelInput& level, const double* up, const double* lo, const double* hi, double* frame_lo,
-                 double* frame_hi);
+size_t frame_box(const std::vector<std::array<double, 6>>& boxes, const double* up, const double* lo, const double* hi,
+                 double* frame_lo, double* frame_hi);
 
 // The default point light for `camera`, given the framed box [lo, hi]: from the box's centre, the way to
 // the eye turned 45 degrees to the picture's left about `up` and raised to 50 degrees above the plane

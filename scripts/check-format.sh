@@ -9,8 +9,8 @@ if [ $# -gt 0 ]; then
 elif git rev-parse --is-inside-work-tree >/dev/null 2>&1; then
   mapfile -t files < <(git ls-files -- '*.cpp' '*.h')
 else
-  mapfile -t files < <(find bake bench bounds cli cluster data examples export fuzz io query render runtime stats tests \
-    \( -name '*.cpp' -o -name '*.h' \) 2>/dev/null | sort)
+  mapfile -t files < <(find base bake bench bounds cli cluster data examples export fuzz io query render runtime stats \
+    tests view \( -name '*.cpp' -o -name '*.h' \) 2>/dev/null | sort)
 fi
 bad=0
 for f in "${files[@]}"; do

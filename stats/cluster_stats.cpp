@@ -12,9 +12,9 @@
 
 #include "bounds.h"
 #include "cluster.h"
+#include "first_hits.h"
 #include "parallel.h"
 #include "random.h"
-#include "runtime_cost.h"
 #include "timing.h"
 
 namespace cb {

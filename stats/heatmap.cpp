@@ -9,9 +9,12 @@
 #include "asset_file.h"
 #include "baked_scene.h"
 #include "bitmap_text.h"
+#include "camera.h"
+#include "first_hits.h"
+#include "lights.h"
 #include "png_writer.h"
-#include "report.h"
 #include "runtime_cost.h"
+#include "world_box.h"
 
 namespace cb {
 namespace {
@@ -242,16 +245,8 @@ Heatmap render_heatmap(const Scene& scene, const HeatmapOptions& options,
         b.obb = options.obb;
         BakedScene baked = bake_in_memory(scene, c, b, nullptr, {}, options.threads);
         if (panel == 0) {  // the camera and the light from the world bounds; the same for both panels
-            double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-            for (const Instance& inst : baked.instances) {
-                const AssetMesh& m = baked.meshes[inst.mesh];
-                for (size_t v = 0; v < m.positions.size() / 3; ++v) {
-                    auto p =
-                        transform_point(inst.world, m.positions[v * 3], m.positions[v * 3 + 1], m.positions[v * 3 + 2]);
-                    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
-                }
-            }
-            if (!(lo[0] <= hi[0])) return h;
+            double lo[3], hi[3];
+            if (!world_box(baked, lo, hi)) return h;
             cam = default_camera(lo, hi, options.size, options.size);
             hits = first_hits(baked, cam, options.threads);
             h.sun = options.sun && options.has_light;

@@ -14,33 +14,17 @@
 #include "bake.h"
 #include "bake_file.h"
 #include "baked_scene.h"
+#include "camera.h"
+#include "first_hits.h"
 #include "heatmap.h"
+#include "lights.h"
 #include "load.h"
 #include "runtime_cost.h"
 #include "svg_plot.h"
 #include "timing.h"
+#include "world_box.h"
 
 namespace cb {
-
-std::vector<double> report_lights(const double* lo, const double* hi, uint32_t count) {
-    // Directions from the centre, in units of the box's largest side: all outside the box.
-    static const double offsets[6][3] = {{-0.8, 1.5, 0.3},   {1.4, 0.6, -0.9}, {0.2, 1.8, 1.3},
-                                         {-1.3, -0.2, -1.1}, {0.9, -1.2, 1.0}, {-0.3, 0.9, -1.6}};
-    double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-30});
-    std::vector<double> out;
-    for (uint32_t i = 0; i < count; ++i)
-        for (int k = 0; k < 3; ++k)
-            out.push_back(0.5 * (lo[k] + hi[k]) + offsets[i % 6][k] * size * (1 + 0.25 * (i / 6)));
-    return out;
-}
-
-std::vector<double> report_suns(uint32_t count) {
-    static const double directions[6][3] = {{-0.4, 1.0, 0.3},  {1.0, 0.2, -0.5}, {0.3, 0.7, 1.0},
-                                            {-1.0, 0.5, -0.2}, {0.1, 1.0, -0.9}, {0.8, 0.1, 0.9}};
-    std::vector<double> out;
-    for (uint32_t i = 0; i < count; ++i) out.insert(out.end(), directions[i % 6], directions[i % 6] + 3);
-    return out;
-}
 
 std::string ConfigResult::name() const {
     return std::string(method_name(method)) + "/" + std::to_string(fine_size) + "/" + obb_method_name(obb) +
@@ -131,17 +115,9 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
         s.file = file;
         s.name = scene_name(file, r.scenes);
         s.instances = scene.instances.size();
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        for (const Instance& inst : scene.instances) {
-            const Mesh& m = scene.meshes[inst.mesh];
-            s.triangles += m.triangle_count();
-            for (size_t v = 0; v < m.vertex_count(); ++v) {
-                auto p =
-                    transform_point(inst.world, m.positions[v * 3], m.positions[v * 3 + 1], m.positions[v * 3 + 2]);
-                for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
-            }
-        }
-        if (!(lo[0] <= hi[0])) throw std::runtime_error(file + ": no triangles to report on");
+        for (const Instance& inst : scene.instances) s.triangles += scene.meshes[inst.mesh].triangle_count();
+        double lo[3], hi[3];
+        if (!world_box(scene, lo, hi)) throw std::runtime_error(file + ": no triangles to report on");
         s.lights = report_lights(lo, hi, o.lights);
         s.suns = report_suns(o.suns);
         // The query points: what the camera sees, found once (they do not depend on the clustering).

@@ -42,12 +42,6 @@ struct ReportOptions {
     uint32_t heatmap_size = 256;
 };
 
-// Fixed light positions around the world box [lo, hi]: above and to one side, then others around it.
-std::vector<double> report_lights(const double* lo, const double* hi, uint32_t count);
-
-// Fixed sun directions (toward the sun, +y up as glTF has it): high, then low, then others around.
-std::vector<double> report_suns(uint32_t count);
-
 struct ConfigResult {
     ClusterMethod method;
     uint32_t fine_size;

@@ -1,6 +1,6 @@
 // What a bake costs at run time, measured through the runtime's own query API (query/scene_query.h) on an
-// asset encoded in memory: per-light build time, queries per second and traversal counts; and the points
-// those queries use, the first hits of a camera's pixel rays.
+// asset encoded in memory: per-light build time, queries per second and traversal counts, at points such
+// as a camera's first hits (first_hits.h).
 #pragma once
 
 #include <cb_asset.h>
@@ -10,31 +10,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "asset_writer.h"
-
 namespace cb {
-
-// A pinhole camera; pixel (x, y), y down, looks along forward + half_extent * (sx * aspect * right + sy * up).
-struct Camera {
-    double eye[3], forward[3], right[3], up[3];
-    double half_extent = 0.5;
-    uint32_t width = 128, height = 128;
-};
-
-// Looking at the centre of the world box [lo, hi] from a diagonal above it, the box's corners just in view.
-Camera default_camera(const double* lo, const double* hi, uint32_t width, uint32_t height);
-
-// Where the ray o + t v (t >= 0) enters box b, INFINITY when it misses: in double, each half extent widened
-// by 1e-9 of itself and 1e-12, so that grazing rays do not slip between neighbouring boxes.
-double ray_box_entry(const Obb& b, const double* o, const double* v);
-
-// The world point each pixel's ray first hits (xyz per pixel, NaN where it hits nothing): a double-precision
-// ray cast over the triangles of the fine clusters whose box the ray meets, coarse boxes first. Needs fine
-// and coarse OBBs.
-std::vector<double> first_hits(const BakedScene& baked, const Camera& camera, unsigned threads = 0);
-
-// The hit points only (xyz), in pixel order.
-std::vector<double> hit_points(const std::vector<double>& hits);
 
 struct RuntimeCost {
     double build_seconds = 0;  // all instances' trees for one light: median over runs, mean over lights and suns

@@ -6,7 +6,7 @@ cmake_minimum_required(VERSION 3.20)
 file(STRINGS "${LIST}" files)
 foreach(needed CMakeLists.txt bake/bake_file.cpp bake/build_id.cpp io/asset_writer.cpp io/load_gltf.cpp
         cluster/kmeans.cpp bounds/bounds.cpp runtime/cb_asset.h runtime/detail/cb_math.h batch/run.cpp cli/bake.cpp
-        python/module.cpp)
+        base/parallel.h python/module.cpp)
   if(NOT needed IN_LIST files)
     message(FATAL_ERROR "the build id does not cover ${needed}")
   endif()

@@ -15,6 +15,7 @@
 #include "asset_file.h"
 #include "bake_file.h"
 #include "bake_options.h"
+#include "core_budget.h"
 #include "load.h"
 #include "parallel.h"
 #include "plan.h"

@@ -17,6 +17,8 @@
 
 #include "asset_file.h"
 #include "baked_scene.h"
+#include "first_hits.h"
+#include "lights.h"
 #include "plot_checks.h"
 #include "png_writer.h"
 #include "report.h"

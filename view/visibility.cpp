@@ -9,6 +9,8 @@
 #include <limits>
 
 #include "parallel.h"
+#include "vec3.h"
+#include "world_box.h"
 
 namespace cb {
 
@@ -16,22 +18,6 @@ namespace {
 
 using math::cross3;
 using math::dot3;
-
-constexpr double pi = 3.14159265358979323846;
-
-void normalise(double* v) {
-    double l = std::sqrt(dot3(v, v));
-    if (l > 0)
-        for (int k = 0; k < 3; ++k) v[k] /= l;
-}
-
-double aspect_of(const Camera& c) { return double(c.width) / double(std::max(1u, c.height)); }
-
-// The direction of pixel (x, y)'s ray through its centre, as Camera defines it (not unit).
-void pixel_ray(const Camera& c, double aspect, uint32_t x, uint32_t y, double* dir) {
-    double sx = ((x + 0.5) / c.width * 2 - 1) * aspect, sy = 1 - (y + 0.5) / c.height * 2;
-    for (int k = 0; k < 3; ++k) dir[k] = c.forward[k] + c.half_extent * (sx * c.right[k] + sy * c.up[k]);
-}
 
 // The culling frustum: the four planes through the eye and the picture's edges, and a near plane.
 Frustum view_frustum(const Camera& c, double near) {
@@ -140,58 +126,6 @@ struct DepthBuffer {
 };
 
 }  // namespace
-
-bool level_world_box(const LevelInput& level, double* lo, double* hi) {
-    for (int k = 0; k < 3; ++k) lo[k] = INFINITY, hi[k] = -INFINITY;
-    for (const LevelInstance& placed : level.instances) {
-        const AssetView& view = *level.assets[placed.asset];
-        const MeshRecord& mesh = view.meshes[placed.mesh];
-        for (uint32_t v = 0; v < mesh.vertex_count; ++v) {
-            const float* p = view.position(mesh, v);
-            const double local[3] = {p[0], p[1], p[2]};
-            double w[3];
-            apply_instance(placed.transform, local, w);
-            for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], w[k]), hi[k] = std::max(hi[k], w[k]);
-        }
-    }
-    return lo[0] <= hi[0];
-}
-
-Camera camera_looking_at(const double* eye, const double* target, const double* up, double fov_degrees, uint32_t width,
-                         uint32_t height) {
-    Camera c;
-    c.width = width, c.height = height;
-    for (int k = 0; k < 3; ++k) c.eye[k] = eye[k], c.forward[k] = target[k] - eye[k];
-    normalise(c.forward);
-    double upright[3] = {up[0], up[1], up[2]};
-    normalise(upright);
-    cross3(c.forward, upright, c.right);
-    if (dot3(c.right, c.right) < 1e-12) {  // looking along `up`: keep the axis least along the view upright
-        double axis[3] = {0, 0, 0};
-        int least = 0;
-        for (int k = 1; k < 3; ++k)
-            if (std::fabs(c.forward[k]) < std::fabs(c.forward[least])) least = k;
-        axis[least] = 1;
-        cross3(c.forward, axis, c.right);
-    }
-    normalise(c.right);
-    cross3(c.right, c.forward, c.up);
-    c.half_extent = std::tan(fov_degrees * pi / 360);
-    return c;
-}
-
-double framing_fov(const Camera& c, const double* lo, const double* hi) {
-    const double aspect = aspect_of(c);
-    double extent = 1e-6;
-    for (int i = 0; i < 8; ++i) {
-        double e[3];
-        for (int k = 0; k < 3; ++k) e[k] = ((i >> k & 1) ? hi[k] : lo[k]) - c.eye[k];
-        double depth = dot3(e, c.forward);
-        if (!(depth > 0)) return 0;
-        extent = std::max({extent, std::fabs(dot3(e, c.right)) / depth / aspect, std::fabs(dot3(e, c.up)) / depth});
-    }
-    return 2 * std::atan(1.04 * extent) * 180 / pi;  // the same margin as default_camera's
-}
 
 VisibleSurface primary_visibility(const LevelInput& level, const Camera& c, unsigned threads) {
     VisibleSurface out;

@@ -1,6 +1,7 @@
-// Primary visibility for the renderer, from the level's assets themselves: the fine clusters a camera may
-// see (cb_cull.h), then their triangles drawn into a depth buffer. Each covered pixel gets the point where its
-// ray meets the nearest triangle, in double, and that triangle's normal.
+// Primary visibility, the renderer's first hits, from the level's assets themselves: the fine clusters a
+// camera may see (cb_cull.h), then their triangles drawn into a depth buffer. Each covered pixel gets the
+// point where its ray meets the nearest triangle, in double, and that triangle's normal. first_hits.h finds
+// first hits by casting rays instead.
 #pragma once
 
 #include <cb_asset.h>
@@ -8,22 +9,10 @@
 #include <cstdint>
 #include <vector>
 
-#include "runtime_cost.h"
+#include "camera.h"
 #include "scene_query.h"
 
 namespace cb {
-
-// The world box [lo, hi] of every instance's vertices; false when the level has none.
-bool level_world_box(const LevelInput& level, double* lo, double* hi);
-
-// A camera at `eye` looking at `target`, `up` kept upright in the picture (when it is along the view,
-// another axis is taken), a vertical field of view of `fov_degrees`.
-Camera camera_looking_at(const double* eye, const double* target, const double* up, double fov_degrees, uint32_t width,
-                         uint32_t height);
-
-// The vertical field of view (degrees) from `eye` along `forward` that just holds the box [lo, hi], as
-// default_camera frames it; 0 when some corner is not in front of the eye.
-double framing_fov(const Camera& camera, const double* lo, const double* hi);
 
 struct VisibleSurface {
     uint32_t width = 0, height = 0;

@@ -1,0 +1,77 @@
+#include "world_box.h"
+
+#include <cb_segment.h>
+
+#include <cmath>
+#include <cstddef>
+
+namespace cb {
+
+namespace {
+
+// The union of the world boxes box_of(i, lo, hi) gives for each of the instances; false when it is empty.
+template <class Instances, class Box>
+bool union_of(const Instances& instances, double* lo, double* hi, Box&& box_of) {
+    for (int k = 0; k < 3; ++k) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (size_t i = 0; i < instances.size(); ++i) {
+        double box_lo[3], box_hi[3];
+        box_of(i, box_lo, box_hi);
+        grow_box(lo, hi, box_lo, box_hi);
+    }
+    return lo[0] <= hi[0];
+}
+
+}  // namespace
+
+void instance_world_box(const float* positions, size_t count, const double* m, double* lo, double* hi) {
+    for (int k = 0; k < 3; ++k) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (size_t v = 0; v < count; ++v) {
+        const double local[3] = {positions[v * 3], positions[v * 3 + 1], positions[v * 3 + 2]};
+        double w[3];
+        apply_instance(m, local, w);
+        for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], w[k]), hi[k] = std::max(hi[k], w[k]);
+    }
+}
+
+void instance_world_box(const LevelInput& level, size_t i, double* lo, double* hi) {
+    const LevelInstance& placed = level.instances[i];
+    const AssetView& view = *level.assets[placed.asset];
+    const MeshRecord& mesh = view.meshes[placed.mesh];
+    instance_world_box(view.position(mesh, 0), mesh.vertex_count, placed.transform, lo, hi);
+}
+
+bool level_world_box(const LevelInput& level, double* lo, double* hi) {
+    return union_of(level.instances, lo, hi,
+                    [&](size_t i, double* box_lo, double* box_hi) { instance_world_box(level, i, box_lo, box_hi); });
+}
+
+bool instance_world_boxes(const LevelInput& level, std::vector<std::array<double, 6>>& boxes, double* lo, double* hi) {
+    boxes.resize(level.instances.size());
+    return union_of(level.instances, lo, hi, [&](size_t i, double* box_lo, double* box_hi) {
+        instance_world_box(level, i, box_lo, box_hi);
+        std::copy(box_lo, box_lo + 3, boxes[i].data());
+        std::copy(box_hi, box_hi + 3, boxes[i].data() + 3);
+    });
+}
+
+bool world_box(const Scene& scene, double* lo, double* hi) {
+    return union_of(scene.instances, lo, hi, [&](size_t i, double* box_lo, double* box_hi) {
+        const Instance& inst = scene.instances[i];
+        const Mesh& mesh = scene.meshes[inst.mesh];
+        double m[12];
+        instance_matrix(inst.world, m);
+        instance_world_box(mesh.positions.data(), mesh.vertex_count(), m, box_lo, box_hi);
+    });
+}
+
+bool world_box(const BakedScene& baked, double* lo, double* hi) {
+    return union_of(baked.instances, lo, hi, [&](size_t i, double* box_lo, double* box_hi) {
+        const Instance& inst = baked.instances[i];
+        const AssetMesh& mesh = baked.meshes[inst.mesh];
+        double m[12];
+        instance_matrix(inst.world, m);
+        instance_world_box(mesh.positions.data(), mesh.positions.size() / 3, m, box_lo, box_hi);
+    });
+}
+
+}  // namespace cb
