@@ -214,7 +214,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
     cb::LoadedAsset fitted;  // --traversal compare: the same clusters with spheres, capsules and slabs too
     if (comparing) {
         bo.mask = cb::bounds_all;
-        bo.capsule_ratio = 1;  // a capsule for every cluster: the runtime's --capsule-ratio chooses
+        bo.capsule_ratio = 1;  // a capsule for every cluster: the query's --capsule-aspect chooses
         cb::fit_scene_bounds(meshes, bo, 0, bs);
         if (cb::open_asset_copy(cb::encode_asset(meshes, in.scene.instances), fitted) != cb::AssetError::ok) return;
     }

@@ -248,7 +248,8 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
 
 // Every fine cluster's node: each vertex's direction from the light is within its cone (the walk's
 // tolerance aside) and no nearer than its `near`; and every node's split holds the vertices of every volume
-// below it: near child within [nmin, delta], far child within (delta, fmax], overlap child within [omin, omax].
+// below it: near child within [near_child_min, delta], far child within (delta, far_child_max], overlap child within
+// [overlap_min, overlap_max].
 TEST(MetricTree, ConesAndSplitsHoldTheirClusters) {
     std::vector<std::string> files = scene_files();
     size_t vertices = 0, outside = 0, split_misses = 0, capsules = 0, nodes_checked = 0;
@@ -296,9 +297,11 @@ TEST(MetricTree, ConesAndSplitsHoldTheirClusters) {
                                 if (at == cb::metric_tree::none) continue;
                                 ++nodes_checked;
                                 each_s(at, nodes[k], [&](double s, double) {
-                                    const bool held = child == 0 ? s <= nodes[k].delta + tol && s >= nodes[k].nmin - tol
-                                        : child == 1             ? s > nodes[k].delta - tol && s <= nodes[k].fmax + tol
-                                                                 : s >= nodes[k].omin - tol && s <= nodes[k].omax + tol;
+                                    const bool held = child == 0
+                                        ? s <= nodes[k].delta + tol && s >= nodes[k].near_child_min - tol
+                                        : child == 1
+                                        ? s > nodes[k].delta - tol && s <= nodes[k].far_child_max + tol
+                                        : s >= nodes[k].overlap_min - tol && s <= nodes[k].overlap_max + tol;
                                     split_misses += !held;
                                 });
                                 for (uint32_t c : nodes[at].child) todo.push_back(c);
