@@ -83,7 +83,7 @@ struct BatchOutcome {
 BatchOutcome bake_batch(const BatchPlan& plan, BatchRun run, const std::function<void(const BatchProgress&)>& started,
                         const std::function<void(const BatchProgress&, size_t job, const BakeResult&)>& finished);
 
-// OUTDIR/summary.json's content: the tool, the run, the counts and one record a file, in
+// OUTDIR/summary.json's content: the tool, the run, the counts and one record per file, in
 // the jobs' order.
 nlohmann::json batch_summary(const std::vector<BatchJob>& jobs, const std::vector<BakeResult>& results,
                              const BatchRun& run, double wall_seconds);

@@ -236,7 +236,7 @@ double soa_cost(const double* x, const double* y, const double* z, size_t n, con
 }
 
 // The padded area of the points' rectangle in a plane after turning its axes by the angle of cosine c and
-// sine s: (x, y) are the points' coordinates along the two axes before turning. Two points a step in SSE2
+// sine s: (x, y) are the points' coordinates along the two axes before turning. Two points per step in SSE2
 // lanes, the same expressions as the scalar tail.
 double turned_area(const double* x, const double* y, size_t n, double c, double s, double pad) {
     double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
@@ -287,7 +287,7 @@ const std::array<Vec, spread_axes>& spread_directions() {
     return axes;
 }
 
-// The points that are lowest or highest along one of the spread axes (at most two an axis, in input order).
+// The points that are lowest or highest along one of the spread axes (at most two per axis, in input order).
 // They stand in for the hull's vertices when the frame search would otherwise sweep hundreds of points: a
 // box around them is nearly the box around all, and the stored extents are measured on all points anyway.
 void extreme_points(const double* pts, size_t n, std::vector<double>& out) {
@@ -305,7 +305,7 @@ void extreme_points(const double* pts, size_t n, std::vector<double>& out) {
     }
     for (const Vec& a : spread_directions()) {
         // The first point of the lowest and of the highest projection, as a scan keeping strict improvements
-        // finds them: two points a step in SSE2 lanes, each lane keeping its own first, ties then going to the
+        // finds them: two points per step in SSE2 lanes, each lane keeping its own first, ties then going to the
         // lower index.
         double lo = INFINITY, hi = -INFINITY;
         size_t at_lo = 0, at_hi = 0, v = 0;
@@ -404,7 +404,7 @@ Frame refined_frame(const double* pts, size_t n, const std::vector<Frame>& pca, 
     }
     // The descent turns the best frame about one of its axes at a time: the extent along that axis stays,
     // and the other two come from the points' projections on the frame, turned in the plane, so a try costs
-    // four products a point instead of nine; a winning try's turned projections are kept.
+    // four products per point instead of nine; a winning try's turned projections are kept.
     thread_local std::vector<double> proj;
     proj.resize(n * 3);
     double extent[3];

@@ -718,9 +718,9 @@ private:
         return !slabs_ || segment_may_cross(view_->fine_bounds.slabs[mesh_->first_fine + f], q.p);
     }
 
-    // The points of `subset` whose directions lie in the node's cone (or capsule-cone) and that are not
-    // nearer the light than its volume. A tile within float_safe of the light is tested in float, a vector of
-    // points an instruction; otherwise in double, by cosines with a margin (1e-12) far above their rounding.
+    // The points of `subset` whose directions lie in the node's cone (or capsule-cone) and that are not nearer
+    // the light than its volume. A tile within float_safe of the light is tested in float, one instruction for
+    // a whole vector of points; otherwise in double, by cosines with a margin (1e-12) far above their rounding.
     uint64_t cone_points(const Node& node, const Central& c, uint64_t subset, const Tile& t,
                          const Directions& d) const {
         const double a = double(node.alpha) + tol;

@@ -194,9 +194,9 @@ private:
     // A sphere (centre c from the light, radius r) may meet the pyramid only if it reaches the inside of
     // each side plane, n . c + r >= 0, and of the plane across the tile's axis z at the farthest point's
     // distance, -z . c + r >= -dmax. The centres are stored from the spheres' origin o, so with c = s - l
-    // (l the light from o), each test is n . s + r >= n . l (the right side once per scan, in double): a
-    // vector of spheres an instruction. The right sides are lowered by 1e-6 of |s|_1 + |l|_1 + dmax, above
-    // the float products' errors (3 float epsilons of |s|_1) and the rounding of n (the pyramid's
+    // (l the light from o), each test is n . s + r >= n . l (the right side once per scan, in double):
+    // one instruction tests a whole vector of spheres. The right sides are lowered by 1e-6 of |s|_1 + |l|_1 +
+    // dmax, above the float products' errors (3 float epsilons of |s|_1) and the rounding of n (the pyramid's
     // tolerance, which make_pyramid leaves for it).
     template <bool each_point, class Pass>
     void scan_spheres(uint32_t first_sphere, uint32_t count, uint64_t in, Tile& t, Pass pass) const {

@@ -303,9 +303,9 @@ protected:
         return whole;
     }
 
-    // Sorts by closing distance, ties in list order: each entry goes straight to its rank, the entries before it
-    // in that order, counted a vector of keys an instruction (no branch on the keys: an insertion sort
-    // mispredicted one per entry). NaN counts as infinity.
+    // Sorts by closing distance, ties in list order: each entry goes straight to its rank, the entries before
+    // it in that order counted by instructions that each compare a whole vector of keys (no branch on the keys:
+    // an insertion sort mispredicted one per entry). NaN counts as infinity.
     template <class T>
     static void sort_by_near(T* a, uint32_t count) {
         constexpr uint32_t most = 128;  // the longest list (Tile's capacities)

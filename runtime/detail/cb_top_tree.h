@@ -227,7 +227,7 @@ private:
     // The points of `subset` that may lie in the volume of `leaf`: beyond its closing distance and inside
     // its planes with the walk's tolerance plus the float evaluation's error (below 6e-7 of the distance).
     // Bit k of `straddled` is set when plane k may cut the tile's pyramid; the others hold every point.
-    // A vector of points an instruction, over the lane groups that hold some of the subset.
+    // One instruction tests a whole vector of points, over the lane groups that hold some of the subset.
     uint64_t volume_points(const ClusterNode& leaf, uint64_t subset, uint32_t straddled, const Tile& t) const {
         if (!subset) return 0;
         float n[4][3];  // the planes to check
