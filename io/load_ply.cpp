@@ -169,7 +169,9 @@ bool read_float_triangles(std::string_view body, const std::vector<Element>& ele
         } else if (e.name == "face" && !face_el && e.properties.size() == 1 &&
                    type_size(e.properties[0].count_type) == 1 && std::abs(e.properties[0].type) == 4 &&
                    (e.properties[0].name == "vertex_indices" || e.properties[0].name == "vertex_index")) {
-            face_el = &e, face_at = at, index_bytes = 1 + 3 * 4;
+            face_el = &e;
+            face_at = at;
+            index_bytes = 1 + 3 * 4;
             stride = index_bytes;
         } else {
             return false;
@@ -177,7 +179,8 @@ bool read_float_triangles(std::string_view body, const std::vector<Element>& ele
         if (&e == &vertex_el) {
             for (int k = 0; k < 3; ++k)
                 if (e.properties[size_t(xyz_prop[k])].type != (float_flag | 4)) return false;
-            vertex_at = at, vertex_stride = stride;
+            vertex_at = at;
+            vertex_stride = stride;
         }
         if (stride && e.count > (body.size() - at) / stride) return false;  // truncated: the general reader says where
         at += size_t(e.count) * stride;

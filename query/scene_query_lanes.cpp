@@ -30,8 +30,10 @@ struct RuntimeLevel {
 };
 
 void add_stats(QueryStats& to, const QueryStats& c) {
-    to.nodes_visited += c.nodes_visited, to.clusters_tested += c.clusters_tested;
-    to.triangles_tested += c.triangles_tested, to.touching += c.touching;
+    to.nodes_visited += c.nodes_visited;
+    to.clusters_tested += c.clusters_tested;
+    to.triangles_tested += c.triangles_tested;
+    to.touching += c.touching;
 }
 
 ShadowBuildOptions build_options(const SceneQueryOptions& o) {
@@ -66,7 +68,9 @@ void answer_batch(const Level& level, const double* light, const double* points,
     });
     for (size_t i = 0; i < built; ++i) {
         const InstanceShadow& s = shadow.built(i);
-        r.skipped += s.skipped_clusters(), r.nodes += s.node_count(), r.structure_bytes += s.memory_bytes();
+        r.skipped += s.skipped_clusters();
+        r.nodes += s.node_count();
+        r.structure_bytes += s.memory_bytes();
         r.always_tested += s.always_tested();
     }
     r.structures = built;
@@ -96,8 +100,10 @@ void answer_points(const Level& level, const double* light, const double* points
             shadows[h].build_sun(level.asset(level.asset_of(h)), level.placement(h), light, build);
         else
             shadows[h].build(level.asset(level.asset_of(h)), level.placement(h), light, build);
-        r.skipped += shadows[h].skipped_clusters(), r.nodes += shadows[h].node_count();
-        r.structure_bytes += shadows[h].memory_bytes(), r.always_tested += shadows[h].always_tested();
+        r.skipped += shadows[h].skipped_clusters();
+        r.nodes += shadows[h].node_count();
+        r.structure_bytes += shadows[h].memory_bytes();
+        r.always_tested += shadows[h].always_tested();
     }
     r.structures = shadows.size();
     r.build_seconds = seconds_since(build_start);

@@ -731,7 +731,8 @@ TEST(Cli, OptionsACommandWouldIgnoreAreRefused) {
     EXPECT_FALSE(std::filesystem::exists(outdir));
     std::ofstream(manifest) << "cube.obj --method vco --cache 8\n";
     EXPECT_EQ(run("batch " + manifest + " -o " + outdir + " -q").code, 0);
-    std::filesystem::remove_all(outdir), std::filesystem::remove_all(folder);
+    std::filesystem::remove_all(outdir);
+    std::filesystem::remove_all(folder);
     // The box fitter and the capsule ratio shape only the volumes the asset does not store.
     EXPECT_EQ(run("stats " + asset + " --obb pca --capsule-ratio 3").code, 0);
     expect_usage_error(run("stats " + all + " --obb pca"), "--obb does nothing here", "all kinds stored");

@@ -121,8 +121,10 @@ void check_light(const cb::AssetView& v, const double* light, const std::vector<
         for (size_t k = 0; k < n; ++k) {
             bool walk = false;
             for (const cb::InstanceShadow& tree : trees) walk = walk || tree.occluded(&points[k * 3], scratch.data());
-            t.bad_batch += batch[k] != exact[k], t.bad_walk += walk != bool(exact[k]);
-            t.shadowed += exact[k], ++t.queries;
+            t.bad_batch += batch[k] != exact[k];
+            t.bad_walk += walk != bool(exact[k]);
+            t.shadowed += exact[k];
+            ++t.queries;
         }
     }
 }
@@ -219,7 +221,9 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
                     double p[3];
                     if (k % 3 == 0) {
                         const auto& s = w.surface[size_t(k) % w.surface.size()];
-                        p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                        p[0] = s[0];
+                        p[1] = s[1];
+                        p[2] = s[2];
                     } else if (k % 5 == 4) {  // beyond a point of the bounds, seen from the light
                         for (int j = 0; j < 3; ++j) {
                             double target = w.lo[j] + (w.hi[j] - w.lo[j]) * (u(rng) + 1) / 2;
@@ -355,9 +359,16 @@ TEST(MetricTree, FastAngleStaysWithinItsBound) {
     }
     for (double t = 1e-12; t < M_PI; t *= 1.001) {  // along the whole range, ratios near 0, 1 and infinity
         check(std::sin(t), std::cos(t));
-        check(t, 1), check(1, t), check(t, -1), check(1, -t);
+        check(t, 1);
+        check(1, t);
+        check(t, -1);
+        check(1, -t);
     }
-    for (double x : {0.0, 1.0, -1.0, 1e-300, -1e300}) check(0, x), check(1, x), check(1e-300, x);
+    for (double x : {0.0, 1.0, -1.0, 1e-300, -1e300}) {
+        check(0, x);
+        check(1, x);
+        check(1e-300, x);
+    }
     std::printf("fast_angle's largest error against std::atan2: %.3g radians\n", worst);
     EXPECT_LT(worst, 1e-8);
     EXPECT_LT(worst, cb::metric_tree::tolerance / 10);

@@ -145,7 +145,11 @@ CB_METRIC_INLINE double fast_angle_between(const double* u, const double* v) {
 
 CB_METRIC_INLINE Central central_of(const Node& node) {
     Central c;
-    for (int k = 0; k < 3; ++k) c.a[k] = node.dir_a[k], c.b[k] = node.dir_b[k], c.n[k] = 0;
+    for (int k = 0; k < 3; ++k) {
+        c.a[k] = node.dir_a[k];
+        c.b[k] = node.dir_b[k];
+        c.n[k] = 0;
+    }
     c.arc = node.dir_a[0] != node.dir_b[0] || node.dir_a[1] != node.dir_b[1] || node.dir_a[2] != node.dir_b[2];
     if (c.arc) {
         math::cross3(c.a, c.b, c.n);
@@ -202,9 +206,16 @@ public:
     }
     // The same for a mesh of the asset placed by the caller (a runtime scene's instance).
     void build(const AssetView& view, Placement at, const double* world_light, const ShadowBuildOptions& options) {
-        nodes_.clear(), always_fine_.clear(), always_coarse_.clear(), fine_roots_.clear(), fine_always_.clear();
+        nodes_.clear();
+        always_fine_.clear();
+        always_coarse_.clear();
+        fine_roots_.clear();
+        fine_always_.clear();
         coarse_boxes_.clear();
-        root_ = none, depth_ = 0, capsules_ = 0, top_always_ = {};
+        root_ = none;
+        depth_ = 0;
+        capsules_ = 0;
+        top_always_ = {};
         if (!set_instance(view, at, world_light, options.one_sided, options.bias)) return;
         capsule_ratio_ = options.capsule_ratio;
         build_ = options.metric_build;
@@ -347,7 +358,10 @@ private:
             if (level.capsules) {
                 const Capsule& c = level.capsules[index];
                 capsule = c.a[0] != c.b[0] || c.a[1] != c.b[1] || c.a[2] != c.b[2];
-                for (int k = 0; k < 3; ++k) ca[k] = c.a[k], cb[k] = c.b[k];
+                for (int k = 0; k < 3; ++k) {
+                    ca[k] = c.a[k];
+                    cb[k] = c.b[k];
+                }
                 cr = c.radius;
             }
         } else if (level.obbs) {
@@ -361,7 +375,8 @@ private:
             const double pad = 1e-6 * (h[0] + h[1] + h[2]);
             for (int k = 0; k < 3; ++k) {
                 sc[k] = box.center[k];
-                ca[k] = box.center[k] - h[l] * box.axis[l][k], cb[k] = box.center[k] + h[l] * box.axis[l][k];
+                ca[k] = box.center[k] - h[l] * box.axis[l][k];
+                cb[k] = box.center[k] + h[l] * box.axis[l][k];
             }
             sr = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) + pad;
             cr = std::sqrt(h[j] * h[j] + h[m] * h[m]) + pad;
@@ -375,7 +390,10 @@ private:
             capsule = cr > 0 && length + 2 * cr >= capsule_ratio_ * 2 * cr;
         }
         if (capsule) {
-            for (int k = 0; k < 3; ++k) a[k] = ca[k], b[k] = cb[k];
+            for (int k = 0; k < 3; ++k) {
+                a[k] = ca[k];
+                b[k] = cb[k];
+            }
             r = cr;
         } else {
             for (int k = 0; k < 3; ++k) a[k] = b[k] = sc[k];
@@ -390,7 +408,11 @@ private:
         double pa[3], pb[3], r;
         if (!volume_of(level, index, pa, pb, r)) return false;
         double A[3], B[3], AB[3];
-        for (int k = 0; k < 3; ++k) A[k] = pa[k] - light_[k], B[k] = pb[k] - light_[k], AB[k] = B[k] - A[k];
+        for (int k = 0; k < 3; ++k) {
+            A[k] = pa[k] - light_[k];
+            B[k] = pb[k] - light_[k];
+            AB[k] = B[k] - A[k];
+        }
         // The segment's nearest point to the light.
         const double ab2 = math::dot3(AB, AB);
         double t = ab2 > 0 ? -math::dot3(A, AB) / ab2 : 0;
@@ -415,13 +437,18 @@ private:
             alpha += std::max(metric_tree::angle(m, ua), metric_tree::angle(m, ub));
             for (int k = 0; k < 3; ++k) n.dir_a[k] = n.dir_b[k] = float(m[k]);
         } else {
-            for (int k = 0; k < 3; ++k) n.dir_a[k] = float(ua[k]), n.dir_b[k] = float(ub[k]);
+            for (int k = 0; k < 3; ++k) {
+                n.dir_a[k] = float(ua[k]);
+                n.dir_b[k] = float(ub[k]);
+            }
             if (n.dir_a[0] == n.dir_b[0] && n.dir_a[1] == n.dir_b[1] && n.dir_a[2] == n.dir_b[2])
                 n.dir_b[0] = math::next_float(n.dir_b[0], true);
         }
         // A float direction is within 1.1e-7 radians of the one rounded; 4e-7 more, and a relative 1e-9.
         n.alpha = math::round_up(alpha * (1 + 1e-9) + 4e-7);
-        n.delta = 0, n.overlap_min = n.near_child_min = INFINITY, n.overlap_max = n.far_child_max = -INFINITY;
+        n.delta = 0;
+        n.overlap_min = n.near_child_min = INFINITY;
+        n.overlap_max = n.far_child_max = -INFINITY;
         n.near = math::round_down((dist - r - err) * (1 - 1e-9));
         n.near_min = n.near;
         for (uint32_t& c : n.child) c = none;
@@ -446,7 +473,8 @@ private:
     // s over element e's directions against pivot p (central element cp): [lo, hi].
     CB_METRIC_INLINE static void s_range(const Node& p, const Central& cp, const Element& e, double& lo, double& hi) {
         const double d = metric_tree::distance<true>(cp, e.m), spread = e.half + double(e.node.alpha);
-        lo = d - spread - double(p.alpha), hi = d + spread - double(p.alpha);
+        lo = d - spread - double(p.alpha);
+        hi = d + spread - double(p.alpha);
     }
 
     // A tree over the clusters `ids` (indices local to the level's range starting at `first`) of one level;
@@ -511,7 +539,7 @@ private:
                     p.far_child_max = std::max(p.far_child_max, math::round_up(hi));
                     link = &p.child[1];
                 } else {
-                    p.overlap_min = std::min(p.overlap_min, math::round_down(lo)),
+                    p.overlap_min = std::min(p.overlap_min, math::round_down(lo));
                     p.overlap_max = std::max(p.overlap_max, math::round_up(hi));
                     link = &p.child[2];
                 }
@@ -548,7 +576,9 @@ private:
         std::vector<uint32_t> near_set, far_set, over_set;
         uint64_t state = 0x2545f4914f6cdd1dULL;
         auto next = [&state]() {
-            state ^= state << 13, state ^= state >> 7, state ^= state << 17;
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
             return state;
         };
         while (!jobs.empty()) {
@@ -567,7 +597,10 @@ private:
                     const uint32_t o = job.count <= 64 ? j : uint32_t(next() % job.count);
                     sum += metric_tree::angle(elements[set[c]].m, elements[set[o]].m);
                 }
-                if (sum > best_sum) best_sum = sum, best = c;
+                if (sum > best_sum) {
+                    best_sum = sum;
+                    best = c;
+                }
             }
             std::swap(set[0], set[best]);
             Element& pe = elements[set[0]];
@@ -582,7 +615,9 @@ private:
                 delta = float(keys[keys.size() / 2]);
             }
             pivot.delta = delta;
-            near_set.clear(), far_set.clear(), over_set.clear();
+            near_set.clear();
+            far_set.clear();
+            over_set.clear();
             for (uint32_t j = 1; j < job.count; ++j) {
                 const Element& e = elements[set[j]];
                 double lo, hi;
@@ -626,7 +661,9 @@ private:
         for (uint32_t i = 0; i < n; ++i) order[i] = i;
         uint64_t state = 0x9e3779b97f4a7c15ULL;
         for (uint32_t i = n; i > 1; --i) {
-            state ^= state << 13, state ^= state >> 7, state ^= state << 17;
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
             std::swap(order[i - 1], order[state % i]);
         }
     }
@@ -649,7 +686,9 @@ private:
                 to[ref] = uint32_t(nodes_.size());
                 nodes_.push_back(built[ref]);
                 const Node& n = built[ref];
-                todo.push_back(n.child[2]), todo.push_back(n.child[1]), todo.push_back(n.child[0]);
+                todo.push_back(n.child[2]);
+                todo.push_back(n.child[1]);
+                todo.push_back(n.child[0]);
                 if (n.cluster & coarse_bit) todo.push_back(fine_roots_[n.cluster & ~coarse_bit]);
             }
         };
@@ -734,7 +773,8 @@ private:
         if (t.small) return cone_points_float(node, c, metric_tree::sine_above(a), subset, t);
         const double cos_a = std::cos(a) - 1e-12, sin_a = std::sin(a) + 1e-12;
         double ua[3] = {c.a[0], c.a[1], c.a[2]}, ub[3] = {c.b[0], c.b[1], c.b[2]};
-        metric_tree::normalize(ua), metric_tree::normalize(ub);
+        metric_tree::normalize(ua);
+        metric_tree::normalize(ub);
         uint64_t in = 0;
         for (uint64_t w = subset; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
@@ -774,8 +814,12 @@ private:
             double p[3], q[3];
             math::cross3(c.n, c.a, p);  // e . p >= 0: on b's side of the plane through a and n
             math::cross3(c.b, c.n, q);  // e . q >= 0: on a's side of the plane through b and n
-            for (int k = 0; k < 3; ++k)
-                ends[1][k] = node.dir_b[k], side[0][k] = float(p[k]), side[1][k] = float(q[k]), n[k] = float(c.n[k]);
+            for (int k = 0; k < 3; ++k) {
+                ends[1][k] = node.dir_b[k];
+                side[0][k] = float(p[k]);
+                side[1][k] = float(q[k]);
+                n[k] = float(c.n[k]);
+            }
         }
         uint32_t begin, end;
         simd::lane_span(subset, begin, end);
@@ -830,7 +874,9 @@ private:
         double spread = 0, far = 0, close = INFINITY;
         for (uint64_t w = subset; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            spread = std::max(spread, d.off[i]), far = std::max(far, t.dist[i]), close = std::min(close, t.dist[i]);
+            spread = std::max(spread, d.off[i]);
+            far = std::max(far, t.dist[i]);
+            close = std::min(close, t.dist[i]);
         }
         spread += tol;
         size_t top = 0;
