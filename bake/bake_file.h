@@ -73,7 +73,7 @@ constexpr uint64_t memory_limit_margin = uint64_t(16) << 20;
 uint64_t limit_process_memory(uint64_t budget, unsigned threads);
 
 // Throws LoadError, naming r.input, when baking `scene` would take more than r.load.memory_budget by
-// bake_file's estimate (what the scene holds, and 128 bytes a triangle for the bake): checked before any
+// bake_file's estimate (what the scene holds, and 128 bytes per triangle for the bake): checked before any
 // clustering, as bake_file checks it.
 void check_bake_memory(const Scene& scene, const BakeRequest& r);
 

@@ -1,12 +1,35 @@
 #include "batch.h"
 
 #include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <numeric>
+#include <thread>
 
+#include "asset_writer.h"
 #include "bake_options.h"
+#include "timing.h"
 
 namespace cb {
+
+std::string plan_jobs(const std::vector<std::string>& inputs, const std::string& outdir, std::istream* manifest_stdin,
+                      BatchPlan& out) {
+    try {
+        out.jobs = plan_batch(inputs, outdir, manifest_stdin);
+    } catch (const PlanError& e) {
+        return e.what();
+    }
+    return {};
+}
+
+std::string make_requests(const BatchOptions& batch, BatchPlan& plan) {
+    plan.requests.assign(plan.jobs.size(), BakeRequest{});
+    for (size_t i = 0; i < plan.jobs.size(); ++i) {
+        std::string error = job_request(batch, plan.jobs[i], plan.requests[i]);
+        if (!error.empty()) return error;
+    }
+    return {};
+}
 
 std::string job_request(const BatchOptions& batch, const BatchJob& job, BakeRequest& out) {
     out = batch.bake;
@@ -58,6 +81,34 @@ std::vector<size_t> largest_first(const std::vector<BatchJob>& jobs) {
     return order;
 }
 
+BatchOutcome bake_batch(const BatchPlan& plan, BatchRun run, const std::function<void(const BatchProgress&)>& started,
+                        const std::function<void(const BatchProgress&, size_t job, const BakeResult&)>& finished) {
+    const std::vector<BatchJob>& jobs = plan.jobs;
+    BatchOutcome outcome;
+    outcome.run.cores = run.cores ? run.cores : std::max(1u, std::thread::hardware_concurrency());
+    outcome.run.jobs = run.jobs ? run.jobs : outcome.run.cores;
+    BatchProgress progress;
+    progress.files = jobs.size();
+    for (const BatchJob& job : jobs) progress.bytes += job.input_size;
+    const auto t0 = std::chrono::steady_clock::now();
+    outcome.results = run_batch(
+        plan.requests, largest_first(jobs), outcome.run,
+        [&](size_t i) {
+            progress.current = jobs[i].name;
+            progress.seconds = seconds_since(t0);
+            started(progress);
+        },
+        [&](size_t i, const BakeResult& r) {
+            ++progress.done;
+            progress.done_bytes += jobs[i].input_size;
+            if (r.status == BakeStatus::baked) progress.baked_triangles += r.triangles;
+            progress.seconds = seconds_since(t0);
+            finished(progress, i, r);
+        });
+    outcome.seconds = seconds_since(t0);
+    return outcome;
+}
+
 BatchTotals batch_totals(const std::vector<BakeResult>& results) {
     BatchTotals t;
     for (const BakeResult& r : results) {
@@ -99,6 +150,14 @@ nlohmann::json batch_summary(const std::vector<BatchJob>& jobs, const std::vecto
               {"up_to_date", t.files[int(BakeStatus::up_to_date)]},
               {"failed", t.files[int(BakeStatus::failed)]}}},
             {"files", files}};
+}
+
+BatchSummaryFile write_batch_summary(const std::string& outdir, const BatchPlan& plan, const BatchOutcome& outcome) {
+    BatchSummaryFile file;
+    file.path = (std::filesystem::path(outdir) / "summary.json").string();
+    file.text = batch_summary(plan.jobs, outcome.results, outcome.run, outcome.seconds).dump(2) + "\n";
+    write_file_atomic(file.path, std::vector<uint8_t>(file.text.begin(), file.text.end()));
+    return file;
 }
 
 }  // namespace cb

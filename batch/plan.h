@@ -35,7 +35,7 @@ std::vector<std::string> manifest_fields(const std::string& line);
 
 // Expands the inputs, in order: a scene file is its own root (name: its file name); a folder is the root of
 // every scene file below it (recursively, symbolic links to folders not followed); any other file, or "-"
-// for `manifest_stdin`, is a manifest: one scene path a line, relative to the manifest's folder (the
+// for `manifest_stdin`, is a manifest: one scene path per line, relative to the manifest's folder (the
 // working directory for "-"), which is the root, then that file's bake options. Jobs come back sorted by
 // name; the same input twice with the same options is one job. Throws PlanError when an input does not
 // exist, a folder holds no scene, a manifest line is bad or names a file outside the manifest's folder, or

@@ -60,7 +60,10 @@ bool decode_result(const std::string& bytes, BakeResult& r) {
     bool ok = true;
     auto take = [&](void* to, size_t size) {
         ok = ok && size <= bytes.size() - at;
-        if (ok) std::memcpy(to, bytes.data() + at, size), at += size;
+        if (ok) {
+            std::memcpy(to, bytes.data() + at, size);
+            at += size;
+        }
     };
     each_field(r, [&](auto& v) {
         using T = std::decay_t<decltype(v)>;
@@ -200,7 +203,8 @@ std::vector<BakeResult> run_batch(const std::vector<BakeRequest>& requests, cons
         const pid_t pid = ::fork();
         if (pid < 0) {
             const int error = errno;
-            ::close(pipe_fds[0]), ::close(pipe_fds[1]);
+            ::close(pipe_fds[0]);
+            ::close(pipe_fds[1]);
             return std::strerror(error);
         }
         if (pid == 0) {
@@ -257,9 +261,13 @@ std::vector<BakeResult> run_batch(const std::vector<BakeRequest>& requests, cons
     std::vector<unsigned> polled_slot;
     char buffer[1 << 16];
     while (true) {
-        polled.clear(), polled_slot.clear();
+        polled.clear();
+        polled_slot.clear();
         for (unsigned s = 0; s < slots; ++s)
-            if (children[s].pid) polled.push_back({children[s].fd, POLLIN, 0}), polled_slot.push_back(s);
+            if (children[s].pid) {
+                polled.push_back({children[s].fd, POLLIN, 0});
+                polled_slot.push_back(s);
+            }
         if (polled.empty()) break;
         if (::poll(polled.data(), polled.size(), -1) < 0) {
             if (errno == EINTR) continue;

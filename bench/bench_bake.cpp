@@ -155,8 +155,12 @@ Run median_run(std::vector<Run> runs) {
         for (const Run& r : runs) v.push_back(r.*f);
         return cb::median(v);
     };
-    m.wall = med(&Run::wall), m.load = med(&Run::load), m.cluster = med(&Run::cluster), m.fit = med(&Run::fit);
-    m.write = med(&Run::write), m.peak_mb = med(&Run::peak_mb);
+    m.wall = med(&Run::wall);
+    m.load = med(&Run::load);
+    m.cluster = med(&Run::cluster);
+    m.fit = med(&Run::fit);
+    m.write = med(&Run::write);
+    m.peak_mb = med(&Run::peak_mb);
     m.asset_bytes = runs[0].asset_bytes;
     return m;
 }

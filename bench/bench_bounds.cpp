@@ -53,9 +53,10 @@ std::vector<Cluster> make_clusters(const cb::Mesh& m, uint32_t fine) {
                 uint8_t(std::lower_bound(c.vertices.begin(), c.vertices.end(), v) - c.vertices.begin()));
         double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
         for (uint32_t v : c.vertices)
-            for (int k = 0; k < 3; ++k)
-                lo[k] = std::min(lo[k], double(m.positions[v * 3 + k])),
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], double(m.positions[v * 3 + k]));
                 hi[k] = std::max(hi[k], double(m.positions[v * 3 + k]));
+            }
         for (int k = 0; k < 3; ++k) c.origin[k] = 0.5 * (lo[k] + hi[k]);
         for (uint32_t v : c.vertices)
             for (int k = 0; k < 3; ++k) c.local.push_back(m.positions[v * 3 + k] - c.origin[k]);
@@ -68,7 +69,9 @@ struct Ratio {
     double sum = 0, worst = 0;
     void add(double r) {
         if (!std::isfinite(r)) return;
-        sum += r, worst = std::max(worst, r), all.push_back(r);
+        sum += r;
+        worst = std::max(worst, r);
+        all.push_back(r);
     }
     double mean() const { return all.empty() ? NAN : sum / double(all.size()); }
     double median() const {  // flat clusters make volume ratios heavy-tailed: the median says more

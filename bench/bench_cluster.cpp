@@ -68,8 +68,10 @@ struct Compactness {
 // `cluster_of_position` lists triangles cluster by cluster; `sizes` gives each cluster's count.
 Compactness compactness(const Input& in, const std::vector<uint32_t>& tris, const std::vector<uint32_t>& sizes) {
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t i = 0; i < in.positions.size(); ++i)
-        lo[i % 3] = std::min(lo[i % 3], in.positions[i]), hi[i % 3] = std::max(hi[i % 3], in.positions[i]);
+    for (size_t i = 0; i < in.positions.size(); ++i) {
+        lo[i % 3] = std::min(lo[i % 3], in.positions[i]);
+        hi[i % 3] = std::max(hi[i % 3], in.positions[i]);
+    }
     double diagonal = std::sqrt(double(hi[0] - lo[0]) * (hi[0] - lo[0]) + double(hi[1] - lo[1]) * (hi[1] - lo[1]) +
                                 double(hi[2] - lo[2]) * (hi[2] - lo[2]));
     Compactness c;
@@ -79,7 +81,10 @@ Compactness compactness(const Input& in, const std::vector<uint32_t>& tris, cons
         for (size_t i = at; i < at + n; ++i)
             for (int k = 0; k < 3; ++k) {
                 const float* p = &in.positions[size_t(in.indices[size_t(tris[i]) * 3 + k]) * 3];
-                for (int d = 0; d < 3; ++d) a[d] = std::min(a[d], p[d]), b[d] = std::max(b[d], p[d]);
+                for (int d = 0; d < 3; ++d) {
+                    a[d] = std::min(a[d], p[d]);
+                    b[d] = std::max(b[d], p[d]);
+                }
             }
         double r = 0.5 *
             std::sqrt(double(b[0] - a[0]) * (b[0] - a[0]) + double(b[1] - a[1]) * (b[1] - a[1]) +

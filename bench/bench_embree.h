@@ -35,11 +35,15 @@ inline std::vector<double> first_hits(RTCScene scene, const double* eye, const d
         for (int x = 0; x < view; ++x) {
             double sx = (x + 0.5) / view * 2 - 1, sy = (y + 0.5) / view * 2 - 1;
             RTCRayHit rh{};
-            rh.ray.org_x = float(eye[0]), rh.ray.org_y = float(eye[1]), rh.ray.org_z = float(eye[2]);
+            rh.ray.org_x = float(eye[0]);
+            rh.ray.org_y = float(eye[1]);
+            rh.ray.org_z = float(eye[2]);
             rh.ray.dir_x = float(fw[0] + spread * (sx * right[0] + sy * up[0]));
             rh.ray.dir_y = float(fw[1] + spread * (sx * right[1] + sy * up[1]));
             rh.ray.dir_z = float(fw[2] + spread * (sx * right[2] + sy * up[2]));
-            rh.ray.tnear = 0, rh.ray.tfar = INFINITY, rh.ray.mask = 0xffffffff;
+            rh.ray.tnear = 0;
+            rh.ray.tfar = INFINITY;
+            rh.ray.mask = 0xffffffff;
             rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
             rtcIntersect1(scene, &ctx, &rh);
             if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
@@ -70,9 +74,14 @@ inline void occluded_range(RTCScene scene, const double* pts, const double* ligh
         for (size_t i = first; i < last; ++i) {
             RTCRay r{};
             float dir[3];
-            r.org_x = float(pts[i * 3]), r.org_y = float(pts[i * 3 + 1]), r.org_z = float(pts[i * 3 + 2]);
+            r.org_x = float(pts[i * 3]);
+            r.org_y = float(pts[i * 3 + 1]);
+            r.org_z = float(pts[i * 3 + 2]);
             ray(i, dir, r.tnear, r.tfar);
-            r.dir_x = dir[0], r.dir_y = dir[1], r.dir_z = dir[2], r.mask = 0xffffffff;
+            r.dir_x = dir[0];
+            r.dir_y = dir[1];
+            r.dir_z = dir[2];
+            r.mask = 0xffffffff;
             rtcOccluded1(scene, &c, &r);
             out[i] = r.tfar < 0;
         }
@@ -85,9 +94,14 @@ inline void occluded_range(RTCScene scene, const double* pts, const double* ligh
             const size_t i = std::min(at + k, last - 1);
             float dir[3];
             valid[k] = at + k < last ? -1 : 0;
-            r.org_x[k] = float(pts[i * 3]), r.org_y[k] = float(pts[i * 3 + 1]), r.org_z[k] = float(pts[i * 3 + 2]);
+            r.org_x[k] = float(pts[i * 3]);
+            r.org_y[k] = float(pts[i * 3 + 1]);
+            r.org_z[k] = float(pts[i * 3 + 2]);
             ray(i, dir, r.tnear[k], r.tfar[k]);
-            r.dir_x[k] = dir[0], r.dir_y[k] = dir[1], r.dir_z[k] = dir[2], r.mask[k] = 0xffffffff;
+            r.dir_x[k] = dir[0];
+            r.dir_y[k] = dir[1];
+            r.dir_z[k] = dir[2];
+            r.mask[k] = 0xffffffff;
         }
         rtcOccluded16(valid, scene, &c, &r);
         for (size_t k = 0; k < 16 && at + k < last; ++k) out[at + k] = r.tfar[k] < 0;

@@ -67,7 +67,10 @@ public:
     // job(w) on workers 0 .. count - 1; returns when all have finished.
     void run(unsigned count, const std::function<void(unsigned)>& job) {
         std::unique_lock<std::mutex> lock(mutex_);
-        job_ = &job, count_ = count, busy_ = count, ++generation_;
+        job_ = &job;
+        count_ = count;
+        busy_ = count;
+        ++generation_;
         wake_.notify_all();
         done_.wait(lock, [this] { return busy_ == 0; });
     }
@@ -158,9 +161,11 @@ void compare_light(const cb::AssetView& boxes, const cb::AssetView& fitted, cons
             const cb::AssetView& view = config.fitted ? fitted : boxes;
             std::vector<cb::InstanceShadow> trees(view.instance_count);
             cb::ShadowBuildOptions options;
-            options.traversal = config.traversal, options.one_sided = one_sided;
+            options.traversal = config.traversal;
+            options.one_sided = one_sided;
             options.bounds = config.fitted ? nullptr : scan.data();
-            options.capsule_ratio = config.capsule_ratio, options.metric_build = config.build;
+            options.capsule_ratio = config.capsule_ratio;
+            options.metric_build = config.build;
             options.bias = bias;
             auto b0 = std::chrono::steady_clock::now();
             for (uint32_t i = 0; i < view.instance_count; ++i) trees[i].build(view, i, light, options);
@@ -172,9 +177,13 @@ void compare_light(const cb::AssetView& boxes, const cb::AssetView& fitted, cons
             cb::occluded_ordered(trees.data(), trees.size(), pts.data(), order.data(), n, answers.data(),
                                  scratch.data(), &st);
             query[c].push_back(cb::seconds_since(q0));
-            stats[c] = st, bytes[c] = nodes[c] = capsules[c] = 0;
-            for (const cb::InstanceShadow& t : trees)
-                bytes[c] += t.memory_bytes(), nodes[c] += t.node_count(), capsules[c] += t.capsules();
+            stats[c] = st;
+            bytes[c] = nodes[c] = capsules[c] = 0;
+            for (const cb::InstanceShadow& t : trees) {
+                bytes[c] += t.memory_bytes();
+                nodes[c] += t.node_count();
+                capsules[c] += t.capsules();
+            }
             shadowed[c] = size_t(std::count(answers.begin(), answers.end(), uint8_t(1)));
             if (c == 0) first = answers;
             differ[c] = 0;
@@ -214,7 +223,7 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
     cb::LoadedAsset fitted;  // --traversal compare: the same clusters with spheres, capsules and slabs too
     if (comparing) {
         bo.mask = cb::bounds_all;
-        bo.capsule_ratio = 1;  // a capsule for every cluster: the runtime's --capsule-ratio chooses
+        bo.capsule_ratio = 1;  // a capsule for every cluster: the query's --capsule-aspect chooses
         cb::fit_scene_bounds(meshes, bo, 0, bs);
         if (cb::open_asset_copy(cb::encode_asset(meshes, in.scene.instances), fitted) != cb::AssetError::ok) return;
     }
@@ -229,11 +238,15 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
     std::vector<unsigned> t;
     flatten(in.scene, v, t);
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t i = 0; i < v.size(); ++i) lo[i % 3] = std::min(lo[i % 3], v[i]), hi[i % 3] = std::max(hi[i % 3], v[i]);
+    for (size_t i = 0; i < v.size(); ++i) {
+        lo[i % 3] = std::min(lo[i % 3], v[i]);
+        hi[i % 3] = std::max(hi[i % 3], v[i]);
+    }
     double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
     double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
 
-    cb::bench::embree_bytes = 0, cb::bench::embree_peak = 0;
+    cb::bench::embree_bytes = 0;
+    cb::bench::embree_peak = 0;
     RTCDevice device = rtcNewDevice("threads=2");
     rtcSetDeviceMemoryMonitorFunction(device, cb::bench::embree_monitor, nullptr);
     auto t0 = std::chrono::steady_clock::now();
@@ -252,13 +265,18 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
     // Camera: looking at the centre from a diagonal; the points are the first hits.
     double eye[3] = {centre[0] + 1.2 * size, centre[1] + 0.8 * size, centre[2] + 1.5 * size};
     double fw[3], right[3], up[3] = {0, 1, 0}, len = 0;
-    for (int k = 0; k < 3; ++k) fw[k] = centre[k] - eye[k], len += fw[k] * fw[k];
+    for (int k = 0; k < 3; ++k) {
+        fw[k] = centre[k] - eye[k];
+        len += fw[k] * fw[k];
+    }
     for (double& x : fw) x /= std::sqrt(len);
-    right[0] = fw[1] * up[2] - fw[2] * up[1], right[1] = fw[2] * up[0] - fw[0] * up[2],
+    right[0] = fw[1] * up[2] - fw[2] * up[1];
+    right[1] = fw[2] * up[0] - fw[0] * up[2];
     right[2] = fw[0] * up[1] - fw[1] * up[0];
     len = std::sqrt(right[0] * right[0] + right[1] * right[1] + right[2] * right[2]);
     for (double& x : right) x /= len;
-    up[0] = right[1] * fw[2] - right[2] * fw[1], up[1] = right[2] * fw[0] - right[0] * fw[2],
+    up[0] = right[1] * fw[2] - right[2] * fw[1];
+    up[1] = right[2] * fw[0] - right[0] * fw[2];
     up[2] = right[0] * fw[1] - right[1] * fw[0];
     const std::vector<double> pts = cb::bench::first_hits(scene, eye, fw, right, up, view, 0.5);
     size_t n = pts.size() / 3;
@@ -285,7 +303,9 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             auto b0 = std::chrono::steady_clock::now();
             auto build_some = [&](unsigned th) {
                 cb::ShadowBuildOptions options;
-                options.traversal = level, options.one_sided = one_sided, options.bounds = scan_bounds.data();
+                options.traversal = level;
+                options.one_sided = one_sided;
+                options.bounds = scan_bounds.data();
                 options.bias = bias;
                 for (uint32_t i = th; i < asset.instance_count; i += threads) {
                     options.scratch = &build_scratch[i];
@@ -319,7 +339,8 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             do {
                 if (at >= n) return false;
                 const size_t size = std::clamp<size_t>((n - at) / (8 * threads), 1024, 4096) / 64 * 64;
-                begin = at, end = std::min(n, at + (threads == 1 ? n : size));
+                begin = at;
+                end = std::min(n, at + (threads == 1 ? n : size));
             } while (!next.compare_exchange_weak(at, end));
             return true;
         };
@@ -347,9 +368,11 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             };
             workers.run(threads, work);
             stats = {};
-            for (auto& s2 : st)
-                stats.nodes_visited += s2.nodes_visited, stats.clusters_tested += s2.clusters_tested,
-                    stats.triangles_tested += s2.triangles_tested;
+            for (auto& s2 : st) {
+                stats.nodes_visited += s2.nodes_visited;
+                stats.clusters_tested += s2.clusters_tested;
+                stats.triangles_tested += s2.triangles_tested;
+            }
             return cb::seconds_since(s);
         };
         auto embree_pass = [&](unsigned threads, bool packets) {
@@ -379,7 +402,9 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
         if (frames > 0) {  // our frames alone (see the usage above), alternately inline and through query_scene
             std::vector<double> f, inline_queries, through_queries;
             cb::SceneQueryOptions qo;
-            qo.traversal = level, qo.one_sided = one_sided, qo.threads = 1;
+            qo.traversal = level;
+            qo.one_sided = one_sided;
+            qo.threads = 1;
             for (int r = 0; r < frames; ++r) {
                 const double b = build_trees(1), q = ours_pass(1);
                 f.push_back(b + q);
@@ -396,14 +421,14 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
             continue;
         }
         for (int r = 0; r < std::max(1, runs); ++r) {
-            t[7].push_back(settled([&] { return build_trees(2); })),
-                t[2].push_back(settled([&] { return ours_pass(2); }));
-            t[0].push_back(settled([&] { return build_trees(1); })),
-                t[1].push_back(settled([&] { return ours_pass(1); }));
-            t[3].push_back(settled([&] { return embree_pass(1, false); })),
-                t[4].push_back(settled([&] { return embree_pass(2, false); }));
-            t[5].push_back(settled([&] { return embree_pass(1, true); })),
-                t[6].push_back(settled([&] { return embree_pass(2, true); }));
+            t[7].push_back(settled([&] { return build_trees(2); }));
+            t[2].push_back(settled([&] { return ours_pass(2); }));
+            t[0].push_back(settled([&] { return build_trees(1); }));
+            t[1].push_back(settled([&] { return ours_pass(1); }));
+            t[3].push_back(settled([&] { return embree_pass(1, false); }));
+            t[4].push_back(settled([&] { return embree_pass(2, false); }));
+            t[5].push_back(settled([&] { return embree_pass(1, true); }));
+            t[6].push_back(settled([&] { return embree_pass(2, true); }));
         }
         using cb::median;
         double build = median(t[0]), build2 = median(t[7]), ours1 = median(t[1]), ours2 = median(t[2]),
@@ -412,12 +437,17 @@ void run(const Input& in, int view, int runs, bool one_sided, cb::Traversal leve
         // round's ratio ran within the same few hundred milliseconds.
         std::vector<double> r1, r2, q1, q2;  // against occluded1, then occluded16
         for (size_t r = 0; r < t[0].size(); ++r) {
-            r1.push_back((t[0][r] + t[1][r]) / t[3][r]), r2.push_back((t[7][r] + t[2][r]) / t[4][r]);
-            q1.push_back((t[0][r] + t[1][r]) / t[5][r]), q2.push_back((t[7][r] + t[2][r]) / t[6][r]);
+            r1.push_back((t[0][r] + t[1][r]) / t[3][r]);
+            r2.push_back((t[7][r] + t[2][r]) / t[4][r]);
+            q1.push_back((t[0][r] + t[1][r]) / t[5][r]);
+            q2.push_back((t[7][r] + t[2][r]) / t[6][r]);
         }
         const double ratio1 = median(r1), ratio2 = median(r2), packet1 = median(q1), packet2 = median(q2);
         size_t shadowed = 0, differ = 0;
-        for (size_t i = 0; i < n; ++i) shadowed += ours[i], differ += ours[i] != embree1[i];
+        for (size_t i = 0; i < n; ++i) {
+            shadowed += ours[i];
+            differ += ours[i] != embree1[i];
+        }
         double mq = double(n) / 1e6;
         size_t ours_bytes = bytes.size() + (level == cb::Traversal::scan ? scan_bounds_bytes : 0);
         for (const cb::InstanceShadow& tr : trees) ours_bytes += tr.memory_bytes();

@@ -19,7 +19,7 @@ namespace {
 
 struct QueryArgs {
     std::string asset, light, sun, points, traversal = "scan", fine, metric_build = "heuristic";
-    double capsule_ratio = 4.0, bias = 0;
+    double capsule_aspect = 4.0, bias = 0;
     bool binary = false, stats = false, reference = false, one_sided = false, json = false, quiet = false;
     unsigned threads = 0;
 };
@@ -106,9 +106,9 @@ nlohmann::json stats_json(const QueryArgs& a, const cb::SceneQueryResult& q, siz
         j["touching"] = q.stats.touching;
     } else {
         j["build_seconds"] = q.build_seconds;
-        j["trees"] = q.trees;
+        j["trees"] = q.structures;
         j["nodes"] = q.nodes;
-        j["tree_bytes"] = q.tree_bytes;
+        j["tree_bytes"] = q.structure_bytes;
         j["always_tested"] = q.always_tested;
         j["skipped"] = q.skipped;
     }
@@ -139,7 +139,7 @@ void print_stats(const QueryArgs& a, const cb::SceneQueryResult& q, size_t shado
         std::fprintf(stderr,
                      "build %.3f s: %zu trees, %zu nodes (%.1f KB), %zu clusters tested for every point (light inside "
                      "or level with their volume), %zu skipped (one-sided, light in their front cone)\n",
-                     q.build_seconds, q.trees, q.nodes, q.tree_bytes / 1024.0, q.always_tested, q.skipped);
+                     q.build_seconds, q.structures, q.nodes, q.structure_bytes / 1024.0, q.always_tested, q.skipped);
     std::fprintf(stderr,
                  "%zu queries, %zu in shadow, %.3f s on %s lanes (%.0f queries/s); per query %.1f clusters and %.1f "
                  "triangles tested\n",
@@ -163,14 +163,16 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
         return exit_usage;
     }
     if (a.traversal != "mtsv" && a.traversal != "mtsv-two" &&
-        refuse_given(c, {"--capsule-ratio", "--mtsv-build"}, "they set up the metric trees of --traversal mtsv"))
+        refuse_given(c, {"--capsule-aspect", "--capsule-ratio", "--mtsv-build"},
+                     "they set up the metric trees of --traversal mtsv"))
         return exit_usage;
     if (!(a.bias >= 0 && a.bias < INFINITY)) {  // NaN too
         std::fprintf(stderr, "clusterbake: --bias takes a distance of at least 0 (0: the level's default)\n");
         return exit_usage;
     }
-    if (!(a.capsule_ratio >= 1)) {  // NaN too
-        std::fprintf(stderr, "clusterbake: --capsule-ratio takes a number of at least 1 (inf: spheres only)\n");
+    if (!(a.capsule_aspect >= 1)) {  // NaN too
+        std::fprintf(stderr, "clusterbake: %s takes a number of at least 1 (inf: spheres only)\n",
+                     first_given(c, {"--capsule-aspect", "--capsule-ratio"}).c_str());
         return exit_usage;
     }
     double light[3];
@@ -186,7 +188,7 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     options.one_sided = a.one_sided;
     options.threads = a.threads;
     options.reference = a.reference;
-    options.capsule_ratio = a.capsule_ratio;
+    options.capsule_aspect = a.capsule_aspect;
     options.bias = a.bias;
     options.sun = !a.sun.empty();
     cb::SceneQueryResult q = cb::query_level(level.level, light, pts.data(), pts.size() / 3, options);
@@ -241,9 +243,11 @@ Command add_query(CLI::App& app) {
                   "capsule cones, by angle from the light) or 'mtsv-two' (a metric tree over the coarse "
                   "clusters' cones entering one per coarse cluster); same answers")
         ->check(CLI::IsMember({"scan", "trees", "one-tree", "mtsv", "mtsv-two"}));
-    c->add_option("--capsule-ratio", a->capsule_ratio,
+    c->add_option("--capsule-aspect", a->capsule_aspect,
                   "mtsv: a cluster's volume is its capsule when that is at least this many times as long as "
-                  "wide, else its sphere (default 4; inf: spheres only)");
+                  "wide, else its sphere (default 4; inf: spheres only; the old spelling --capsule-ratio is still "
+                  "accepted)");
+    c->add_option("--capsule-ratio", a->capsule_aspect)->group("");  // the old spelling of --capsule-aspect
     c->add_option("--mtsv-build", a->metric_build,
                   "mtsv: 'heuristic' (default: shuffled insertion, split distance halved at each near step) or "
                   "'reference' (far pivots, median split distances; slower)")

@@ -74,12 +74,30 @@ void hsv_to_linear(double hue, double sat, double val, double rgb[3]) {
     double h = std::fmod(hue, 360.0) / 60.0, c = val * sat, x = c * (1 - std::fabs(std::fmod(h, 2.0) - 1));
     double r = 0, g = 0, b = 0;
     switch (int(h)) {
-        case 0: r = c, g = x; break;
-        case 1: r = x, g = c; break;
-        case 2: g = c, b = x; break;
-        case 3: g = x, b = c; break;
-        case 4: r = x, b = c; break;
-        default: r = c, b = x; break;
+        case 0:
+            r = c;
+            g = x;
+            break;
+        case 1:
+            r = x;
+            g = c;
+            break;
+        case 2:
+            g = c;
+            b = x;
+            break;
+        case 3:
+            g = x;
+            b = c;
+            break;
+        case 4:
+            r = x;
+            b = c;
+            break;
+        default:
+            r = c;
+            b = x;
+            break;
     }
     double m = val - c, srgb[3] = {r + m, g + m, b + m};
     for (int k = 0; k < 3; ++k)  // glTF colour factors are linear, screens show sRGB
@@ -143,16 +161,28 @@ void quaternion_of(const double col[3][3], double q[4]) {
     double trace = m(0, 0) + m(1, 1) + m(2, 2);
     if (trace > 0) {
         double s = std::sqrt(trace + 1) * 2;
-        q[3] = s / 4, q[0] = (m(2, 1) - m(1, 2)) / s, q[1] = (m(0, 2) - m(2, 0)) / s, q[2] = (m(1, 0) - m(0, 1)) / s;
+        q[3] = s / 4;
+        q[0] = (m(2, 1) - m(1, 2)) / s;
+        q[1] = (m(0, 2) - m(2, 0)) / s;
+        q[2] = (m(1, 0) - m(0, 1)) / s;
     } else if (m(0, 0) > m(1, 1) && m(0, 0) > m(2, 2)) {
         double s = std::sqrt(1 + m(0, 0) - m(1, 1) - m(2, 2)) * 2;
-        q[3] = (m(2, 1) - m(1, 2)) / s, q[0] = s / 4, q[1] = (m(0, 1) + m(1, 0)) / s, q[2] = (m(0, 2) + m(2, 0)) / s;
+        q[3] = (m(2, 1) - m(1, 2)) / s;
+        q[0] = s / 4;
+        q[1] = (m(0, 1) + m(1, 0)) / s;
+        q[2] = (m(0, 2) + m(2, 0)) / s;
     } else if (m(1, 1) > m(2, 2)) {
         double s = std::sqrt(1 + m(1, 1) - m(0, 0) - m(2, 2)) * 2;
-        q[3] = (m(0, 2) - m(2, 0)) / s, q[0] = (m(0, 1) + m(1, 0)) / s, q[1] = s / 4, q[2] = (m(1, 2) + m(2, 1)) / s;
+        q[3] = (m(0, 2) - m(2, 0)) / s;
+        q[0] = (m(0, 1) + m(1, 0)) / s;
+        q[1] = s / 4;
+        q[2] = (m(1, 2) + m(2, 1)) / s;
     } else {
         double s = std::sqrt(1 + m(2, 2) - m(0, 0) - m(1, 1)) * 2;
-        q[3] = (m(1, 0) - m(0, 1)) / s, q[0] = (m(0, 2) + m(2, 0)) / s, q[1] = (m(1, 2) + m(2, 1)) / s, q[2] = s / 4;
+        q[3] = (m(1, 0) - m(0, 1)) / s;
+        q[0] = (m(0, 2) + m(2, 0)) / s;
+        q[1] = (m(1, 2) + m(2, 1)) / s;
+        q[2] = s / 4;
     }
     double len = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
     for (int k = 0; k < 4; ++k) q[k] /= len;
@@ -174,15 +204,18 @@ void symmetric_eigen(double a[3][3], double vec[3][3], double val[3]) {
                 double c = 1 / std::sqrt(t * t + 1), s = t * c;
                 for (int k = 0; k < 3; ++k) {  // a = J^T a J, rows and columns p and q
                     double akp = a[k][p], akq = a[k][q];
-                    a[k][p] = c * akp - s * akq, a[k][q] = s * akp + c * akq;
+                    a[k][p] = c * akp - s * akq;
+                    a[k][q] = s * akp + c * akq;
                 }
                 for (int k = 0; k < 3; ++k) {
                     double apk = a[p][k], aqk = a[q][k];
-                    a[p][k] = c * apk - s * aqk, a[q][k] = s * apk + c * aqk;
+                    a[p][k] = c * apk - s * aqk;
+                    a[q][k] = s * apk + c * aqk;
                 }
                 for (int k = 0; k < 3; ++k) {  // vec[i] is column i
                     double vp = vec[p][k], vq = vec[q][k];
-                    vec[p][k] = c * vp - s * vq, vec[q][k] = s * vp + c * vq;
+                    vec[p][k] = c * vp - s * vq;
+                    vec[q][k] = s * vp + c * vq;
                 }
             }
     }
@@ -306,7 +339,10 @@ void capsule_lines(Lines& out, const Capsule& cap) {
     for (const double* side : {u, v})  // the caps' outlines, bulging away from the segment
         for (double sign : {1.0, -1.0}) {
             double pa[3], pb[3];
-            for (int k = 0; k < 3; ++k) pa[k] = a[k] + sign * r * side[k], pb[k] = b[k] + sign * r * side[k];
+            for (int k = 0; k < 3; ++k) {
+                pa[k] = a[k] + sign * r * side[k];
+                pb[k] = b[k] + sign * r * side[k];
+            }
             segment(out, pa, pb);
         }
     for (const double* side : {u, v}) {
@@ -319,7 +355,10 @@ void capsule_lines(Lines& out, const Capsule& cap) {
 void cone_lines(Lines& out, const Cone& cone, const Obb& box) {
     double length = std::max({double(box.half[0]), double(box.half[1]), double(box.half[2])});
     double from[3], to[3];
-    for (int k = 0; k < 3; ++k) from[k] = cone.front_apex[k], to[k] = from[k] + length * double(cone.axis[k]);
+    for (int k = 0; k < 3; ++k) {
+        from[k] = cone.front_apex[k];
+        to[k] = from[k] + length * double(cone.axis[k]);
+    }
     segment(out, from, to);
 }
 
@@ -348,7 +387,10 @@ public:
         size_t view = add_view(xyz.data(), xyz.size() * sizeof(float), gl_array_buffer);
         std::array<float, 3> lo = {xyz[0], xyz[1], xyz[2]}, hi = lo;
         for (size_t i = 0; i < xyz.size(); i += 3)
-            for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], xyz[i + k]), hi[k] = std::max(hi[k], xyz[i + k]);
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], xyz[i + k]);
+                hi[k] = std::max(hi[k], xyz[i + k]);
+            }
         accessors.push_back({{"bufferView", view},
                              {"componentType", gl_float},
                              {"count", xyz.size() / 3},

@@ -83,7 +83,8 @@ void query(const cb::AssetView& v) {
     for (const double* p : points) sink = sink + float(cb::occluded_reference(v, p, light, 0.0));
     cb::Frustum f{};
     f.count = 1;
-    f.plane[0][0] = 1, f.plane[0][3] = 1;
+    f.plane[0][0] = 1;
+    f.plane[0][3] = 1;
     f.eye[0] = -2;
     cb::VisibleCluster out[16];
     sink = sink + float(cb::cull_clusters(v, f, true, out, 16));

@@ -35,7 +35,8 @@ inline std::string base64(const std::string& bytes) {
         uint32_t v = uint32_t(uint8_t(bytes[i])) << 16;
         if (i + 1 < bytes.size()) v |= uint32_t(uint8_t(bytes[i + 1])) << 8;
         if (i + 2 < bytes.size()) v |= uint8_t(bytes[i + 2]);
-        out += digits[v >> 18], out += digits[(v >> 12) & 63];
+        out += digits[v >> 18];
+        out += digits[(v >> 12) & 63];
         out += i + 1 < bytes.size() ? digits[(v >> 6) & 63] : '=';
         out += i + 2 < bytes.size() ? digits[v & 63] : '=';
     }
@@ -132,7 +133,8 @@ inline std::vector<File> write_corpus(const std::filesystem::path& dir, const st
     // Declared sizes far beyond the bytes that hold them.
     json doc = triangle_gltf(tri);
     doc["accessors"][0]["count"] = uint64_t(1) << 29;
-    doc["accessors"][0].erase("min"), doc["accessors"][0].erase("max");
+    doc["accessors"][0].erase("min");
+    doc["accessors"][0].erase("max");
     gltf("gltf/huge_accessor.gltf", doc, "needs 6442450944 bytes of bufferView 0 which has 36");
     doc = triangle_gltf(tri);
     doc["accessors"][0] = {{"componentType", 5126}, {"count", uint64_t(1) << 31}, {"type", "VEC3"}};

@@ -130,8 +130,10 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<E
         r.first_ref = uint32_t(L.refs.size());
         r.ref_count = uint32_t(c.refs.size());
         L.records.push_back(r);
-        if (meshes.size() == 1) {  // nothing to concatenate: a copy less of the largest arrays
-            L.positions = std::move(c.positions), L.triangles = std::move(c.local), L.refs = std::move(c.refs);
+        if (meshes.size() == 1) {
+            L.positions = std::move(c.positions);
+            L.triangles = std::move(c.local);
+            L.refs = std::move(c.refs);
             L.fine = std::move(c.fine);
         } else {
             L.positions.insert(L.positions.end(), c.positions.begin(), c.positions.end());
@@ -141,7 +143,10 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<E
         }
         L.coarse.insert(L.coarse.end(), m.coarse.begin(), m.coarse.end());
         c = EncodedMesh{};
-        if (release) (*release)[i].positions = {}, (*release)[i].triangles = {};
+        if (release) {
+            (*release)[i].positions = {};
+            (*release)[i].triangles = {};
+        }
     }
     L.instances.resize(instances.size());
     for (size_t i = 0; i < instances.size(); ++i) {
@@ -350,8 +355,14 @@ void write_file_atomic(const std::string& path, const std::function<bool(int)>& 
         ok = ::linkat(AT_FDCWD, self.c_str(), AT_FDCWD, tmp.c_str(), AT_SYMLINK_FOLLOW) == 0;
         if (!ok) err = errno;
     }
-    if (::close(fd) != 0 && ok) ok = false, err = errno;
-    if (ok && std::rename(tmp.c_str(), path.c_str()) != 0) ok = false, err = errno;
+    if (::close(fd) != 0 && ok) {
+        ok = false;
+        err = errno;
+    }
+    if (ok && std::rename(tmp.c_str(), path.c_str()) != 0) {
+        ok = false;
+        err = errno;
+    }
     if (!ok) {
         ::unlink(tmp.c_str());
         write_error(path, std::strerror(err ? err : EIO));
@@ -379,7 +390,10 @@ uint64_t write_asset(const std::string& path, std::vector<AssetMesh>& meshes, st
         std::atomic<int> error{0};
         auto write_pieces = [&] {
             each_piece(L, [&](const uint8_t* bytes, uint64_t size, uint64_t offset) {
-                if (written && !write_at(fd, bytes, size, offset)) written = false, error = errno;
+                if (written && !write_at(fd, bytes, size, offset)) {
+                    written = false;
+                    error = errno;
+                }
             });
         };
         uint64_t checksum;

@@ -17,7 +17,7 @@ struct Reader {
         v = data[at++];
         return true;
     }
-    // Draco's varUI32/varUI64: 7 bits a byte, least significant first.
+    // Draco's varUI32/varUI64: 7 bits per byte, least significant first.
     bool varint(uint64_t& v) {
         v = 0;
         for (int shift = 0; shift < 64; shift += 7) {

@@ -78,28 +78,39 @@ bool is_level_file(const std::string& path) {
 bool read_level_file(const std::string& path, std::vector<LevelEntry>& out, std::string& error) {
     out.clear();
     std::ifstream in(path, std::ios::binary);
-    if (!in) return error = path + ": cannot open", false;
+    if (!in) {
+        error = path + ": cannot open";
+        return false;
+    }
     std::stringstream text;
     text << in.rdbuf();
     json doc;
     try {
         doc = json::parse(text.str());
     } catch (const json::parse_error& e) {
-        return error = path + ": not JSON text (parse error at byte " + std::to_string(e.byte) + ")", false;
-    } catch (const json::exception&) {  // such as a number past double's range
-        return error = path + ": a number out of range", false;
+        error = path + ": not JSON text (parse error at byte " + std::to_string(e.byte) + ")";
+        return false;
+    } catch (const json::exception&) {
+        error = path + ": a number out of range";
+        return false;
     }
     const auto instances = doc.is_object() ? doc.find("instances") : doc.end();
-    if (instances == doc.end() || !instances->is_array())
-        return error = path + ": a level file is an object with an \"instances\" array", false;
-    if (instances->empty()) return error = path + ": instances: no entry", false;
+    if (instances == doc.end() || !instances->is_array()) {
+        error = path + ": a level file is an object with an \"instances\" array";
+        return false;
+    }
+    if (instances->empty()) {
+        error = path + ": instances: no entry";
+        return false;
+    }
     const std::filesystem::path folder = std::filesystem::path(path).parent_path();
     for (size_t i = 0; i < instances->size(); ++i) {
         try {
             out.push_back(read_entry((*instances)[i], folder));
         } catch (const LevelError& e) {
             out.clear();
-            return error = path + ": instances[" + std::to_string(i) + "]: " + e.text, false;
+            error = path + ": instances[" + std::to_string(i) + "]: " + e.text;
+            return false;
         }
     }
     return true;

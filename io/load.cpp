@@ -30,7 +30,10 @@ bool is_degenerate(const Mesh& mesh, size_t t) {
     const float* b = &mesh.positions[size_t(i[1]) * 3];
     const float* c = &mesh.positions[size_t(i[2]) * 3];
     double u[3], v[3];
-    for (int k = 0; k < 3; ++k) u[k] = double(b[k]) - a[k], v[k] = double(c[k]) - a[k];
+    for (int k = 0; k < 3; ++k) {
+        u[k] = double(b[k]) - a[k];
+        v[k] = double(c[k]) - a[k];
+    }
     // Zero area as computed in double from the stored floats.
     return u[1] * v[2] - u[2] * v[1] == 0 && u[2] * v[0] - u[0] * v[2] == 0 && u[0] * v[1] - u[1] * v[0] == 0;
 }

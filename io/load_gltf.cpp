@@ -1106,7 +1106,10 @@ Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name
     DetachedIndices detached;
     std::vector<uint8_t> prepared =
         prepare_for_tinygltf(data, size, binary, doc, pruned || detached_fallback, detached);
-    if (!prepared.empty()) data = prepared.data(), size = prepared.size();
+    if (!prepared.empty()) {
+        data = prepared.data();
+        size = prepared.size();
+    }
 
     tinygltf::TinyGLTF loader;
     // Images are never decoded; a no-op loader keeps tinygltf from failing on embedded ones.

@@ -1,6 +1,6 @@
 // PLY reader: ASCII, binary little- and big-endian; vertex x/y/z, face lists (triangulated by
-// polygon_triangulate.h) and tristrips (-1 restarts). Every count is checked against the bytes that remain before anything is
-// allocated, every index against the vertex count.
+// polygon_triangulate.h) and tristrips (-1 restarts). Every count is checked against the bytes that remain
+// before anything is allocated, every index against the vertex count.
 //
 // Not OpenMesh's PLY reader, which the fuzzer breaks: it loops forever on a header without end_header,
 // writes out of bounds on a property that precedes every element, and grows without bound on a malformed
@@ -9,6 +9,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 
 #include "load.h"
@@ -168,7 +169,9 @@ bool read_float_triangles(std::string_view body, const std::vector<Element>& ele
         } else if (e.name == "face" && !face_el && e.properties.size() == 1 &&
                    type_size(e.properties[0].count_type) == 1 && std::abs(e.properties[0].type) == 4 &&
                    (e.properties[0].name == "vertex_indices" || e.properties[0].name == "vertex_index")) {
-            face_el = &e, face_at = at, index_bytes = 1 + 3 * 4;
+            face_el = &e;
+            face_at = at;
+            index_bytes = 1 + 3 * 4;
             stride = index_bytes;
         } else {
             return false;
@@ -176,7 +179,8 @@ bool read_float_triangles(std::string_view body, const std::vector<Element>& ele
         if (&e == &vertex_el) {
             for (int k = 0; k < 3; ++k)
                 if (e.properties[size_t(xyz_prop[k])].type != (float_flag | 4)) return false;
-            vertex_at = at, vertex_stride = stride;
+            vertex_at = at;
+            vertex_stride = stride;
         }
         if (stride && e.count > (body.size() - at) / stride) return false;  // truncated: the general reader says where
         at += size_t(e.count) * stride;
@@ -208,20 +212,38 @@ bool read_float_triangles(std::string_view body, const std::vector<Element>& ele
     return true;
 }
 
-}  // namespace
+// The header: the encoding and the elements with their properties, up to end_header.
+struct Header {
+    Encoding enc = Encoding::ascii;
+    std::vector<Element> elements;
+    size_t body_at = 0;  // the first byte after end_header's line
+};
 
-Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name) {
-    if (size == 0) throw LoadError(name + ": empty file");
-    std::string_view text(reinterpret_cast<const char*>(data), size);
+Property parse_property(const std::vector<std::string_view>& tok, const std::function<void(const std::string&)>& bad) {
+    Property p;
+    if (tok.size() == 5 && tok[1] == "list") {
+        p.list = true;
+        p.count_type = type_code(tok[2]);
+        p.type = type_code(tok[3]);
+        p.name = tok[4];
+        if (p.count_type == 0 || (p.count_type > 0 && (p.count_type & float_flag))) bad("bad list count type");
+    } else if (tok.size() == 3) {
+        p.type = type_code(tok[1]);
+        p.name = tok[2];
+    } else {
+        bad("malformed property line");
+    }
+    if (p.type == 0) bad("unknown property type");
+    return p;
+}
+
+Header read_header(std::string_view text, const std::string& name) {
     if (text.substr(0, 4) != "ply\n" && text.substr(0, 5) != "ply\r\n")
         throw LoadError(name + ": not a PLY file (no 'ply' magic line)");
-
-    // Header, line by line up to end_header.
     LineReader reader{text};
     std::string line;
     std::vector<std::string_view> tok;
-    std::vector<Element> elements;
-    Encoding enc = Encoding::ascii;
+    Header h;
     bool has_format = false, ended = false;
     reader.next(line, false);
     auto bad = [&](const std::string& what) {
@@ -233,35 +255,21 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
         if (tok[0] == "format") {
             if (has_format || tok.size() != 3 || tok[2] != "1.0") bad("malformed format line");
             if (tok[1] == "ascii")
-                enc = Encoding::ascii;
+                h.enc = Encoding::ascii;
             else if (tok[1] == "binary_little_endian")
-                enc = Encoding::little;
+                h.enc = Encoding::little;
             else if (tok[1] == "binary_big_endian")
-                enc = Encoding::big;
+                h.enc = Encoding::big;
             else
                 bad("unknown format " + quoted(tok[1]));
             has_format = true;
         } else if (tok[0] == "element") {
             long long count;
             if (tok.size() != 3 || !parse_int(tok[2], count) || count < 0) bad("malformed element line");
-            elements.push_back({std::string(tok[1]), uint64_t(count), {}});
+            h.elements.push_back({std::string(tok[1]), uint64_t(count), {}});
         } else if (tok[0] == "property") {
-            if (elements.empty()) bad("property before any element");
-            Property p;
-            if (tok.size() == 5 && tok[1] == "list") {
-                p.list = true;
-                p.count_type = type_code(tok[2]);
-                p.type = type_code(tok[3]);
-                p.name = tok[4];
-                if (p.count_type == 0 || (p.count_type > 0 && (p.count_type & float_flag))) bad("bad list count type");
-            } else if (tok.size() == 3) {
-                p.type = type_code(tok[1]);
-                p.name = tok[2];
-            } else {
-                bad("malformed property line");
-            }
-            if (p.type == 0) bad("unknown property type");
-            elements.back().properties.push_back(p);
+            if (h.elements.empty()) bad("property before any element");
+            h.elements.back().properties.push_back(parse_property(tok, bad));
         } else if (tok[0] == "end_header") {
             ended = true;
         }
@@ -269,51 +277,103 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
     }
     if (!ended) throw LoadError(name + ": header has no end_header (truncated?)");
     if (!has_format) throw LoadError(name + ": header has no format line");
+    h.body_at = reader.pos;
+    return h;
+}
 
-    // The vertex element (with x, y, z) is required; faces or tristrips may be absent (a point cloud).
-    const Element* vertex_el = nullptr;
+// The vertex element, with its x, y and z properties; required, while faces or tristrips may be absent (a
+// point cloud).
+struct VertexElement {
+    const Element* element = nullptr;
+    int xyz[3] = {-1, -1, -1};  // property indices
+};
+
+VertexElement find_vertex_element(const std::vector<Element>& elements, const std::string& name) {
+    VertexElement v;
     for (const Element& e : elements)
-        if (e.name == "vertex") vertex_el = &e;
-    if (!vertex_el) throw LoadError(name + ": no vertex element");
-    int px = find_property(*vertex_el, "x"), py = find_property(*vertex_el, "y"), pz = find_property(*vertex_el, "z");
-    if (px < 0 || py < 0 || pz < 0) throw LoadError(name + ": vertex element lacks x, y or z");
-    const uint64_t vertex_count = vertex_el->count;
-    if (vertex_count > std::numeric_limits<uint32_t>::max()) throw LoadError(name + ": more than 2^32-1 vertices");
+        if (e.name == "vertex") v.element = &e;
+    if (!v.element) throw LoadError(name + ": no vertex element");
+    const char* axes[3] = {"x", "y", "z"};
+    for (int k = 0; k < 3; ++k) v.xyz[k] = find_property(*v.element, axes[k]);
+    if (v.xyz[0] < 0 || v.xyz[1] < 0 || v.xyz[2] < 0) throw LoadError(name + ": vertex element lacks x, y or z");
+    if (v.element->count > std::numeric_limits<uint32_t>::max()) throw LoadError(name + ": more than 2^32-1 vertices");
+    return v;
+}
 
-    // Coordinates that are floats in the file keep them exactly (shift_exactly); text and doubles are
-    // centred in double (store_centred).
+// Whether the coordinates are floats in the file, kept exactly (shift_exactly); text and doubles are
+// centred in double (store_centred).
+bool exact_floats(const VertexElement& v, Encoding enc) {
     auto float_exact = [](int type) { return type == (float_flag | 4) || std::abs(type) <= 2; };
-    const bool floats = enc != Encoding::ascii && float_exact(vertex_el->properties[size_t(px)].type) &&
-        float_exact(vertex_el->properties[size_t(py)].type) && float_exact(vertex_el->properties[size_t(pz)].type);
+    if (enc == Encoding::ascii) return false;
+    for (int k = 0; k < 3; ++k)
+        if (!float_exact(v.element->properties[size_t(v.xyz[k])].type)) return false;
+    return true;
+}
 
-    Mesh mesh;
-    const int xyz_prop[3] = {px, py, pz};
-    if (enc == Encoding::little &&
-        read_float_triangles(text.substr(reader.pos), elements, *vertex_el, xyz_prop, mesh)) {
-        Origin origin = shift_exactly(mesh.positions);
-        return single_mesh_scene(std::move(mesh), name, origin);
+// Appends a face (count, then its indices) or a tristrip's triangles (runs separated by -1, every other
+// triangle flipped; each as 3, then its indices) to `pending`.
+void append_polygons(const Element& e, uint64_t row, const std::vector<uint32_t>& list, Body& body,
+                     std::vector<uint32_t>& pending) {
+    if (e.name == "face") {
+        if (list.size() < 3) body.fail(e.name, row, "face with " + std::to_string(list.size()) + " vertices");
+        pending.push_back(uint32_t(list.size()));
+        pending.insert(pending.end(), list.begin(), list.end());
+        return;
     }
-    mesh = Mesh{};
+    size_t run = 0;
+    for (size_t i = 0; i < list.size(); ++i) {
+        if (list[i] == UINT32_MAX) {
+            run = 0;
+            continue;
+        }
+        if (++run >= 3) {
+            bool odd = (run - 3) & 1;
+            uint32_t a = list[i - 2], b = list[i - 1];
+            pending.insert(pending.end(), {3, odd ? b : a, odd ? a : b, list[i]});
+        }
+    }
+}
 
-    Body body(text.substr(reader.pos), enc, name);
-    std::vector<double> xyz, values;
+// Reads one list property of record `row`; with `keep`, its values into `list` as vertex indices, checked
+// against `vertex_count` (a tristrip's -1 as UINT32_MAX), else skipped.
+void read_list(const Element& e, uint64_t row, const Property& prop, bool keep, uint64_t vertex_count, Body& body,
+               std::vector<uint32_t>& list) {
+    double n = body.read(prop.count_type, e.name, row);
+    if (!(n >= 0) || n > double(body.remaining()))
+        body.fail(e.name, row, "list length " + std::to_string(n) + " exceeds the data");
+    if (keep) list.clear();
+    for (size_t k = 0; k < size_t(n); ++k) {
+        double v = body.read(prop.type, e.name, row);
+        if (!keep) continue;
+        bool restart = e.name == "tristrips" && v == -1;
+        if (!restart && !(v >= 0 && v < double(vertex_count) && v == std::floor(v)))
+            body.fail(e.name, row,
+                      "index " + std::to_string(v) + " out of range (" + std::to_string(vertex_count) + " vertices)");
+        list.push_back(restart ? UINT32_MAX : uint32_t(v));
+    }
+}
+
+// Any file the fast path does not take: every element's records read value by value, the vertices'
+// positions into `xyz` and the faces and strip triangles into `pending` in file order (count, then
+// indices), to be triangulated once the positions are final, whichever element came first.
+void read_records(const Header& h, const VertexElement& vertex, Body& body, std::vector<double>& xyz,
+                  std::vector<uint32_t>& pending) {
+    std::vector<double> values;
     std::vector<uint32_t> list;
-    // Faces and strip triangles in file order (count, then indices), triangulated once the positions are
-    // final, whichever element came first.
-    std::vector<uint32_t> pending;
-    for (const Element& e : elements) {
+    const uint64_t vertex_count = vertex.element->count;
+    for (const Element& e : h.elements) {
         // Refuse counts the remaining data cannot hold before reserving anything, and reserve no more
         // records than it can hold (a shorter file then says where it ends). An element without properties
         // holds nothing.
         if (e.properties.empty()) continue;
         if (e.count > body.remaining())
             body.fail("element " + e.name + ": count " + std::to_string(e.count) + " exceeds the data (truncated?)");
-        bool is_vertex = &e == vertex_el;
+        bool is_vertex = &e == vertex.element;
         int list_prop = (e.name == "face" || e.name == "tristrips")
             ? std::max(find_property(e, "vertex_indices"), find_property(e, "vertex_index"))
             : -1;
         if (is_vertex)
-            xyz.reserve(size_t(std::min<uint64_t>(e.count, body.remaining() / least_record_bytes(e, enc))) * 3);
+            xyz.reserve(size_t(std::min<uint64_t>(e.count, body.remaining() / least_record_bytes(e, h.enc))) * 3);
         values.resize(e.properties.size());
         for (uint64_t r = 0; r < e.count; ++r) {
             for (size_t p = 0; p < e.properties.size(); ++p) {
@@ -322,43 +382,13 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
                     values[p] = body.read(prop.type, e.name, r);
                     continue;
                 }
-                double n = body.read(prop.count_type, e.name, r);
-                if (!(n >= 0) || n > double(body.remaining()))
-                    body.fail(e.name, r, "list length " + std::to_string(n) + " exceeds the data");
                 bool keep = int(p) == list_prop;
-                if (keep) list.clear();
-                for (size_t k = 0; k < size_t(n); ++k) {
-                    double v = body.read(prop.type, e.name, r);
-                    if (!keep) continue;
-                    bool restart = e.name == "tristrips" && v == -1;
-                    if (!restart && !(v >= 0 && v < double(vertex_count) && v == std::floor(v)))
-                        body.fail(e.name, r,
-                                  "index " + std::to_string(v) + " out of range (" + std::to_string(vertex_count) +
-                                      " vertices)");
-                    list.push_back(restart ? UINT32_MAX : uint32_t(v));
-                }
-                if (!keep) continue;
-                if (e.name == "face") {
-                    if (list.size() < 3) body.fail(e.name, r, "face with " + std::to_string(list.size()) + " vertices");
-                    pending.push_back(uint32_t(list.size()));
-                    pending.insert(pending.end(), list.begin(), list.end());
-                } else {  // tristrips: runs separated by -1, every other triangle flipped
-                    size_t run = 0;
-                    for (size_t i = 0; i < list.size(); ++i) {
-                        if (list[i] == UINT32_MAX) {
-                            run = 0;
-                            continue;
-                        }
-                        if (++run >= 3) {
-                            bool odd = (run - 3) & 1;
-                            uint32_t a = list[i - 2], b = list[i - 1];
-                            pending.insert(pending.end(), {3, odd ? b : a, odd ? a : b, list[i]});
-                        }
-                    }
-                }
+                read_list(e, r, prop, keep, vertex_count, body, list);
+                if (keep) append_polygons(e, r, list, body, pending);
             }
             if (is_vertex) {
-                double v[3] = {values[size_t(px)], values[size_t(py)], values[size_t(pz)]};
+                double v[3] = {values[size_t(vertex.xyz[0])], values[size_t(vertex.xyz[1])],
+                               values[size_t(vertex.xyz[2])]};
                 for (double c : v)
                     if (!std::isfinite(c) || std::fabs(c) > std::numeric_limits<float>::max())
                         body.fail("vertex " + std::to_string(r) + ": position is not a finite float (" +
@@ -367,8 +397,30 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
             }
         }
     }
+}
+
+}  // namespace
+
+Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name) {
+    if (size == 0) throw LoadError(name + ": empty file");
+    std::string_view text(reinterpret_cast<const char*>(data), size);
+    const Header header = read_header(text, name);
+    const VertexElement vertex = find_vertex_element(header.elements, name);
+
+    Mesh mesh;
+    if (header.enc == Encoding::little &&
+        read_float_triangles(text.substr(header.body_at), header.elements, *vertex.element, vertex.xyz, mesh)) {
+        Origin origin = shift_exactly(mesh.positions);
+        return single_mesh_scene(std::move(mesh), name, origin);
+    }
+    mesh = Mesh{};
+
+    Body body(text.substr(header.body_at), header.enc, name);
+    std::vector<double> xyz;
+    std::vector<uint32_t> pending;
+    read_records(header, vertex, body, xyz, pending);
     Origin origin;
-    if (floats) {
+    if (exact_floats(vertex, header.enc)) {
         mesh.positions.assign(xyz.begin(), xyz.end());  // each value a float: exact
         origin = shift_exactly(mesh.positions);
     } else {

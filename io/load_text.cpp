@@ -179,7 +179,10 @@ struct CornerKey {
 struct CornerHash {
     size_t operator()(const CornerKey& k) const {
         uint64_t h = 0x9e3779b97f4a7c15ULL;
-        for (uint64_t b : k.bits) h = (h ^ b) * 0xff51afd7ed558ccdULL, h ^= h >> 29;
+        for (uint64_t b : k.bits) {
+            h = (h ^ b) * 0xff51afd7ed558ccdULL;
+            h ^= h >> 29;
+        }
         return size_t(h);
     }
 };

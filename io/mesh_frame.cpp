@@ -9,7 +9,10 @@ namespace {
 // Per axis box of xyz triples; lo > hi when there are none.
 template <class T>
 void axis_box(const std::vector<T>& xyz, double lo[3], double hi[3]) {
-    for (int k = 0; k < 3; ++k) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = INFINITY;
+        hi[k] = -INFINITY;
+    }
     for (size_t i = 0; i < xyz.size(); ++i) {
         double v = double(xyz[i]);
         lo[i % 3] = std::min(lo[i % 3], v);
@@ -55,7 +58,10 @@ Origin shift_exactly(std::vector<float>& positions) {
     axis_box(positions, lo, hi);
     const double side = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
     float c[3];
-    for (int k = 0; k < 3; ++k) c[k] = exact_offset(float(lo[k]), float(hi[k]), side), origin[k] = c[k];
+    for (int k = 0; k < 3; ++k) {
+        c[k] = exact_offset(float(lo[k]), float(hi[k]), side);
+        origin[k] = c[k];
+    }
     if (c[0] == 0 && c[1] == 0 && c[2] == 0) return origin;
     for (size_t i = 0; i < positions.size(); ++i) positions[i] -= c[i % 3];  // exact, as proven above
     return origin;

@@ -76,6 +76,9 @@ Contact contact(const double* a, const double* b, const double* c, const double*
     return touch ? Contact::at_vertices : Contact::none;
 }
 
+// Marks a clipped vertex in next_.
+constexpr uint32_t clipped = UINT32_MAX;
+
 void fan(const uint32_t* poly, size_t n, std::vector<uint32_t>& out) {
     for (size_t i = 1; i + 1 < n; ++i) out.insert(out.end(), {poly[0], poly[i], poly[i + 1]});
 }
@@ -109,25 +112,23 @@ PolygonShape PolygonTriangulator::add_large(const uint32_t* poly, size_t n, std:
     return PolygonShape::not_simple;
 }
 
-PolygonShape PolygonTriangulator::add_polygon(const float* xyz, const uint32_t* poly, size_t n,
-                                              std::vector<uint32_t>& out) {
-    auto at = [xyz](uint32_t i) { return xyz + size_t(i) * 3; };
-    auto same = [&](uint32_t i, uint32_t j) {
-        const float *p = at(i), *q = at(j);
+// The polygon without repeated consecutive vertices (by index or by position) into ring_.
+bool PolygonTriangulator::make_ring(const float* xyz, const uint32_t* poly, size_t n) {
+    auto same = [xyz](uint32_t i, uint32_t j) {
+        const float *p = xyz + size_t(i) * 3, *q = xyz + size_t(j) * 3;
         return i == j || (p[0] == q[0] && p[1] == q[1] && p[2] == q[2]);
     };
-
-    // The polygon without repeated consecutive vertices.
     ring_.clear();
     for (size_t i = 0; i < n; ++i)
         if (ring_.empty() || !same(ring_.back(), poly[i])) ring_.push_back(poly[i]);
     while (ring_.size() > 1 && same(ring_.back(), ring_.front())) ring_.pop_back();
-    const size_t m = ring_.size();
-    if (m < 3) {
-        fan(poly, n, out);
-        return PolygonShape::degenerate;
-    }
+    return ring_.size() >= 3;
+}
 
+// The ring projected onto the coordinate plane its Newell normal points at most along.
+void PolygonTriangulator::project(const float* xyz) {
+    auto at = [xyz](uint32_t i) { return xyz + size_t(i) * 3; };
+    const size_t m = ring_.size();
     // The Newell normal (twice the area vector), about the first vertex to keep large coordinates from
     // cancelling; only the axis it points at most along is used.
     const float* o = at(ring_[0]);
@@ -153,99 +154,142 @@ PolygonShape PolygonTriangulator::add_polygon(const float* xyz, const uint32_t* 
         uv_[2 * i] = p[cu];
         uv_[2 * i + 1] = p[cv];
     }
-    auto q = [this](size_t i) { return &uv_[2 * i]; };
-    auto before = [m](size_t i) { return i == 0 ? m - 1 : i - 1; };
-    auto after = [m](size_t i) { return i + 1 == m ? 0 : i + 1; };
+}
 
+// The orientation at each vertex; `left` and `right` count the vertices turning each way.
+void PolygonTriangulator::find_turns(size_t& left, size_t& right) {
+    const size_t m = ring_.size();
     turn_.resize(m);
-    size_t left = 0, right = 0;
+    left = 0;
+    right = 0;
     for (size_t i = 0; i < m; ++i) {
-        turn_[i] = orient2d(q(before(i)), q(i), q(after(i)));
+        turn_[i] = orient2d(uv(before(i)), uv(i), uv(after(i)));
         left += turn_[i] > 0;
         right += turn_[i] < 0;
     }
-    if (left + right == 0) {  // every vertex on one line
-        fan(poly, n, out);
-        return PolygonShape::degenerate;
+}
+
+// A straight vertex goes on in the direction it came from; a spike turns back, and a projected edge of
+// zero length has no direction.
+bool PolygonTriangulator::straight_on(size_t i) const {
+    const double *a = uv(before(i)), *b = uv(i), *c = uv(after(i));
+    int u0 = compare(b[0], a[0]), v0 = compare(b[1], a[1]), u1 = compare(c[0], b[0]), v1 = compare(c[1], b[1]);
+    return (u0 != 0 || v0 != 0) && u0 == u1 && v0 == v1;
+}
+
+// Convex: no vertex dropped from the n of the polygon, no turn against the others, no spike, and the edge
+// directions go round exactly once (the sign of their u component changes twice: a pentagram turns one way
+// throughout but goes round twice); with straight vertices, also no zero-area triangle in the fan.
+bool PolygonTriangulator::is_convex(size_t n, size_t left, size_t right) const {
+    const size_t m = ring_.size();
+    if (m != n || (left != 0 && right != 0)) return false;
+    int first = 0, last = 0, changes = 0;
+    for (size_t i = 0; i < m; ++i) {
+        if (turn_[i] == 0 && !straight_on(i)) return false;
+        int s = compare(uv(after(i))[0], uv(i)[0]);
+        if (s == 0) continue;
+        if (first == 0) first = s;
+        if (last != 0 && s != last) ++changes;
+        last = s;
     }
+    changes += last != first;
+    if (changes != 2) return false;
+    // With straight vertices the fan from the first one may hold a triangle of zero area.
+    if (left + right < m)
+        for (size_t i = 1; i + 1 < m; ++i)
+            if (orient2d(uv(0), uv(i), uv(i + 1)) == 0) return false;
+    return true;
+}
 
-    // A straight vertex goes on in the direction it came from; a spike turns back, and a projected edge of
-    // zero length has no direction.
-    auto straight_on = [&](size_t i) {
-        const double *a = q(before(i)), *b = q(i), *c = q(after(i));
-        int u0 = compare(b[0], a[0]), v0 = compare(b[1], a[1]), u1 = compare(c[0], b[0]), v1 = compare(c[1], b[1]);
-        return (u0 != 0 || v0 != 0) && u0 == u1 && v0 == v1;
-    };
+// A vertex where the boundary turns back on itself.
+bool PolygonTriangulator::has_spike() const {
+    for (size_t i = 0; i < ring_.size(); ++i)
+        if (turn_[i] == 0 && !straight_on(i)) return true;
+    return false;
+}
 
-    // Convex: no turn against the others, no spike, and the edge directions go round exactly once (the
-    // sign of their u component changes twice: a pentagram turns one way throughout but goes round twice).
-    if (m == n && (left == 0 || right == 0)) {
-        bool convex = true;
-        int first = 0, last = 0, changes = 0;
-        for (size_t i = 0; i < m && convex; ++i) {
-            if (turn_[i] == 0 && !straight_on(i)) convex = false;
-            int s = compare(q(after(i))[0], q(i)[0]);
-            if (s == 0) continue;
-            if (first == 0) first = s;
-            if (last != 0 && s != last) ++changes;
-            last = s;
-        }
-        changes += last != first;
-        convex = convex && changes == 2;
-        // With straight vertices the fan from the first one may hold a triangle of zero area.
-        if (convex && left + right < m)
-            for (size_t i = 1; i + 1 < m && convex; ++i) convex = orient2d(q(0), q(i), q(i + 1)) != 0;
-        if (convex) {
-            fan(poly, n, out);
-            return PolygonShape::convex;
-        }
-    }
-
-    // Simple: no spike, and no two edges that are not neighbours share a point. Touching itself only at
-    // vertices (a ring cut open along a bridge edge) is allowed, but the ear test then needs every vertex.
-    for (size_t i = 0; i < m; ++i)
-        if (turn_[i] == 0 && !straight_on(i)) {
-            fan(poly, n, out);
-            return PolygonShape::not_simple;
-        }
-    if (m >= large_) return add_large(poly, n, out);
-    // Edges sorted by their least u, swept: each is compared with the later ones that start before it ends.
-    auto umin = [&](size_t e) { return std::min(q(e)[0], q(after(e))[0]); };
+// Whether two edges that are not neighbours cross or overlap. Edges sorted by their least u, swept: each is
+// compared with the later ones that start before it ends. `touching`: whether two meet at vertices only
+// (a ring cut open along a bridge edge), which a simple polygon may do.
+bool PolygonTriangulator::crosses_itself(bool& touching) {
+    const size_t m = ring_.size();
+    auto umin = [&](size_t e) { return std::min(uv(e)[0], uv(after(e))[0]); };
     order_.resize(m);
     for (size_t i = 0; i < m; ++i) order_[i] = uint32_t(i);
     std::sort(order_.begin(), order_.end(), [&](uint32_t x, uint32_t y) { return umin(x) < umin(y); });
-    bool touching = false;
+    touching = false;
     for (size_t k = 0; k < m; ++k) {
         const size_t i = order_[k];
-        const double *a = q(i), *b = q(after(i));
+        const double *a = uv(i), *b = uv(after(i));
         double umax = std::max(a[0], b[0]), vmin = std::min(a[1], b[1]), vmax = std::max(a[1], b[1]);
         for (size_t l = k + 1; l < m && umin(order_[l]) <= umax; ++l) {
             const size_t j = order_[l];
             if (j == after(i) || i == after(j)) continue;  // neighbours share a vertex
-            const double *c = q(j), *d = q(after(j));
+            const double *c = uv(j), *d = uv(after(j));
             if (std::max(c[1], d[1]) < vmin || std::min(c[1], d[1]) > vmax) continue;
             Contact contact_kind = contact(a, b, c, d);
-            if (contact_kind == Contact::crossing) {
-                fan(poly, n, out);
-                return PolygonShape::not_simple;
-            }
+            if (contact_kind == Contact::crossing) return true;
             touching = touching || contact_kind == Contact::at_vertices;
         }
     }
+    return false;
+}
 
-    const int winding = ring_winding();
-    if (winding == 0) {
-        fan(poly, n, out);
-        return PolygonShape::not_simple;
+// Whether b is an ear: its triangle (a, b, c) holds none of the vertices in order_ (those an ear test
+// looks at), not even on its border; vertices no longer needed there are dropped from order_ on the way.
+bool PolygonTriangulator::is_ear(uint32_t a, uint32_t b, uint32_t c, int winding, bool touching) {
+    const double *pa = uv(a), *pb = uv(b), *pc = uv(c);
+    double umin = std::min({pa[0], pb[0], pc[0]}), umax = std::max({pa[0], pb[0], pc[0]});
+    double vmin = std::min({pa[1], pb[1], pc[1]}), vmax = std::max({pa[1], pb[1], pc[1]});
+    for (size_t k = 0; k < order_.size(); ++k) {
+        uint32_t j = order_[k];
+        if (next_[j] == clipped || (turn_[j] == winding && !touching)) {  // no longer needed: drop it
+            order_[k--] = order_.back();
+            order_.pop_back();
+            continue;
+        }
+        if (j == a || j == b || j == c) continue;
+        const double* p = uv(j);
+        if (p[0] < umin || p[0] > umax || p[1] < vmin || p[1] > vmax) continue;
+        if (touching && (equal(p, pa) || equal(p, pb) || equal(p, pc))) continue;
+        if (orient2d(pa, pb, p) * winding >= 0 && orient2d(pb, pc, p) * winding >= 0 &&
+            orient2d(pc, pa, p) * winding >= 0)
+            return false;
     }
+    return true;
+}
 
-    // Ear clipping. An ear is a strictly convex vertex b whose triangle (a, b, c) holds no other vertex,
-    // not even on its border: then ac is a diagonal and the triangle lies in the polygon. Were any vertex in
-    // the triangle, the one farthest from ac would be reflex or straight, so in a simple polygon only those
-    // are tested. Every triangle clipped turns the polygon's way, and the polygon's winding number is, at
-    // every point, the sum of its triangles': so the triangles cover each point of the polygon once and
-    // nothing outside it, also where the polygon touches itself (there vertices at a, b or c's position are
-    // not counted as inside, and should that admit a wrong ear, clipping gets stuck and the fan is kept).
+// Whether two of the triangles tris[from..] overlap: two triangles of one winding overlap unless the line
+// through an edge of one has the other wholly on its outer side (the separating axis theorem).
+bool PolygonTriangulator::any_overlap(size_t from, const std::vector<uint32_t>& tris, int winding) const {
+    std::vector<size_t> corner;  // ring position of each index in tris[from..]
+    for (size_t t = from; t < tris.size(); ++t)
+        corner.push_back(size_t(std::find(ring_.begin(), ring_.end(), tris[t]) - ring_.begin()));
+    auto apart = [&](const size_t* s, const size_t* t) {
+        for (int e = 0; e < 3; ++e) {
+            const double *p0 = uv(s[e]), *p1 = uv(s[(e + 1) % 3]);
+            bool outside = true;
+            for (int k = 0; k < 3 && outside; ++k) outside = orient2d(p0, p1, uv(t[k])) * winding <= 0;
+            if (outside) return true;
+        }
+        return false;
+    };
+    for (size_t i = 0; i < corner.size(); i += 3)
+        for (size_t j = i + 3; j < corner.size(); j += 3)
+            if (!apart(&corner[i], &corner[j]) && !apart(&corner[j], &corner[i])) return true;
+    return false;
+}
+
+// Ear clipping. An ear is a strictly convex vertex b whose triangle (a, b, c) holds no other vertex, not
+// even on its border: then ac is a diagonal and the triangle lies in the polygon. Were any vertex in the
+// triangle, the one farthest from ac would be reflex or straight, so in a simple polygon only those are
+// tested. Every triangle clipped turns the polygon's way, and the polygon's winding number is, at every
+// point, the sum of its triangles': so the triangles cover each point of the polygon once and nothing
+// outside it, also where the polygon touches itself (there vertices at a, b or c's position are not counted
+// as inside, and should that admit a wrong ear, clipping gets stuck and the fan is kept). Appends the
+// triangles to `out` and returns true, or leaves `out` as it was and returns false.
+bool PolygonTriangulator::clip_ears(int winding, bool touching, std::vector<uint32_t>& out) {
+    const size_t m = ring_.size();
     prev_.resize(m);
     next_.resize(m);
     for (size_t i = 0; i < m; ++i) {
@@ -254,64 +298,22 @@ PolygonShape PolygonTriangulator::add_polygon(const float* xyz, const uint32_t* 
     }
     // The vertices an ear test looks at: reflex and straight ones (clipping only ever turns those convex,
     // never back), or every vertex where the polygon touches itself. Clipped ones are marked in `next_`.
-    constexpr uint32_t clipped = UINT32_MAX;
     order_.clear();
     for (size_t i = 0; i < m; ++i)
         if (touching || turn_[i] != winding) order_.push_back(uint32_t(i));
-    auto is_ear = [&](uint32_t a, uint32_t b, uint32_t c) {
-        const double *pa = q(a), *pb = q(b), *pc = q(c);
-        double umin = std::min({pa[0], pb[0], pc[0]}), umax = std::max({pa[0], pb[0], pc[0]});
-        double vmin = std::min({pa[1], pb[1], pc[1]}), vmax = std::max({pa[1], pb[1], pc[1]});
-        for (size_t k = 0; k < order_.size(); ++k) {
-            uint32_t j = order_[k];
-            if (next_[j] == clipped || (turn_[j] == winding && !touching)) {  // no longer needed: drop it
-                order_[k--] = order_.back();
-                order_.pop_back();
-                continue;
-            }
-            if (j == a || j == b || j == c) continue;
-            const double* p = q(j);
-            if (p[0] < umin || p[0] > umax || p[1] < vmin || p[1] > vmax) continue;
-            if (touching && (equal(p, pa) || equal(p, pb) || equal(p, pc))) continue;
-            if (orient2d(pa, pb, p) * winding >= 0 && orient2d(pb, pc, p) * winding >= 0 &&
-                orient2d(pc, pa, p) * winding >= 0)
-                return false;
-        }
-        return true;
-    };
-    // Whether two of the triangles out[from..] overlap: two triangles of one winding overlap unless the
-    // line through an edge of one has the other wholly on its outer side (the separating axis theorem).
-    auto any_overlap = [&](size_t from, const std::vector<uint32_t>& tris) {
-        std::vector<size_t> corner;  // ring position of each index in tris[from..]
-        for (size_t t = from; t < tris.size(); ++t)
-            corner.push_back(size_t(std::find(ring_.begin(), ring_.end(), tris[t]) - ring_.begin()));
-        auto apart = [&](const size_t* s, const size_t* t) {
-            for (int e = 0; e < 3; ++e) {
-                const double *p0 = q(s[e]), *p1 = q(s[(e + 1) % 3]);
-                bool outside = true;
-                for (int k = 0; k < 3 && outside; ++k) outside = orient2d(p0, p1, q(t[k])) * winding <= 0;
-                if (outside) return true;
-            }
-            return false;
-        };
-        for (size_t i = 0; i < corner.size(); i += 3)
-            for (size_t j = i + 3; j < corner.size(); j += 3)
-                if (!apart(&corner[i], &corner[j]) && !apart(&corner[j], &corner[i])) return true;
-        return false;
-    };
     const size_t start = out.size();
     size_t remaining = m, misses = 0;
     uint32_t b = 0;
     while (remaining > 3) {
         uint32_t a = prev_[b], c = next_[b];
-        if (turn_[b] == winding && is_ear(a, b, c)) {
+        if (turn_[b] == winding && is_ear(a, b, c, winding, touching)) {
             out.insert(out.end(), {ring_[a], ring_[b], ring_[c]});
             next_[a] = c;
             prev_[c] = a;
             next_[b] = clipped;
             --remaining;
-            turn_[a] = orient2d(q(prev_[a]), q(a), q(c));
-            turn_[c] = orient2d(q(a), q(c), q(next_[c]));
+            turn_[a] = orient2d(uv(prev_[a]), uv(a), uv(c));
+            turn_[c] = orient2d(uv(a), uv(c), uv(next_[c]));
             b = c;
             misses = 0;
             continue;
@@ -323,9 +325,39 @@ PolygonShape PolygonTriangulator::add_polygon(const float* xyz, const uint32_t* 
         out.insert(out.end(), {ring_[prev_[b]], ring_[b], ring_[next_[b]]});
         // Where the polygon touches itself it may also wind round twice (a loop inside a loop, meeting at a
         // vertex): then two triangles overlap, and the polygon is not simple after all.
-        if (!touching || !any_overlap(start, out)) return PolygonShape::concave;
+        if (!touching || !any_overlap(start, out, winding)) return true;
     }
     out.resize(start);
+    return false;
+}
+
+PolygonShape PolygonTriangulator::add_polygon(const float* xyz, const uint32_t* poly, size_t n,
+                                              std::vector<uint32_t>& out) {
+    if (!make_ring(xyz, poly, n)) {
+        fan(poly, n, out);
+        return PolygonShape::degenerate;
+    }
+    project(xyz);
+    size_t left = 0, right = 0;
+    find_turns(left, right);
+    if (left + right == 0) {  // every vertex on one line
+        fan(poly, n, out);
+        return PolygonShape::degenerate;
+    }
+    if (is_convex(n, left, right)) {
+        fan(poly, n, out);
+        return PolygonShape::convex;
+    }
+    // Simple: no spike, and no two edges that are not neighbours share a point. Touching itself only at
+    // vertices (a ring cut open along a bridge edge) is allowed, but the ear test then needs every vertex.
+    if (has_spike()) {
+        fan(poly, n, out);
+        return PolygonShape::not_simple;
+    }
+    if (ring_.size() >= large_) return add_large(poly, n, out);
+    bool touching = false;
+    const int winding = crosses_itself(touching) ? 0 : ring_winding();
+    if (winding != 0 && clip_ears(winding, touching, out)) return PolygonShape::concave;
     fan(poly, n, out);
     return PolygonShape::not_simple;
 }

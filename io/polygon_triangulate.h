@@ -63,8 +63,24 @@ public:
 private:
     PolygonShape add_polygon(const float* xyz, const uint32_t* poly, size_t n, std::vector<uint32_t>& out);
 
+    // The steps of add_polygon, in its order; each reads what the ones before it left in the members.
+    bool make_ring(const float* xyz, const uint32_t* poly, size_t n);  // false: fewer than 3 distinct vertices
+    void project(const float* xyz);                                    // the ring onto its plane, into uv_
+    void find_turns(size_t& left, size_t& right);                      // turn_, and the count of each way
+    bool is_convex(size_t n, size_t left, size_t right) const;
+    bool has_spike() const;
+    bool crosses_itself(bool& touching);  // also says whether it touches itself at vertices
     PolygonShape add_large(const uint32_t* poly, size_t n, std::vector<uint32_t>& out);
     int ring_winding() const;  // +1 or -1 from the lowest vertex's turn, 0 when its passes disagree
+    bool clip_ears(int winding, bool touching, std::vector<uint32_t>& out);
+    bool is_ear(uint32_t a, uint32_t b, uint32_t c, int winding, bool touching);
+    bool any_overlap(size_t from, const std::vector<uint32_t>& tris, int winding) const;
+
+    // The ring's projected vertex i, and the ring positions before and after i.
+    const double* uv(size_t i) const { return &uv_[2 * i]; }
+    size_t before(size_t i) const { return i == 0 ? ring_.size() - 1 : i - 1; }
+    size_t after(size_t i) const { return i + 1 == ring_.size() ? 0 : i + 1; }
+    bool straight_on(size_t i) const;
 
     size_t large_;
     PolygonCounts counts_;

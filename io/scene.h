@@ -46,7 +46,9 @@ inline Transform trs_transform(const double* t, const double* q, const double* s
     Transform m = identity_transform();
     for (int col = 0; col < 3; ++col)
         for (int row = 0; row < 3; ++row) m[col * 4 + row] = r[col * 3 + row] * s[col];
-    m[12] = t[0], m[13] = t[1], m[14] = t[2];
+    m[12] = t[0];
+    m[13] = t[1];
+    m[14] = t[2];
     return m;
 }
 

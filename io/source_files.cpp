@@ -40,7 +40,10 @@ SourceFiles SourceHasher::finish() const {
     SourceFiles out = files_;
     out.hash.clear();
     static const char digits[] = "0123456789abcdef";
-    for (uint8_t b : canonical.digest) out.hash += digits[b >> 4], out.hash += digits[b & 15];
+    for (uint8_t b : canonical.digest) {
+        out.hash += digits[b >> 4];
+        out.hash += digits[b & 15];
+    }
     return out;
 }
 
@@ -48,7 +51,8 @@ FileBytes::~FileBytes() { release(); }
 
 void FileBytes::release() {
     if (mapped_) munmap(const_cast<uint8_t*>(mapped_), mapped_size_);
-    mapped_ = nullptr, mapped_size_ = 0;
+    mapped_ = nullptr;
+    mapped_size_ = 0;
     copy_.clear();
 }
 
@@ -66,7 +70,8 @@ bool FileBytes::read(const std::string& path, std::string& error) {
     if (regular && st.st_size >= map_from) {
         void* at = mmap(nullptr, size_t(st.st_size), PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
         if (at != MAP_FAILED) {
-            mapped_ = static_cast<const uint8_t*>(at), mapped_size_ = size_t(st.st_size);
+            mapped_ = static_cast<const uint8_t*>(at);
+            mapped_size_ = size_t(st.st_size);
             ::close(fd);
             return true;
         }

@@ -91,11 +91,26 @@ const Lanes& lanes() {
 }  // namespace
 
 bool parse_traversal(const std::string& name, Traversal& out) {
-    if (name == "scan") return out = Traversal::scan, true;
-    if (name == "trees") return out = Traversal::trees, true;
-    if (name == "one-tree") return out = Traversal::one_tree, true;
-    if (name == "mtsv") return out = Traversal::mtsv, true;
-    if (name == "mtsv-two") return out = Traversal::mtsv_two, true;
+    if (name == "scan") {
+        out = Traversal::scan;
+        return true;
+    }
+    if (name == "trees") {
+        out = Traversal::trees;
+        return true;
+    }
+    if (name == "one-tree") {
+        out = Traversal::one_tree;
+        return true;
+    }
+    if (name == "mtsv") {
+        out = Traversal::mtsv;
+        return true;
+    }
+    if (name == "mtsv-two") {
+        out = Traversal::mtsv_two;
+        return true;
+    }
     return false;
 }
 
@@ -111,8 +126,14 @@ const char* traversal_name(Traversal t) {
 }
 
 bool parse_metric_build(const std::string& name, MetricBuild& out) {
-    if (name == "heuristic") return out = MetricBuild::heuristic, true;
-    if (name == "reference") return out = MetricBuild::reference, true;
+    if (name == "heuristic") {
+        out = MetricBuild::heuristic;
+        return true;
+    }
+    if (name == "reference") {
+        out = MetricBuild::reference;
+        return true;
+    }
     return false;
 }
 

@@ -48,11 +48,11 @@ LevelInput baked_level(const AssetView& view);
 
 struct SceneQueryOptions {
     Traversal traversal = Traversal::scan;
-    bool one_sided = false;      // a triangle blocks only when the light is behind it (double-sided ones always)
-    unsigned threads = 0;        // build and query threads, 0 = all; the answers do not depend on it
-    bool reference = false;      // occluded_reference instead: every cluster box the segment may touch, no build
-    bool per_point = false;      // each point asks alone and keeps its own counts (a batch's tiles share theirs)
-    double capsule_ratio = 4.0;  // mtsv: capsule-cones for clusters at least this elongated, else cones
+    bool one_sided = false;       // a triangle blocks only when the light is behind it (double-sided ones always)
+    unsigned threads = 0;         // build and query threads, 0 = all; the answers do not depend on it
+    bool reference = false;       // occluded_reference instead: every cluster box the segment may touch, no build
+    bool per_point = false;       // each point asks alone and keeps its own counts (a batch's tiles share theirs)
+    double capsule_aspect = 4.0;  // mtsv: capsule-cones for clusters at least this long for their width, else cones
     MetricBuild metric_build = MetricBuild::heuristic;  // mtsv: how the metric trees are built
     double bias = 0;   // self-shadowing bias, world distance (cb_segment.h); 0: the level's, cb::Level::shadow_bias
     bool sun = false;  // the light is a sun: its xyz is the direction toward it (cb_segment.h, "A sun"); the
@@ -65,16 +65,16 @@ struct SceneQueryResult {
     std::vector<QueryStats> point_stats;  // per point, with per_point
     double build_seconds = 0;             // every instance's structure for the light, the scan's bounds included
     double query_seconds = 0;
-    size_t trees = 0, nodes = 0;  // one structure per instance (none for the reference)
-    size_t tree_bytes = 0;        // what those structures hold (ShadowBuildOptions' shared bounds not counted)
-    size_t always_tested = 0;     // clusters tested for every point (light inside or level with their box)
-    size_t skipped = 0;           // one-sided: clusters the light sees from their front
-    double bias = 0;              // the self-shadowing bias the answers used
+    size_t structures = 0, nodes = 0;  // one structure per instance (none for the reference)
+    size_t structure_bytes = 0;        // what those structures hold (ShadowBuildOptions' shared bounds not counted)
+    size_t always_tested = 0;          // clusters tested for every point (light inside or level with their box)
+    size_t skipped = 0;                // one-sided: clusters the light sees from their front
+    double bias = 0;                   // the self-shadowing bias the answers used
 };
 
 // The `count` points (xyz, world) against the light (xyz, world), over every instance of the level. The
 // work runs on the widest lanes this processor has among those the build made (query_lanes); every choice
-// gives the same answers. trees counts the instances set up for the light.
+// gives the same answers. structures counts the instances set up for the light.
 SceneQueryResult query_level(const LevelInput& level, const double* light, const double* points, size_t count,
                              const SceneQueryOptions& options = {});
 

@@ -30,15 +30,17 @@ struct RuntimeLevel {
 };
 
 void add_stats(QueryStats& to, const QueryStats& c) {
-    to.nodes_visited += c.nodes_visited, to.clusters_tested += c.clusters_tested;
-    to.triangles_tested += c.triangles_tested, to.touching += c.touching;
+    to.nodes_visited += c.nodes_visited;
+    to.clusters_tested += c.clusters_tested;
+    to.triangles_tested += c.triangles_tested;
+    to.touching += c.touching;
 }
 
 ShadowBuildOptions build_options(const SceneQueryOptions& o) {
     ShadowBuildOptions build;
     build.traversal = o.traversal;
     build.one_sided = o.one_sided;
-    build.capsule_ratio = o.capsule_ratio;
+    build.capsule_ratio = o.capsule_aspect;
     build.metric_build = o.metric_build;
     build.bias = o.bias;
     return build;
@@ -66,10 +68,12 @@ void answer_batch(const Level& level, const double* light, const double* points,
     });
     for (size_t i = 0; i < built; ++i) {
         const InstanceShadow& s = shadow.built(i);
-        r.skipped += s.skipped_clusters(), r.nodes += s.node_count(), r.tree_bytes += s.memory_bytes();
+        r.skipped += s.skipped_clusters();
+        r.nodes += s.node_count();
+        r.structure_bytes += s.memory_bytes();
         r.always_tested += s.always_tested();
     }
-    r.trees = built;
+    r.structures = built;
     r.build_seconds = seconds_since(build_start);
 
     auto start = std::chrono::steady_clock::now();
@@ -88,18 +92,20 @@ void answer_batch(const Level& level, const double* light, const double* points,
 void answer_points(const Level& level, const double* light, const double* points, size_t n, const SceneQueryOptions& o,
                    unsigned thread_count, SceneQueryResult& r) {
     auto build_start = std::chrono::steady_clock::now();
-    std::vector<InstanceShadow> trees(o.reference ? 0 : level.handle_limit());
+    std::vector<InstanceShadow> shadows(o.reference ? 0 : level.handle_limit());
     ShadowBuildOptions build = build_options(o);
-    for (uint32_t h = 0; h < trees.size(); ++h) {
+    for (uint32_t h = 0; h < shadows.size(); ++h) {
         build.bounds = level.scan_bounds(level.asset_of(h));
         if (o.sun)
-            trees[h].build_sun(level.asset(level.asset_of(h)), level.placement(h), light, build);
+            shadows[h].build_sun(level.asset(level.asset_of(h)), level.placement(h), light, build);
         else
-            trees[h].build(level.asset(level.asset_of(h)), level.placement(h), light, build);
-        r.skipped += trees[h].skipped_clusters(), r.nodes += trees[h].node_count();
-        r.tree_bytes += trees[h].memory_bytes(), r.always_tested += trees[h].always_tested();
+            shadows[h].build(level.asset(level.asset_of(h)), level.placement(h), light, build);
+        r.skipped += shadows[h].skipped_clusters();
+        r.nodes += shadows[h].node_count();
+        r.structure_bytes += shadows[h].memory_bytes();
+        r.always_tested += shadows[h].always_tested();
     }
-    r.trees = trees.size();
+    r.structures = shadows.size();
     r.build_seconds = seconds_since(build_start);
 
     auto start = std::chrono::steady_clock::now();
@@ -107,7 +113,7 @@ void answer_points(const Level& level, const double* light, const double* points
     if (o.per_point) r.point_stats.assign(n, QueryStats{});
     std::vector<QueryStats> counts(thread_count);
     size_t stack_size = 0;
-    for (const InstanceShadow& tree : trees) stack_size = std::max(stack_size, tree.stack_size());
+    for (const InstanceShadow& shadow : shadows) stack_size = std::max(stack_size, shadow.stack_size());
     parallel_for(thread_count, thread_count, [&](size_t t) {
         std::vector<uint32_t> stack(stack_size);
         for (size_t i = n * t / thread_count; i < n * (t + 1) / thread_count; ++i) {
@@ -117,8 +123,8 @@ void answer_points(const Level& level, const double* light, const double* points
                 r.shadowed[i] = o.sun ? occluded_sun_reference(level, p, light, o.bias, o.one_sided, s)
                                       : occluded_reference(level, p, light, o.bias, o.one_sided, s);
             } else {
-                for (const InstanceShadow& tree : trees)
-                    if (!r.shadowed[i]) r.shadowed[i] = tree.occluded(p, stack.data(), s);
+                for (const InstanceShadow& shadow : shadows)
+                    if (!r.shadowed[i]) r.shadowed[i] = shadow.occluded(p, stack.data(), s);
             }
         }
     });

@@ -211,10 +211,13 @@ CB_DECODE_INLINE void unpack_octahedral(const int16_t* e, double* out) {
     double x = double(e[0]) / 32767.0, y = double(e[1]) / 32767.0, z = 1 - std::fabs(x) - std::fabs(y);
     if (z < 0) {
         double fx = (1 - std::fabs(y)) * (x < 0 ? -1 : 1), fy = (1 - std::fabs(x)) * (y < 0 ? -1 : 1);
-        x = fx, y = fy;
+        x = fx;
+        y = fy;
     }
     double len = std::sqrt(x * x + y * y + z * z);
-    out[0] = x / len, out[1] = y / len, out[2] = z / len;
+    out[0] = x / len;
+    out[1] = y / len;
+    out[2] = z / len;
 }
 
 CB_DECODE_INLINE Cone unpack_cone(const PackedCone& p, const PackedObb& box) {
@@ -395,7 +398,9 @@ inline bool fine_clusters_ok(const FineCluster* f, uint32_t n, const MeshRecord&
         if (r + f[i].ref_count > m.ref_count) return false;
         for (uint32_t k = 0; k < f[i].ref_count; ++k)  // back to an earlier vertex of the mesh
             if (refs[r + k] == 0 || refs[r + k] > f[i].first_vertex) return false;
-        t += f[i].triangle_count, v += f[i].vertex_count, r += f[i].ref_count;
+        t += f[i].triangle_count;
+        v += f[i].vertex_count;
+        r += f[i].ref_count;
     }
     return t == m.triangle_count && v == m.vertex_count && r == m.ref_count;
 }

@@ -47,9 +47,11 @@ inline size_t batch_order_scratch_size(size_t n) { return 2 * n + 6144; }
 // vector of keys an instruction.
 inline void batch_keys(const double* light, const double* points, size_t first, size_t last, uint32_t* keys) {
     const double lx = light[0], ly = light[1], lz = light[2];
-    auto spread = [](uint32_t v) {  // bit i of v to bit 2i
-        v = (v | v << 8) & 0x00ff00ffu, v = (v | v << 4) & 0x0f0f0f0fu;
-        v = (v | v << 2) & 0x33333333u, v = (v | v << 1) & 0x55555555u;
+    auto spread = [](uint32_t v) {
+        v = (v | v << 8) & 0x00ff00ffu;
+        v = (v | v << 4) & 0x0f0f0f0fu;
+        v = (v | v << 2) & 0x33333333u;
+        v = (v | v << 1) & 0x55555555u;
         return v;
     };
     for (size_t i = first; i < last; ++i) {
@@ -59,9 +61,11 @@ inline void batch_keys(const double* light, const double* points, size_t first, 
         const float major = on_x ? ax : on_y ? ay : az, sign = on_x ? x : on_y ? y : z;
         const float a = on_x ? y : on_y ? z : x, b = on_x ? z : on_y ? x : y;  // axes m + 1 and m + 2 (mod 3)
         const float scale = 511.5f / major;
-        float ca = a * scale + 511.5f, cb = b * scale + 511.5f;  // in [0, 1023] to rounding; NaN goes to 0
-        ca = ca > 0 ? ca : 0.0f, cb = cb > 0 ? cb : 0.0f;
-        ca = ca < 1023.0f ? ca : 1023.0f, cb = cb < 1023.0f ? cb : 1023.0f;
+        float ca = a * scale + 511.5f, cb = b * scale + 511.5f;
+        ca = ca > 0 ? ca : 0.0f;
+        cb = cb > 0 ? cb : 0.0f;
+        ca = ca < 1023.0f ? ca : 1023.0f;
+        cb = cb < 1023.0f ? cb : 1023.0f;
         const uint32_t face = uint32_t(on_x ? 0 : on_y ? 2 : 4) + uint32_t(std::signbit(sign));
         const uint32_t key = face << 20 | spread(uint32_t(int32_t(ca))) | spread(uint32_t(int32_t(cb))) << 1;
         keys[i - first] = ((major > 0) & (major < INFINITY)) ? key : 0x7fffffu;  // zero or not finite: last
@@ -76,12 +80,19 @@ inline void batch_order_from_keys(const uint32_t* keys, size_t n, uint32_t* orde
     // bytes written of moving key and index together.
     uint32_t *moved = scratch, *low = scratch + n, *high = low + 4096;
     std::fill(low, low + 4096 + 2048, 0u);
-    for (size_t i = 0; i < n; ++i) ++low[keys[i] & 4095], ++high[keys[i] >> 12 & 2047];
+    for (size_t i = 0; i < n; ++i) {
+        ++low[keys[i] & 4095];
+        ++high[keys[i] >> 12 & 2047];
+    }
     auto starts = [](uint32_t* count, int buckets) {
         uint32_t sum = 0;
-        for (int b = 0; b < buckets; ++b) sum += count[b], count[b] = sum - count[b];
+        for (int b = 0; b < buckets; ++b) {
+            sum += count[b];
+            count[b] = sum - count[b];
+        }
     };
-    starts(low, 4096), starts(high, 2048);
+    starts(low, 4096);
+    starts(high, 2048);
     for (size_t i = 0; i < n; ++i) moved[low[keys[i] & 4095]++] = uint32_t(i);
     for (size_t i = 0; i < n; ++i) order[high[keys[moved[i]] >> 12 & 2047]++] = moved[i];
 }
@@ -106,9 +117,11 @@ inline void sun_batch_order(const double* toward, const double* points, size_t n
         for (size_t i = 0; i < n; ++i) order[i] = uint32_t(i);
         return;
     }
-    auto spread = [](uint32_t v) {  // bit i of v to bit 2i
-        v = (v | v << 8) & 0x00ff00ffu, v = (v | v << 4) & 0x0f0f0f0fu;
-        v = (v | v << 2) & 0x33333333u, v = (v | v << 1) & 0x55555555u;
+    auto spread = [](uint32_t v) {
+        v = (v | v << 8) & 0x00ff00ffu;
+        v = (v | v << 4) & 0x0f0f0f0fu;
+        v = (v | v << 2) & 0x33333333u;
+        v = (v | v << 1) & 0x55555555u;
         return v;
     };
     double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
@@ -117,7 +130,10 @@ inline void sun_batch_order(const double* toward, const double* points, size_t n
         const double a = p[0] * frame[1][0] + p[1] * frame[1][1] + p[2] * frame[1][2],
                      b = p[0] * frame[2][0] + p[1] * frame[2][1] + p[2] * frame[2][2];
         if (!(std::fabs(a) < INFINITY && std::fabs(b) < INFINITY)) continue;
-        lo[0] = std::min(lo[0], a), hi[0] = std::max(hi[0], a), lo[1] = std::min(lo[1], b), hi[1] = std::max(hi[1], b);
+        lo[0] = std::min(lo[0], a);
+        hi[0] = std::max(hi[0], a);
+        lo[1] = std::min(lo[1], b);
+        hi[1] = std::max(hi[1], b);
     }
     const double scale[2] = {hi[0] > lo[0] ? 1023.0 / (hi[0] - lo[0]) : 0.0,
                              hi[1] > lo[1] ? 1023.0 / (hi[1] - lo[1]) : 0.0};
@@ -174,7 +190,8 @@ void occluded_ordered(const Shadows* trees, size_t tree_count, const double* poi
         uint64_t alive = tile == 64 ? ~uint64_t(0) : (uint64_t(1) << tile) - 1, shadowed = 0;
         for (size_t t = 0; t < tree_count && alive; ++t) {
             uint64_t s = trees[t].occluded_tile(points, order + first, tile, alive, stack, stats, cache);
-            shadowed |= s, alive &= ~s;
+            shadowed |= s;
+            alive &= ~s;
         }
         for (uint32_t i = 0; i < tile; ++i) out[order[first + i]] = uint8_t(shadowed >> i & 1);
     }

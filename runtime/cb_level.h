@@ -54,7 +54,10 @@ struct Box {
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     bool empty() const { return !(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2]); }
     void add(const Box& b) {
-        for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], b.lo[k]), hi[k] = std::max(hi[k], b.hi[k]);
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], b.lo[k]);
+            hi[k] = std::max(hi[k], b.hi[k]);
+        }
     }
 };
 
@@ -68,7 +71,10 @@ inline Box transform_box(const Box& local, const double* m) {
     double inverse[12];
     if (local.empty() || !invert_instance(m, inverse)) return out;
     double c[3], h[3];
-    for (int k = 0; k < 3; ++k) c[k] = 0.5 * (local.lo[k] + local.hi[k]), h[k] = 0.5 * (local.hi[k] - local.lo[k]);
+    for (int k = 0; k < 3; ++k) {
+        c[k] = 0.5 * (local.lo[k] + local.hi[k]);
+        h[k] = 0.5 * (local.hi[k] - local.lo[k]);
+    }
     double wc[3], wh[3], size = 0;
     apply_instance(m, c, wc);
     for (int k = 0; k < 3; ++k) {
@@ -77,7 +83,10 @@ inline Box transform_box(const Box& local, const double* m) {
     }
     const double pad = 1e-9 * size;
     if (!(pad < INFINITY)) return out;  // beyond double's range: nothing there can be tested exactly anyway
-    for (int k = 0; k < 3; ++k) out.lo[k] = wc[k] - wh[k] - pad, out.hi[k] = wc[k] + wh[k] + pad;
+    for (int k = 0; k < 3; ++k) {
+        out.lo[k] = wc[k] - wh[k] - pad;
+        out.hi[k] = wc[k] + wh[k] + pad;
+    }
     return out;
 }
 
@@ -95,7 +104,8 @@ inline bool segment_meets_box(const double* p, const double* q, const Box& b) {
         }
         double ta = (lo - p[k]) / d, tb = (hi - p[k]) / d;
         if (ta > tb) std::swap(ta, tb);
-        t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
         if (t0 > t1) return false;
     }
     return true;
@@ -113,7 +123,8 @@ inline bool pyramid_meets_box(const WorldPyramid& w, const Box& b, double& near)
     if (b.empty()) return false;
     double c[3], h[3], scale = w.dmax;
     for (int k = 0; k < 3; ++k) {
-        c[k] = 0.5 * (b.lo[k] + b.hi[k]) - w.light[k], h[k] = 0.5 * (b.hi[k] - b.lo[k]);
+        c[k] = 0.5 * (b.lo[k] + b.hi[k]) - w.light[k];
+        h[k] = 0.5 * (b.hi[k] - b.lo[k]);
         scale += std::fabs(c[k]) + h[k];
     }
     const double eps = 1e-9 * scale;
@@ -140,7 +151,8 @@ inline bool prism_meets_box(const WorldPrism& w, const Box& b, double& near) {
     if (b.empty()) return false;
     double c[3], h[3], size = w.margin;
     for (int k = 0; k < 3; ++k) {
-        c[k] = 0.5 * (b.lo[k] + b.hi[k]), h[k] = 0.5 * (b.hi[k] - b.lo[k]);
+        c[k] = 0.5 * (b.lo[k] + b.hi[k]);
+        h[k] = 0.5 * (b.hi[k] - b.lo[k]);
         size += 1e-9 * (std::fabs(c[k]) + h[k]);
     }
     auto reach = [&](const double* n) {
@@ -168,7 +180,8 @@ inline bool ray_meets_box(const double* p, const double* d, const Box& b) {
         }
         double ta = (lo - p[k]) / d[k], tb = (hi - p[k]) / d[k];
         if (ta > tb) std::swap(ta, tb);
-        t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
         if (t0 > t1) return false;
     }
     return true;
@@ -194,8 +207,10 @@ public:
             level_detail::Box& b = a.mesh_boxes[m];
             for (uint32_t v = 0; v < mesh.vertex_count; ++v) {
                 const float* p = view.position(mesh, v);
-                for (int k = 0; k < 3; ++k)
-                    b.lo[k] = std::min(b.lo[k], double(p[k])), b.hi[k] = std::max(b.hi[k], double(p[k]));
+                for (int k = 0; k < 3; ++k) {
+                    b.lo[k] = std::min(b.lo[k], double(p[k]));
+                    b.hi[k] = std::max(b.hi[k], double(p[k]));
+                }
             }
         }
         assets_.push_back(std::move(a));
@@ -217,7 +232,9 @@ public:
             leaf_.push_back(none);
         }
         Instance& i = instances_[h];
-        i.asset = asset, i.mesh = mesh, i.alive = true;
+        i.asset = asset;
+        i.mesh = mesh;
+        i.alive = true;
         place(h, transform);
         ++live_;
         rebuild_ = true;
@@ -415,7 +432,9 @@ private:
 
     // Top-down, median splits on the longest axis of the boxes' centres (ties by handle: deterministic).
     void build() {
-        nodes_.clear(), parent_.clear(), items_.clear();
+        nodes_.clear();
+        parent_.clear();
+        items_.clear();
         std::fill(leaf_.begin(), leaf_.end(), none);
         for (uint32_t h = 0; h < instances_.size(); ++h)
             if (instances_[h].alive) items_.push_back(h);
@@ -434,14 +453,17 @@ private:
             const Range r = todo.back();
             todo.pop_back();
             if (r.end - r.begin <= leaf_size) {
-                nodes_[r.node].first = r.begin, nodes_[r.node].count = r.end - r.begin;
+                nodes_[r.node].first = r.begin;
+                nodes_[r.node].count = r.end - r.begin;
                 for (uint32_t i = r.begin; i < r.end; ++i) leaf_[items_[i]] = r.node;
                 continue;
             }
             double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
             for (uint32_t i = r.begin; i < r.end; ++i)
-                for (int k = 0; k < 3; ++k)
-                    lo[k] = std::min(lo[k], centre(items_[i], k)), hi[k] = std::max(hi[k], centre(items_[i], k));
+                for (int k = 0; k < 3; ++k) {
+                    lo[k] = std::min(lo[k], centre(items_[i], k));
+                    hi[k] = std::max(hi[k], centre(items_[i], k));
+                }
             int axis = 0;
             for (int k = 1; k < 3; ++k)
                 if (hi[k] - lo[k] > hi[axis] - lo[axis]) axis = k;
@@ -452,9 +474,12 @@ private:
                                  return ca < cb || (ca == cb && a < b);
                              });
             const uint32_t left = uint32_t(nodes_.size());
-            nodes_[r.node].first = left, nodes_[r.node].count = 0;
-            nodes_.emplace_back(), nodes_.emplace_back();
-            parent_.push_back(r.node), parent_.push_back(r.node);
+            nodes_[r.node].first = left;
+            nodes_[r.node].count = 0;
+            nodes_.emplace_back();
+            nodes_.emplace_back();
+            parent_.push_back(r.node);
+            parent_.push_back(r.node);
             todo.push_back({left + 1, mid, r.end});
             todo.push_back({left, r.begin, mid});
         }
@@ -468,7 +493,8 @@ private:
         if (node.count) {
             for (uint32_t i = node.first; i < node.first + node.count; ++i) node.box.add(instances_[items_[i]].box);
         } else {
-            node.box.add(nodes_[node.first].box), node.box.add(nodes_[node.first + 1].box);
+            node.box.add(nodes_[node.first].box);
+            node.box.add(nodes_[node.first + 1].box);
         }
     }
 
@@ -479,10 +505,16 @@ private:
         touched.clear();
         if (marks_.size() < nodes_.size()) marks_.assign(nodes_.size(), 0);
         for (uint32_t h : moved_) {
-            for (uint32_t n = leaf_[h]; n != none && !marks_[n]; n = parent_[n]) marks_[n] = 1, touched.push_back(n);
+            for (uint32_t n = leaf_[h]; n != none && !marks_[n]; n = parent_[n]) {
+                marks_[n] = 1;
+                touched.push_back(n);
+            }
         }
         std::sort(touched.begin(), touched.end(), [](uint32_t a, uint32_t b) { return a > b; });
-        for (uint32_t n : touched) fit(n), marks_[n] = 0;
+        for (uint32_t n : touched) {
+            fit(n);
+            marks_[n] = 0;
+        }
     }
 
     // f(handle, near) for each live instance of a leaf whose box, and whose ancestors' boxes, `meets` keeps.
@@ -560,14 +592,21 @@ public:
     // The instances met by any tile, once each, in the order of their first meeting; returns how many.
     size_t gather() {
         const uint32_t limit = level_->handle_limit();
-        if (slot_of_.size() < limit) slot_of_.resize(limit, none), stamp_.resize(limit, 0);
-        if (++generation_ == 0) std::fill(stamp_.begin(), stamp_.end(), 0u), generation_ = 1;
+        if (slot_of_.size() < limit) {
+            slot_of_.resize(limit, none);
+            stamp_.resize(limit, 0);
+        }
+        if (++generation_ == 0) {
+            std::fill(stamp_.begin(), stamp_.end(), 0u);
+            generation_ = 1;
+        }
         needed_.clear();
         for (size_t t = 0; t < tile_count_; ++t)
             for (uint64_t& entry : tile_lists_[t]) {
                 const uint32_t h = uint32_t(entry);
                 if (stamp_[h] != generation_) {
-                    stamp_[h] = generation_, slot_of_[h] = uint32_t(needed_.size());
+                    stamp_[h] = generation_;
+                    slot_of_[h] = uint32_t(needed_.size());
                     needed_.push_back(h);
                 }
                 entry = slot_of_[h];
@@ -623,7 +662,8 @@ public:
                           : instance_points(needed_[slot], regular, ex, ey, ez, fd));
                 if (!in) continue;
                 const uint64_t s = shadows_[slot].occluded_tile(points_, index, count, in, stack, stats, cache);
-                shadowed |= s, alive &= ~s;
+                shadowed |= s;
+                alive &= ~s;
             }
             for (uint32_t i = 0; i < count; ++i) out[index[i]] = uint8_t(shadowed >> i & 1);
         }
@@ -697,7 +737,8 @@ private:
         uint64_t regular = 0;
         for (uint32_t i = 0; i < count; ++i) {
             const double* p = points_ + size_t(index[i]) * 3;
-            across[i][0] = math::dot3(p, sun_frame_[1]), across[i][1] = math::dot3(p, sun_frame_[2]),
+            across[i][0] = math::dot3(p, sun_frame_[1]);
+            across[i][1] = math::dot3(p, sun_frame_[2]);
             across[i][2] = math::dot3(p, sun_frame_[0]);
             if (std::fabs(across[i][0]) + std::fabs(across[i][1]) + std::fabs(across[i][2]) < 1e30)
                 regular |= uint64_t(1) << i;
@@ -735,22 +776,30 @@ private:
         double across[tile_capacity][3];
         const uint64_t regular = sun_across(index, count, across);
         level_detail::WorldPrism w;
-        for (int k = 0; k < 3; ++k) w.a[k] = sun_frame_[1][k], w.b[k] = sun_frame_[2][k], w.z[k] = sun_frame_[0][k];
+        for (int k = 0; k < 3; ++k) {
+            w.a[k] = sun_frame_[1][k];
+            w.b[k] = sun_frame_[2][k];
+            w.z[k] = sun_frame_[0][k];
+        }
         w.lo[0] = w.lo[1] = w.low = INFINITY;
         w.hi[0] = w.hi[1] = -INFINITY;
         double size = 0;
         for (uint64_t b = regular; b; b &= b - 1) {
             const double* q = across[math::lowest_bit(b)];
-            w.lo[0] = std::min(w.lo[0], q[0]), w.hi[0] = std::max(w.hi[0], q[0]);
-            w.lo[1] = std::min(w.lo[1], q[1]), w.hi[1] = std::max(w.hi[1], q[1]);
+            w.lo[0] = std::min(w.lo[0], q[0]);
+            w.hi[0] = std::max(w.hi[0], q[0]);
+            w.lo[1] = std::min(w.lo[1], q[1]);
+            w.hi[1] = std::max(w.hi[1], q[1]);
             w.low = std::min(w.low, q[2]);
             size = std::max(size, std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]));
         }
         w.margin = 1e-9 * size;
         const double *lo = level_->world_lo(), *hi = level_->world_hi();
         double centre[3], reach = 0;
-        for (int k = 0; k < 3; ++k)
-            centre[k] = 0.5 * (lo[k] + hi[k]), reach += std::fabs(w.z[k]) * 0.5 * (hi[k] - lo[k]);
+        for (int k = 0; k < 3; ++k) {
+            centre[k] = 0.5 * (lo[k] + hi[k]);
+            reach += std::fabs(w.z[k]) * 0.5 * (hi[k] - lo[k]);
+        }
         w.top = math::dot3(centre, w.z) + reach;
         auto entry = [](double near, uint32_t h) {
             const float key = near > 0 ? float(near) : 0.0f;  // NaN: 0
@@ -794,10 +843,14 @@ private:
                 if (d > 1e-7 && d < 1e9) {
                     regular |= uint64_t(1) << i;
                 } else {
-                    e[0] = e[1] = e[2] = 0, d = -1;
+                    e[0] = e[1] = e[2] = 0;
+                    d = -1;
                 }
             }
-            ex[i] = float(e[0]), ey[i] = float(e[1]), ez[i] = float(e[2]), fd[i] = float(d);
+            ex[i] = float(e[0]);
+            ey[i] = float(e[1]);
+            ez[i] = float(e[2]);
+            fd[i] = float(d);
         }
         return regular;
     }
@@ -878,13 +931,18 @@ private:
             const double depth = math::dot3(e[i], z);
             if (!(depth > 0.5 * dist[i])) continue;
             const double x = math::dot3(e[i], a) / depth, y = math::dot3(e[i], b) / depth;
-            lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y),
+            lo[0] = std::min(lo[0], x);
+            hi[0] = std::max(hi[0], x);
+            lo[1] = std::min(lo[1], y);
             hi[1] = std::max(hi[1], y);
             w.dmax = std::max(w.dmax, dist[i]);
             held |= uint64_t(1) << i;
         }
         if (!held) return 0;
-        for (int k = 0; k < 2; ++k) lo[k] -= 1e-6, hi[k] += 1e-6;
+        for (int k = 0; k < 2; ++k) {
+            lo[k] -= 1e-6;
+            hi[k] += 1e-6;
+        }
         const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
         double ray[4][3];
         for (int r = 0; r < 4; ++r) frame_ray(frame, corner[r][0], corner[r][1], ray[r]);
@@ -896,7 +954,10 @@ private:
             const double nl = std::sqrt(math::dot3(n, n));
             for (int k = 0; k < 3; ++k) n[k] = nl > 0 ? n[k] / nl : 0.0;
         }
-        for (int k = 0; k < 3; ++k) w.light[k] = light_[k], w.axis[k] = z[k];
+        for (int k = 0; k < 3; ++k) {
+            w.light[k] = light_[k];
+            w.axis[k] = z[k];
+        }
         return held;
     }
 

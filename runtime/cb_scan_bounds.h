@@ -38,9 +38,12 @@ struct ScanBounds {
         if (!view.fine_bounds.obbs || !view.coarse_bounds.obbs) return;
         const PackedObb *fine_boxes = view.fine_bounds.obbs + mesh.first_fine,
                         *coarse_boxes = view.coarse_bounds.obbs + mesh.first_coarse;
-        source_fine = fine_boxes, source_coarse = coarse_boxes;
-        fine_count = mesh.fine_count, coarse_count = mesh.coarse_count;
-        fine_obbs.resize(fine_count), coarse_obbs.resize(coarse_count);
+        source_fine = fine_boxes;
+        source_coarse = coarse_boxes;
+        fine_count = mesh.fine_count;
+        coarse_count = mesh.coarse_count;
+        fine_obbs.resize(fine_count);
+        coarse_obbs.resize(coarse_count);
         for (uint32_t f = 0; f < fine_count; ++f) fine_obbs[f] = unpack_obb(fine_boxes[f]);
         for (uint32_t c = 0; c < coarse_count; ++c) coarse_obbs[c] = unpack_obb(coarse_boxes[c]);
         const uint32_t w = simd::width;
@@ -49,9 +52,10 @@ struct ScanBounds {
         for (std::vector<float>* a : {&x, &y, &z, &r}) a->assign(total, 0.0f);
         double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
         for (uint32_t c = 0; c < coarse_count; ++c)
-            for (int k = 0; k < 3; ++k)
-                lo[k] = std::min(lo[k], double(coarse_boxes[c].center[k])),
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], double(coarse_boxes[c].center[k]));
                 hi[k] = std::max(hi[k], double(coarse_boxes[c].center[k]));
+            }
         for (int k = 0; k < 3; ++k) origin[k] = coarse_count ? 0.5 * (lo[k] + hi[k]) : 0.0;
         extent = 0;
         auto fill = [&](const PackedObb* boxes, uint32_t count, uint32_t out) {
@@ -65,7 +69,10 @@ struct ScanBounds {
                     std::sqrt(h0 * h0 + h1 * h1 + h2 * h2) * (1 + 1e-6) + 2.4e-7 * c1;  // + the centre's rounding
                 float f = float(radius);
                 if (double(f) < radius) f = std::nextafter(f, INFINITY);
-                x[out + i] = float(cx), y[out + i] = float(cy), z[out + i] = float(cz), r[out + i] = f;
+                x[out + i] = float(cx);
+                y[out + i] = float(cy);
+                z[out + i] = float(cz);
+                r[out + i] = f;
                 extent = c1 + double(f) < INFINITY ? std::max(extent, c1 + double(f)) : INFINITY;  // NaN too: unusable
             }
         };

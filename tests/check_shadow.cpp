@@ -61,12 +61,21 @@ struct Tally {
     size_t brute_checked = 0, brute_bad = 0;
 
     void add(const Tally& t) {
-        queries += t.queries, shadowed += t.shadowed, touching += t.touching, only_touching += t.only_touching;
-        bad_scan += t.bad_scan, bad_tree2 += t.bad_tree2, bad_tree1 += t.bad_tree1, bad_walk += t.bad_walk,
-            bad_walk2 += t.bad_walk2, bad_metric += t.bad_metric;
+        queries += t.queries;
+        shadowed += t.shadowed;
+        touching += t.touching;
+        only_touching += t.only_touching;
+        bad_scan += t.bad_scan;
+        bad_tree2 += t.bad_tree2;
+        bad_tree1 += t.bad_tree1;
+        bad_walk += t.bad_walk;
+        bad_walk2 += t.bad_walk2;
+        bad_metric += t.bad_metric;
         bad_reference += t.bad_reference;
-        missed_shadow += t.missed_shadow, bad_touching += t.bad_touching, brute_checked += t.brute_checked,
-            brute_bad += t.brute_bad;
+        missed_shadow += t.missed_shadow;
+        bad_touching += t.bad_touching;
+        brute_checked += t.brute_checked;
+        brute_bad += t.brute_bad;
     }
     size_t bad() const {
         return bad_scan + bad_tree2 + bad_tree1 + bad_walk + bad_walk2 + bad_reference + bad_metric + brute_bad;
@@ -232,8 +241,11 @@ std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle
         cb::occluded_batch(one.data(), one.size(), points[begin].data(), n, t1.data(), scratch.data());
         for (size_t k = begin; k < end; ++k) {
             const double* p = points[k].data();
-            answers[k].scan = ts[k - begin], answers[k].tree2 = t2[k - begin], answers[k].tree1 = t1[k - begin];
-            answers[k].metric = tm[k - begin], answers[k].metric2 = tm2[k - begin];
+            answers[k].scan = ts[k - begin];
+            answers[k].tree2 = t2[k - begin];
+            answers[k].tree1 = t1[k - begin];
+            answers[k].metric = tm[k - begin];
+            answers[k].metric2 = tm2[k - begin];
             for (const cb::InstanceShadow& tree : metric)
                 answers[k].metric_walk = answers[k].metric_walk || tree.occluded(p, scratch.data());
             for (const cb::InstanceShadow& tree : scan)
@@ -268,10 +280,16 @@ Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points
     for (size_t k = 0; k < answers.size(); ++k) {
         const Answer& a = answers[k];
         bool exact = a.exact.blocked;
-        t.queries++, t.shadowed += exact, t.touching += a.exact.touching, t.only_touching += a.exact.only_touching;
-        t.bad_scan += a.scan != exact, t.bad_tree2 += a.tree2 != exact, t.bad_tree1 += a.tree1 != exact,
-            t.bad_walk += a.walk != exact;
-        t.bad_walk2 += a.walk2 != exact, t.bad_reference += a.reference != exact;
+        t.queries++;
+        t.shadowed += exact;
+        t.touching += a.exact.touching;
+        t.only_touching += a.exact.only_touching;
+        t.bad_scan += a.scan != exact;
+        t.bad_tree2 += a.tree2 != exact;
+        t.bad_tree1 += a.tree1 != exact;
+        t.bad_walk += a.walk != exact;
+        t.bad_walk2 += a.walk2 != exact;
+        t.bad_reference += a.reference != exact;
         const bool metric_wrong = a.metric != exact || a.metric2 != exact || a.metric_walk != exact;
         t.bad_metric += metric_wrong;
         bool wrong = metric_wrong || a.scan != exact || a.tree2 != exact || a.tree1 != exact || a.walk != exact ||
@@ -280,7 +298,8 @@ Tally tally(const std::vector<Answer>& answers, const std::vector<Point>& points
             !(a.scan && a.tree2 && a.tree1 && a.walk && a.walk2 && a.reference && a.metric && a.metric2 &&
               a.metric_walk);
         t.bad_touching += a.exact.touching && wrong;
-        t.brute_checked += a.brute_checked, t.brute_bad += !a.brute_agrees;
+        t.brute_checked += a.brute_checked;
+        t.brute_bad += !a.brute_agrees;
         if (!a.brute_agrees)
             std::printf("ORACLE TREES MISSED A TRIANGLE %s: light %s, %s, point (%.17g, %.17g, %.17g)\n", scene.c_str(),
                         light.kind, one_sided ? "one-sided" : "two-sided", points[k][0], points[k][1], points[k][2]);
@@ -388,7 +407,10 @@ int main(int argc, char** argv) {
             std::printf("skipped: %s\n", why.c_str());
         }
     }
-    if (scenes.empty()) return std::printf("no scene loaded\n"), 2;
+    if (scenes.empty()) {
+        std::printf("no scene loaded\n");
+        return 2;
+    }
     size_t budget = (o.queries + scenes.size() - 1) / scenes.size();
     std::printf("%zu scenes, %zu queries each (lights x both modes), %u threads\n", scenes.size(), budget, o.threads);
     std::printf("%-58s %9s %9s %9s %9s %7s %6s %6s %6s %6s %6s %6s %6s %8s\n", "scene", "triangles", "queries",

@@ -50,7 +50,10 @@ inline WorldSample sample_scene(const cb::Scene& scene, uint32_t stride) {
         for (size_t k = 0; k < mesh.vertex_count(); ++k) {
             double local[3] = {mesh.positions[k * 3], mesh.positions[k * 3 + 1], mesh.positions[k * 3 + 2]}, p[3];
             cb::apply_instance(m.data(), local, p);
-            for (int j = 0; j < 3; ++j) w.lo[j] = std::min(w.lo[j], p[j]), w.hi[j] = std::max(w.hi[j], p[j]);
+            for (int j = 0; j < 3; ++j) {
+                w.lo[j] = std::min(w.lo[j], p[j]);
+                w.hi[j] = std::max(w.hi[j], p[j]);
+            }
             if (k % stride == 0) w.surface.push_back({p[0], p[1], p[2]});
         }
     }
@@ -207,7 +210,12 @@ public:
             cb::apply_instance(f.to_world.data(), lx, w);
             double d = (w[0] - origin[0]) * (w[0] - origin[0]) + (w[1] - origin[1]) * (w[1] - origin[1]) +
                 (w[2] - origin[2]) * (w[2] - origin[2]);
-            if (d < best) best = d, hit[0] = w[0], hit[1] = w[1], hit[2] = w[2];
+            if (d < best) {
+                best = d;
+                hit[0] = w[0];
+                hit[1] = w[1];
+                hit[2] = w[2];
+            }
         }
         return best < INFINITY;
     }
@@ -248,7 +256,8 @@ private:
                 }
                 double ta = (lo - p[k]) / d[k], tb = (hi - p[k]) / d[k];
                 if (ta > tb) std::swap(ta, tb);
-                t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+                t0 = std::max(t0, ta);
+                t1 = std::min(t1, tb);
             }
             return t0 <= t1 * (1 + 1e-9);
         }

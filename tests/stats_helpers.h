@@ -61,8 +61,10 @@ inline CliRun run_program(const std::string& program, const std::string& args) {
     int status = std::system((program + " " + args + " >" + out + " 2>" + err).c_str());
     CliRun r;
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = slurp(out), r.err = slurp(err);
-    std::filesystem::remove(out), std::filesystem::remove(err);
+    r.out = slurp(out);
+    r.err = slurp(err);
+    std::filesystem::remove(out);
+    std::filesystem::remove(err);
     return r;
 }
 
@@ -82,7 +84,9 @@ inline Rgb read_png(const std::string& path) {
     img.format = PNG_FORMAT_RGB;
     std::vector<uint8_t> buf(PNG_IMAGE_SIZE(img));
     if (!png_image_finish_read(&img, nullptr, buf.data(), 0, nullptr)) return out;
-    out.width = img.width, out.height = img.height, out.pixels = std::move(buf);
+    out.width = img.width;
+    out.height = img.height;
+    out.pixels = std::move(buf);
     return out;
 }
 
@@ -92,7 +96,8 @@ inline double grey_variance(const Rgb& img) {
     size_t n = size_t(img.width) * img.height;
     for (size_t i = 0; i < n; ++i) {
         double g = (img.pixels[i * 3] + img.pixels[i * 3 + 1] + img.pixels[i * 3 + 2]) / 3.0;
-        sum += g, sum2 += g * g;
+        sum += g;
+        sum2 += g * g;
     }
     return n ? sum2 / n - (sum / n) * (sum / n) : 0;
 }

@@ -62,7 +62,8 @@ TEST(AtomicWrite, KilledWritersLeaveTheOldFileAndNoTemporary) {
         waitpid(child, &status, 0);
         const std::vector<uint8_t> now = read_all(out);
         EXPECT_TRUE(now == old_bytes || now == new_bytes) << "a partial output of " << now.size() << " bytes";
-        old_seen += now == old_bytes, new_seen += now == new_bytes;
+        old_seen += now == old_bytes;
+        new_seen += now == new_bytes;
         // Nothing beside the output, or at most the one temporary of a writer killed between naming its
         // file and the rename, which the next write removes.
         EXPECT_LE(entries(d), 2u);

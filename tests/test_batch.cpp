@@ -168,7 +168,8 @@ TEST(BatchSource, OptionsTextNamesWhatShapesTheAssetAndNotTheThreads) {
     EXPECT_EQ(cb::options_text(a, bounds, false).find("--bounds"), std::string::npos);
     // Only the method's own options: another method's would be refused on a bake command line.
     EXPECT_EQ(cb::options_text(a, bounds, true).find("--cache"), std::string::npos);
-    b = a, b.vco_cache_size = 16;
+    b = a;
+    b.vco_cache_size = 16;
     EXPECT_EQ(cb::options_text(a, bounds, true), cb::options_text(b, bounds, true));
     b.method = cb::ClusterMethod::vco;
     EXPECT_NE(cb::options_text(b, bounds, true).find("--method vco --coarse 2048 --fine 16 --cache 16 --bounds"),

@@ -54,8 +54,12 @@ bool finite(const cb::ClusterBounds& b) {
 
 double segment_distance(const double p[3], const float a[3], const float b[3]) {
     double ab[3], ap[3], len2 = 0, t = 0;
-    for (int k = 0; k < 3; ++k)
-        ab[k] = double(b[k]) - a[k], ap[k] = p[k] - a[k], len2 += ab[k] * ab[k], t += ap[k] * ab[k];
+    for (int k = 0; k < 3; ++k) {
+        ab[k] = double(b[k]) - a[k];
+        ap[k] = p[k] - a[k];
+        len2 += ab[k] * ab[k];
+        t += ap[k] * ab[k];
+    }
     t = len2 > 0 ? std::clamp(t / len2, 0.0, 1.0) : 0.0;
     double d2 = 0;  // from differences only: absolute coordinates would round at 1e-11 near 1e5
     for (int k = 0; k < 3; ++k) d2 += (ap[k] - t * ab[k]) * (ap[k] - t * ab[k]);

@@ -40,8 +40,10 @@ CliResult run(const std::string& args) {
     const int status = std::system((CB_CLI + " " + args + " >" + out + " 2>" + err).c_str());
     CliResult r;
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = read(out), r.err = read(err);
-    fs::remove(out), fs::remove(err);
+    r.out = read(out);
+    r.err = read(err);
+    fs::remove(out);
+    fs::remove(err);
     return r;
 }
 

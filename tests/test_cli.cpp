@@ -209,8 +209,9 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     EXPECT_EQ(one.out.size(), 1600u * 2);
     EXPECT_EQ(three.out, one.out);
     EXPECT_EQ(three_ref.out, one.out);
-    for (const char* traversal : {"trees", "one-tree", "mtsv", "mtsv-two", "mtsv --mtsv-build reference",
-                                  "mtsv --capsule-ratio 1.2", "mtsv --capsule-ratio inf"})  // the same answers
+    for (const char* traversal :
+         {"trees", "one-tree", "mtsv", "mtsv-two", "mtsv --mtsv-build reference", "mtsv --capsule-aspect 1.2",
+          "mtsv --capsule-aspect inf", "mtsv --capsule-ratio 1.2"})  // the same answers
         EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --traversal " + traversal).out, one.out)
             << traversal;
     EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --traversal leaves").code, 2);
@@ -730,7 +731,8 @@ TEST(Cli, OptionsACommandWouldIgnoreAreRefused) {
     EXPECT_FALSE(std::filesystem::exists(outdir));
     std::ofstream(manifest) << "cube.obj --method vco --cache 8\n";
     EXPECT_EQ(run("batch " + manifest + " -o " + outdir + " -q").code, 0);
-    std::filesystem::remove_all(outdir), std::filesystem::remove_all(folder);
+    std::filesystem::remove_all(outdir);
+    std::filesystem::remove_all(folder);
     // The box fitter and the capsule ratio shape only the volumes the asset does not store.
     EXPECT_EQ(run("stats " + asset + " --obb pca --capsule-ratio 3").code, 0);
     expect_usage_error(run("stats " + all + " --obb pca"), "--obb does nothing here", "all kinds stored");
@@ -796,6 +798,8 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCode2) {
              query + " --traversal mtsv --mtsv-build best",
              query + " --traversal mtsv --capsule-ratio 0.5",
              query + " --traversal mtsv --capsule-ratio nan",
+             query + " --capsule-aspect 3",
+             query + " --traversal mtsv --capsule-aspect 0.5",
              "query " + asset + " --points " + pts + " --light 0,5",
              "stats",
              "stats " + cube + " --fine 86",

@@ -104,7 +104,8 @@ double mean_xy_extent(const float* positions, const uint32_t* indices, const cb:
             for (int k = 0; k < 3; ++k)
                 for (int a = 0; a < 2; ++a) {
                     float x = positions[size_t(indices[size_t(h.order[i]) * 3 + k]) * 3 + a];
-                    lo[a] = std::min(lo[a], x), hi[a] = std::max(hi[a], x);
+                    lo[a] = std::min(lo[a], x);
+                    hi[a] = std::max(hi[a], x);
                 }
         sum += reduce(double(hi[0] - lo[0]), double(hi[1] - lo[1]));
     }
@@ -161,7 +162,8 @@ TEST(Cluster, KmeansCoarseClustersAreCompacterThanMortonChunks) {
                 for (int k = 0; k < 3; ++k)
                     for (int j = 0; j < 3; ++j) {
                         float x = m.positions[size_t(m.indices[size_t(h.order[at]) * 3 + k]) * 3 + j];
-                        lo[j] = std::min(lo[j], x), hi[j] = std::max(hi[j], x);
+                        lo[j] = std::min(lo[j], x);
+                        hi[j] = std::max(hi[j], x);
                     }
             sum += std::sqrt(double(hi[0] - lo[0]) * (hi[0] - lo[0]) + double(hi[1] - lo[1]) * (hi[1] - lo[1]) +
                              double(hi[2] - lo[2]) * (hi[2] - lo[2]));
@@ -256,7 +258,8 @@ TEST(Cluster, HugeCoordinatesKeepResolution) {
         for (uint32_t i = h.fine_offsets[h.coarse_offsets[c]]; i < h.fine_offsets[h.coarse_offsets[c + 1]]; ++i)
             for (int k = 0; k < 3; ++k) {
                 float x = m.positions[size_t(m.indices[size_t(h.order[i]) * 3 + k]) * 3];
-                lo = std::min(lo, x), hi = std::max(hi, x);
+                lo = std::min(lo, x);
+                hi = std::max(hi, x);
             }
         EXPECT_LE(hi - lo, 33.0f) << "chunk " << c;
     }
@@ -372,9 +375,13 @@ TEST(Cluster, BlockedNearestCentreScanMatchesThePlainOne) {
                     float d = 0;
                     for (int j = 0; j < 6; ++j)
                         d += (points[i * 6 + j] - centres[c * 6 + j]) * (points[i * 6 + j] - centres[c * 6 + j]);
-                    if (d < best) best = d, best_c = uint32_t(c);
+                    if (d < best) {
+                        best = d;
+                        best_c = uint32_t(c);
+                    }
                 }
-                want[i] = best_c, want_d[i] = best;
+                want[i] = best_c;
+                want_d[i] = best;
             }
             EXPECT_EQ(got, want) << n << " points, " << k << " centres";
             EXPECT_EQ(got_d, want_d) << n << " points, " << k << " centres";
@@ -636,8 +643,10 @@ TEST(Cluster, BoundsFittingReportsItsProgress) {
     cb::BakeStats stats;
     const std::vector<cb::AssetMesh> clustered = cb::cluster_scene(scene, o, stats);
     size_t expected = 0, clusters = 0;
-    for (const cb::AssetMesh& m : clustered)
-        expected += 2 * m.triangles.size() / 3, clusters += m.fine.size() + m.coarse.size();  // fine and coarse
+    for (const cb::AssetMesh& m : clustered) {
+        expected += 2 * m.triangles.size() / 3;
+        clusters += m.fine.size() + m.coarse.size();
+    }  // fine and coarse
     for (unsigned threads : {1u, 2u, 4u}) {
         SCOPED_TRACE(threads);
         std::vector<cb::AssetMesh> reported = clustered, silent = clustered;

@@ -14,10 +14,16 @@ namespace {
 // A perspective frustum from `eye` towards `target`: near, far and four sides through the eye.
 cb::Frustum perspective(const double* eye, const double* target, double half_fov_tan, double near, double far) {
     double dir[3], len = 0;
-    for (int k = 0; k < 3; ++k) dir[k] = target[k] - eye[k], len += dir[k] * dir[k];
+    for (int k = 0; k < 3; ++k) {
+        dir[k] = target[k] - eye[k];
+        len += dir[k] * dir[k];
+    }
     for (double& x : dir) x /= std::sqrt(len);
     double up0[3] = {0, 1, 0};
-    if (std::fabs(dir[1]) > 0.9) up0[0] = 1, up0[1] = 0;
+    if (std::fabs(dir[1]) > 0.9) {
+        up0[0] = 1;
+        up0[1] = 0;
+    }
     double right[3] = {dir[1] * up0[2] - dir[2] * up0[1], dir[2] * up0[0] - dir[0] * up0[2],
                        dir[0] * up0[1] - dir[1] * up0[0]};
     double rl = std::sqrt(right[0] * right[0] + right[1] * right[1] + right[2] * right[2]);
@@ -115,14 +121,19 @@ TEST(Cull, ConservativeAndEffectiveOnTheDefaultScene) {
                     v.triangle(m, c, t, id);
                     for (int k = 0; k < 3; ++k) {
                         const float* q = v.position(m, id[k]);
-                        local[k][0] = q[0], local[k][1] = q[1], local[k][2] = q[2];
+                        local[k][0] = q[0];
+                        local[k][1] = q[1];
+                        local[k][2] = q[2];
                         cb::apply_instance(v.instances[i].transform, local[k], world[k]);
                     }
                     any_inside |= triangle_inside(world, f, 1e-6);
                     // Back side of a triangle with an area: cb::exact::orient3d is +1 (checked against CGAL elsewhere).
                     int o = cb::exact::orient3d(local[0], local[1], local[2], eye_local);
                     double e1[3], e2[3];
-                    for (int k = 0; k < 3; ++k) e1[k] = local[1][k] - local[0][k], e2[k] = local[2][k] - local[0][k];
+                    for (int k = 0; k < 3; ++k) {
+                        e1[k] = local[1][k] - local[0][k];
+                        e2[k] = local[2][k] - local[0][k];
+                    }
                     bool degenerate = e1[1] * e2[2] - e1[2] * e2[1] == 0 && e1[2] * e2[0] - e1[0] * e2[2] == 0 &&
                         e1[0] * e2[1] - e1[1] * e2[0] == 0;  // no area: no side to face
                     if (o != 1 && !degenerate) all_back = false;

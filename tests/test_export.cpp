@@ -84,7 +84,12 @@ Affine local(const tinygltf::Node& n) {
         return out;
     }
     double x = 0, y = 0, z = 0, w = 1;
-    if (!n.rotation.empty()) x = n.rotation[0], y = n.rotation[1], z = n.rotation[2], w = n.rotation[3];
+    if (!n.rotation.empty()) {
+        x = n.rotation[0];
+        y = n.rotation[1];
+        z = n.rotation[2];
+        w = n.rotation[3];
+    }
     const double rot[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)},
                               {2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)},
                               {2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)}};

@@ -243,7 +243,11 @@ PlyPair ply_pair(const std::vector<float>& xyz, const std::vector<std::vector<in
     for (size_t v = 0; v < xyz.size() / 3; ++v) {
         float nx = 0.5f;
         uint8_t red = 200;
-        put(&nx, 4), put(&xyz[v * 3], 4), put(&xyz[v * 3 + 1], 4), put(&xyz[v * 3 + 2], 4), put(&red, 1);
+        put(&nx, 4);
+        put(&xyz[v * 3], 4);
+        put(&xyz[v * 3 + 1], 4);
+        put(&xyz[v * 3 + 2], 4);
+        put(&red, 1);
     }
     for (int16_t a : {int16_t(1), int16_t(-2)}) put(&a, 2);
     for (const auto& f : faces) {

@@ -396,7 +396,8 @@ TEST(Gltf, ExponentialNodeDagIsCapped) {
     for (int level = 1; level <= 30; ++level) {
         int a = w.node({{"children", {below[0], below[1]}}});
         int b = w.node({{"children", {below[0], below[1]}}});
-        below[0] = a, below[1] = b;
+        below[0] = a;
+        below[1] = b;
     }
     w.doc["scenes"] = json::array({{{"nodes", {int(w.doc["nodes"].size()) - 1}}}});
     EXPECT_NE(error_of(w.gltf_embedded()).find("node visits: nodes shared by several parents multiply the paths"),

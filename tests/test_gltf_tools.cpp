@@ -209,8 +209,10 @@ void check_tools(const std::string& label, const fs::path& input, bool siblings 
     for (const cb::Mesh& m : original.meshes)
         for (int k = 0; k < 3; ++k) {
             float lo = HUGE_VALF, hi = -HUGE_VALF;
-            for (size_t v = 0; v < m.vertex_count(); ++v)
-                lo = std::min(lo, m.positions[v * 3 + k]), hi = std::max(hi, m.positions[v * 3 + k]);
+            for (size_t v = 0; v < m.vertex_count(); ++v) {
+                lo = std::min(lo, m.positions[v * 3 + k]);
+                hi = std::max(hi, m.positions[v * 3 + k]);
+            }
             if (m.vertex_count()) grid_extent = std::max(grid_extent, double(hi) - double(lo));
         }
     const uint64_t shared = shared_instances(original);

@@ -41,7 +41,8 @@ pid_t start_tool(const std::vector<std::string>& args, const fs::path& scratch) 
     const pid_t pid = fork();
     if (pid == 0) {
         const int out = open("/dev/null", O_WRONLY), err = open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        dup2(out, 1), dup2(err, 2);
+        dup2(out, 1);
+        dup2(err, 2);
         execv(argv[0], argv.data());
         _exit(127);
     }

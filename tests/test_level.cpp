@@ -42,7 +42,8 @@ cb::Scene oracle_scene(const cb::Level& level, const std::vector<const cb::Scene
         const double* m = level.transform_of(h);
         for (int col = 0; col < 4; ++col)
             for (int row = 0; row < 3; ++row) inst.world[size_t(col) * 4 + row] = m[col * 3 + row];
-        inst.world[3] = inst.world[7] = inst.world[11] = 0, inst.world[15] = 1;
+        inst.world[3] = inst.world[7] = inst.world[11] = 0;
+        inst.world[15] = 1;
         out.instances.push_back(inst);
     }
     return out;
@@ -65,7 +66,8 @@ std::vector<uint8_t> answer(cb::Level& level, const double* light, const Points&
                             bool one_sided, cb::QueryStats* stats = nullptr) {
     cb::LevelShadow shadow;
     cb::ShadowBuildOptions o;
-    o.traversal = traversal, o.one_sided = one_sided;
+    o.traversal = traversal;
+    o.one_sided = one_sided;
     std::vector<uint8_t> out(p.size(), 2);
     shadow.occluded_batch(level, light, p[0].data(), p.size(), out.data(), o, stats);
     return out;
@@ -203,7 +205,8 @@ TEST(Level, MovedRemovedAndAddedInstancesOfTwoAssets) {
             if (!level.alive(h)) continue;
             double m[12];
             std::copy(level.transform_of(h), level.transform_of(h) + 12, m);
-            m[9] += 7 * u(rng), m[10] += 7 * u(rng);
+            m[9] += 7 * u(rng);
+            m[10] += 7 * u(rng);
             if (k % 2) m[3] += 0.3 * u(rng);  // shear: y axis leans along x
             if (k % 3 == 0)
                 for (int j = 0; j < 3; ++j) m[j] = -m[j];  // mirrored
@@ -350,7 +353,9 @@ TEST(Level, TilesMeetOnlyTheInstancesNearTheirPointsWhateverTheLevelsSize) {
         cb::LevelShadow shadow;
         std::vector<uint8_t> out(p.size());
         shadow.occluded_batch(level, light, p[0].data(), p.size(), out.data());
-        met[s] = shadow.instances_met(), built[s] = shadow.build_count(), tiles[s] = shadow.tile_count();
+        met[s] = shadow.instances_met();
+        built[s] = shadow.build_count();
+        tiles[s] = shadow.tile_count();
     }
     std::printf("instances met per tile: %.2f (100 buildings), %.2f (2,500); set up: %zu, %zu\n",
                 double(met[0]) / tiles[0], double(met[1]) / tiles[1], built[0], built[1]);
@@ -375,10 +380,12 @@ TEST(Level, CameraCullingThroughTheHierarchyListsWhatEachInstanceWould) {
     for (uint32_t h = 0; h < level.handle_limit(); ++h)
         m = cb::cull_instance(baked.view, level.placement(h), h, f, true, each.data(), each.size(), m);
     ASSERT_LT(n, through.size());
-    through.resize(n), each.resize(m);
+    through.resize(n);
+    each.resize(m);
     auto key = [](const cb::VisibleCluster& c) { return uint64_t(c.instance) << 32 | c.fine; };
     auto by_key = [&](const cb::VisibleCluster& x, const cb::VisibleCluster& y) { return key(x) < key(y); };
-    std::sort(through.begin(), through.end(), by_key), std::sort(each.begin(), each.end(), by_key);
+    std::sort(through.begin(), through.end(), by_key);
+    std::sort(each.begin(), each.end(), by_key);
     EXPECT_GT(n, 0u);
     ASSERT_EQ(n, m);
     for (size_t i = 0; i < n; ++i) EXPECT_EQ(key(through[i]), key(each[i]));

@@ -121,8 +121,10 @@ void check_light(const cb::AssetView& v, const double* light, const std::vector<
         for (size_t k = 0; k < n; ++k) {
             bool walk = false;
             for (const cb::InstanceShadow& tree : trees) walk = walk || tree.occluded(&points[k * 3], scratch.data());
-            t.bad_batch += batch[k] != exact[k], t.bad_walk += walk != bool(exact[k]);
-            t.shadowed += exact[k], ++t.queries;
+            t.bad_batch += batch[k] != exact[k];
+            t.bad_walk += walk != bool(exact[k]);
+            t.shadowed += exact[k];
+            ++t.queries;
         }
     }
 }
@@ -219,7 +221,9 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
                     double p[3];
                     if (k % 3 == 0) {
                         const auto& s = w.surface[size_t(k) % w.surface.size()];
-                        p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                        p[0] = s[0];
+                        p[1] = s[1];
+                        p[2] = s[2];
                     } else if (k % 5 == 4) {  // beyond a point of the bounds, seen from the light
                         for (int j = 0; j < 3; ++j) {
                             double target = w.lo[j] + (w.hi[j] - w.lo[j]) * (u(rng) + 1) / 2;
@@ -248,7 +252,8 @@ TEST(MetricTree, HardCasesAgreeWithTheOracle) {
 
 // Every fine cluster's node: each vertex's direction from the light is within its cone (the walk's
 // tolerance aside) and no nearer than its `near`; and every node's split holds the vertices of every volume
-// below it: near child within [nmin, delta], far child within (delta, fmax], overlap child within [omin, omax].
+// below it: near child within [near_child_min, delta], far child within (delta, far_child_max], overlap child within
+// [overlap_min, overlap_max].
 TEST(MetricTree, ConesAndSplitsHoldTheirClusters) {
     std::vector<std::string> files = scene_files();
     size_t vertices = 0, outside = 0, split_misses = 0, capsules = 0, nodes_checked = 0;
@@ -296,9 +301,11 @@ TEST(MetricTree, ConesAndSplitsHoldTheirClusters) {
                                 if (at == cb::metric_tree::none) continue;
                                 ++nodes_checked;
                                 each_s(at, nodes[k], [&](double s, double) {
-                                    const bool held = child == 0 ? s <= nodes[k].delta + tol && s >= nodes[k].nmin - tol
-                                        : child == 1             ? s > nodes[k].delta - tol && s <= nodes[k].fmax + tol
-                                                                 : s >= nodes[k].omin - tol && s <= nodes[k].omax + tol;
+                                    const bool held = child == 0
+                                        ? s <= nodes[k].delta + tol && s >= nodes[k].near_child_min - tol
+                                        : child == 1
+                                        ? s > nodes[k].delta - tol && s <= nodes[k].far_child_max + tol
+                                        : s >= nodes[k].overlap_min - tol && s <= nodes[k].overlap_max + tol;
                                     split_misses += !held;
                                 });
                                 for (uint32_t c : nodes[at].child) todo.push_back(c);
@@ -352,9 +359,16 @@ TEST(MetricTree, FastAngleStaysWithinItsBound) {
     }
     for (double t = 1e-12; t < M_PI; t *= 1.001) {  // along the whole range, ratios near 0, 1 and infinity
         check(std::sin(t), std::cos(t));
-        check(t, 1), check(1, t), check(t, -1), check(1, -t);
+        check(t, 1);
+        check(1, t);
+        check(t, -1);
+        check(1, -t);
     }
-    for (double x : {0.0, 1.0, -1.0, 1e-300, -1e300}) check(0, x), check(1, x), check(1e-300, x);
+    for (double x : {0.0, 1.0, -1.0, 1e-300, -1e300}) {
+        check(0, x);
+        check(1, x);
+        check(1e-300, x);
+    }
     std::printf("fast_angle's largest error against std::atan2: %.3g radians\n", worst);
     EXPECT_LT(worst, 1e-8);
     EXPECT_LT(worst, cb::metric_tree::tolerance / 10);

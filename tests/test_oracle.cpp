@@ -110,7 +110,9 @@ TEST(Oracle, FastOracleAgreesWithBruteForce) {
                     bad_blocked += a.blocked != all.blocked;
                     // Both look at every triangle the segment meets: the same contacts.
                     bad_touching += a.touching != all.touching || a.only_touching != all.only_touching;
-                    blocked += all.blocked, touching += a.touching, ++queries;
+                    blocked += all.blocked;
+                    touching += a.touching;
+                    ++queries;
                 }
             }
         }

@@ -27,14 +27,18 @@ struct Source {
 
     double size() const {
         double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        for (size_t i = 0; i < xyz.size(); ++i)
-            lo[i % 3] = std::min(lo[i % 3], xyz[i]), hi[i % 3] = std::max(hi[i % 3], xyz[i]);
+        for (size_t i = 0; i < xyz.size(); ++i) {
+            lo[i % 3] = std::min(lo[i % 3], xyz[i]);
+            hi[i % 3] = std::max(hi[i % 3], xyz[i]);
+        }
         return std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
     }
     std::array<double, 3> centre() const {
         double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        for (size_t i = 0; i < xyz.size(); ++i)
-            lo[i % 3] = std::min(lo[i % 3], xyz[i]), hi[i % 3] = std::max(hi[i % 3], xyz[i]);
+        for (size_t i = 0; i < xyz.size(); ++i) {
+            lo[i % 3] = std::min(lo[i % 3], xyz[i]);
+            hi[i % 3] = std::max(hi[i % 3], xyz[i]);
+        }
         return {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
     }
 };
@@ -356,7 +360,10 @@ std::vector<double> probe_points(const Source& s, const double* light, size_t n)
             for (int j = 0; j < 3; ++j) c[j] += v[k][j] / 3;
         }
         double u[3], w[3], perimeter = 0;
-        for (int j = 0; j < 3; ++j) u[j] = v[1][j] - v[0][j], w[j] = v[2][j] - v[0][j];
+        for (int j = 0; j < 3; ++j) {
+            u[j] = v[1][j] - v[0][j];
+            w[j] = v[2][j] - v[0][j];
+        }
         double area2 = std::hypot(u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]);
         for (int k = 0; k < 3; ++k) {
             const double *a = v[k], *b = v[(k + 1) % 3];

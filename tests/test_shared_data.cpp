@@ -138,8 +138,10 @@ TEST(SharedData, DracoMilkTruckMatchesOriginal) {
         // Draco quantised positions to 11 bits over the mesh's bounds (gltf-pipeline's default): every
         // decoded vertex lies within one quantisation step of an original vertex, per axis, and back.
         float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
-        for (size_t i = 0; i < ma.positions.size(); ++i)
-            lo[i % 3] = std::min(lo[i % 3], ma.positions[i]), hi[i % 3] = std::max(hi[i % 3], ma.positions[i]);
+        for (size_t i = 0; i < ma.positions.size(); ++i) {
+            lo[i % 3] = std::min(lo[i % 3], ma.positions[i]);
+            hi[i % 3] = std::max(hi[i % 3], ma.positions[i]);
+        }
         float range = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
         float step = range / float((1 << 11) - 1);
         auto nearest_gap = [](const cb::Mesh& from, size_t v, const cb::Mesh& to) {

@@ -32,8 +32,10 @@ struct GltfWriter {
 
     int mesh(const std::string& name, const MeshData& m, int material) {
         float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
-        for (size_t i = 0; i < m.positions.size(); ++i)
-            lo[i % 3] = std::min(lo[i % 3], m.positions[i]), hi[i % 3] = std::max(hi[i % 3], m.positions[i]);
+        for (size_t i = 0; i < m.positions.size(); ++i) {
+            lo[i % 3] = std::min(lo[i % 3], m.positions[i]);
+            hi[i % 3] = std::max(hi[i % 3], m.positions[i]);
+        }
         int pv = view(m.positions.data(), m.positions.size() * 4, 34962);
         doc["accessors"].push_back({{"bufferView", pv},
                                     {"componentType", 5126},

@@ -56,7 +56,9 @@ MeshData blob(int levels, uint32_t seed) {
     auto normalize = [&](uint32_t v) {
         float* p = &m.positions[v * 3];
         float l = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-        p[0] /= l, p[1] /= l, p[2] /= l;
+        p[0] /= l;
+        p[1] /= l;
+        p[2] /= l;
     };
     for (uint32_t v = 0; v < 12; ++v) normalize(v);
     for (int level = 0; level < levels; ++level) {
@@ -90,7 +92,9 @@ MeshData blob(int levels, uint32_t seed) {
         float r = 1.0f;
         for (int w = 0; w < 12; ++w)
             r += 0.12f / (1 + w * 0.5f) * std::sin(p[0] * dir[w][0] + p[1] * dir[w][1] + p[2] * dir[w][2] + phase[w]);
-        p[0] *= r, p[1] *= r * 0.8f, p[2] *= r;
+        p[0] *= r;
+        p[1] *= r * 0.8f;
+        p[2] *= r;
     }
     return m;
 }
@@ -220,7 +224,10 @@ std::string cube_ply(bool binary) {
 
 std::string cube_stl(bool binary) {
     std::vector<std::array<int, 3>> tris;
-    for (auto& q : cube_q) tris.push_back({q[0], q[1], q[2]}), tris.push_back({q[0], q[2], q[3]});
+    for (auto& q : cube_q) {
+        tris.push_back({q[0], q[1], q[2]});
+        tris.push_back({q[0], q[2], q[3]});
+    }
     std::string s;
     if (binary) {
         s.assign(80, '\0');

@@ -20,7 +20,10 @@ inline void* read_file(const char* path, size_t& size) {
     const long length = std::ftell(f);
     std::fseek(f, 0, SEEK_SET);
     void* bytes = length > 0 ? std::malloc(size_t(length)) : nullptr;
-    if (bytes && std::fread(bytes, 1, size_t(length), f) != size_t(length)) std::free(bytes), bytes = nullptr;
+    if (bytes && std::fread(bytes, 1, size_t(length), f) != size_t(length)) {
+        std::free(bytes);
+        bytes = nullptr;
+    }
     std::fclose(f);
     size = size_t(length);
     return bytes;

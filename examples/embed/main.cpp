@@ -57,7 +57,9 @@ cb::Frustum look_at(const double* eye, const double* target) {
     cb::Frustum f;
     auto add = [&](double nx, double ny, double nz, double offset) {  // n . p + w >= 0 inside
         double* p = f.plane[f.count++];
-        p[0] = nx, p[1] = ny, p[2] = nz;
+        p[0] = nx;
+        p[1] = ny;
+        p[2] = nz;
         p[3] = -(nx * eye[0] + ny * eye[1] + nz * eye[2]) + offset;
     };
     add(z[0], z[1], z[2], -1e-3);       // near

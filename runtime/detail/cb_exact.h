@@ -133,8 +133,11 @@ inline int sign(const Expansion& e) {
 // The determinant | a - d, b - d, c - d | (rows), exactly.
 inline Expansion orient3d_exact(const double* a, const double* b, const double* c, const double* d) {
     Expansion ad[3], bd[3], cd[3];
-    for (int k = 0; k < 3; ++k)
-        ad[k] = difference(a[k], d[k]), bd[k] = difference(b[k], d[k]), cd[k] = difference(c[k], d[k]);
+    for (int k = 0; k < 3; ++k) {
+        ad[k] = difference(a[k], d[k]);
+        bd[k] = difference(b[k], d[k]);
+        cd[k] = difference(c[k], d[k]);
+    }
     // ad . (bd x cd)
     Expansion x = multiply(bd[1], cd[2]), t = negated(multiply(bd[2], cd[1]));
     add(x, t);

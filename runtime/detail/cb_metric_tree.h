@@ -58,17 +58,18 @@ constexpr double tolerance = 1e-7;
 constexpr double pi = 3.14159265358979323846;  // M_PI is POSIX, not C++
 
 // One volume seen from the light, and the split of the volumes inserted below it.
-struct Node {           // 72 bytes
-    float d0[3];        // direction of the sphere's centre, or of the capsule segment's first end
-    float alpha;        // half-angle of the cone, rounded up
-    float d1[3];        // direction of the capsule segment's other end (d0 for a sphere)
-    float delta;        // split distance of s (see the top of the file)
-    float omin, omax;   // s over the overlap child's volumes, rounded outward (omin > omax: none)
-    float nmin, fmax;   // the least s of the near child's volumes and the most of the far child's, outward
-    float near;         // distance from the light to the volume, rounded down
-    float near_min;     // the smallest near in the subtree rooted here
-    uint32_t child[3];  // near, far, overlap
-    uint32_t cluster;   // fine cluster (mesh-local), or coarse cluster | coarse_bit
+struct Node {                        // 72 bytes
+    float dir_a[3];                  // direction of the sphere's centre, or of the capsule segment's first end
+    float alpha;                     // half-angle of the cone, rounded up
+    float dir_b[3];                  // direction of the capsule segment's other end (dir_a for a sphere)
+    float delta;                     // split distance of s (see the top of the file)
+    float overlap_min, overlap_max;  // s over the overlap child's volumes, rounded outward (min > max: none)
+    float near_child_min;            // the least s of the near child's volumes, rounded down
+    float far_child_max;             // the most s of the far child's volumes, rounded up
+    float near;                      // distance from the light to the volume, rounded down
+    float near_min;                  // the smallest near in the subtree rooted here
+    uint32_t child[3];               // near, far, overlap
+    uint32_t cluster;                // fine cluster (mesh-local), or coarse cluster | coarse_bit
 };
 static_assert(sizeof(Node) == 72, "metric tree nodes are 72-byte records (RUNTIME.md)");
 
@@ -144,8 +145,12 @@ CB_METRIC_INLINE double fast_angle_between(const double* u, const double* v) {
 
 CB_METRIC_INLINE Central central_of(const Node& node) {
     Central c;
-    for (int k = 0; k < 3; ++k) c.a[k] = node.d0[k], c.b[k] = node.d1[k], c.n[k] = 0;
-    c.arc = node.d0[0] != node.d1[0] || node.d0[1] != node.d1[1] || node.d0[2] != node.d1[2];
+    for (int k = 0; k < 3; ++k) {
+        c.a[k] = node.dir_a[k];
+        c.b[k] = node.dir_b[k];
+        c.n[k] = 0;
+    }
+    c.arc = node.dir_a[0] != node.dir_b[0] || node.dir_a[1] != node.dir_b[1] || node.dir_a[2] != node.dir_b[2];
     if (c.arc) {
         math::cross3(c.a, c.b, c.n);
         normalize(c.n);
@@ -201,9 +206,16 @@ public:
     }
     // The same for a mesh of the asset placed by the caller (a runtime scene's instance).
     void build(const AssetView& view, Placement at, const double* world_light, const ShadowBuildOptions& options) {
-        nodes_.clear(), always_fine_.clear(), always_coarse_.clear(), fine_roots_.clear(), fine_always_.clear();
+        nodes_.clear();
+        always_fine_.clear();
+        always_coarse_.clear();
+        fine_roots_.clear();
+        fine_always_.clear();
         coarse_boxes_.clear();
-        root_ = none, depth_ = 0, capsules_ = 0, top_always_ = {};
+        root_ = none;
+        depth_ = 0;
+        capsules_ = 0;
+        top_always_ = {};
         if (!set_instance(view, at, world_light, options.one_sided, options.bias)) return;
         capsule_ratio_ = options.capsule_ratio;
         build_ = options.metric_build;
@@ -346,7 +358,10 @@ private:
             if (level.capsules) {
                 const Capsule& c = level.capsules[index];
                 capsule = c.a[0] != c.b[0] || c.a[1] != c.b[1] || c.a[2] != c.b[2];
-                for (int k = 0; k < 3; ++k) ca[k] = c.a[k], cb[k] = c.b[k];
+                for (int k = 0; k < 3; ++k) {
+                    ca[k] = c.a[k];
+                    cb[k] = c.b[k];
+                }
                 cr = c.radius;
             }
         } else if (level.obbs) {
@@ -360,7 +375,8 @@ private:
             const double pad = 1e-6 * (h[0] + h[1] + h[2]);
             for (int k = 0; k < 3; ++k) {
                 sc[k] = box.center[k];
-                ca[k] = box.center[k] - h[l] * box.axis[l][k], cb[k] = box.center[k] + h[l] * box.axis[l][k];
+                ca[k] = box.center[k] - h[l] * box.axis[l][k];
+                cb[k] = box.center[k] + h[l] * box.axis[l][k];
             }
             sr = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) + pad;
             cr = std::sqrt(h[j] * h[j] + h[m] * h[m]) + pad;
@@ -374,7 +390,10 @@ private:
             capsule = cr > 0 && length + 2 * cr >= capsule_ratio_ * 2 * cr;
         }
         if (capsule) {
-            for (int k = 0; k < 3; ++k) a[k] = ca[k], b[k] = cb[k];
+            for (int k = 0; k < 3; ++k) {
+                a[k] = ca[k];
+                b[k] = cb[k];
+            }
             r = cr;
         } else {
             for (int k = 0; k < 3; ++k) a[k] = b[k] = sc[k];
@@ -389,7 +408,11 @@ private:
         double pa[3], pb[3], r;
         if (!volume_of(level, index, pa, pb, r)) return false;
         double A[3], B[3], AB[3];
-        for (int k = 0; k < 3; ++k) A[k] = pa[k] - light_[k], B[k] = pb[k] - light_[k], AB[k] = B[k] - A[k];
+        for (int k = 0; k < 3; ++k) {
+            A[k] = pa[k] - light_[k];
+            B[k] = pb[k] - light_[k];
+            AB[k] = B[k] - A[k];
+        }
         // The segment's nearest point to the light.
         const double ab2 = math::dot3(AB, AB);
         double t = ab2 > 0 ? -math::dot3(A, AB) / ab2 : 0;
@@ -407,28 +430,34 @@ private:
         const double arc = ab2 > 0 ? metric_tree::angle(ua, ub) : 0;
         Node& n = e.node;
         if (ab2 == 0) {  // a sphere: the cone about its centre's direction
-            for (int k = 0; k < 3; ++k) n.d0[k] = n.d1[k] = float(ua[k]);
+            for (int k = 0; k < 3; ++k) n.dir_a[k] = n.dir_b[k] = float(ua[k]);
         } else if (arc < 1e-5) {  // too short an arc for its plane to be well defined: the cone about its middle
             double m[3] = {ua[0] + ub[0], ua[1] + ub[1], ua[2] + ub[2]};
             metric_tree::normalize(m);
             alpha += std::max(metric_tree::angle(m, ua), metric_tree::angle(m, ub));
-            for (int k = 0; k < 3; ++k) n.d0[k] = n.d1[k] = float(m[k]);
+            for (int k = 0; k < 3; ++k) n.dir_a[k] = n.dir_b[k] = float(m[k]);
         } else {
-            for (int k = 0; k < 3; ++k) n.d0[k] = float(ua[k]), n.d1[k] = float(ub[k]);
-            if (n.d0[0] == n.d1[0] && n.d0[1] == n.d1[1] && n.d0[2] == n.d1[2])
-                n.d1[0] = math::next_float(n.d1[0], true);
+            for (int k = 0; k < 3; ++k) {
+                n.dir_a[k] = float(ua[k]);
+                n.dir_b[k] = float(ub[k]);
+            }
+            if (n.dir_a[0] == n.dir_b[0] && n.dir_a[1] == n.dir_b[1] && n.dir_a[2] == n.dir_b[2])
+                n.dir_b[0] = math::next_float(n.dir_b[0], true);
         }
         // A float direction is within 1.1e-7 radians of the one rounded; 4e-7 more, and a relative 1e-9.
         n.alpha = math::round_up(alpha * (1 + 1e-9) + 4e-7);
-        n.delta = 0, n.omin = n.nmin = INFINITY, n.omax = n.fmax = -INFINITY;
+        n.delta = 0;
+        n.overlap_min = n.near_child_min = INFINITY;
+        n.overlap_max = n.far_child_max = -INFINITY;
         n.near = math::round_down((dist - r - err) * (1 - 1e-9));
         n.near_min = n.near;
         for (uint32_t& c : n.child) c = none;
         n.cluster = cluster;
         // The disc on the sphere of directions that holds the element as stored.
-        double da[3] = {n.d0[0], n.d0[1], n.d0[2]}, db[3] = {n.d1[0], n.d1[1], n.d1[2]};
+        double da[3] = {n.dir_a[0], n.dir_a[1], n.dir_a[2]}, db[3] = {n.dir_b[0], n.dir_b[1], n.dir_b[2]};
         metric_tree::normalize(da);
-        if (n.d0[0] == n.d1[0] && n.d0[1] == n.d1[1] && n.d0[2] == n.d1[2]) {  // a point: the disc is the point
+        if (n.dir_a[0] == n.dir_b[0] && n.dir_a[1] == n.dir_b[1] &&
+            n.dir_a[2] == n.dir_b[2]) {  // a point: the disc is the point
             for (int k = 0; k < 3; ++k) e.m[k] = da[k];
             e.half = 0;
         } else {
@@ -444,7 +473,8 @@ private:
     // s over element e's directions against pivot p (central element cp): [lo, hi].
     CB_METRIC_INLINE static void s_range(const Node& p, const Central& cp, const Element& e, double& lo, double& hi) {
         const double d = metric_tree::distance<true>(cp, e.m), spread = e.half + double(e.node.alpha);
-        lo = d - spread - double(p.alpha), hi = d + spread - double(p.alpha);
+        lo = d - spread - double(p.alpha);
+        hi = d + spread - double(p.alpha);
     }
 
     // A tree over the clusters `ids` (indices local to the level's range starting at `first`) of one level;
@@ -463,7 +493,8 @@ private:
                 always.push_back(id);
                 continue;
             }
-            capsules_ += e.node.d0[0] != e.node.d1[0] || e.node.d0[1] != e.node.d1[1] || e.node.d0[2] != e.node.d1[2];
+            capsules_ += e.node.dir_a[0] != e.node.dir_b[0] || e.node.dir_a[1] != e.node.dir_b[1] ||
+                e.node.dir_a[2] != e.node.dir_b[2];
             elements.push_back(e);
         }
         if (elements.empty()) return none;
@@ -501,14 +532,15 @@ private:
                 s_range(p, metric_tree::central_of(p), e, lo, hi);
                 p.near_min = std::min(p.near_min, e.node.near);
                 if (hi <= double(p.delta)) {
-                    p.nmin = std::min(p.nmin, math::round_down(lo));
+                    p.near_child_min = std::min(p.near_child_min, math::round_down(lo));
                     link = &p.child[0];
                     e.delta *= 0.5;
                 } else if (lo > double(p.delta)) {
-                    p.fmax = std::max(p.fmax, math::round_up(hi));
+                    p.far_child_max = std::max(p.far_child_max, math::round_up(hi));
                     link = &p.child[1];
                 } else {
-                    p.omin = std::min(p.omin, math::round_down(lo)), p.omax = std::max(p.omax, math::round_up(hi));
+                    p.overlap_min = std::min(p.overlap_min, math::round_down(lo));
+                    p.overlap_max = std::max(p.overlap_max, math::round_up(hi));
                     link = &p.child[2];
                 }
                 ++d;
@@ -544,7 +576,9 @@ private:
         std::vector<uint32_t> near_set, far_set, over_set;
         uint64_t state = 0x2545f4914f6cdd1dULL;
         auto next = [&state]() {
-            state ^= state << 13, state ^= state >> 7, state ^= state << 17;
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
             return state;
         };
         while (!jobs.empty()) {
@@ -563,7 +597,10 @@ private:
                     const uint32_t o = job.count <= 64 ? j : uint32_t(next() % job.count);
                     sum += metric_tree::angle(elements[set[c]].m, elements[set[o]].m);
                 }
-                if (sum > best_sum) best_sum = sum, best = c;
+                if (sum > best_sum) {
+                    best_sum = sum;
+                    best = c;
+                }
             }
             std::swap(set[0], set[best]);
             Element& pe = elements[set[0]];
@@ -578,21 +615,23 @@ private:
                 delta = float(keys[keys.size() / 2]);
             }
             pivot.delta = delta;
-            near_set.clear(), far_set.clear(), over_set.clear();
+            near_set.clear();
+            far_set.clear();
+            over_set.clear();
             for (uint32_t j = 1; j < job.count; ++j) {
                 const Element& e = elements[set[j]];
                 double lo, hi;
                 s_range(pivot, cp, e, lo, hi);
                 pivot.near_min = std::min(pivot.near_min, e.node.near);
                 if (hi <= double(delta)) {
-                    pivot.nmin = std::min(pivot.nmin, math::round_down(lo));
+                    pivot.near_child_min = std::min(pivot.near_child_min, math::round_down(lo));
                     near_set.push_back(set[j]);
                 } else if (lo > double(delta)) {
-                    pivot.fmax = std::max(pivot.fmax, math::round_up(hi));
+                    pivot.far_child_max = std::max(pivot.far_child_max, math::round_up(hi));
                     far_set.push_back(set[j]);
                 } else {
-                    pivot.omin = std::min(pivot.omin, math::round_down(lo));
-                    pivot.omax = std::max(pivot.omax, math::round_up(hi));
+                    pivot.overlap_min = std::min(pivot.overlap_min, math::round_down(lo));
+                    pivot.overlap_max = std::max(pivot.overlap_max, math::round_up(hi));
                     over_set.push_back(set[j]);
                 }
             }
@@ -622,7 +661,9 @@ private:
         for (uint32_t i = 0; i < n; ++i) order[i] = i;
         uint64_t state = 0x9e3779b97f4a7c15ULL;
         for (uint32_t i = n; i > 1; --i) {
-            state ^= state << 13, state ^= state >> 7, state ^= state << 17;
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
             std::swap(order[i - 1], order[state % i]);
         }
     }
@@ -645,7 +686,9 @@ private:
                 to[ref] = uint32_t(nodes_.size());
                 nodes_.push_back(built[ref]);
                 const Node& n = built[ref];
-                todo.push_back(n.child[2]), todo.push_back(n.child[1]), todo.push_back(n.child[0]);
+                todo.push_back(n.child[2]);
+                todo.push_back(n.child[1]);
+                todo.push_back(n.child[0]);
                 if (n.cluster & coarse_bit) todo.push_back(fine_roots_[n.cluster & ~coarse_bit]);
             }
         };
@@ -714,9 +757,9 @@ private:
         return !slabs_ || segment_may_cross(view_->fine_bounds.slabs[mesh_->first_fine + f], q.p);
     }
 
-    // The points of `subset` whose directions lie in the node's cone (or capsule-cone) and that are not
-    // nearer the light than its volume. A tile within float_safe of the light is tested in float, a vector of
-    // points an instruction; otherwise in double, by cosines with a margin (1e-12) far above their rounding.
+    // The points of `subset` whose directions lie in the node's cone (or capsule-cone) and that are not nearer
+    // the light than its volume. A tile within float_safe of the light is tested in float, one instruction for
+    // a whole vector of points; otherwise in double, by cosines with a margin (1e-12) far above their rounding.
     uint64_t cone_points(const Node& node, const Central& c, uint64_t subset, const Tile& t,
                          const Directions& d) const {
         const double a = double(node.alpha) + tol;
@@ -730,7 +773,8 @@ private:
         if (t.small) return cone_points_float(node, c, metric_tree::sine_above(a), subset, t);
         const double cos_a = std::cos(a) - 1e-12, sin_a = std::sin(a) + 1e-12;
         double ua[3] = {c.a[0], c.a[1], c.a[2]}, ub[3] = {c.b[0], c.b[1], c.b[2]};
-        metric_tree::normalize(ua), metric_tree::normalize(ub);
+        metric_tree::normalize(ua);
+        metric_tree::normalize(ub);
         uint64_t in = 0;
         for (uint64_t w = subset; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
@@ -764,14 +808,18 @@ private:
         const Floats zero = simd::splat(0.0f), margin = simd::splat(4e-6f);
         float ends[2][3], side[2][3], n[3];
         int end_count = 1;
-        for (int k = 0; k < 3; ++k) ends[0][k] = node.d0[k];
+        for (int k = 0; k < 3; ++k) ends[0][k] = node.dir_a[k];
         if (c.arc) {
             end_count = 2;
             double p[3], q[3];
             math::cross3(c.n, c.a, p);  // e . p >= 0: on b's side of the plane through a and n
             math::cross3(c.b, c.n, q);  // e . q >= 0: on a's side of the plane through b and n
-            for (int k = 0; k < 3; ++k)
-                ends[1][k] = node.d1[k], side[0][k] = float(p[k]), side[1][k] = float(q[k]), n[k] = float(c.n[k]);
+            for (int k = 0; k < 3; ++k) {
+                ends[1][k] = node.dir_b[k];
+                side[0][k] = float(p[k]);
+                side[1][k] = float(q[k]);
+                n[k] = float(c.n[k]);
+            }
         }
         uint32_t begin, end;
         simd::lane_span(subset, begin, end);
@@ -826,7 +874,9 @@ private:
         double spread = 0, far = 0, close = INFINITY;
         for (uint64_t w = subset; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            spread = std::max(spread, d.off[i]), far = std::max(far, t.dist[i]), close = std::min(close, t.dist[i]);
+            spread = std::max(spread, d.off[i]);
+            far = std::max(far, t.dist[i]);
+            close = std::min(close, t.dist[i]);
         }
         spread += tol;
         size_t top = 0;
@@ -838,11 +888,11 @@ private:
             const metric_tree::Central c = metric_tree::central_of(node);
             const double s = metric_tree::distance<true>(c, d.z) - double(node.alpha), lo = s - spread, hi = s + spread;
             // The far and overlap children lie away from this node in walk order: fetched while it is tested.
-            if (node.child[2] != none && hi >= double(node.omin) && lo <= double(node.omax))
+            if (node.child[2] != none && hi >= double(node.overlap_min) && lo <= double(node.overlap_max))
                 simd::prefetch(&nodes_[stack[top++] = node.child[2]]);
-            if (node.child[1] != none && hi > double(node.delta) && lo <= double(node.fmax))
+            if (node.child[1] != none && hi > double(node.delta) && lo <= double(node.far_child_max))
                 simd::prefetch(&nodes_[stack[top++] = node.child[1]]);
-            if (node.child[0] != none && lo <= double(node.delta) && hi >= double(node.nmin))
+            if (node.child[0] != none && lo <= double(node.delta) && hi >= double(node.near_child_min))
                 stack[top++] = node.child[0];
             if (lo > 0 || far < node.near) continue;
             // The tile's whole cone inside the node's, and no point nearer the light: no point to test.
@@ -916,11 +966,11 @@ private:
             if (q.stats) ++q.stats->nodes_visited;
             if (q.dist < node.near_min) continue;
             const double s = metric_tree::distance<true>(metric_tree::central_of(node), u) - double(node.alpha);
-            if (node.child[2] != none && s + tol >= double(node.omin) && s - tol <= double(node.omax))
+            if (node.child[2] != none && s + tol >= double(node.overlap_min) && s - tol <= double(node.overlap_max))
                 stack[top++] = node.child[2];
-            if (node.child[1] != none && s + tol > double(node.delta) && s - tol <= double(node.fmax))
+            if (node.child[1] != none && s + tol > double(node.delta) && s - tol <= double(node.far_child_max))
                 stack[top++] = node.child[1];
-            if (node.child[0] != none && s - tol <= double(node.delta) && s + tol >= double(node.nmin))
+            if (node.child[0] != none && s - tol <= double(node.delta) && s + tol >= double(node.near_child_min))
                 stack[top++] = node.child[0];
             if (s > tol || q.dist < node.near) continue;
             if (node.cluster & coarse_bit) {

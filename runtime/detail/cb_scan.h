@@ -48,8 +48,10 @@ public:
         for (uint32_t c = 0; c < coarse_count; ++c) {
             coarse_boxes_[c] =
                 box_filter(s.coarse_obbs.empty() ? view.coarse_bounds.obb(mesh_->first_coarse + c) : s.coarse_obbs[c]);
-            if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c)))
-                skipped_ += view.coarse[mesh_->first_coarse + c].count, coarse_skipped_[c] = 1;
+            if (one_sided_ && skippable(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangles(c))) {
+                skipped_ += view.coarse[mesh_->first_coarse + c].count;
+                coarse_skipped_[c] = 1;
+            }
         }
     }
 
@@ -180,7 +182,8 @@ private:
         const std::vector<Obb>& boxes = scan_bounds().fine_obbs;
         if (!boxes.empty()) {
             const char* box = reinterpret_cast<const char*>(&boxes[f]);
-            simd::prefetch(box), simd::prefetch(box + sizeof(Obb) - 1);  // it may straddle two lines
+            simd::prefetch(box);
+            simd::prefetch(box + sizeof(Obb) - 1);  // it may straddle two lines
         }
         simd::prefetch(view_->fine + size_t(mesh_->first_fine) + f);
     }
@@ -194,9 +197,9 @@ private:
     // A sphere (centre c from the light, radius r) may meet the pyramid only if it reaches the inside of
     // each side plane, n . c + r >= 0, and of the plane across the tile's axis z at the farthest point's
     // distance, -z . c + r >= -dmax. The centres are stored from the spheres' origin o, so with c = s - l
-    // (l the light from o), each test is n . s + r >= n . l (the right side once per scan, in double): a
-    // vector of spheres an instruction. The right sides are lowered by 1e-6 of |s|_1 + |l|_1 + dmax, above
-    // the float products' errors (3 float epsilons of |s|_1) and the rounding of n (the pyramid's
+    // (l the light from o), each test is n . s + r >= n . l (the right side once per scan, in double):
+    // one instruction tests a whole vector of spheres. The right sides are lowered by 1e-6 of |s|_1 + |l|_1 +
+    // dmax, above the float products' errors (3 float epsilons of |s|_1) and the rounding of n (the pyramid's
     // tolerance, which make_pyramid leaves for it).
     template <bool each_point, class Pass>
     void scan_spheres(uint32_t first_sphere, uint32_t count, uint64_t in, Tile& t, Pass pass) const {
@@ -210,23 +213,32 @@ private:
         const double slack = 1e-6 * (scan_bounds().extent + math::l1(l) + P.dmax);
         float nx[5], ny[5], nz[5], side[5];
         double sum[3] = {0, 0, 0};
-        for (int r = 0; r < 4; ++r) sum[0] += P.rx[r], sum[1] += P.ry[r], sum[2] += P.rz[r];
+        for (int r = 0; r < 4; ++r) {
+            sum[0] += P.rx[r];
+            sum[1] += P.ry[r];
+            sum[2] += P.rz[r];
+        }
         for (int r = 0; r < 4; ++r) {
             int q = (r + 1) & 3;
             double a[3] = {P.rx[r], P.ry[r], P.rz[r]}, b[3] = {P.rx[q], P.ry[q], P.rz[q]}, n[3];
             math::cross3(a, b, n);
             double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
             if (math::dot3(n, sum) < 0) len = -len;
-            if (!(len != 0)) {  // two rays alike: no plane there
-                nx[r] = ny[r] = nz[r] = 0, side[r] = -INFINITY;
+            if (!(len != 0)) {
+                nx[r] = ny[r] = nz[r] = 0;
+                side[r] = -INFINITY;
                 continue;
             }
             const double inv = 1 / len;
-            nx[r] = float(n[0] * inv), ny[r] = float(n[1] * inv), nz[r] = float(n[2] * inv);
+            nx[r] = float(n[0] * inv);
+            ny[r] = float(n[1] * inv);
+            nz[r] = float(n[2] * inv);
             side[r] = math::round_down(nx[r] * l[0] + ny[r] * l[1] + nz[r] * l[2] - slack);
         }
         const double* axis = t.frame[0];
-        nx[4] = float(-axis[0]), ny[4] = float(-axis[1]), nz[4] = float(-axis[2]);
+        nx[4] = float(-axis[0]);
+        ny[4] = float(-axis[1]);
+        nz[4] = float(-axis[2]);
         side[4] = math::round_down(nx[4] * l[0] + ny[4] * l[1] + nz[4] * l[2] - P.dmax - slack);
         const float ax = float(axis[0]), ay = float(axis[1]), az = float(axis[2]);
         const ScanBounds& s = scan_bounds();

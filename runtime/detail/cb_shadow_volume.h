@@ -33,7 +33,10 @@ struct ShadowVolume {
 inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
     ShadowVolume v{};
     double c[3] = {box.center[0], box.center[1], box.center[2]}, d[3], len = 0;
-    for (int k = 0; k < 3; ++k) d[k] = c[k] - light[k], len += d[k] * d[k];
+    for (int k = 0; k < 3; ++k) {
+        d[k] = c[k] - light[k];
+        len += d[k] * d[k];
+    }
     len = std::sqrt(len);
     if (!(len > 0)) return v;
     for (double& x : d) x /= len;
@@ -62,7 +65,10 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
     for (int i = 0; i < 3; ++i) {
         double a[3] = {box.axis[i][0], box.axis[i][1], box.axis[i][2]};
         double along = a[0] * d[0] + a[1] * d[1] + a[2] * d[2], w[3], wl = 0;
-        for (int k = 0; k < 3; ++k) w[k] = a[k] - along * d[k], wl += w[k] * w[k];
+        for (int k = 0; k < 3; ++k) {
+            w[k] = a[k] - along * d[k];
+            wl += w[k] * w[k];
+        }
         if (wl * half[i] * half[i] > best * std::fabs(best) && wl > 1e-12) {  // compares squared lengths
             wl = std::sqrt(wl);
             best = wl * half[i];
@@ -72,7 +78,10 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
     if (best < 0) {  // every axis along the view direction: any perpendicular will do
         double h[3] = {std::fabs(d[0]) < 0.6 ? 1.0 : 0.0, std::fabs(d[0]) < 0.6 ? 0.0 : 1.0, 0.0};
         double along = h[0] * d[0] + h[1] * d[1] + h[2] * d[2], wl = 0;
-        for (int k = 0; k < 3; ++k) u[k] = h[k] - along * d[k], wl += u[k] * u[k];
+        for (int k = 0; k < 3; ++k) {
+            u[k] = h[k] - along * d[k];
+            wl += u[k] * u[k];
+        }
         for (double& x : u) x /= std::sqrt(wl);
     }
     double w[3] = {d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]};
@@ -82,8 +91,10 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
     for (int i = 0; i < 8; ++i) {
         double x = (corner[i][0] * u[0] + corner[i][1] * u[1] + corner[i][2] * u[2]) * inv_depth[i];
         double y = (corner[i][0] * w[0] + corner[i][1] * w[1] + corner[i][2] * w[2]) * inv_depth[i];
-        bound[0] = std::min(bound[0], x), bound[1] = std::max(bound[1], x);
-        bound[2] = std::min(bound[2], y), bound[3] = std::max(bound[3], y);
+        bound[0] = std::min(bound[0], x);
+        bound[1] = std::max(bound[1], x);
+        bound[2] = std::min(bound[2], y);
+        bound[3] = std::max(bound[3], y);
     }
     double scale = 1 + std::max({std::fabs(bound[0]), std::fabs(bound[1]), std::fabs(bound[2]), std::fabs(bound[3])});
     const double* side[4] = {u, u, w, w};
@@ -94,7 +105,10 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
             if (attempt == 40) return ShadowVolume{};  // cannot be made to hold: no volume, test always
             double limit = bound[k] - sign * slack, n[3], nl = 0;
             v.rect[k] = limit;
-            for (int j = 0; j < 3; ++j) n[j] = sign * (side[k][j] - limit * d[j]), nl += n[j] * n[j];
+            for (int j = 0; j < 3; ++j) {
+                n[j] = sign * (side[k][j] - limit * d[j]);
+                nl += n[j] * n[j];
+            }
             nl = 1 / std::sqrt(nl);
             for (int j = 0; j < 3; ++j) v.normal[k][j] = float(n[j] * nl);
             // Every corner strictly inside the stored plane, by more than this double evaluation can err.
@@ -118,7 +132,11 @@ inline ShadowVolume make_shadow_volume(const Obb& box, const double* light) {
     }
     for (int k = 0; k < 3; ++k) dist2 += (c[k] + q[k] - light[k]) * (c[k] + q[k] - light[k]);
     v.near = std::sqrt(dist2) * (1 - 1e-7);
-    for (int k = 0; k < 3; ++k) v.direction[k] = d[k], v.across[0][k] = u[k], v.across[1][k] = w[k];
+    for (int k = 0; k < 3; ++k) {
+        v.direction[k] = d[k];
+        v.across[0][k] = u[k];
+        v.across[1][k] = w[k];
+    }
     v.valid = true;
     return v;
 }

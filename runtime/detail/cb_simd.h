@@ -237,7 +237,8 @@ inline void lane_span(uint64_t subset, uint32_t& begin, uint32_t& end) {
     while (!(subset >> low & 1)) ++low;
     while (!(subset >> high & 1)) --high;
 #endif
-    begin = low & ~(width - 1), end = (high | (width - 1)) + 1;
+    begin = low & ~(width - 1);
+    end = (high | (width - 1)) + 1;
 }
 
 // The bits of lanes [i, i + width) of a 64-bit mask.

@@ -265,7 +265,8 @@ protected:
             double depth = math::dot3(e, z);
             if (!(depth > 0.5 * t.dist[i])) continue;  // over 60 degrees off: walks alone
             double inv = 1 / depth;
-            t.across[i][0] = math::dot3(e, a) * inv, t.across[i][1] = math::dot3(e, b) * inv;
+            t.across[i][0] = math::dot3(e, a) * inv;
+            t.across[i][1] = math::dot3(e, b) * inv;
             held |= uint64_t(1) << i;
         }
         return held;
@@ -279,19 +280,26 @@ protected:
         for (uint64_t w = which; w; w &= w - 1) {
             uint32_t i = math::lowest_bit(w);
             const double x = t.across[i][0], y = t.across[i][1];
-            lo[0] = std::min(lo[0], x), hi[0] = std::max(hi[0], x), lo[1] = std::min(lo[1], y),
+            lo[0] = std::min(lo[0], x);
+            hi[0] = std::max(hi[0], x);
+            lo[1] = std::min(lo[1], y);
             hi[1] = std::max(hi[1], y);
             out.dmax = std::max(out.dmax, t.dist[i]);
         }
         // Widened far beyond the rounding of x and y (a few 1e-16 for |x|, |y| below 2) and of the rays to
         // float (below 1e-7): the float rays still hold every point's direction.
-        for (int k = 0; k < 2; ++k) lo[k] -= 1e-6, hi[k] += 1e-6;
+        for (int k = 0; k < 2; ++k) {
+            lo[k] -= 1e-6;
+            hi[k] += 1e-6;
+        }
         const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
         for (int r = 0; r < 4; ++r) {
             double ray[3];
             frame_ray(t.frame, corner[r][0], corner[r][1], ray);
             const double l = std::sqrt(ray[0] * ray[0] + ray[1] * ray[1] + ray[2] * ray[2]);
-            out.rx[r] = float(ray[0] / l), out.ry[r] = float(ray[1] / l), out.rz[r] = float(ray[2] / l);
+            out.rx[r] = float(ray[0] / l);
+            out.ry[r] = float(ray[1] / l);
+            out.rz[r] = float(ray[2] / l);
         }
     }
 
@@ -303,9 +311,9 @@ protected:
         return whole;
     }
 
-    // Sorts by closing distance, ties in list order: each entry goes straight to its rank, the entries before it
-    // in that order, counted a vector of keys an instruction (no branch on the keys: an insertion sort
-    // mispredicted one per entry). NaN counts as infinity.
+    // Sorts by closing distance, ties in list order: each entry goes straight to its rank, the entries before
+    // it in that order counted by instructions that each compare a whole vector of keys (no branch on the keys:
+    // an insertion sort mispredicted one per entry). NaN counts as infinity.
     template <class T>
     static void sort_by_near(T* a, uint32_t count) {
         constexpr uint32_t most = 128;  // the longest list (Tile's capacities)
@@ -376,7 +384,10 @@ protected:
             apply_instance(inverse_, world_p, p);
             for (int k = 0; k < 3; ++k) e[k] = p[k] - light_[k];
             const double dist = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
-            for (int k = 0; k < 3; ++k) t.p[i][k] = p[k], t.e[i][k] = e[k];
+            for (int k = 0; k < 3; ++k) {
+                t.p[i][k] = p[k];
+                t.e[i][k] = e[k];
+            }
             t.dist[i] = dist;
             if (!(dist > float_tiny) || !(dist < 1e30)) {  // at or by the light, not finite, or beyond float's range
                 lone |= uint64_t(1) << i;
@@ -394,19 +405,22 @@ protected:
             t.small = t.pyramid.dmax < float_safe;
             for (uint32_t i = 0; i < tile_capacity; ++i) {
                 bool in = t.alive >> i & 1;
-                t.ex[i] = in ? float(t.e[i][0]) : 0.0f, t.ey[i] = in ? float(t.e[i][1]) : 0.0f,
+                t.ex[i] = in ? float(t.e[i][0]) : 0.0f;
+                t.ey[i] = in ? float(t.e[i][1]) : 0.0f;
                 t.ez[i] = in ? float(t.e[i][2]) : 0.0f;
                 t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
                 t.slack[i] = 2e-6f * t.fd[i];
                 t.keep[i] = in ? float(1 - t.from[i]) : 1.0f;
                 t.reach[i] = in ? float(1 - blocking_start(t.from[i])) : 1.0f;
             }
-            t.l1_lo = INFINITY, t.l1_hi = 0;
+            t.l1_lo = INFINITY;
+            t.l1_hi = 0;
             for (uint64_t w = t.alive; w; w &= w - 1) {
                 const uint32_t i = math::lowest_bit(w);
                 t.l1[i] = std::fabs(t.e[i][0]) + std::fabs(t.e[i][1]) + std::fabs(t.e[i][2]);
                 t.vl[i] = float(t.l1[i] * 1.000001);
-                t.l1_lo = std::min(t.l1_lo, t.l1[i]), t.l1_hi = std::max(t.l1_hi, t.l1[i]);
+                t.l1_lo = std::min(t.l1_lo, t.l1[i]);
+                t.l1_hi = std::max(t.l1_hi, t.l1[i]);
             }
         }
         return off;
@@ -437,10 +451,15 @@ protected:
         if (!b.usable) return b;
         for (int k = 0; k < 3; ++k) {
             double qk = math::dot3(c, a[k]), reach = h[k] + 1e-6 * (hs + c1);
-            b.lo[k] = float(qk - reach), b.hi[k] = float(qk + reach), b.hf[k] = float(h[k]);
+            b.lo[k] = float(qk - reach);
+            b.hi[k] = float(qk + reach);
+            b.hf[k] = float(h[k]);
             double wk[3];
             math::cross3(a[k], c, wk);
-            for (int j = 0; j < 3; ++j) b.w[k][j] = float(wk[j]), b.ax[k][j] = box.axis[k][j];
+            for (int j = 0; j < 3; ++j) {
+                b.w[k][j] = float(wk[j]);
+                b.ax[k][j] = box.axis[k][j];
+            }
         }
         b.tol = float(2e-6 * (hs + c1));
         return b;
@@ -454,7 +473,8 @@ protected:
         const uint32_t slot = f % TileCache::box_slots;
         if (cache.box_owner[slot] != this || cache.box_cluster[slot] != f) {
             cache.box[slot] = fine_box_filter(f, fine_obbs);
-            cache.box_owner[slot] = this, cache.box_cluster[slot] = f;
+            cache.box_owner[slot] = this;
+            cache.box_cluster[slot] = f;
         }
         return cache.box[slot];
     }
@@ -541,7 +561,8 @@ protected:
                                  t.l1_lo, t.l1_hi, t.pyramid.rx, t.pyramid.ry, t.pyramid.rz};
         uint64_t hit = cluster_blocks_points(*view_, *mesh_, f, t.p, t.from, todo, light_, one_sided_, t.stats, nullptr,
                                              t.cache ? &t.cache->lit : nullptr, this, &tile);
-        t.alive &= ~hit, t.shadowed |= hit;
+        t.alive &= ~hit;
+        t.shadowed |= hit;
     }
 
     // Tests the pending clusters, nearest closing distance first. A cluster's box is tested three clusters
@@ -561,7 +582,9 @@ protected:
             p[i].points = fine_box_points(p[i].cluster, p[i].points & t.alive, t);
             if (p[i].points) prefetch_triangles(i, 0);
         };
-        test_box(0), test_box(1), test_box(2);
+        test_box(0);
+        test_box(1);
+        test_box(2);
         if (n && p[0].points) prefetch_triangles(0, 1);
         for (uint32_t i = 0; i < n && t.alive; ++i) {
             test_box(i + 3);

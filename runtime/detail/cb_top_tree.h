@@ -227,7 +227,7 @@ private:
     // The points of `subset` that may lie in the volume of `leaf`: beyond its closing distance and inside
     // its planes with the walk's tolerance plus the float evaluation's error (below 6e-7 of the distance).
     // Bit k of `straddled` is set when plane k may cut the tile's pyramid; the others hold every point.
-    // A vector of points an instruction, over the lane groups that hold some of the subset.
+    // One instruction tests a whole vector of points, over the lane groups that hold some of the subset.
     uint64_t volume_points(const ClusterNode& leaf, uint64_t subset, uint32_t straddled, const Tile& t) const {
         if (!subset) return 0;
         float n[4][3];  // the planes to check
@@ -236,7 +236,9 @@ private:
             for (int k = 0; k < 4; ++k) {
                 if (!(straddled >> k & 1)) continue;
                 const float* from = planes_[leaf.first_plane + k].n;
-                n[planes][0] = from[0], n[planes][1] = from[1], n[planes][2] = from[2];
+                n[planes][0] = from[0];
+                n[planes][1] = from[1];
+                n[planes][2] = from[2];
                 ++planes;
             }
         uint32_t begin, end;
@@ -344,10 +346,13 @@ private:
     // query reads mostly consecutive memory, into planes_ and clusters_, sized to what is used.
     void renumber_in_walk_order(const Nodes& built, BuildScratch& work) {
         std::vector<uint32_t>&plane_to = work.plane_to, &cluster_to = work.cluster_to, &todo = work.todo;
-        plane_to.assign(built.planes.size(), none), cluster_to.assign(built.clusters.size(), none), todo.clear();
+        plane_to.assign(built.planes.size(), none);
+        cluster_to.assign(built.clusters.size(), none);
+        todo.clear();
         std::vector<PlaneNode>& planes = planes_;
         std::vector<ClusterNode>& leaves = clusters_;
-        planes.clear(), leaves.clear();
+        planes.clear();
+        leaves.clear();
         planes.reserve(built.planes.size());
         leaves.reserve(built.clusters.size());
         auto visit = [&](uint32_t start) {
@@ -382,9 +387,11 @@ private:
         for (PlaneNode& n : planes)
             for (uint32_t& c : n.child) c = map(c);
         // A chain's planes stay consecutive: the walk order takes the inside child right after its plane.
-        for (ClusterNode& l : leaves)
-            l.inside = map(l.inside), l.fine_root = map(l.fine_root),
+        for (ClusterNode& l : leaves) {
+            l.inside = map(l.inside);
+            l.fine_root = map(l.fine_root);
             l.first_plane = l.first_plane == none ? none : plane_to[l.first_plane];
+        }
         root_ = map(root_);
         for (uint32_t& r : always_coarse_) r = map(r);
     }
@@ -430,7 +437,9 @@ private:
         for (uint32_t i = 0; i < n; ++i) order[i] = i;
         uint64_t state = 0x9e3779b97f4a7c15ULL;
         for (uint32_t i = n; i > 1; --i) {
-            state ^= state << 13, state ^= state >> 7, state ^= state << 17;
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
             std::swap(order[i - 1], order[state % i]);
         }
         return order;
@@ -515,8 +524,11 @@ private:
         // The rays in float, to classify 4 at once. Their rounding and the float sines err by under 3e-7,
         // so the thresholds below are 1e-6: a volume goes to one side only when it is clearly there.
         Pyramid cone;
-        for (int r = 0; r < 4; ++r)
-            cone.rx[r] = float(rays[r][0]), cone.ry[r] = float(rays[r][1]), cone.rz[r] = float(rays[r][2]);
+        for (int r = 0; r < 4; ++r) {
+            cone.rx[r] = float(rays[r][0]);
+            cone.ry[r] = float(rays[r][1]);
+            cone.rz[r] = float(rays[r][2]);
+        }
         // Walk down while the volume falls clearly on one side; stop at the first empty slot, named by the
         // node that holds it (indices, since the appends below may move the arrays).
         uint32_t* slot = &root;

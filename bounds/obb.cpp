@@ -1,0 +1,598 @@
+// Oriented boxes: the PCA frames (of the vertices, and area-weighted over the triangles), the refined frame
+// (minimum-area rectangles across PCA axes and triangle normals, then a descent over small rotations),
+// CGAL's optimum (obb_cgal.cpp); the frame stored as a packed box.
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <vector>
+
+#include "fitting.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace cb {
+
+// Defined in obb_cgal.cpp: CGAL's optimal box frame, rows are axes. False when CGAL cannot fit one.
+bool cgal_optimal_frame(const double* points, size_t n, double frame[3][3]);
+
+namespace fitting {
+namespace {
+
+void make_right_handed(Frame& f) {
+    Vec a{f.axis[0][0], f.axis[0][1], f.axis[0][2]}, b{f.axis[1][0], f.axis[1][1], f.axis[1][2]};
+    Vec c = cross(a, b);
+    for (int k = 0; k < 3; ++k) f.axis[2][k] = c[k];
+}
+
+// Extents of the points along a frame: lo/hi per axis.
+void extents(const double* pts, size_t n, const Frame& f, double lo[3], double hi[3]) {
+    for (int i = 0; i < 3; ++i) {
+        lo[i] = INFINITY;
+        hi[i] = -INFINITY;
+    }
+    for (size_t v = 0; v < n; ++v)
+        for (int i = 0; i < 3; ++i) {
+            double d = dot3(pts + v * 3, f.axis[i]);
+            lo[i] = std::min(lo[i], d);
+            hi[i] = std::max(hi[i], d);
+        }
+}
+
+Frame eigen_frame(const Eigen::Matrix3d& cov) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(cov);
+    Frame f;
+    // Largest variance first.
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) f.axis[i][k] = solver.eigenvectors()(k, 2 - i);
+    make_right_handed(f);
+    return f;
+}
+
+Frame pca_frame(const double* pts, size_t n) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (size_t v = 0; v < n; ++v) mean += Eigen::Vector3d(pts[v * 3], pts[v * 3 + 1], pts[v * 3 + 2]);
+    mean /= double(n);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (size_t v = 0; v < n; ++v) {
+        Eigen::Vector3d d = Eigen::Vector3d(pts[v * 3], pts[v * 3 + 1], pts[v * 3 + 2]) - mean;
+        cov += d * d.transpose();
+    }
+    return eigen_frame(cov);
+}
+
+// Covariance of the triangles as continuous surfaces (Gottschalk, Lin and Manocha): each triangle weighs
+// by its area, so dense tessellation in one corner does not tilt the frame. False when the area is zero.
+bool area_frame(const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count,
+                const double* origin, Frame& out) {
+    Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d first = Eigen::Vector3d::Zero();
+    double total = 0;
+    for (size_t i = 0; i < count; ++i) {
+        Eigen::Vector3d p[3];
+        for (int k = 0; k < 3; ++k) {
+            const float* q = positions + size_t(indices[size_t(tris[i]) * 3 + k]) * 3;
+            p[k] = Eigen::Vector3d(q[0] - origin[0], q[1] - origin[1], q[2] - origin[2]);
+        }
+        double area = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).norm();
+        if (!(area > 0)) continue;
+        Eigen::Vector3d m = (p[0] + p[1] + p[2]) / 3.0;
+        second += area / 12.0 *
+            (9.0 * m * m.transpose() + p[0] * p[0].transpose() + p[1] * p[1].transpose() + p[2] * p[2].transpose());
+        first += area * m;
+        total += area;
+    }
+    if (!(total > 0)) return false;
+    Eigen::Vector3d mean = first / total;
+    out = eigen_frame(second / total - mean * mean.transpose());
+    return true;
+}
+
+// 2-D convex hull (monotone chain) of `p` (sorted in place) into `h`, counter-clockwise, collinear points
+// dropped.
+void hull2d(std::vector<std::array<double, 2>>& p, std::vector<std::array<double, 2>>& h) {
+    // std::array's own order, spelled out: its generic lexicographic compare was most of this function.
+    std::sort(p.begin(), p.end(),
+              [](const auto& a, const auto& b) { return a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]); });
+    p.erase(std::unique(p.begin(), p.end(), [](const auto& a, const auto& b) { return a[0] == b[0] && a[1] == b[1]; }),
+            p.end());
+    if (p.size() < 3) {
+        h = p;
+        return;
+    }
+    auto turn = [](const auto& o, const auto& a, const auto& b) {
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    };
+    h.resize(2 * p.size());
+    size_t k = 0;
+    for (size_t i = 0; i < p.size(); ++i) {
+        while (k >= 2 && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    for (size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
+        while (k >= t && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    h.resize(k - 1);
+}
+
+// Keeps axis `fixed` of the frame and turns the other two to the minimum-area rectangle of the points
+// projected on their plane (one rectangle side lies on a hull edge: test every edge direction).
+Frame min_area_rect_frame(const double* pts, size_t n, const Frame& f, int fixed) {
+    int u = (fixed + 1) % 3, w = (fixed + 2) % 3;
+    thread_local std::vector<std::array<double, 2>> proj, h;  // scratch: this runs a few dozen times per cluster
+    proj.resize(n);
+    for (size_t v = 0; v < n; ++v) proj[v] = {dot3(pts + v * 3, f.axis[u]), dot3(pts + v * 3, f.axis[w])};
+    hull2d(proj, h);
+    double best = INFINITY, best_c = 1, best_s = 0;
+    // Rotating calipers: across the edges in counter-clockwise order, the vertex farthest along the edge
+    // (i), farthest from it (j) and farthest back (k) only move forward, so each edge costs a few steps
+    // instead of a pass over the hull. The near side is the edge itself.
+    const size_t m = h.size();
+    h.resize(2 * m + 1);  // the hull twice round and once more: the calipers index past the end without wrapping
+    for (size_t v = 0; v <= m; ++v) h[m + v] = h[v];
+    auto along = [&](size_t v, double c, double s) { return c * h[v][0] + s * h[v][1]; };
+    auto across = [&](size_t v, double c, double s) { return -s * h[v][0] + c * h[v][1]; };
+    for (size_t e = 0, i = 1, j = 1, k = 1; e < m && m >= 3; ++e) {
+        // Along the edge's own vector (dx, dy), not its unit direction: the area is then the product over
+        // dx^2 + dy^2, one division where normalising took a root and two.
+        const double dx = h[e + 1][0] - h[e][0], dy = h[e + 1][1] - h[e][1], len2 = dx * dx + dy * dy;
+        if (!(len2 > 0)) continue;
+        i = std::max(i, e + 1);
+        while (i < e + m && along(i + 1, dx, dy) >= along(i, dx, dy)) ++i;
+        j = std::max(j, i);
+        while (j < e + m && across(j + 1, dx, dy) >= across(j, dx, dy)) ++j;
+        k = std::max(k, j);
+        while (k < e + m && along(k + 1, dx, dy) <= along(k, dx, dy)) ++k;
+        double lo1 = std::min(across(e, dx, dy), across(e + 1, dx, dy));
+        double area = (along(i, dx, dy) - along(k, dx, dy)) * (across(j, dx, dy) - lo1) / len2;
+        if (area < best) {
+            const double len = std::sqrt(len2);
+            best = area;
+            best_c = dx / len;
+            best_s = dy / len;
+        }
+    }
+    Frame out = f;
+    for (int k = 0; k < 3; ++k) {
+        out.axis[u][k] = best_c * f.axis[u][k] + best_s * f.axis[w][k];
+        out.axis[w][k] = -best_s * f.axis[u][k] + best_c * f.axis[w][k];
+    }
+    // Keep the rows in the fixed/u/w roles, then restore handedness.
+    Vec a{out.axis[0][0], out.axis[0][1], out.axis[0][2]}, b{out.axis[1][0], out.axis[1][1], out.axis[1][2]};
+    Vec c = cross(a, b);
+    if (dot3(c.data(), out.axis[2]) < 0)
+        for (int k = 0; k < 3; ++k) out.axis[2][k] = -out.axis[2][k];
+    return out;
+}
+
+// Turns a frame about its axis `k` by the angle of cosine `c` and sine `s` (the other two axes rotate in
+// their plane).
+Frame rotated(const Frame& f, int k, double c, double s) {
+    int u = (k + 1) % 3, w = (k + 2) % 3;
+    Frame out = f;
+    for (int j = 0; j < 3; ++j) {
+        out.axis[u][j] = c * f.axis[u][j] + s * f.axis[w][j];
+        out.axis[w][j] = -s * f.axis[u][j] + c * f.axis[w][j];
+    }
+    return out;
+}
+
+// A frame whose axis 0 is `n` (unit), the others arbitrary; min_area_rect_frame then turns them.
+Frame frame_around(const Vec& n) {
+    Vec helper = std::fabs(n[0]) < 0.6 ? Vec{1, 0, 0} : Vec{0, 1, 0};
+    Vec u = cross(n, helper);
+    double ul = norm(u);
+    Vec w = cross(n, {u[0] / ul, u[1] / ul, u[2] / ul});
+    Frame f;
+    for (int j = 0; j < 3; ++j) {
+        f.axis[0][j] = n[j];
+        f.axis[1][j] = u[j] / ul;
+        f.axis[2][j] = w[j];
+    }
+    return f;
+}
+
+// Box cost: volume, with every side padded by a tiny fraction of the diagonal so flat and needle sets still
+// compare by area and length instead of all tying at zero. Coordinates come as three arrays (x, y, z), the
+// form the refinement's hundred-odd evaluations per cluster run fastest on (docs/PERFORMANCE.md): one pass
+// for the three axes, two points per step in SSE2 lanes. Each projection is the same double expression as
+// in scalar code, and minima and maxima are exact, so the cost does not depend on the lanes.
+double soa_cost(const double* x, const double* y, const double* z, size_t n, const Frame& f, double pad) {
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    size_t v = 0;
+#if defined(__SSE2__)
+    __m128d vlo[3], vhi[3], a[3][3];
+    for (int i = 0; i < 3; ++i) {
+        vlo[i] = _mm_set1_pd(INFINITY);
+        vhi[i] = _mm_set1_pd(-INFINITY);
+        for (int k = 0; k < 3; ++k) a[i][k] = _mm_set1_pd(f.axis[i][k]);
+    }
+    for (; v + 2 <= n; v += 2) {
+        __m128d px = _mm_loadu_pd(x + v), py = _mm_loadu_pd(y + v), pz = _mm_loadu_pd(z + v);
+        for (int i = 0; i < 3; ++i) {
+            __m128d d =
+                _mm_add_pd(_mm_add_pd(_mm_mul_pd(a[i][0], px), _mm_mul_pd(a[i][1], py)), _mm_mul_pd(a[i][2], pz));
+            vlo[i] = _mm_min_pd(vlo[i], d);
+            vhi[i] = _mm_max_pd(vhi[i], d);
+        }
+    }
+    for (int i = 0; i < 3; ++i) {
+        double l[2], h[2];
+        _mm_storeu_pd(l, vlo[i]);
+        _mm_storeu_pd(h, vhi[i]);
+        lo[i] = std::min(l[0], l[1]);
+        hi[i] = std::max(h[0], h[1]);
+    }
+#endif
+    for (; v < n; ++v)
+        for (int i = 0; i < 3; ++i) {
+            double d = f.axis[i][0] * x[v] + f.axis[i][1] * y[v] + f.axis[i][2] * z[v];
+            lo[i] = std::min(lo[i], d);
+            hi[i] = std::max(hi[i], d);
+        }
+    return (hi[0] - lo[0] + pad) * (hi[1] - lo[1] + pad) * (hi[2] - lo[2] + pad);
+}
+
+// The padded area of the points' rectangle in a plane after turning its axes by the angle of cosine c and
+// sine s: (x, y) are the points' coordinates along the two axes before turning. Two points per step in SSE2
+// lanes, the same expressions as the scalar tail.
+double turned_area(const double* x, const double* y, size_t n, double c, double s, double pad) {
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    size_t v = 0;
+#if defined(__SSE2__)
+    const __m128d vc = _mm_set1_pd(c), vs = _mm_set1_pd(s);
+    __m128d lo0 = _mm_set1_pd(INFINITY), lo1 = lo0, hi0 = _mm_set1_pd(-INFINITY), hi1 = hi0;
+    for (; v + 2 <= n; v += 2) {
+        __m128d px = _mm_loadu_pd(x + v), py = _mm_loadu_pd(y + v);
+        __m128d a = _mm_add_pd(_mm_mul_pd(vc, px), _mm_mul_pd(vs, py));
+        __m128d b = _mm_sub_pd(_mm_mul_pd(vc, py), _mm_mul_pd(vs, px));
+        lo0 = _mm_min_pd(lo0, a);
+        hi0 = _mm_max_pd(hi0, a);
+        lo1 = _mm_min_pd(lo1, b);
+        hi1 = _mm_max_pd(hi1, b);
+    }
+    double l0[2], h0[2], l1[2], h1[2];
+    _mm_storeu_pd(l0, lo0);
+    _mm_storeu_pd(h0, hi0);
+    _mm_storeu_pd(l1, lo1);
+    _mm_storeu_pd(h1, hi1);
+    lo[0] = std::min(l0[0], l0[1]);
+    hi[0] = std::max(h0[0], h0[1]);
+    lo[1] = std::min(l1[0], l1[1]);
+    hi[1] = std::max(h1[0], h1[1]);
+#endif
+    for (; v < n; ++v) {
+        double a = c * x[v] + s * y[v], b = c * y[v] - s * x[v];
+        lo[0] = std::min(lo[0], a);
+        hi[0] = std::max(hi[0], a);
+        lo[1] = std::min(lo[1], b);
+        hi[1] = std::max(hi[1], b);
+    }
+    return (hi[0] - lo[0] + pad) * (hi[1] - lo[1] + pad);
+}
+
+// Axes spread evenly over a half sphere (a golden-angle spiral), for extreme_points.
+constexpr int spread_axes = 64;
+const std::array<Vec, spread_axes>& spread_directions() {
+    static const std::array<Vec, spread_axes> axes = [] {
+        std::array<Vec, spread_axes> out;
+        for (int i = 0; i < spread_axes; ++i) {
+            double z = (i + 0.5) / spread_axes, r = std::sqrt(1 - z * z), a = i * 2.399963229728653;
+            out[i] = {r * std::cos(a), r * std::sin(a), z};
+        }
+        return out;
+    }();
+    return axes;
+}
+
+// The points that are lowest or highest along one of the spread axes (at most two per axis, in input order).
+// They stand in for the hull's vertices when the frame search would otherwise sweep hundreds of points: a
+// box around them is nearly the box around all, and the stored extents are measured on all points anyway.
+void extreme_points(const double* pts, size_t n, std::vector<double>& out) {
+    thread_local std::vector<uint32_t> keep;
+    thread_local std::vector<double> soa;
+    keep.clear();
+    soa.resize(n * 3);
+    const double* x = soa.data();
+    const double* y = x + n;
+    const double* z = y + n;
+    for (size_t v = 0; v < n; ++v) {
+        soa[v] = pts[v * 3];
+        soa[n + v] = pts[v * 3 + 1];
+        soa[2 * n + v] = pts[v * 3 + 2];
+    }
+    for (const Vec& a : spread_directions()) {
+        // The first point of the lowest and of the highest projection, as a scan keeping strict improvements
+        // finds them: two points per step in SSE2 lanes, each lane keeping its own first, ties then going to the
+        // lower index.
+        double lo = INFINITY, hi = -INFINITY;
+        size_t at_lo = 0, at_hi = 0, v = 0;
+#if defined(__SSE2__)
+        const __m128d ax = _mm_set1_pd(a[0]), ay = _mm_set1_pd(a[1]), az = _mm_set1_pd(a[2]), two = _mm_set1_pd(2);
+        __m128d vlo = _mm_set1_pd(INFINITY), vhi = _mm_set1_pd(-INFINITY), lo_at = _mm_setzero_pd(),
+                hi_at = _mm_setzero_pd(), index = _mm_set_pd(1, 0);
+        for (; v + 2 <= n; v += 2, index = _mm_add_pd(index, two)) {
+            __m128d d = _mm_add_pd(_mm_add_pd(_mm_mul_pd(ax, _mm_loadu_pd(x + v)), _mm_mul_pd(ay, _mm_loadu_pd(y + v))),
+                                   _mm_mul_pd(az, _mm_loadu_pd(z + v)));
+            __m128d below = _mm_cmplt_pd(d, vlo), above = _mm_cmpgt_pd(d, vhi);
+            vlo = _mm_or_pd(_mm_and_pd(below, d), _mm_andnot_pd(below, vlo));
+            lo_at = _mm_or_pd(_mm_and_pd(below, index), _mm_andnot_pd(below, lo_at));
+            vhi = _mm_or_pd(_mm_and_pd(above, d), _mm_andnot_pd(above, vhi));
+            hi_at = _mm_or_pd(_mm_and_pd(above, index), _mm_andnot_pd(above, hi_at));
+        }
+        double l[2], h[2], li[2], hj[2];
+        _mm_storeu_pd(l, vlo);
+        _mm_storeu_pd(h, vhi);
+        _mm_storeu_pd(li, lo_at);
+        _mm_storeu_pd(hj, hi_at);
+        for (int k = 0; k < 2 && v > 0; ++k) {
+            if (l[k] < lo || (l[k] == lo && size_t(li[k]) < at_lo)) {
+                lo = l[k];
+                at_lo = size_t(li[k]);
+            }
+            if (h[k] > hi || (h[k] == hi && size_t(hj[k]) < at_hi)) {
+                hi = h[k];
+                at_hi = size_t(hj[k]);
+            }
+        }
+#endif
+        for (; v < n; ++v) {
+            double d = a[0] * x[v] + a[1] * y[v] + a[2] * z[v];
+            if (d < lo) {
+                lo = d;
+                at_lo = v;
+            }
+            if (d > hi) {
+                hi = d;
+                at_hi = v;
+            }
+        }
+        keep.push_back(uint32_t(at_lo));
+        keep.push_back(uint32_t(at_hi));
+    }
+    std::sort(keep.begin(), keep.end());
+    keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
+    out.resize(keep.size() * 3);
+    for (size_t i = 0; i < keep.size(); ++i) std::copy_n(pts + size_t(keep[i]) * 3, 3, &out[i * 3]);
+}
+
+// Clusters of more points than this search their frame over extreme_points, and also across triangle
+// normals. On fine clusters the normals moved the mean box volume by under 0.2% (dragon, horse, fandisk,
+// 3dfier) for a quarter of the fitting time; on coarse ones they gain 0.5 to 1.5%.
+const size_t frame_search_limit = 64;
+
+// The best box whose one axis is a PCA axis or (with `positions`) a triangle normal and whose other two
+// form the minimum-area rectangle across it; then a descent over small rotations about each axis.
+Frame refined_frame(const double* pts, size_t n, const std::vector<Frame>& pca, double pad, const float* positions,
+                    const uint32_t* indices, const uint32_t* tris, size_t count) {
+    thread_local std::vector<double> soa;
+    soa.resize(n * 3);
+    for (size_t v = 0; v < n; ++v) {
+        soa[v] = pts[v * 3];
+        soa[n + v] = pts[v * 3 + 1];
+        soa[2 * n + v] = pts[v * 3 + 2];
+    }
+    auto cost = [&](const Frame& f) { return soa_cost(soa.data(), soa.data() + n, soa.data() + 2 * n, n, f, pad); };
+    Frame best = pca[0];
+    double best_cost = cost(best);
+    auto consider = [&](const Frame& f) {
+        double c = cost(f);
+        if (c < best_cost) {
+            best_cost = c;
+            best = f;
+        }
+    };
+    // Across every axis of the vertex PCA frame; across only the thinnest (the patch normal) of the
+    // area-weighted one, whose other fixings rarely win.
+    for (size_t p = 0; p < pca.size(); ++p) {
+        consider(pca[p]);
+        for (int fixed = p == 0 ? 0 : 2; fixed < 3; ++fixed) consider(min_area_rect_frame(pts, n, pca[p], fixed));
+    }
+    // Up to 4 triangle normals, evenly spaced through the cluster: bounded work, and 8 gave no tighter boxes
+    // on the dragon.
+    size_t stride = std::max<size_t>(1, count / 4);
+    for (size_t i = 0; positions && i < count; i += stride) {
+        double p[3][3];
+        for (int k = 0; k < 3; ++k)
+            for (int j = 0; j < 3; ++j) p[k][j] = positions[size_t(indices[size_t(tris[i]) * 3 + k]) * 3 + j];
+        Vec nrm = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+        double len = norm(nrm);
+        if (!(len > 0)) continue;
+        consider(min_area_rect_frame(pts, n, frame_around({nrm[0] / len, nrm[1] / len, nrm[2] / len}), 0));
+    }
+    // The descent turns the best frame about one of its axes at a time: the extent along that axis stays,
+    // and the other two come from the points' projections on the frame, turned in the plane, so a try costs
+    // four products per point instead of nine; a winning try's turned projections are kept.
+    thread_local std::vector<double> proj;
+    proj.resize(n * 3);
+    double extent[3];
+    for (int i = 0; i < 3; ++i) {
+        double* p = proj.data() + size_t(i) * n;
+        double lo = INFINITY, hi = -INFINITY;
+        for (size_t v = 0; v < n; ++v) {
+            p[v] = best.axis[i][0] * soa[v] + best.axis[i][1] * soa[n + v] + best.axis[i][2] * soa[2 * n + v];
+            lo = std::min(lo, p[v]);
+            hi = std::max(hi, p[v]);
+        }
+        extent[i] = hi - lo;
+    }
+    // Steps from 0.16 down to 3.1e-4 radians, halving: a try is cheap, and the last levels are what bring the
+    // dragon's fine boxes to 1.013 times CGAL's optimal volume on the mean (1.017 stopping at 1e-3).
+    constexpr int levels = 10;
+    static const std::array<std::array<double, 2>, levels> turns = [] {
+        std::array<std::array<double, 2>, levels> t;
+        for (int l = 0; l < levels; ++l) t[size_t(l)] = {std::cos(0.16 / (1 << l)), std::sin(0.16 / (1 << l))};
+        return t;
+    }();
+    for (const auto& [c, s] : turns) {
+        for (bool improved = true; improved;) {
+            improved = false;
+            for (int k = 0; k < 3; ++k)
+                for (double sign : {1.0, -1.0}) {
+                    const int u = (k + 1) % 3, w = (k + 2) % 3;
+                    double* x = proj.data() + size_t(u) * n;
+                    double* y = proj.data() + size_t(w) * n;
+                    const double turned = (extent[k] + pad) * turned_area(x, y, n, c, sign * s, pad);
+                    if (!(turned < best_cost)) continue;
+                    best_cost = turned;
+                    best = rotated(best, k, c, sign * s);
+                    improved = true;
+                    // The winning try's projections, turned as turned_area turned them, become the current ones.
+                    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+                    for (size_t v = 0; v < n; ++v) {
+                        const double a = c * x[v] + sign * s * y[v], b = c * y[v] - sign * s * x[v];
+                        x[v] = a;
+                        y[v] = b;
+                        lo[0] = std::min(lo[0], a);
+                        hi[0] = std::max(hi[0], a);
+                        lo[1] = std::min(lo[1], b);
+                        hi[1] = std::max(hi[1], b);
+                    }
+                    extent[u] = hi[0] - lo[0];
+                    extent[w] = hi[1] - lo[1];
+                }
+        }
+    }
+    make_right_handed(best);
+    return best;
+}
+
+// The frame's rotation (rows are the axes, right-handed) as a packed unit quaternion.
+void pack_rotation(const Frame& f, PackedObb& out) {
+    // m(r, c): column c is axis c.
+    auto m = [&](int r, int c) { return f.axis[c][r]; };
+    double q[4], t = m(0, 0) + m(1, 1) + m(2, 2);  // x, y, z, w
+    if (t > 0) {
+        double s = 2 * std::sqrt(t + 1);
+        q[3] = s / 4;
+        q[0] = (m(2, 1) - m(1, 2)) / s;
+        q[1] = (m(0, 2) - m(2, 0)) / s;
+        q[2] = (m(1, 0) - m(0, 1)) / s;
+    } else if (m(0, 0) >= m(1, 1) && m(0, 0) >= m(2, 2)) {
+        double s = 2 * std::sqrt(std::max(0.0, 1 + m(0, 0) - m(1, 1) - m(2, 2)));
+        q[3] = (m(2, 1) - m(1, 2)) / s;
+        q[0] = s / 4;
+        q[1] = (m(0, 1) + m(1, 0)) / s;
+        q[2] = (m(0, 2) + m(2, 0)) / s;
+    } else if (m(1, 1) >= m(2, 2)) {
+        double s = 2 * std::sqrt(std::max(0.0, 1 + m(1, 1) - m(0, 0) - m(2, 2)));
+        q[3] = (m(0, 2) - m(2, 0)) / s;
+        q[0] = (m(0, 1) + m(1, 0)) / s;
+        q[1] = s / 4;
+        q[2] = (m(1, 2) + m(2, 1)) / s;
+    } else {
+        double s = 2 * std::sqrt(std::max(0.0, 1 + m(2, 2) - m(0, 0) - m(1, 1)));
+        q[3] = (m(1, 0) - m(0, 1)) / s;
+        q[0] = (m(0, 2) + m(2, 0)) / s;
+        q[1] = (m(1, 2) + m(2, 1)) / s;
+        q[2] = s / 4;
+    }
+    int largest = 0;
+    for (int i = 1; i < 4; ++i)
+        if (std::fabs(q[i]) > std::fabs(q[largest])) largest = i;
+    double sign = q[largest] < 0 ? -1 : 1;
+    out.largest = uint16_t(largest);
+    for (int i = 0, k = 0; i < 4; ++i) {
+        if (i == largest) continue;
+        double v = std::round(sign * q[i] * (32767.0 * 1.4142135623730951));
+        out.rotation[k++] = int16_t(std::clamp(v, -32767.0, 32767.0));
+    }
+}
+
+}  // namespace
+
+Frame best_frame(const double* pts, size_t n, ObbMethod method, const float* positions, const uint32_t* indices,
+                 const uint32_t* tris, size_t count, const double* origin) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t i = 0; i < n * 3; ++i) {
+        lo = std::min(lo, pts[i]);
+        hi = std::max(hi, pts[i]);
+    }
+    double pad = std::max(hi - lo, 1e-300) * 1e-9;
+
+    if (method == ObbMethod::cgal_optimal) {
+        Frame f;
+        if (n >= 4 && cgal_optimal_frame(pts, n, f.axis)) {
+            make_right_handed(f);
+            return f;
+        }
+        method = ObbMethod::refined;  // CGAL needs 4 points or more, not all in a plane
+    }
+    std::vector<Frame> pca;
+    if (method == ObbMethod::pca || method == ObbMethod::refined) pca.push_back(pca_frame(pts, n));
+    if (method == ObbMethod::pca_area || method == ObbMethod::refined) {
+        Frame f;
+        if (positions && area_frame(positions, indices, tris, count, origin, f))
+            pca.push_back(f);
+        else if (method == ObbMethod::pca_area)
+            pca.push_back(pca_frame(pts, n));
+    }
+    if (method != ObbMethod::refined) return pca[0];
+    if (n <= frame_search_limit) return refined_frame(pts, n, pca, pad, nullptr, indices, tris, count);
+    thread_local std::vector<double> few;
+    extreme_points(pts, n, few);
+    return refined_frame(few.data(), few.size() / 3, pca, pad, positions, indices, tris, count);
+}
+
+PackedObb store_obb(const Frame& f, const double* local, size_t n, const double* origin, const double* world) {
+    double lo[3], hi[3];
+    extents(local, n, f, lo, hi);
+    double centre[3];
+    for (int k = 0; k < 3; ++k) {
+        centre[k] = origin[k];
+        for (int i = 0; i < 3; ++i) centre[k] += 0.5 * (lo[i] + hi[i]) * f.axis[i][k];
+    }
+    PackedObb p{};
+    pack_rotation(f, p);
+    for (int k = 0; k < 3; ++k) p.center[k] = float(centre[k]);
+    Obb b = unpack_obb(p);
+    double c[3] = {b.center[0], b.center[1], b.center[2]};
+    for (int i = 0; i < 3; ++i) {
+        double a[3] = {b.axis[i][0], b.axis[i][1], b.axis[i][2]}, h = 0, scale = 0;
+        for (size_t v = 0; v < n; ++v) {
+            Vec d = sub(world + v * 3, c);
+            double l1 = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]);
+            h = std::max(h, std::fabs(dot3(d.data(), a)) + axis_step * l1);
+            scale = std::max(scale, std::fabs(d[0] * a[0]) + std::fabs(d[1] * a[1]) + std::fabs(d[2] * a[2]));
+        }
+        p.half[i] = round_up(h + measure_margin * scale);
+    }
+    return p;
+}
+
+}  // namespace fitting
+
+using namespace fitting;
+
+double obb_volume(const Obb& b) { return 8.0 * double(b.half[0]) * b.half[1] * b.half[2]; }
+
+const char* obb_method_name(ObbMethod m) {
+    switch (m) {
+        case ObbMethod::pca: return "pca";
+        case ObbMethod::pca_area: return "pca-area";
+        case ObbMethod::refined: return "refined";
+        case ObbMethod::cgal_optimal: return "cgal";
+    }
+    return "?";
+}
+
+bool parse_obb_method(const std::string& name, ObbMethod& out) {
+    for (ObbMethod m : {ObbMethod::refined, ObbMethod::pca, ObbMethod::pca_area, ObbMethod::cgal_optimal})
+        if (name == obb_method_name(m)) {
+            out = m;
+            return true;
+        }
+    return false;
+}
+
+Obb fit_obb(const double* local, size_t n, const double* origin, ObbMethod method, const float* positions,
+            const uint32_t* indices, const uint32_t* triangle_ids, size_t triangle_count) {
+    std::vector<double> world(n * 3);
+    for (size_t i = 0; i < n * 3; ++i) world[i] = local[i] + origin[i % 3];
+    Frame f = best_frame(local, n, method, positions, indices, triangle_ids, triangle_count, origin);
+    return unpack_obb(store_obb(f, local, n, origin, world.data()));
+}
+
+}  // namespace cb
