@@ -14,6 +14,7 @@
 // and committing (a refit). Asserts nothing.
 //
 //   bench_level [--data DIR] [--view 512] [--runs 3] [--cities 10,100,1000,10000,100000] [--only NAME]
+//               [--lights all|points|suns]
 //               [--traversal scan|trees|one-tree|mtsv|mtsv-two] [--one-sided 1] [--threads 2]
 #include <embree3/rtcore.h>
 
@@ -48,6 +49,7 @@ struct Settings {
     unsigned threads = 2;  // the second measurement's (the first is one thread)
     std::vector<uint32_t> cities = {10, 100, 1000, 10000, 100000};
     std::string only;
+    std::string lights = "all";  // "points" or "suns": only those
     cb::ShadowBuildOptions options;
 };
 
@@ -251,6 +253,7 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
     for (int li = 0; li < 6; ++li) {
         const double* light = lights[li];
         const bool sun = li >= 4;
+        if ((sun && s.lights == "points") || (!sun && s.lights == "suns")) continue;
         // Embree's four ways (flat or instanced, packets of 1 or 16), one thread and `threads`.
         std::vector<double> our_t, our_tt, embree_t[4], embree_tt[4];
         size_t met = 0, built = 0, bytes = 0;
@@ -333,6 +336,8 @@ int main(int argc, char** argv) {
             s.threads = unsigned(std::stoul(v));
         else if (a == "--only")
             s.only = v;
+        else if (a == "--lights" && (v == "all" || v == "points" || v == "suns"))
+            s.lights = v;
         else if (a == "--one-sided")
             s.options.one_sided = v == "1";
         else if (a == "--traversal") {

@@ -647,18 +647,20 @@ public:
         cache->clear();
         alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];
         double across[tile_capacity][3];
+        SunTile sun_tile;
         for (size_t t = first; t < last; ++t) {
             const size_t begin = t * tile_capacity;
             const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
             const uint32_t* index = order_.data() + begin;
             uint64_t alive = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1, shadowed = 0;
             const uint64_t regular = sun_ ? sun_across(index, count, across) : directions(index, count, ex, ey, ez, fd);
+            if (sun_) sun_tile.make(across, regular);
             for (uint64_t slot : tile_lists_[t]) {
                 if (!alive) break;
                 // Only the points whose segment may meet the instance's sphere enter it: an instance's set-up
                 // per tile costs per point.
                 const uint64_t in = alive &
-                    (sun_ ? sun_instance_points(needed_[slot], regular, count, across)
+                    (sun_ ? sun_instance_points(needed_[slot], regular, count, across, sun_tile)
                           : instance_points(needed_[slot], regular, ex, ey, ez, fd));
                 if (!in) continue;
                 const uint64_t s = shadows_[slot].occluded_tile(points_, index, count, in, stack, stats, cache);
@@ -746,14 +748,48 @@ private:
         return regular;
     }
 
-    // The tile's points whose ray toward the sun may meet instance h's sphere (in double, the radius grown by
-    // 1e-9 of the sizes involved), and every point that is not regular.
-    uint64_t sun_instance_points(uint32_t h, uint64_t regular, uint32_t count, const double (*across)[3]) const {
+    // A sun's tile in float for sun_instance_points: its regular points' coordinates in the sun's frame (from
+    // sun_across) taken from the middle of their range, and the largest such coordinate's |.|_1.
+    struct SunTile {
+        double centre[3], size;
+        alignas(64) float u[tile_capacity], v[tile_capacity], w[tile_capacity];
+        void make(const double (*across)[3], uint64_t regular) {
+            double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+            for (uint64_t b = regular; b; b &= b - 1)
+                for (int k = 0; k < 3; ++k) {
+                    lo[k] = std::min(lo[k], across[math::lowest_bit(b)][k]);
+                    hi[k] = std::max(hi[k], across[math::lowest_bit(b)][k]);
+                }
+            for (int k = 0; k < 3; ++k) centre[k] = regular ? 0.5 * (lo[k] + hi[k]) : 0.0;
+            size = 0;
+            for (uint32_t i = 0; i < tile_capacity; ++i) {
+                const bool in = regular >> i & 1;
+                const double q[3] = {in ? across[i][0] - centre[0] : 0.0, in ? across[i][1] - centre[1] : 0.0,
+                                     in ? across[i][2] - centre[2] : 0.0};
+                u[i] = float(q[0]), v[i] = float(q[1]), w[i] = float(q[2]);
+                size = std::max(size, std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]));
+            }
+        }
+    };
+
+    // The tile's points whose ray toward the sun may meet instance h's sphere, and every point that is not
+    // regular. In float over the lanes from the tile's centre (f, sun_sphere_points), the radius grown by 1e-6
+    // of the sizes involved and by 1e-12 of the coordinates from the frame's origin (the double differences'
+    // rounding); in double, the radius grown by 1e-9 of the sizes, where float could overflow or fall to
+    // subnormals.
+    uint64_t sun_instance_points(uint32_t h, uint64_t regular, uint32_t count, const double (*across)[3],
+                                 const SunTile& f) const {
         const double* sphere = level_->world_sphere(h);
         const double c[3] = {math::dot3(sphere, sun_frame_[1]), math::dot3(sphere, sun_frame_[2]),
                              math::dot3(sphere, sun_frame_[0])};
         const double size = std::fabs(sphere[0]) + std::fabs(sphere[1]) + std::fabs(sphere[2]) + sphere[3];
         if (!(size < 1e30)) return ~uint64_t(0);
+        const uint64_t all = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1;
+        const double d[3] = {c[0] - f.centre[0], c[1] - f.centre[1], c[2] - f.centre[2]};
+        const double reach = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]) + sphere[3] + f.size;
+        const double slack = 1e-6 * reach + 1e-12 * (size + math::l1(f.centre));
+        if (reach < 1e18 && slack > 1e-15)
+            return sun_sphere_points(d[0], d[1], d[2], sphere[3], slack, regular, f.u, f.v, f.w) | (all & ~regular);
         uint64_t in = 0;
         for (uint64_t b = regular; b; b &= b - 1) {
             const uint32_t i = math::lowest_bit(b);
@@ -762,7 +798,6 @@ private:
             const double du = c[0] - q[0], dv = c[1] - q[1];
             if (du * du + dv * dv <= r * r && q[2] <= c[2] + r) in |= uint64_t(1) << i;
         }
-        const uint64_t all = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1;
         return in | (all & ~regular);
     }
 

@@ -189,8 +189,12 @@ TEST(Report, WritesThreeFilesWithOnePointPerConfiguration) {
         EXPECT_EQ(metric, name.size() > 5 && name.substr(name.size() - 5) == "/mtsv") << name;
         if (metric) name.resize(name.size() - 5);
         auto [at, fresh] = shadowed.emplace(name, c["shadowed_share"].get<double>());
-        if (!fresh) EXPECT_EQ(at->second, c["shadowed_share"].get<double>()) << name;
-        if (metric) EXPECT_GT(c["bytes_per_triangle"].get<double>(), 0);
+        if (!fresh) {
+            EXPECT_EQ(at->second, c["shadowed_share"].get<double>()) << name;
+        }
+        if (metric) {
+            EXPECT_GT(c["bytes_per_triangle"].get<double>(), 0);
+        }
     }
     EXPECT_EQ(shadowed.size(), configs / 2);
     std::string csv = slurp((d / "report.csv").string());

@@ -976,6 +976,57 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
 // a triangle's plane (within 1e-9), along one of its edges (in its plane) and of lengths from 1e-3 to 1e3;
 // points on the triangle, on rays through one of its edges or corners (edge signs of zero), near the cluster
 // and far back along the ray; grids at offsets up to 3e7.
+TEST(Shadow, SunSphereTestKeepsEveryRayThatMeetsTheSphere) {
+    // cb::sun_sphere_points, the float lane test of the sun's scan and of a level's sun tiles: spheres from
+    // 1e-3 to 10 across, their centres up to 3e8 from the coordinates' origin, points within a few 1e-8 of the
+    // radius across the direction (inside and out) and of the sphere's top along it, and some well outside.
+    // Every point whose ray meets the sphere (decided in double on the coordinates the floats round) must be
+    // kept with the documented slack; without it, float rounding drops some, so this test can fail.
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> unit(-1, 1), pos(0, 1);
+    size_t meeting = 0, dropped = 0, dropped_without_slack = 0, ruled_out = 0, far = 0, far_kept = 0;
+    for (double offset : {0.0, 1e3, 1e6, 3e8})
+        for (int round = 0; round < 300; ++round) {
+            const double r = std::pow(10.0, -3 + 4 * pos(rng));
+            const double c[3] = {offset * unit(rng) + 5 * r * unit(rng), offset * unit(rng), offset * unit(rng)};
+            alignas(64) float u[64], v[64], w[64];
+            bool meets[64];
+            double size = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]) + r;
+            for (int i = 0; i < 64; ++i) {
+                const bool outside = i % 8 == 7;  // well outside: across, or above the top
+                const double across = outside && i % 16 == 7 ? 1.5 * r : r * (1 + 3e-8 * unit(rng));
+                const double up = outside && i % 16 == 15 ? c[2] + 1.5 * r : c[2] + r * (1 + 3e-8 * unit(rng));
+                const double a = 6.283185307179586 * pos(rng);
+                const double q[3] = {c[0] + across * std::cos(a), c[1] + across * std::sin(a),
+                                     i % 2 ? up : c[2] - 10 * r * pos(rng)};
+                u[i] = float(q[0]), v[i] = float(q[1]), w[i] = float(q[2]);
+                size = std::max(size, std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]));
+                const double du = q[0] - c[0], dv = q[1] - c[1];
+                meets[i] = du * du + dv * dv <= r * r && q[2] <= c[2] + r;
+            }
+            const uint64_t all = ~uint64_t(0);
+            const uint64_t keep = cb::sun_sphere_points(c[0], c[1], c[2], r, 1e-6 * size, all, u, v, w);
+            const uint64_t bare = cb::sun_sphere_points(c[0], c[1], c[2], r, 0.0, all, u, v, w);
+            for (int i = 0; i < 64; ++i) {
+                meeting += meets[i];
+                dropped += meets[i] && !(keep >> i & 1);
+                dropped_without_slack += meets[i] && !(bare >> i & 1);
+                ruled_out += !(keep >> i & 1);
+                if (offset == 0 && i % 8 == 7) {  // well outside; the slack is a few 1e-6 of r
+                    ++far;
+                    far_kept += keep >> i & 1;
+                }
+            }
+        }
+    std::printf("%zu rays meet their sphere: %zu dropped (%zu without the slack); %zu of %zu rays ruled out\n", meeting,
+                dropped, dropped_without_slack, ruled_out, size_t(4 * 300 * 64));
+    EXPECT_GT(meeting, 4u * 300 * 64 / 8);
+    EXPECT_EQ(dropped, 0u);
+    EXPECT_GT(dropped_without_slack, 0u);  // the slack is needed
+    EXPECT_GT(far, 0u);
+    EXPECT_EQ(far_kept, 0u);  // and near the origin, what lies well outside is ruled out
+}
+
 TEST(Shadow, SunLineTestsRuleOutOnlyMisses) {
     std::mt19937 rng(23);
     std::uniform_real_distribution<double> u(0, 1);

@@ -4,10 +4,10 @@
 // points is a prism too: the rectangle that bounds their projections across the direction, from the lowest of
 // them up toward the sun. A tile scans the coarse clusters' spheres (ScanBounds, made once per asset) against
 // its prism, each point against the spheres that pass, then the fine spheres of the coarse clusters entered,
-// nearest the sun first, each sphere's points against its box in float, and tests the clusters found against
-// the points still lit (cb_sun_triangles.h: a float line test, then ray_triangle exactly). The answers are
-// those of occluded_sun_reference (cb_shadow.h). Header-only C++17, no exceptions; building allocates,
-// queries do not. MIT licensed (runtime/LICENSE).
+// nearest the sun first, each sphere's points against its box (all in float lanes), and tests the clusters
+// found against the points still lit (cb_sun_triangles.h: a float line test, then ray_triangle exactly). The
+// answers are those of occluded_sun_reference (cb_shadow.h). Header-only C++17, no exceptions; building
+// allocates, queries do not. MIT licensed (runtime/LICENSE).
 #pragma once
 
 #include <algorithm>
@@ -35,7 +35,7 @@ public:
     void build(const AssetView& view, Placement at, const double* toward, const ShadowBuildOptions& options) {
         view_ = &view;
         one_sided_ = options.one_sided;
-        coarse_.clear();
+        coarse_boxes_.clear();
         coarse_skipped_.clear();
         skipped_ = 0;
         for (int k = 0; k < 3; ++k) world_toward_[k] = toward[k];
@@ -59,10 +59,10 @@ public:
         // little more of each ray, never less.
         start_ = blocking_start(from_) * std::sqrt(math::dot3(toward_, toward_)) * (1 - 1e-6);
         boxes_small_ = s.extent < float_safe && start_ < float_safe;
-        coarse_.resize(mesh_->coarse_count);
         coarse_skipped_.assign(mesh_->coarse_count, 0);
+        if (boxes_small_)
+            for (const Obb& box : s.coarse_obbs) coarse_boxes_.push_back(sun_box(box));
         for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
-            coarse_[c] = across(s.coarse_first + c);
             if (one_sided_ &&
                 faces_the_sun(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangle_range(view, *mesh_, c)))
                 skipped_ += view.coarse[mesh_->first_coarse + c].count, coarse_skipped_[c] = 1;
@@ -77,7 +77,7 @@ public:
     size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the sun sees from the front
     size_t capsules() const { return 0; }
     size_t memory_bytes() const {
-        return own_bounds_.memory_bytes() + coarse_.capacity() * sizeof(Sphere) + coarse_skipped_.capacity();
+        return own_bounds_.memory_bytes() + coarse_boxes_.capacity() * sizeof(SunBox) + coarse_skipped_.capacity();
     }
 
     // True when the ray from world point p toward the sun is blocked by this instance.
@@ -89,10 +89,11 @@ public:
     // Of the `count` world points points + 3 * index[i] (xyz doubles), those set in `alive` that this
     // instance shadows, as a mask; the same answers as occluded() point by point.
     uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t*,
-                           QueryStats* stats = nullptr, TileCache* = nullptr) const {
+                           QueryStats* stats = nullptr, TileCache* cache = nullptr) const {
         if (!usable_ || !alive) return 0;
         Tile t;
         t.stats = stats;
+        t.cache = cache;
         t.alive = t.shadowed = 0;
         t.entered_count = t.pending_count = 0;
         uint64_t alone = 0;
@@ -115,10 +116,15 @@ public:
             t.alive |= uint64_t(1) << i;
         }
         t.size = 0;
-        for (uint32_t i = 0; i < tile_capacity; ++i) {
+        // The float lanes of the groups the live points span: every lane test reads no others.
+        uint32_t begin = 0, end = 0;
+        if (t.alive) simd::lane_span(t.alive, begin, end);
+        for (uint32_t i = begin; i < end; ++i) {
             const bool in = t.alive >> i & 1;
             t.x[i] = in ? float(t.p[i][0] - s.origin[0]) : 0.0f, t.y[i] = in ? float(t.p[i][1] - s.origin[1]) : 0.0f,
             t.z[i] = in ? float(t.p[i][2] - s.origin[2]) : 0.0f;
+            t.fu[i] = in ? float(t.u[i]) : 0.0f, t.fv[i] = in ? float(t.v[i]) : 0.0f,
+            t.fw[i] = in ? float(t.w[i]) : 0.0f;
             t.size = std::max(t.size, std::fabs(t.x[i]) + std::fabs(t.y[i]) + std::fabs(t.z[i]));
         }
         t.small = t.size < float_safe && boxes_small_;
@@ -143,19 +149,21 @@ private:
         uint64_t alive, shadowed;
         double p[tile_capacity][3];                                   // in the mesh's frame
         double u[tile_capacity], v[tile_capacity], w[tile_capacity];  // in the sun's frame, from the bounds' origin
-        double lo[2], hi[2], low, margin;                             // the prism of the points walking now
-        alignas(64) float x[tile_capacity], y[tile_capacity], z[tile_capacity];  // p from the bounds' origin
+        alignas(64) float x[tile_capacity], y[tile_capacity], z[tile_capacity];     // p from the bounds' origin
+        alignas(64) float fu[tile_capacity], fv[tile_capacity], fw[tile_capacity];  // u, v, w in float
         float size;  // the largest |x|_1 + |y|_1 + |z|_1 of the tile's points (boxes' float margins)
         bool small;  // every coordinate and box within float_safe: the float box filter applies
         struct Entry {
             double near;  // how far below the highest sphere the list may hold: the sun's side first
             uint32_t id;
             uint64_t points;
+            uint64_t unsure;  // pending: the points whose box test is to be done again in double
         };
         static constexpr uint32_t entered_capacity = 64, pending_capacity = 128;
         Entry entered[entered_capacity], pending[pending_capacity];
         uint32_t entered_count, pending_count;
         QueryStats* stats;
+        TileCache* cache;  // kept between tiles (may be null)
     };
 
     const ScanBounds& bounds() const { return shared_bounds_ ? *shared_bounds_ : own_bounds_; }
@@ -177,27 +185,33 @@ private:
         return {math::dot3(c, frame_[1]), math::dot3(c, frame_[2]), math::dot3(c, frame_[0]), double(s.r[i])};
     }
 
-    // The prism of the points `which`: the rectangle bounding their projections, the lowest along the
-    // direction, and a margin far above the rounding of the projections (a few 1e-16 of the sizes) and of the
-    // frame's departure from the ray's direction (1e-16 of the distance covered).
-    static void make_prism(Tile& t, uint64_t which, double extent) {
-        t.lo[0] = t.lo[1] = t.low = INFINITY;
-        t.hi[0] = t.hi[1] = -INFINITY;
-        double size = 0;
+    // The prism of some points: the rectangle bounding their projections across the direction, the lowest
+    // along it, the largest |u| + |v| + |w| among them, and a margin far above the rounding of the projections
+    // (a few 1e-16 of the sizes) and of the frame's departure from the ray's direction (1e-16 of the distance
+    // covered).
+    struct Prism {
+        double lo[2], hi[2], low, size, margin;
+    };
+
+    // The prism of the points `which`.
+    static Prism make_prism(const Tile& t, uint64_t which, double extent) {
+        Prism P{{INFINITY, INFINITY}, {-INFINITY, -INFINITY}, INFINITY, 0, 0};
         for (uint64_t b = which; b; b &= b - 1) {
             const uint32_t i = math::lowest_bit(b);
-            t.lo[0] = std::min(t.lo[0], t.u[i]), t.hi[0] = std::max(t.hi[0], t.u[i]);
-            t.lo[1] = std::min(t.lo[1], t.v[i]), t.hi[1] = std::max(t.hi[1], t.v[i]);
-            t.low = std::min(t.low, t.w[i]);
-            size = std::max(size, std::fabs(t.u[i]) + std::fabs(t.v[i]) + std::fabs(t.w[i]));
+            P.lo[0] = std::min(P.lo[0], t.u[i]), P.hi[0] = std::max(P.hi[0], t.u[i]);
+            P.lo[1] = std::min(P.lo[1], t.v[i]), P.hi[1] = std::max(P.hi[1], t.v[i]);
+            P.low = std::min(P.low, t.w[i]);
+            P.size = std::max(P.size, std::fabs(t.u[i]) + std::fabs(t.v[i]) + std::fabs(t.w[i]));
         }
-        t.margin = 1e-9 * (extent + size);
+        P.margin = 1e-9 * (extent + P.size);
+        return P;
     }
 
-    // The points of `in` whose ray may meet sphere s: the ray passes within its radius across the direction,
-    // and the sphere reaches above the point. Every ray runs along w, so both are comparisons of coordinates.
-    static uint64_t sphere_points(const Sphere& s, uint64_t in, const Tile& t) {
-        const double r = s.r + t.margin, r2 = r * r, top = s.w + r;
+    // The points of `in` whose ray may meet sphere s: the ray passes within its radius (grown by `margin`)
+    // across the direction, and the sphere reaches above the point. Every ray runs along w, so both are
+    // comparisons of coordinates.
+    static uint64_t sphere_points(const Sphere& s, uint64_t in, const Tile& t, double margin) {
+        const double r = s.r + margin, r2 = r * r, top = s.w + r;
         uint64_t keep = 0;
         for (uint64_t b = in; b; b &= b - 1) {
             const uint32_t i = math::lowest_bit(b);
@@ -207,20 +221,65 @@ private:
         return keep;
     }
 
-    // Whether sphere s may meet the prism at all.
-    static bool meets_prism(const Sphere& s, const Tile& t) {
-        const double r = s.r + t.margin;
-        return s.u + r >= t.lo[0] && s.u - r <= t.hi[0] && s.v + r >= t.lo[1] && s.v - r <= t.hi[1] && s.w + r >= t.low;
+    // Whether sphere s may meet prism P at all.
+    static bool meets_prism(const Sphere& s, const Prism& P) {
+        const double r = s.r + P.margin;
+        return s.u + r >= P.lo[0] && s.u - r <= P.hi[0] && s.v + r >= P.lo[1] && s.v - r <= P.hi[1] && s.w + r >= P.low;
     }
 
-    // A cluster's box set up for the float test of box_points: its centre from the bounds' origin, its axes,
-    // each axis's padded half extent (infinite where the ray runs nearly across it: no test there) with the
-    // side the ray heads to (sign) and how far along the axis it has gone at blocking_start (lift), and the
-    // axes z x a_k with the box's support on them.
-    struct SunBox {
-        float c[3], a[3][3], h[3], sign[3], lift[3], w[3][3], support[3], scale;
-    };
+    // The spheres [first, first + count) of bounds() that may meet the rays of the points `in`, each to
+    // pass(i, sphere, points) with those points whose ray may meet it. On a small tile in float: the prism's
+    // five planes (its four sides across the direction and its bottom) against a vector of spheres at once,
+    // then each sphere kept against a vector of points (sun_sphere_points, cb_tile.h). The margin, 1e-6 of the
+    // spheres' extent and the points' sizes, is far above the float products' errors (a few 1e-7 of them)
+    // and the rounding of the frame to float (6e-8).
+    template <class Pass>
+    void scan_spheres(uint32_t first_sphere, uint32_t count, uint64_t in, const Tile& t, Pass pass) const {
+        const ScanBounds& s = bounds();
+        const Prism P = make_prism(t, in, s.extent);
+        const double slack = 1e-6 * (s.extent + P.size);
+        const uint32_t stop = first_sphere + count;
+        if (!t.small || !(slack > 1e-15)) {  // float could overflow, or its squares fall to subnormals
+            for (uint32_t i = first_sphere; i < stop; ++i) {
+                const Sphere sphere = across(i);
+                if (!meets_prism(sphere, P)) continue;
+                const uint64_t points = sphere_points(sphere, in, t, P.margin);
+                if (points) pass(i, sphere, points);
+            }
+            return;
+        }
+        const double bound[5] = {P.lo[0], -P.hi[0], P.lo[1], -P.hi[1], P.low};
+        const double* axis[5] = {frame_[1], frame_[1], frame_[2], frame_[2], frame_[0]};
+        float nx[5], ny[5], nz[5], side[5];
+        for (int q = 0; q < 5; ++q) {
+            const double sign = q == 1 || q == 3 ? -1 : 1;
+            nx[q] = float(sign * axis[q][0]), ny[q] = float(sign * axis[q][1]), nz[q] = float(sign * axis[q][2]);
+            side[q] = math::round_down(bound[q] - slack);
+        }
+        for (uint32_t first = first_sphere; first < stop; first += 64) {
+            const uint32_t n = std::min<uint32_t>(64, stop - first);
+            const float *x = &s.x[first], *y = &s.y[first], *z = &s.z[first], *rr = &s.r[first];
+            uint64_t keep = 0;                               // bit j: sphere first + j may meet the prism
+            for (uint32_t j = 0; j < n; j += simd::width) {  // the arrays are padded past each level's last group
+                const simd::Floats cx = simd::loadu(x + j), cy = simd::loadu(y + j), cz = simd::loadu(z + j),
+                                   r = simd::loadu(rr + j);
+                simd::Mask k = simd::dot_plus(cx, cy, cz, nx[0], ny[0], nz[0], r) >= simd::splat(side[0]);
+                for (int q = 1; q < 5; ++q)
+                    k = k & (simd::dot_plus(cx, cy, cz, nx[q], ny[q], nz[q], r) >= simd::splat(side[q]));
+                keep |= uint64_t(simd::bits(k)) << j;
+            }
+            if (n < 64) keep &= (uint64_t(1) << n) - 1;
+            for (; keep; keep &= keep - 1) {
+                const uint32_t i = first + math::lowest_bit(keep);
+                const Sphere sphere = across(i);
+                const uint64_t points =
+                    sun_sphere_points(sphere.u, sphere.v, sphere.w, sphere.r, slack, in, t.fu, t.fv, t.fw);
+                if (points) pass(i, sphere, points);
+            }
+        }
+    }
 
+    // A cluster's box set up for box_points (SunBox, cb_tile.h).
     SunBox sun_box(const Obb& box) const {
         SunBox b;
         const ScanBounds& s = bounds();
@@ -257,14 +316,17 @@ private:
     // the subset's lanes, the box's three axes (the ray, from where it starts to count, heads one way along
     // each: it must start on the box's near side of its far face) and z x each (the ray projects to one value
     // there). The margin, 1e-6 of the coordinates' and the box's sizes, holds the float roundings (below 1e-7 of
-    // them each) and the float direction's departure from the ray's (6e-8 of the way to the box).
-    static uint64_t box_points(const SunBox& b, uint64_t subset, const Tile& t) {
+    // them each) and the float direction's departure from the ray's (6e-8 of the way to the box). `unsure`
+    // gets the points kept that would not be with the margin taken off instead (whose ray may miss the box).
+    static uint64_t box_points(const SunBox& b, uint64_t subset, const Tile& t, uint64_t& unsure) {
         using simd::Floats;
         uint32_t begin, end;
+        unsure = subset;
+        if (!subset) return 0;
         simd::lane_span(subset, begin, end);
         if (!(b.scale + t.size > 1e-30f)) return subset;  // a margin that float's subnormals could swallow
-        const Floats m = simd::splat(1e-6f * (b.scale + t.size)), zero = simd::splat(0.0f);
-        uint64_t keep = 0;
+        const Floats m = simd::splat(1e-6f * (b.scale + t.size)), zero = simd::splat(0.0f), m2 = m + m;
+        uint64_t keep = 0, sure = 0;
         for (uint32_t i = begin; i < end; i += simd::width) {
             if (!simd::group(subset, i)) continue;
             const Floats qx = simd::load(t.x + i) - simd::splat(b.c[0]), qy = simd::load(t.y + i) - simd::splat(b.c[1]),
@@ -277,17 +339,35 @@ private:
                 worst = simd::min(worst, (simd::splat(b.support[k]) + m) - across);
             }
             keep |= uint64_t(simd::bits(worst >= zero)) << i;
+            sure |= uint64_t(simd::bits(worst >= m2)) << i;
         }
+        unsure = subset & keep & ~sure;
         return subset & keep;
     }
 
-    // The points of `subset` whose ray may touch `box`: in float when the tile allows, else in double.
-    uint64_t points_near_box(const Obb& box, uint64_t subset, const Tile& t) const {
+    // Fine cluster f's box set up for box_points, from the batch's cache when it holds it (and left there).
+    const SunBox& fine_sun_box(uint32_t f, TileCache* cache, SunBox& own) const {
+        if (!cache) return own = sun_box(bounds().fine_obbs[f]);
+        const uint32_t slot = f % TileCache::box_slots;
+        if (cache->box_owner[slot] != this || cache->box_cluster[slot] != f) {
+            cache->sun_box[slot] = sun_box(bounds().fine_obbs[f]);
+            cache->box_owner[slot] = this;
+            cache->box_cluster[slot] = f;
+        }
+        return cache->sun_box[slot];
+    }
+
+    // The points of `subset` whose ray may touch fine cluster f's box: in float when the tile allows (`unsure`
+    // gets those the float test could not settle), else in double.
+    uint64_t fine_box_points(uint32_t f, uint64_t subset, const Tile& t, uint64_t& unsure) const {
+        unsure = 0;
         if (!subset) return 0;
-        if (t.small) return box_points(sun_box(box), subset, t);
+        SunBox own;
+        if (t.small) return box_points(fine_sun_box(f, t.cache, own), subset, t, unsure);
         for (uint64_t b = subset; b; b &= b - 1) {
             const uint32_t i = math::lowest_bit(b);
-            if (!ray_may_touch_box(box, t.p[i], toward_, blocking_start(from_))) subset &= ~(uint64_t(1) << i);
+            if (!ray_may_touch_box(bounds().fine_obbs[f], t.p[i], toward_, blocking_start(from_)))
+                subset &= ~(uint64_t(1) << i);
         }
         return subset;
     }
@@ -302,16 +382,24 @@ private:
         }
     }
 
+    // The coarse clusters whose rays the tile's points may meet, with those points, onto the entered list.
     void scan_coarse(Tile& t) const {
-        make_prism(t, t.alive, bounds().extent);
-        for (uint32_t c = 0; c < mesh_->coarse_count && t.alive; ++c) {
-            const Sphere& s = coarse_[c];
-            if (coarse_skipped_[c] || !meets_prism(s, t)) continue;
-            const uint64_t points = points_near_box(bounds().coarse_obbs[c], sphere_points(s, t.alive, t), t);
-            if (!points) continue;
+        const uint32_t first = bounds().coarse_first;
+        scan_spheres(first, mesh_->coarse_count, t.alive, t, [&](uint32_t i, const Sphere& s, uint64_t points) {
+            const uint32_t c = i - first;
+            points &= t.alive;  // less once the entered list filled up and was walked
+            if (coarse_skipped_[c] || !points) return;
+            uint64_t unsure;  // coarse boxes are not tested again
+            if (t.small) points = box_points(coarse_boxes_[c], points, t, unsure);
+            for (uint64_t b = t.small ? 0 : points; b; b &= b - 1) {
+                const uint32_t k = math::lowest_bit(b);
+                if (!ray_may_touch_box(bounds().coarse_obbs[c], t.p[k], toward_, blocking_start(from_)))
+                    points &= ~(uint64_t(1) << k);
+            }
+            if (!points) return;
             if (t.entered_count == Tile::entered_capacity) walk_entered(t);
-            t.entered[t.entered_count++] = {-(s.w + s.r), c, points};
-        }
+            t.entered[t.entered_count++] = {-(s.w + s.r), c, points, 0};
+        });
     }
 
     // The entered coarse clusters, the sun's side first: their fine spheres scanned, each one's clusters
@@ -324,15 +412,14 @@ private:
             const uint64_t in = t.entered[e].points & t.alive;
             if (!in) continue;
             const ClusterRange& r = view_->coarse[mesh_->first_coarse + t.entered[e].id];
-            for (uint32_t f = r.first; f < r.first + r.count; ++f) {
-                const Sphere sphere = across(f);
-                if (!meets_prism(sphere, t) || fine_faces_the_sun(f)) continue;
-                const uint64_t points =
-                    points_near_box(bounds().fine_obbs[f], sphere_points(sphere, in & t.alive, t), t);
-                if (!points) continue;
+            scan_spheres(r.first, r.count, in, t, [&](uint32_t f, const Sphere& sphere, uint64_t points) {
+                if (fine_faces_the_sun(f)) return;
+                uint64_t unsure;
+                points = fine_box_points(f, points & t.alive, t, unsure);
+                if (!points) return;
                 if (t.pending_count == Tile::pending_capacity) test_pending(t);
-                t.pending[t.pending_count++] = {-(sphere.w + sphere.r), f, points};
-            }
+                t.pending[t.pending_count++] = {-(sphere.w + sphere.r), f, points, unsure};
+            });
             test_pending(t);
         }
     }
@@ -347,9 +434,10 @@ private:
         for (uint32_t e = 0; e < count && t.alive; ++e) {
             const uint32_t f = t.pending[e].id;
             uint64_t points = t.pending[e].points & t.alive;
-            // The box again, in double: the float filter's margin lets through the cluster a point lies on,
-            // whose ray leaves the thin box soon after it starts to count; its triangles cost far more.
-            for (uint64_t b = t.small ? points : 0; b; b &= b - 1) {
+            // The box again in double for the points the float test did not settle: its margin lets through
+            // the cluster a point lies on, whose ray leaves the thin box soon after it starts to count; its
+            // triangles cost far more.
+            for (uint64_t b = points & t.pending[e].unsure; b; b &= b - 1) {
                 const uint32_t i = math::lowest_bit(b);
                 if (!ray_may_touch_box(boxes[f], t.p[i], toward_, blocking_start(from_))) points &= ~(uint64_t(1) << i);
             }
@@ -374,7 +462,7 @@ private:
     static constexpr double float_safe = 1e9;  // sizes below which the float box filter cannot overflow
     const ScanBounds* shared_bounds_ = nullptr;
     ScanBounds own_bounds_;
-    std::vector<Sphere> coarse_;           // the coarse spheres in the sun's frame
+    std::vector<SunBox> coarse_boxes_;     // the coarse boxes set up for box_points (when boxes_small_)
     std::vector<uint8_t> coarse_skipped_;  // one-sided: coarse clusters the sun sees from the front
     size_t skipped_ = 0;
 };

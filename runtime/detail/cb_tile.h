@@ -84,8 +84,16 @@ struct BoxFilter {
     bool usable;  // false where float could overflow: the points are then tested in double
 };
 
+// A box set up for one sun's float separating-axis test (SunTraversal::box_points): its centre from the
+// scan bounds' origin, its axes, each axis's padded half extent (infinite where the ray runs nearly across
+// it: no test there) with the side the ray heads to (sign) and how far along the axis it has gone at
+// blocking_start (lift), and the axes z x a_k (z the sun's direction) with the box's support on them.
+struct SunBox {
+    float c[3], a[3][3], h[3], sign[3], lift[3], w[3][3], support[3], scale;
+};
+
 // What one thread's batch keeps from tile to tile (neighbouring tiles meet many of the same fine
-// clusters): lit triangle groups and box filters, each under its traversal's name. clear() before the
+// clusters): lit triangle groups and box set-ups, each under its traversal's name. clear() before the
 // traversals change.
 struct TileCache {
     lit::Cache lit;
@@ -93,6 +101,7 @@ struct TileCache {
     const void* box_owner[box_slots];
     uint32_t box_cluster[box_slots];
     BoxFilter box[box_slots];
+    SunBox sun_box[box_slots];  // for a sun's traversal (an owner is of one kind)
     void clear() {
         lit.clear();
         for (const void*& o : box_owner) o = nullptr;
@@ -166,6 +175,32 @@ inline uint64_t lit_sphere_points(float x, float y, float z, float r, uint64_t s
         m = simd::min(m, simd::fma(vr, d, along));
         m = simd::min(m, simd::fms(d + vr, d, along));
         keep |= uint64_t(simd::bits(m >= zero)) << i;
+    }
+    return keep & subset;
+}
+
+// The points of `subset` (lanes of u, v, w: their coordinates in a sun's frame, across the direction and up
+// along it toward the sun, from some centre, in float) whose ray toward the sun may meet the sphere of centre
+// (cu, cv, cw) from that centre and radius r: the ray passes within the radius across the direction, and the
+// sphere reaches above the point. The radius is grown by `slack`, which must be at least 1e-6 of every
+// |coordinate|_1 involved, the sphere's and the points': the float coordinates err by 6e-8 of those, the
+// distance across by under 3e-7, its square by a few float epsilons more than the radius's (which a factor
+// 1 + 1e-6 holds). Every size below 1e18 and slack above 1e-15, so that the squares neither overflow nor fall
+// to subnormals.
+inline uint64_t sun_sphere_points(double cu, double cv, double cw, double r, double slack, uint64_t subset,
+                                  const float* u, const float* v, const float* w) {
+    if (!subset) return 0;
+    using simd::Floats;
+    const float grown = math::round_up((r + slack) * (1 + 1e-6));
+    const Floats su = simd::splat(float(cu)), sv = simd::splat(float(cv)), r2 = simd::splat(grown * grown),
+                 top = simd::splat(math::round_up(cw + r + slack));
+    uint32_t begin, end;
+    simd::lane_span(subset, begin, end);
+    uint64_t keep = 0;
+    for (uint32_t i = begin; i < end; i += simd::width) {
+        if (!simd::group(subset, i)) continue;
+        const Floats du = su - simd::load(u + i), dv = sv - simd::load(v + i);
+        keep |= uint64_t(simd::bits((simd::fma(du, du, dv * dv) <= r2) & (simd::load(w + i) <= top))) << i;
     }
     return keep & subset;
 }
