@@ -1027,10 +1027,12 @@ TEST(Shadow, SunSphereTestKeepsEveryRayThatMeetsTheSphere) {
     EXPECT_EQ(far_kept, 0u);  // and near the origin, what lies well outside is ruled out
 }
 
-TEST(Shadow, SunLineTestsRuleOutOnlyMisses) {
+TEST(Shadow, SunLineTestsDecideLikeTheExactTest) {
+    // Every triangle the float tests rule out must be missed by ray_triangle, every one they find surely
+    // blocking must block it.
     std::mt19937 rng(23);
     std::uniform_real_distribution<double> u(0, 1);
-    size_t pairs = 0, ruled_out = 0, wrong = 0, answers = 0, blocked = 0;
+    size_t pairs = 0, ruled_out = 0, sure = 0, wrong = 0, answers = 0, blocked = 0;
     for_each_grid_cluster(
         {0.0, 1e6, 3e7}, 1, 1, 0.3, 1.7, 120, rng,
         [&](double, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
@@ -1075,15 +1077,20 @@ TEST(Shadow, SunLineTestsRuleOutOnlyMisses) {
                     const uint32_t count = std::min<uint32_t>(cb::sun_lit::capacity, c.triangle_count - first);
                     cb::sun_lit::SunTriangles lit;
                     cb::sun_lit::sun_triangles(v, m, c, first, count, toward, frame[0], one_sided, lit);
+                    const double lift[3] = {from * toward[0], from * toward[1], from * toward[2]};
                     for (int i = 0; i < 64; ++i) {
-                        const uint32_t kept = cb::sun_lit::sun_line_tests(lit, p[i]);
+                        uint32_t blocks;
+                        const uint32_t kept = cb::sun_lit::sun_line_tests(lit, p[i], lift, blocks);
                         for (uint32_t k = 0; k < count; ++k) {
                             ++pairs;
-                            if (kept >> k & 1) continue;
-                            ++ruled_out;
+                            const bool out = !(kept >> k & 1), in = blocks >> k & 1;
+                            if (!out && !in) continue;
+                            ruled_out += out;
+                            sure += in;
                             double x[3][3];
                             triangle_corners(v, m, f, c.first_triangle + first + k, x);
-                            wrong += cb::ray_triangle(p[i], toward, x[0], x[1], x[2], from, !one_sided).blocks;
+                            wrong += (out && in) ||
+                                cb::ray_triangle(p[i], toward, x[0], x[1], x[2], from, !one_sided).blocks != in;
                         }
                     }
                 }
@@ -1102,10 +1109,13 @@ TEST(Shadow, SunLineTestsRuleOutOnlyMisses) {
                 }
             }
         });
-    std::printf("%zu point and triangle pairs, %zu ruled out in float; %zu answers (%zu blocked)\n", pairs, ruled_out,
-                answers, blocked);
+    std::printf(
+        "%zu point and triangle pairs, %zu ruled out and %zu found blocking in float; %zu answers (%zu "
+        "blocked)\n",
+        pairs, ruled_out, sure, answers, blocked);
     EXPECT_EQ(wrong, 0u);
     EXPECT_GT(ruled_out, pairs / 2);
+    EXPECT_GT(sure, blocked / 4);
     EXPECT_GT(blocked, answers / 20);
     EXPECT_LT(blocked, answers - answers / 20);
 }

@@ -2,10 +2,12 @@
 // SunTraversal runs it (cluster_blocks_sun_points). Every ray runs along one direction d, so the test of the
 // line through p against triangle edge u -> v, orient3d(p, p + d, u, v) = (p - v) . (d x (u - v)), is one
 // dot product per point with a normal that the whole tile shares: set up once per group of up to 16
-// triangles, in float, and settled against an error bound a vector of triangles an instruction. A line that
-// surely misses a triangle (two edge signs settled and opposite) needs nothing else; the rest go to the exact
-// ray_triangle. The answers are those of ray_triangle on each triangle. Header-only C++17, no dependencies,
-// no exceptions, no allocation. MIT licensed (runtime/LICENSE).
+// triangles, in float, and settled against an error bound a vector of triangles an instruction. So is the
+// side of the triangle's plane where the ray starts to count. A line that surely misses a triangle (two edge
+// signs settled and opposite), or a ray that surely starts beyond its plane heading away from it, needs
+// nothing else; nor does one that surely blocks (all three edge signs settled and alike, the start settled
+// before the plane); the rest go to the exact ray_triangle. The answers are those of ray_triangle on each
+// triangle. Header-only C++17, no dependencies, no exceptions, no allocation. MIT licensed (runtime/LICENSE).
 #pragma once
 
 #include <algorithm>
@@ -40,15 +42,26 @@ constexpr uint32_t capacity = lit::capacity;
 // 1e-18 <= max(A) <= 1e30 and |u - v|_1, |r|_1 <= 1e20; a point when |q|_1 <= 1e20 and |q|_1 max(A) <= 1e30
 // for every usable edge: nothing overflows. The sign is that of the exact orientation for the direction d
 // scaled by any positive factor, so the unit direction stands for the caller's.
+//
+// The plane test: with n = (b - a) x (c - a) and s the ray's start (p + from d, from the origin as q), the ray
+// meets the plane at or after its start only if n . (s - r0) (r0: corner a from the origin) is 0 or has the
+// sign opposite to n . d's. n is computed in float from float corners, within 5.01 2^-24 N of the exact one
+// componentwise (N = |b - a| x |c - a| as A above); rounding s and r0 to float, the two dot products and their
+// difference add 5.02 2^-24 max(N) (|s|_1 + |r0|_1): in all under 10.03 2^-24 = 6e-7 of that, taken as 8e-7
+// (plus 1e-30 as above), with |s|_1 bounded by |q|_1 + |from d|_1 (the double sum's rounding is far below).
+// Usable as an edge is, with N for A. The sign of n . d is the exact one.
 struct SunTriangles {
     uint32_t count = 0;
-    uint32_t may_block = 0;  // bit t: triangle t can block at all (one-sided, not when the sun surely sees its front)
+    uint32_t may_block = 0;  // bit t: triangle t can block at all (not along the sun; one-sided, not facing it)
     uint32_t two_sided = 0;  // bit t: triangle t blocks from both sides
     const float* corner[capacity][3];
     double origin[3];  // corner 0 of the first triangle
     alignas(64) float mx[3][capacity], my[3][capacity], mz[3][capacity], w[3][capacity];  // w = m . r
     alignas(64) float slope[3][capacity], rest[3][capacity];  // bound = |q|_1 slope + rest (infinite: never settled)
-    float scale = 0;                                          // the largest usable max(A)
+    alignas(64) float nx[capacity], ny[capacity], nz[capacity], nw[capacity];  // the plane's n and n . r0
+    alignas(64) float nslope[capacity], nrest[capacity];  // its bound = |s|_1 nslope + nrest (infinite: unusable)
+    alignas(64) float heading[capacity];                  // the sign of n . d (+1, -1, 0), exactly
+    float scale = 0;                                      // the largest usable max(A) or max(N)
 };
 
 // Triangles [first, first + count) of fine cluster c (count <= capacity), for the sun toward `toward` (the
@@ -76,13 +89,17 @@ inline void sun_triangles(const AssetView& v, const MeshRecord& mesh, const Fine
             rz[k][t] = float(oz);
             r1[k][t] = float((std::fabs(ox) + std::fabs(oy) + std::fabs(oz)) * 1.000001);
         }
-        // One-sided, a triangle whose front the sun surely sees never blocks (ray_triangle's side of d).
+        // The side of the plane the ray heads for, ray_triangle's det(-d, b - a, c - a) = -(n . d), exactly
+        // (once per triangle: for a sun along a face, it is zero for every point). The ray runs along the plane
+        // when it is zero, and never blocks; one-sided, a triangle whose front the sun sees never blocks.
         const double minus_d[3] = {-toward[0], -toward[1], -toward[2]};
         const exact::Row rows[3] = {{minus_d, nullptr}, {x[1], x[0]}, {x[2], x[0]}};
         double bound;
         const double side = exact::det3_estimate(rows, bound);
-        const bool front = -side > bound;
-        out.may_block |= uint32_t((out.two_sided >> t & 1) || !front) << t;
+        const int sign = side > bound ? 1 : -side > bound ? -1 : exact::sign(exact::det3_exact(rows));
+        const bool blocks = sign == 1 || (sign == -1 && (out.two_sided >> t & 1));
+        out.may_block |= uint32_t(blocks) << t;
+        out.heading[t] = float(-sign);
     }
     const float dx = float(unit[0]), dy = float(unit[1]), dz = float(unit[2]);
     alignas(64) float widest[capacity] = {};
@@ -105,33 +122,71 @@ inline void sun_triangles(const AssetView& v, const MeshRecord& mesh, const Fine
             widest[t] = std::max(widest[t], usable ? amax : 0.0f);
         }
     }
+    for (uint32_t t = 0; t < capacity; ++t) {  // the planes
+        const float ax = px[1][t] - px[0][t], ay = py[1][t] - py[0][t], az = pz[1][t] - pz[0][t];
+        const float bx = px[2][t] - px[0][t], by = py[2][t] - py[0][t], bz = pz[2][t] - pz[0][t];
+        const float nmax =
+            std::max(std::max(std::fabs(ay * bz) + std::fabs(az * by), std::fabs(az * bx) + std::fabs(ax * bz)),
+                     std::fabs(ax * by) + std::fabs(ay * bx));
+        const bool usable = t < count && out.heading[t] != 0 && nmax >= 1e-18f && nmax <= 1e30f && r1[0][t] <= 1e20f;
+        out.nx[t] = ay * bz - az * by;
+        out.ny[t] = az * bx - ax * bz;
+        out.nz[t] = ax * by - ay * bx;
+        out.nw[t] = out.nx[t] * rx[0][t] + out.ny[t] * ry[0][t] + out.nz[t] * rz[0][t];
+        out.nslope[t] = usable ? 8e-7f * nmax : INFINITY;
+        out.nrest[t] = usable ? 8e-7f * nmax * r1[0][t] + 1e-30f : INFINITY;
+        widest[t] = std::max(widest[t], usable ? nmax : 0.0f);
+    }
     for (uint32_t half = capacity / 2; half > 0; half /= 2)
         for (uint32_t t = 0; t < half; ++t) widest[t] = std::max(widest[t], widest[t + half]);
     out.scale = widest[0];
 }
 
-// The triangles of `lit` whose line through p the float test cannot rule out (bits; not the padding): a
-// line is ruled out when two edge signs are settled beyond their bounds and opposite.
-inline uint32_t sun_line_tests(const SunTriangles& lit, const double* p) {
+// The triangles of `lit` that the float tests cannot rule out for the ray from p (bits; not the padding),
+// which starts to count at p + lift (lift = from times the direction, from >= 0): a triangle is ruled out
+// when two edge signs of the line are settled beyond their bounds and opposite, or when the ray's start lies
+// beyond the triangle's plane (settled) on the side the ray heads to. `blocks` gets those of them that surely
+// block: all three edge signs settled and alike (the line crosses the triangle's inside) and the start
+// settled on the near side of the plane (the crossing comes after it), which is ray_triangle's block without
+// a touching contact.
+inline uint32_t sun_line_tests(const SunTriangles& lit, const double* p, const double* lift, uint32_t& blocks) {
     const uint32_t all = (1u << lit.count) - 1;  // (capacity < 32)
+    blocks = 0;
     const double q0 = p[0] - lit.origin[0], q1 = p[1] - lit.origin[1], q2 = p[2] - lit.origin[2];
     const double q_l1 = std::fabs(q0) + std::fabs(q1) + std::fabs(q2);
-    if (!(q_l1 <= 1e20 && q_l1 * lit.scale <= 1e30)) return all & lit.may_block;
-    const simd::Floats x = simd::splat(float(q0)), y = simd::splat(float(q1)), z = simd::splat(float(q2));
-    const simd::Floats l1 = simd::splat(float(q_l1 * 1.000001)), zero = simd::splat(0.0f);
-    uint32_t missed = 0;
+    const double s_l1 = q_l1 + std::fabs(lift[0]) + std::fabs(lift[1]) + std::fabs(lift[2]);
+    if (!(s_l1 <= 1e20 && s_l1 * lit.scale <= 1e30)) return all & lit.may_block;
+    using simd::Floats;
+    const Floats x = simd::splat(float(q0)), y = simd::splat(float(q1)), z = simd::splat(float(q2));
+    const Floats sx = simd::splat(float(q0 + lift[0])), sy = simd::splat(float(q1 + lift[1])),
+                 sz = simd::splat(float(q2 + lift[2]));
+    const Floats l1 = simd::splat(float(q_l1 * 1.000001)), sl1 = simd::splat(float(s_l1 * 1.000001)),
+                 zero = simd::splat(0.0f);
+    uint32_t missed = 0, crossed = 0;
     for (uint32_t t = 0; t < lit.count; t += simd::width) {
-        uint32_t positive = 0, negative = 0;
+        uint32_t positive = 0, negative = 0, all_positive = ~0u, all_negative = ~0u;
         for (int k = 0; k < 3; ++k) {
-            const simd::Floats o =
+            const Floats o =
                 simd::dot(x, y, z, simd::load(lit.mx[k] + t), simd::load(lit.my[k] + t), simd::load(lit.mz[k] + t)) -
                 simd::load(lit.w[k] + t);
-            const simd::Floats bound = simd::fma(l1, simd::load(lit.slope[k] + t), simd::load(lit.rest[k] + t));
-            positive |= simd::bits(o > bound);
-            negative |= simd::bits(zero - o > bound);
+            const Floats bound = simd::fma(l1, simd::load(lit.slope[k] + t), simd::load(lit.rest[k] + t));
+            const uint32_t above = simd::bits(o > bound), below = simd::bits(zero - o > bound);
+            positive |= above;
+            negative |= below;
+            all_positive &= above;
+            all_negative &= below;
         }
-        missed |= (positive & negative) << t;
+        const Floats side =
+            simd::dot(sx, sy, sz, simd::load(lit.nx + t), simd::load(lit.ny + t), simd::load(lit.nz + t)) -
+            simd::load(lit.nw + t);
+        const Floats bound = simd::fma(sl1, simd::load(lit.nslope + t), simd::load(lit.nrest + t));
+        const Floats heading = simd::load(lit.heading + t);
+        const uint32_t ahead = simd::bits(side > bound), behind = simd::bits(zero - side > bound),
+                       up = simd::bits(heading > zero), down = simd::bits(heading < zero);
+        missed |= ((positive & negative) | (ahead & up) | (behind & down)) << t;
+        crossed |= ((all_positive | all_negative) & ((behind & up) | (ahead & down))) << t;
     }
+    blocks = all & lit.may_block & crossed;
     return all & lit.may_block & ~missed;
 }
 
@@ -149,6 +204,7 @@ inline uint64_t cluster_blocks_sun_points(const AssetView& v, const MeshRecord& 
     const uint32_t points = math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32));
     if (stats) stats->clusters_tested += points;
     uint64_t blocked = 0;
+    const double lift[3] = {from * toward[0], from * toward[1], from * toward[2]};
     SunTriangles lit;
     for (uint32_t first = 0; first < c.triangle_count && which; first += capacity) {
         const uint32_t count = std::min<uint32_t>(capacity, c.triangle_count - first);
@@ -156,7 +212,13 @@ inline uint64_t cluster_blocks_sun_points(const AssetView& v, const MeshRecord& 
         if (stats) stats->triangles_tested += uint64_t(count) * points;
         for (uint64_t b = which; b; b &= b - 1) {
             const uint32_t i = math::lowest_bit(b);
-            for (uint32_t m = sun_line_tests(lit, p[i]); m; m &= m - 1) {
+            uint32_t sure;
+            const uint32_t candidates = sun_line_tests(lit, p[i], lift, sure);
+            if (sure) {
+                blocked |= uint64_t(1) << i;
+                continue;
+            }
+            for (uint32_t m = candidates; m; m &= m - 1) {
                 const uint32_t t = math::lowest_bit(m);
                 double x[3][3];
                 for (int k = 0; k < 3; ++k)
