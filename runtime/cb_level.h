@@ -766,7 +766,9 @@ private:
                 const bool in = regular >> i & 1;
                 const double q[3] = {in ? across[i][0] - centre[0] : 0.0, in ? across[i][1] - centre[1] : 0.0,
                                      in ? across[i][2] - centre[2] : 0.0};
-                u[i] = float(q[0]), v[i] = float(q[1]), w[i] = float(q[2]);
+                u[i] = float(q[0]);
+                v[i] = float(q[1]);
+                w[i] = float(q[2]);
                 size = std::max(size, std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]));
             }
         }

@@ -999,7 +999,9 @@ TEST(Shadow, SunSphereTestKeepsEveryRayThatMeetsTheSphere) {
                 const double a = 6.283185307179586 * pos(rng);
                 const double q[3] = {c[0] + across * std::cos(a), c[1] + across * std::sin(a),
                                      i % 2 ? up : c[2] - 10 * r * pos(rng)};
-                u[i] = float(q[0]), v[i] = float(q[1]), w[i] = float(q[2]);
+                u[i] = float(q[0]);
+                v[i] = float(q[1]);
+                w[i] = float(q[2]);
                 size = std::max(size, std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]));
                 const double du = q[0] - c[0], dv = q[1] - c[1];
                 meets[i] = du * du + dv * dv <= r * r && q[2] <= c[2] + r;

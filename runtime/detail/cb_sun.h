@@ -64,8 +64,10 @@ public:
             for (const Obb& box : s.coarse_obbs) coarse_boxes_.push_back(sun_box(box));
         for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
             if (one_sided_ &&
-                faces_the_sun(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangle_range(view, *mesh_, c)))
-                skipped_ += view.coarse[mesh_->first_coarse + c].count, coarse_skipped_[c] = 1;
+                faces_the_sun(view.coarse_bounds, mesh_->first_coarse + c, coarse_triangle_range(view, *mesh_, c))) {
+                skipped_ += view.coarse[mesh_->first_coarse + c].count;
+                coarse_skipped_[c] = 1;
+            }
         }
     }
 
@@ -108,7 +110,9 @@ public:
                 continue;
             }
             const double q[3] = {t.p[i][0] - s.origin[0], t.p[i][1] - s.origin[1], t.p[i][2] - s.origin[2]};
-            t.u[i] = math::dot3(q, frame_[1]), t.v[i] = math::dot3(q, frame_[2]), t.w[i] = math::dot3(q, frame_[0]);
+            t.u[i] = math::dot3(q, frame_[1]);
+            t.v[i] = math::dot3(q, frame_[2]);
+            t.w[i] = math::dot3(q, frame_[0]);
             if (!(std::fabs(t.u[i]) + std::fabs(t.v[i]) + std::fabs(t.w[i]) < 1e30)) {
                 alone |= uint64_t(1) << i;
                 continue;
@@ -121,9 +125,11 @@ public:
         if (t.alive) simd::lane_span(t.alive, begin, end);
         for (uint32_t i = begin; i < end; ++i) {
             const bool in = t.alive >> i & 1;
-            t.x[i] = in ? float(t.p[i][0] - s.origin[0]) : 0.0f, t.y[i] = in ? float(t.p[i][1] - s.origin[1]) : 0.0f,
+            t.x[i] = in ? float(t.p[i][0] - s.origin[0]) : 0.0f;
+            t.y[i] = in ? float(t.p[i][1] - s.origin[1]) : 0.0f;
             t.z[i] = in ? float(t.p[i][2] - s.origin[2]) : 0.0f;
-            t.fu[i] = in ? float(t.u[i]) : 0.0f, t.fv[i] = in ? float(t.v[i]) : 0.0f,
+            t.fu[i] = in ? float(t.u[i]) : 0.0f;
+            t.fv[i] = in ? float(t.v[i]) : 0.0f;
             t.fw[i] = in ? float(t.w[i]) : 0.0f;
             t.size = std::max(t.size, std::fabs(t.x[i]) + std::fabs(t.y[i]) + std::fabs(t.z[i]));
         }
@@ -198,8 +204,10 @@ private:
         Prism P{{INFINITY, INFINITY}, {-INFINITY, -INFINITY}, INFINITY, 0, 0};
         for (uint64_t b = which; b; b &= b - 1) {
             const uint32_t i = math::lowest_bit(b);
-            P.lo[0] = std::min(P.lo[0], t.u[i]), P.hi[0] = std::max(P.hi[0], t.u[i]);
-            P.lo[1] = std::min(P.lo[1], t.v[i]), P.hi[1] = std::max(P.hi[1], t.v[i]);
+            P.lo[0] = std::min(P.lo[0], t.u[i]);
+            P.hi[0] = std::max(P.hi[0], t.u[i]);
+            P.lo[1] = std::min(P.lo[1], t.v[i]);
+            P.hi[1] = std::max(P.hi[1], t.v[i]);
             P.low = std::min(P.low, t.w[i]);
             P.size = std::max(P.size, std::fabs(t.u[i]) + std::fabs(t.v[i]) + std::fabs(t.w[i]));
         }
@@ -253,7 +261,9 @@ private:
         float nx[5], ny[5], nz[5], side[5];
         for (int q = 0; q < 5; ++q) {
             const double sign = q == 1 || q == 3 ? -1 : 1;
-            nx[q] = float(sign * axis[q][0]), ny[q] = float(sign * axis[q][1]), nz[q] = float(sign * axis[q][2]);
+            nx[q] = float(sign * axis[q][0]);
+            ny[q] = float(sign * axis[q][1]);
+            nz[q] = float(sign * axis[q][2]);
             side[q] = math::round_down(bound[q] - slack);
         }
         for (uint32_t first = first_sphere; first < stop; first += 64) {
@@ -289,7 +299,8 @@ private:
         double scale = h[0] + h[1] + h[2];
         for (int k = 0; k < 3; ++k) {
             const double a[3] = {box.axis[k][0], box.axis[k][1], box.axis[k][2]}, c = box.center[k] - s.origin[k];
-            b.c[k] = float(c), scale += std::fabs(c);
+            b.c[k] = float(c);
+            scale += std::fabs(c);
             for (int j = 0; j < 3; ++j) b.a[k][j] = box.axis[k][j];
             const double zk = math::dot3(a, z);
             b.sign[k] = zk > 1e-6 ? 1.0f : zk < -1e-6 ? -1.0f : 0.0f;
