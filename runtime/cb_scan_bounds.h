@@ -92,6 +92,33 @@ struct ScanBounds {
     }
 };
 
+// Five planes a scan tests spheres against (a tile's pyramid from a light, or its prism along a sun): sphere i
+// may meet the tile only if n_q . c_i + r_i >= side_q for every plane q, c_i its centre as stored (from
+// ScanBounds::origin). The caller lowers each side far enough below its double value to hold the float
+// evaluation's errors.
+struct SpherePlanes {
+    float nx[5], ny[5], nz[5], side[5];
+};
+
+// Bit j for each sphere first + j of `s` (j < n <= 64) that passes every plane: in float, a vector of
+// spheres an instruction (the arrays are padded past each level's last group).
+inline uint64_t spheres_passing(const ScanBounds& s, uint32_t first, uint32_t n, const SpherePlanes& planes) {
+    const float *x = &s.x[first], *y = &s.y[first], *z = &s.z[first], *rr = &s.r[first];
+    uint64_t keep = 0;
+    for (uint32_t j = 0; j < n; j += simd::width) {
+        const simd::Floats cx = simd::loadu(x + j), cy = simd::loadu(y + j), cz = simd::loadu(z + j),
+                           r = simd::loadu(rr + j);
+        simd::Mask k =
+            simd::dot_plus(cx, cy, cz, planes.nx[0], planes.ny[0], planes.nz[0], r) >= simd::splat(planes.side[0]);
+        for (int q = 1; q < 5; ++q)
+            k = k &
+                (simd::dot_plus(cx, cy, cz, planes.nx[q], planes.ny[q], planes.nz[q], r) >=
+                 simd::splat(planes.side[q]));
+        keep |= uint64_t(simd::bits(k)) << j;
+    }
+    return n < 64 ? keep & ((uint64_t(1) << n) - 1) : keep;
+}
+
 // The scan bounds of every mesh of `view`, indexed by mesh (what ShadowBuildOptions::bounds points to).
 inline std::vector<ScanBounds> make_scan_bounds(const AssetView& view) {
     std::vector<ScanBounds> all(view.mesh_count);

@@ -211,7 +211,8 @@ private:
         const Pyramid& P = t.pyramid;
         const double* l = light_from_origin_;
         const double slack = 1e-6 * (scan_bounds().extent + math::l1(l) + P.dmax);
-        float nx[5], ny[5], nz[5], side[5];
+        SpherePlanes planes;
+        float(&nx)[5] = planes.nx, (&ny)[5] = planes.ny, (&nz)[5] = planes.nz, (&side)[5] = planes.side;
         double sum[3] = {0, 0, 0};
         for (int r = 0; r < 4; ++r) {
             sum[0] += P.rx[r];
@@ -244,19 +245,9 @@ private:
         const ScanBounds& s = scan_bounds();
         const uint32_t stop = first_sphere + count;
         for (uint32_t first = first_sphere; first < stop; first += 64) {
-            const uint32_t n = std::min<uint32_t>(64, stop - first);
-            const float *x = &s.x[first], *y = &s.y[first], *z = &s.z[first], *rr = &s.r[first];
-            uint64_t keep = 0;                               // bit j: sphere first + j may meet the pyramid
-            for (uint32_t j = 0; j < n; j += simd::width) {  // the arrays are padded past each level's last group
-                const simd::Floats cx = simd::loadu(x + j), cy = simd::loadu(y + j), cz = simd::loadu(z + j),
-                                   r = simd::loadu(rr + j);
-                simd::Mask k = simd::dot_plus(cx, cy, cz, nx[4], ny[4], nz[4], r) >= simd::splat(side[4]);
-                for (int q = 0; q < 4; ++q)
-                    k = k & (simd::dot_plus(cx, cy, cz, nx[q], ny[q], nz[q], r) >= simd::splat(side[q]));
-                keep |= uint64_t(simd::bits(k)) << j;
-            }
-            if (n < 64) keep &= (uint64_t(1) << n) - 1;
-            for (; keep; keep &= keep - 1) {
+            // bit j: sphere first + j may meet the pyramid
+            for (uint64_t keep = spheres_passing(s, first, std::min<uint32_t>(64, stop - first), planes); keep;
+                 keep &= keep - 1) {
                 const uint32_t i = first + math::lowest_bit(keep);
                 const LitSphere lit = lit_sphere(i);
                 const uint64_t points = lit.everything || !each_point ? in : sphere_points(lit, in, t);

@@ -258,28 +258,18 @@ private:
         }
         const double bound[5] = {P.lo[0], -P.hi[0], P.lo[1], -P.hi[1], P.low};
         const double* axis[5] = {frame_[1], frame_[1], frame_[2], frame_[2], frame_[0]};
-        float nx[5], ny[5], nz[5], side[5];
+        SpherePlanes planes;
         for (int q = 0; q < 5; ++q) {
             const double sign = q == 1 || q == 3 ? -1 : 1;
-            nx[q] = float(sign * axis[q][0]);
-            ny[q] = float(sign * axis[q][1]);
-            nz[q] = float(sign * axis[q][2]);
-            side[q] = math::round_down(bound[q] - slack);
+            planes.nx[q] = float(sign * axis[q][0]);
+            planes.ny[q] = float(sign * axis[q][1]);
+            planes.nz[q] = float(sign * axis[q][2]);
+            planes.side[q] = math::round_down(bound[q] - slack);
         }
         for (uint32_t first = first_sphere; first < stop; first += 64) {
-            const uint32_t n = std::min<uint32_t>(64, stop - first);
-            const float *x = &s.x[first], *y = &s.y[first], *z = &s.z[first], *rr = &s.r[first];
-            uint64_t keep = 0;                               // bit j: sphere first + j may meet the prism
-            for (uint32_t j = 0; j < n; j += simd::width) {  // the arrays are padded past each level's last group
-                const simd::Floats cx = simd::loadu(x + j), cy = simd::loadu(y + j), cz = simd::loadu(z + j),
-                                   r = simd::loadu(rr + j);
-                simd::Mask k = simd::dot_plus(cx, cy, cz, nx[0], ny[0], nz[0], r) >= simd::splat(side[0]);
-                for (int q = 1; q < 5; ++q)
-                    k = k & (simd::dot_plus(cx, cy, cz, nx[q], ny[q], nz[q], r) >= simd::splat(side[q]));
-                keep |= uint64_t(simd::bits(k)) << j;
-            }
-            if (n < 64) keep &= (uint64_t(1) << n) - 1;
-            for (; keep; keep &= keep - 1) {
+            // bit j: sphere first + j may meet the prism
+            for (uint64_t keep = spheres_passing(s, first, std::min<uint32_t>(64, stop - first), planes); keep;
+                 keep &= keep - 1) {
                 const uint32_t i = first + math::lowest_bit(keep);
                 const Sphere sphere = across(i);
                 const uint64_t points =
