@@ -358,6 +358,15 @@ private:
         return cache->sun_box[slot];
     }
 
+    // The points of `subset` whose ray, from blocking_start on, may touch `box`: in double, point by point.
+    uint64_t double_box_points(const Obb& box, uint64_t subset, const Tile& t) const {
+        for (uint64_t b = subset; b; b &= b - 1) {
+            const uint32_t i = math::lowest_bit(b);
+            if (!ray_may_touch_box(box, t.p[i], toward_, blocking_start(from_))) subset &= ~(uint64_t(1) << i);
+        }
+        return subset;
+    }
+
     // The points of `subset` whose ray may touch fine cluster f's box: in float when the tile allows (`unsure`
     // gets those the float test could not settle), else in double.
     uint64_t fine_box_points(uint32_t f, uint64_t subset, const Tile& t, uint64_t& unsure) const {
@@ -365,12 +374,7 @@ private:
         if (!subset) return 0;
         SunBox own;
         if (t.small) return box_points(fine_sun_box(f, t.cache, own), subset, t, unsure);
-        for (uint64_t b = subset; b; b &= b - 1) {
-            const uint32_t i = math::lowest_bit(b);
-            if (!ray_may_touch_box(bounds().fine_obbs[f], t.p[i], toward_, blocking_start(from_)))
-                subset &= ~(uint64_t(1) << i);
-        }
-        return subset;
+        return double_box_points(bounds().fine_obbs[f], subset, t);
     }
 
     // Sorts a list by `near`, ties in list order (insertion: the lists are short).
@@ -391,12 +395,8 @@ private:
             points &= t.alive;  // less once the entered list filled up and was walked
             if (coarse_skipped_[c] || !points) return;
             uint64_t unsure;  // coarse boxes are not tested again
-            if (t.small) points = box_points(coarse_boxes_[c], points, t, unsure);
-            for (uint64_t b = t.small ? 0 : points; b; b &= b - 1) {
-                const uint32_t k = math::lowest_bit(b);
-                if (!ray_may_touch_box(bounds().coarse_obbs[c], t.p[k], toward_, blocking_start(from_)))
-                    points &= ~(uint64_t(1) << k);
-            }
+            points = t.small ? box_points(coarse_boxes_[c], points, t, unsure)
+                             : double_box_points(bounds().coarse_obbs[c], points, t);
             if (!points) return;
             if (t.entered_count == Tile::entered_capacity) walk_entered(t);
             t.entered[t.entered_count++] = {-(s.w + s.r), c, points, 0};
@@ -431,17 +431,14 @@ private:
         const uint32_t count = t.pending_count;
         t.pending_count = 0;
         sort_by_near(t.pending, count);
-        const std::vector<Obb>& boxes = bounds().fine_obbs;
         for (uint32_t e = 0; e < count && t.alive; ++e) {
             const uint32_t f = t.pending[e].id;
             uint64_t points = t.pending[e].points & t.alive;
             // The box again in double for the points the float test did not settle: its margin lets through
             // the cluster a point lies on, whose ray leaves the thin box soon after it starts to count; its
             // triangles cost far more.
-            for (uint64_t b = points & t.pending[e].unsure; b; b &= b - 1) {
-                const uint32_t i = math::lowest_bit(b);
-                if (!ray_may_touch_box(boxes[f], t.p[i], toward_, blocking_start(from_))) points &= ~(uint64_t(1) << i);
-            }
+            const uint64_t unsure = points & t.pending[e].unsure;
+            points = (points & ~unsure) | double_box_points(bounds().fine_obbs[f], unsure, t);
             if (!points) continue;
             const uint64_t blocked = cluster_blocks_sun_points(*view_, *mesh_, f, t.p, points, toward_, frame_[0],
                                                                from_, one_sided_, t.stats);
