@@ -120,10 +120,7 @@ void print_json(const QueryArgs& a, const double* light, const cb::SceneQueryRes
     nlohmann::json j = {{"tool", cb::tool_version()},
                         {"asset", a.asset},
                         {a.sun.empty() ? "light" : "sun", {light[0], light[1], light[2]}},
-                        {"traversal",
-                         a.reference         ? "reference"
-                             : a.sun.empty() ? a.traversal
-                                             : "sun"},
+                        {"traversal", a.reference ? "reference" : a.traversal},
                         {"one_sided", a.one_sided},
                         {"bias", q.bias},
                         {"points", n},
@@ -154,8 +151,7 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     if (refuse_given(c, {"--fine"},
                      "the fine cluster size is fixed when the asset is baked (--traversal picks how a query finds "
                      "clusters)") ||
-        (a.reference && refuse_given(c, {"--traversal"}, "--reference walks every cluster box instead")) ||
-        (!a.sun.empty() && refuse_given(c, {"--traversal"}, "a sun is answered by a scan of its own")))
+        (a.reference && refuse_given(c, {"--traversal"}, "--reference walks every cluster box instead")))
         return exit_usage;
     if (a.light.empty() == a.sun.empty()) {
         std::fprintf(stderr,
@@ -241,7 +237,9 @@ Command add_query(CLI::App& app) {
                   "clusters and one per coarse cluster over its fine clusters), 'one-tree' (one tree over "
                   "the fine clusters), 'mtsv' (per light, a metric tree over the fine clusters' sphere and "
                   "capsule cones, by angle from the light) or 'mtsv-two' (a metric tree over the coarse "
-                  "clusters' cones entering one per coarse cluster); same answers")
+                  "clusters' cones entering one per coarse cluster); with --sun, the same structures across the "
+                  "sun's direction (trees of lines about the boxes' prisms, metric trees of the spheres' "
+                  "discs); same answers")
         ->check(CLI::IsMember({"scan", "trees", "one-tree", "mtsv", "mtsv-two"}));
     c->add_option("--capsule-aspect", a->capsule_aspect,
                   "mtsv: a cluster's volume is its capsule when that is at least this many times as long as "

@@ -307,8 +307,6 @@ cb::SceneQueryOptions query_options(bool one_sided, const std::string& traversal
     cb::SceneQueryOptions o;
     if (!cb::parse_traversal(traversal, o.traversal))
         throw py::value_error("traversal takes scan, trees, one-tree, mtsv or mtsv-two (got '" + traversal + "')");
-    if (sun && o.traversal != cb::Traversal::scan)
-        throw py::value_error("a sun is answered by a scan of its own: sun=True takes no traversal");
     o.sun = sun;
     if (!(bias >= 0 && bias < INFINITY))
         throw py::value_error("bias takes a distance of at least 0 (0: the level's default)");

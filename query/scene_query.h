@@ -55,8 +55,8 @@ struct SceneQueryOptions {
     double capsule_aspect = 4.0;  // mtsv: capsule-cones for clusters at least this long for their width, else cones
     MetricBuild metric_build = MetricBuild::heuristic;  // mtsv: how the metric trees are built
     double bias = 0;   // self-shadowing bias, world distance (cb_segment.h); 0: the level's, cb::Level::shadow_bias
-    bool sun = false;  // the light is a sun: its xyz is the direction toward it (cb_segment.h, "A sun"); the
-                       // sun's own traversal answers (cb_sun.h), whatever `traversal` names
+    bool sun = false;  // the light is a sun: its xyz is the direction toward it (cb_segment.h, "A sun"), answered
+                       // by the sun's traversal (cb_sun.h) finding clusters as `traversal` names
 };
 
 struct SceneQueryResult {

@@ -10,8 +10,10 @@
 //   the light over the clusters' shadow volumes, built per light.
 // - cb_metric_tree.h, Traversal::mtsv and Traversal::mtsv_two: the thesis's second structure, ternary metric
 //   trees over the cones and capsule-cones of the clusters' spheres and capsules, by angle from the light.
-// - cb_sun.h, a sun (a light at infinity, given by its direction; build_sun): a scan of its own, the clusters'
-//   spheres against each tile's prism along the direction, whatever Traversal the options name.
+// - cb_sun.h, a sun (a light at infinity, given by its direction; build_sun): every volume is a prism along
+//   the direction. Traversal::scan scans the clusters' spheres against each tile's prism; the others walk
+//   trees across the direction built per sun (cb_sun_trees.h): lines over the boxes' prisms for trees and
+//   one_tree, discs of the spheres for mtsv and mtsv_two.
 // - cb_tile.h: what they share (the instance's frame, the tile of points, the box filters, the cluster
 //   tests); cb_batch.h: batches of points, sorted by direction and taken in tiles.
 //
@@ -65,18 +67,18 @@ public:
     }
 
     // One instance for a sun, given by `toward`, its world direction from the scene toward it (cb_segment.h,
-    // "A sun"): SunTraversal (cb_sun.h), whatever options.traversal names.
+    // "A sun"): SunTraversal (cb_sun.h), which finds the clusters as options.traversal names.
     void build_sun(const AssetView& view, uint32_t instance, const double* toward,
                    const ShadowBuildOptions& options = {}) {
         build_sun(view, placement_of(view, instance), toward, options);
     }
     void build_sun(const AssetView& view, Placement at, const double* toward, const ShadowBuildOptions& options = {}) {
         sun_ = true;
-        traversal_ = Traversal::scan;
+        traversal_ = options.traversal;
         build_as<SunTraversal>(view, at, toward, options);
     }
 
-    // The traversal built (Traversal::one_tree where the asset has no coarse boxes; scan for a sun).
+    // The traversal built (for a point light, Traversal::one_tree where the asset has no coarse boxes).
     Traversal traversal() const { return traversal_; }
     // Built for a sun: world_light() is then the direction toward it.
     bool sun() const { return sun_; }

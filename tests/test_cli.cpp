@@ -289,14 +289,16 @@ TEST(Cli, QuerySunAnswersAsItsReference) {
             EXPECT_EQ(one.out.size(), 1600u * 2);
             EXPECT_EQ(three.out, one.out);
             EXPECT_EQ(ref.out, one.out);
+            for (const char* traversal : {"trees", "one-tree", "mtsv", "mtsv-two"})
+                EXPECT_EQ(run(q + " --traversal " + traversal).out, one.out) << traversal;
             dark += size_t(std::count(one.out.begin(), one.out.end(), '1'));
         }
     EXPECT_GT(dark, 6u * 1600 / 50);  // shadows to get wrong
     CliRun json = run("query " + asset + " --points " + pts + " --sun 0,1,0 --json");
     EXPECT_NE(json.out.find("\"sun\":[0.0,1.0,0.0]"), std::string::npos) << json.out;
-    EXPECT_NE(json.out.find("\"traversal\":\"sun\""), std::string::npos) << json.out;
+    EXPECT_NE(json.out.find("\"traversal\":\"scan\""), std::string::npos) << json.out;
     for (const char* bad : {" --sun 0,0,0", " --sun 1,2", " --sun nan,1,0", " --sun 0,1,0 --light 0,5,0", "",
-                            " --sun 0,1,0 --traversal trees"}) {
+                            " --sun 0,1,0 --traversal tree"}) {
         CliRun r = run("query " + asset + " --points " + pts + bad);
         EXPECT_EQ(r.code, 2) << bad;
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;

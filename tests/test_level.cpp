@@ -75,10 +75,11 @@ std::vector<uint8_t> answer(cb::Level& level, const double* light, const Points&
 
 // The level's answers for a sun in direction `toward`.
 std::vector<uint8_t> answer_sun(cb::Level& level, const double* toward, const Points& p, bool one_sided,
-                                cb::QueryStats* stats = nullptr) {
+                                cb::QueryStats* stats = nullptr, cb::Traversal traversal = cb::Traversal::scan) {
     cb::LevelShadow shadow;
     cb::ShadowBuildOptions o;
     o.one_sided = one_sided;
+    o.traversal = traversal;
     std::vector<uint8_t> out(p.size(), 2);
     shadow.occluded_sun_batch(level, toward, p[0].data(), p.size(), out.data(), o, stats);
     return out;
@@ -145,7 +146,7 @@ TEST(Level, CityAnswersEqualTheExactOracle) {
 TEST(Level, SunAnswersEqualTheExactOracle) {
     // Suns over the city: overhead, low, grazing the ground (1e-9 off its plane), exactly along the ground,
     // straight down the walls, and along a diagonal of the grid; points on the surfaces, on the ground and
-    // above it; both modes.
+    // above it; both modes; the scan against the oracle, every tree against the scan.
     const std::unique_ptr<CityLevel> c = city_level(60, 3);
     cb::Level& level = c->level;
     const SceneOracle oracle(c->city, level.shadow_bias());
@@ -157,6 +158,11 @@ TEST(Level, SunAnswersEqualTheExactOracle) {
             const std::vector<uint8_t> got = answer_sun(level, sun, p, one_sided);
             EXPECT_EQ(disagreements(oracle, sun, p, got, one_sided, &dark, true), 0u)
                 << "sun " << sun[0] << "," << sun[1] << "," << sun[2] << (one_sided ? " one-sided" : "");
+            for (cb::Traversal t :
+                 {cb::Traversal::trees, cb::Traversal::one_tree, cb::Traversal::mtsv, cb::Traversal::mtsv_two})
+                EXPECT_EQ(answer_sun(level, sun, p, one_sided, nullptr, t), got)
+                    << "traversal " << int(t) << " sun " << sun[0] << "," << sun[1] << "," << sun[2]
+                    << (one_sided ? " one-sided" : "");
             if (!one_sided && sun[2] > 0.1) {
                 EXPECT_GT(dark, p.size() / 50);  // shadows to get wrong
             }

@@ -653,7 +653,8 @@ TEST(Shadow, SunAgreesWithExactOracle) {
             std::printf("skipped %s: ../shared/data is not here\n", f);
     std::mt19937 rng(43);
     std::uniform_real_distribution<double> u(-1, 1);
-    size_t queries = 0, wrong = 0, shadowed = 0, touching = 0, brute_wrong = 0, traversal_wrong = 0, skipped = 0;
+    size_t queries = 0, wrong = 0, shadowed = 0, touching = 0, brute_wrong = 0, traversal_wrong = 0, skipped = 0,
+           trees_built = 0;
     for (const auto& [name, b] : scenes) {
         SCOPED_TRACE(name);
         ASSERT_GT(b.view.mesh_count, 0u) << "bake failed";
@@ -705,28 +706,37 @@ TEST(Shadow, SunAgreesWithExactOracle) {
                         brute_wrong += oracle.occluded_sun_brute_force(p, sun, one_sided).blocked != exact.blocked;
                 }
             }
-            // The sun's traversal (cb_sun.h) on the same points: as a batch over every instance, and point by
-            // point.
-            for (bool one_sided : {false, true}) {
-                cb::ShadowBuildOptions o;
-                o.one_sided = one_sided, o.bias = bias;
-                std::vector<cb::InstanceShadow> shadows(v.instance_count);
-                for (uint32_t i = 0; i < v.instance_count; ++i) {
-                    shadows[i].build_sun(v, i, sun, o);
-                    skipped += shadows[i].skipped_clusters();
+            // The sun's traversal (cb_sun.h) on the same points, finding clusters by each traversal: as a batch
+            // over every instance, and point by point.
+            for (cb::Traversal traversal : {cb::Traversal::scan, cb::Traversal::trees, cb::Traversal::one_tree,
+                                            cb::Traversal::mtsv, cb::Traversal::mtsv_two})
+                for (bool one_sided : {false, true}) {
+                    cb::ShadowBuildOptions o;
+                    o.one_sided = one_sided;
+                    o.bias = bias;
+                    o.traversal = traversal;
+                    std::vector<cb::InstanceShadow> shadows(v.instance_count);
+                    for (uint32_t i = 0; i < v.instance_count; ++i) {
+                        shadows[i].build_sun(v, i, sun, o);
+                        skipped += shadows[i].skipped_clusters();
+                        trees_built += traversal != cb::Traversal::scan && shadows[i].node_count() > 0;
+                    }
+                    const size_t n = expect[one_sided].size();
+                    std::vector<uint32_t> scratch(cb::batch_scratch_size(shadows.data(), shadows.size(), n));
+                    std::vector<uint8_t> got(n, 2);
+                    cb::occluded_batch(shadows.data(), shadows.size(), asked.data(), n, got.data(), scratch.data());
+                    for (size_t k = 0; k < n; ++k) {
+                        const size_t before = traversal_wrong;
+                        traversal_wrong += got[k] != expect[one_sided][k];
+                        bool alone = false;
+                        for (const cb::InstanceShadow& sh : shadows)
+                            alone = alone || sh.occluded(&asked[k * 3], scratch.data());
+                        traversal_wrong += alone != bool(expect[one_sided][k]);
+                        if (traversal_wrong != before && traversal_wrong < 10)
+                            ADD_FAILURE()
+                                << "traversal " << int(traversal) << (one_sided ? " one-sided" : "") << " point " << k;
+                    }
                 }
-                const size_t n = expect[one_sided].size();
-                std::vector<uint32_t> scratch(cb::batch_scratch_size(shadows.data(), shadows.size(), n));
-                std::vector<uint8_t> got(n, 2);
-                cb::occluded_batch(shadows.data(), shadows.size(), asked.data(), n, got.data(), scratch.data());
-                for (size_t k = 0; k < n; ++k) {
-                    traversal_wrong += got[k] != expect[one_sided][k];
-                    bool alone = false;
-                    for (const cb::InstanceShadow& sh : shadows)
-                        alone = alone || sh.occluded(&asked[k * 3], scratch.data());
-                    traversal_wrong += alone != bool(expect[one_sided][k]);
-                }
-            }
         }
     }
     std::printf(
@@ -735,7 +745,8 @@ TEST(Shadow, SunAgreesWithExactOracle) {
         queries, scenes.size(), shadowed, touching, wrong, skipped);
     EXPECT_EQ(wrong, 0u);
     EXPECT_EQ(brute_wrong, 0u);
-    EXPECT_EQ(traversal_wrong, 0u);     // the sun's traversal, batched and point by point
+    EXPECT_EQ(traversal_wrong, 0u);     // the sun's traversal by each traversal, batched and point by point
+    EXPECT_GT(trees_built, 0u);         // the trees were built, not passed over
     EXPECT_GT(skipped, 0u);             // one-sided, whole clusters facing the sun were left out
     EXPECT_GT(shadowed, queries / 20);  // 9.6% on the scenes of this repository alone
     EXPECT_GT(touching, 10u);

@@ -53,13 +53,16 @@ def test_suns_equal_the_command_line(scene_asset, scene_asset_file, points, sun,
     assert np.array_equal(ours, theirs)
     together = scene_asset.occluded(pts, np.array(SUNS), sun=True, **options)
     assert np.array_equal(together[SUNS.index(sun)], ours)
+    for traversal in ("trees", "one-tree", "mtsv", "mtsv-two"):
+        walked = scene_asset.occluded(pts, sun, sun=True, traversal=traversal, **options)
+        assert np.array_equal(walked, ours), traversal
 
 
 def test_bad_suns_raise(scene_asset):
     with pytest.raises(ValueError, match="a sun's direction has no length"):
         scene_asset.occluded(np.zeros((4, 3)), (0, 0, 0), sun=True)
-    with pytest.raises(ValueError, match="a sun is answered by a scan of its own"):
-        scene_asset.occluded(np.zeros((4, 3)), (0, 1, 0), sun=True, traversal="trees")
+    with pytest.raises(ValueError, match="traversal takes scan"):
+        scene_asset.occluded(np.zeros((4, 3)), (0, 1, 0), sun=True, traversal="tree")
 
 
 def test_several_lights_at_once(scene_asset, points):

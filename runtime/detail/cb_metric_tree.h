@@ -517,7 +517,7 @@ private:
                 scene = std::max(scene, metric_tree::fast_angle_between(mean, e.m) + e.half + e.node.alpha);
             scene = std::min(scene, metric_tree::pi);
         }
-        shuffle(uint32_t(elements.size()));
+        insertion_order(uint32_t(elements.size()), work_.order);
         uint32_t root = none;
         for (uint32_t index : work_.order) {
             Element& e = elements[index];
@@ -561,7 +561,7 @@ private:
         std::vector<Node>& built = work_.built;
         // Each set is a range of `items`; where its subtree's root goes is a (node, child) slot, an index that
         // survives the nodes' array growing.
-        shuffle(uint32_t(elements.size()));
+        insertion_order(uint32_t(elements.size()), work_.order);
         std::vector<uint32_t> items = work_.order;
         struct Slot {
             uint32_t node, child;  // node none: the root
@@ -652,20 +652,6 @@ private:
             }
         }
         return root;
-    }
-
-    // Insertion order for n items, the same for every build (xorshift with a fixed seed), into work_.order.
-    void shuffle(uint32_t n) {
-        std::vector<uint32_t>& order = work_.order;
-        order.resize(n);
-        for (uint32_t i = 0; i < n; ++i) order[i] = i;
-        uint64_t state = 0x9e3779b97f4a7c15ULL;
-        for (uint32_t i = n; i > 1; --i) {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            std::swap(order[i - 1], order[state % i]);
-        }
     }
 
     // Lays the built nodes out in the order a walk meets them (depth first, near child next), into nodes_.

@@ -5,9 +5,11 @@
 // them up toward the sun. A tile scans the coarse clusters' spheres (ScanBounds, made once per asset) against
 // its prism, each point against the spheres that pass, then the fine spheres of the coarse clusters entered,
 // nearest the sun first, each sphere's points against its box (all in float lanes), and tests the clusters
-// found against the points still lit (cb_sun_triangles.h: a float line test, then ray_triangle exactly). The
-// answers are those of occluded_sun_reference (cb_shadow.h). Header-only C++17, no exceptions; building
-// allocates, queries do not. MIT licensed (runtime/LICENSE).
+// found against the points still lit (cb_sun_triangles.h: a float line test, then ray_triangle exactly). When
+// ShadowBuildOptions::traversal names a tree, the clusters whose volumes may hold a tile's points come from
+// trees built per sun (cb_sun_trees.h) in place of the sphere scans, and the same box and triangle tests
+// follow. The answers are those of occluded_sun_reference (cb_shadow.h) whatever the traversal. Header-only
+// C++17, no exceptions; building allocates, queries do not. MIT licensed (runtime/LICENSE).
 #pragma once
 
 #include <algorithm>
@@ -20,6 +22,7 @@
 #include "../cb_segment.h"
 #include "../cb_shadow.h"
 #include "cb_math.h"
+#include "cb_sun_trees.h"
 #include "cb_sun_triangles.h"
 #include "cb_tile.h"
 
@@ -31,12 +34,21 @@ public:
     static constexpr uint32_t none = 0xffffffffu;
 
     // One mesh of the asset placed by the caller, for the sun in world direction `toward` (from the scene
-    // toward the sun, any length above zero). options.traversal is not read: a sun has this traversal only.
+    // toward the sun, any length above zero). options.traversal chooses how the clusters are found: the scan
+    // (Traversal::scan), line trees over the boxes' prisms (trees: a coarse tree whose leaves lead to their
+    // fine clusters' trees; one_tree: one tree over the fine clusters), or disc trees over the spheres' discs
+    // (mtsv_two, mtsv). An asset without coarse boxes is answered point by point, as the reference walks it.
     void build(const AssetView& view, Placement at, const double* toward, const ShadowBuildOptions& options) {
         view_ = &view;
         one_sided_ = options.one_sided;
+        traversal_ = options.traversal;
         coarse_boxes_.clear();
         coarse_skipped_.clear();
+        lines_.clear();
+        discs_.clear();
+        fine_roots_.clear();
+        root_ = none;
+        tree_stack_ = 0;
         skipped_ = 0;
         for (int k = 0; k < 3; ++k) world_toward_[k] = toward[k];
         const double bias = options.bias > 0 ? options.bias : default_shadow_bias(asset_world_size(view));
@@ -69,17 +81,19 @@ public:
                 coarse_skipped_[c] = 1;
             }
         }
+        if (traversal_ != Traversal::scan) build_trees();
     }
 
     bool sun() const { return true; }
-    const double* world_light() const { return world_toward_; }  // the direction toward the sun
-    size_t stack_size() const { return 4; }                      // no tree: the stack is passed along only
-    size_t node_count() const { return 0; }
+    const double* world_light() const { return world_toward_; }                 // the direction toward the sun
+    size_t stack_size() const { return std::max<size_t>(4, 2 * tree_stack_); }  // a coarse walk, a fine one
+    size_t node_count() const { return lines_.node_count() + discs_.node_count(); }
     size_t always_tested() const { return 0; }
     size_t skipped_clusters() const { return skipped_; }  // one-sided: fine clusters the sun sees from the front
     size_t capsules() const { return 0; }
     size_t memory_bytes() const {
-        return own_bounds_.memory_bytes() + coarse_boxes_.capacity() * sizeof(SunBox) + coarse_skipped_.capacity();
+        return own_bounds_.memory_bytes() + coarse_boxes_.capacity() * sizeof(SunBox) + coarse_skipped_.capacity() +
+            lines_.memory_bytes() + discs_.memory_bytes() + fine_roots_.capacity() * sizeof(uint32_t);
     }
 
     // True when the ray from world point p toward the sun is blocked by this instance.
@@ -89,8 +103,9 @@ public:
     }
 
     // Of the `count` world points points + 3 * index[i] (xyz doubles), those set in `alive` that this
-    // instance shadows, as a mask; the same answers as occluded() point by point.
-    uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t*,
+    // instance shadows, as a mask; the same answers as occluded() point by point. `stack` holds stack_size()
+    // entries.
+    uint64_t occluded_tile(const double* points, const uint32_t* index, uint32_t count, uint64_t alive, uint32_t* stack,
                            QueryStats* stats = nullptr, TileCache* cache = nullptr) const {
         if (!usable_ || !alive) return 0;
         Tile t;
@@ -135,8 +150,8 @@ public:
         }
         t.small = t.size < float_safe && boxes_small_;
         if (t.alive) {
-            scan_coarse(t);
-            walk_entered(t);
+            find_coarse(t, stack);
+            walk_entered(t, stack);
             test_pending(t);
         }
         for (uint64_t b = alone; b; b &= b - 1) {
@@ -191,13 +206,9 @@ private:
         return {math::dot3(c, frame_[1]), math::dot3(c, frame_[2]), math::dot3(c, frame_[0]), double(s.r[i])};
     }
 
-    // The prism of some points: the rectangle bounding their projections across the direction, the lowest
-    // along it, the largest |u| + |v| + |w| among them, and a margin far above the rounding of the projections
-    // (a few 1e-16 of the sizes) and of the frame's departure from the ray's direction (1e-16 of the distance
-    // covered).
-    struct Prism {
-        double lo[2], hi[2], low, size, margin;
-    };
+    // The prism of some points (SunPrism): its margin is far above the rounding of the projections (a few
+    // 1e-16 of the sizes) and of the frame's departure from the ray's direction (1e-16 of the distance covered).
+    using Prism = SunPrism;
 
     // The prism of the points `which`.
     static Prism make_prism(const Tile& t, uint64_t which, double extent) {
@@ -387,40 +398,122 @@ private:
         }
     }
 
-    // The coarse clusters whose rays the tile's points may meet, with those points, onto the entered list.
-    void scan_coarse(Tile& t) const {
-        const uint32_t first = bounds().coarse_first;
-        scan_spheres(first, mesh_->coarse_count, t.alive, t, [&](uint32_t i, const Sphere& s, uint64_t points) {
-            const uint32_t c = i - first;
+    bool disc_trees() const { return traversal_ == Traversal::mtsv || traversal_ == Traversal::mtsv_two; }
+    bool two_levels() const { return traversal_ == Traversal::trees || traversal_ == Traversal::mtsv_two; }
+
+    // Sphere i of bounds() as a disc across the direction, for cluster `id`.
+    SunDisc disc(uint32_t i, uint32_t id) const {
+        const Sphere s = across(i);
+        return {s.u, s.v, s.r, s.w + s.r, id};
+    }
+
+    // The trees options.traversal names, over the clusters the sun may not see entirely from the front.
+    void build_trees() {
+        const ScanBounds& s = bounds();
+        std::vector<uint32_t> order;
+        std::vector<SunDisc> discs;
+        // One tree over fine clusters [first, first + count); returns its root.
+        auto fine_tree = [&](uint32_t first, uint32_t count) {
+            uint32_t root = none;
+            if (disc_trees()) {
+                discs.clear();
+                for (uint32_t f = first; f < first + count; ++f)
+                    if (!fine_faces_the_sun(f)) discs.push_back(disc(f, f));
+                return discs_.build(discs.data(), uint32_t(discs.size()));
+            }
+            insertion_order(count, order);
+            for (uint32_t i : order)
+                if (!fine_faces_the_sun(first + i))
+                    lines_.insert(root, sun_box_prism(s.fine_obbs[first + i], s.origin, frame_), first + i);
+            return root;
+        };
+        if (!two_levels()) {
+            root_ = fine_tree(0, mesh_->fine_count);
+        } else {
+            fine_roots_.assign(mesh_->coarse_count, none);
+            for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
+                const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
+                if (!coarse_skipped_[c]) fine_roots_[c] = fine_tree(r.first, r.count);
+            }
+            if (disc_trees()) {
+                discs.clear();
+                for (uint32_t c = 0; c < mesh_->coarse_count; ++c)
+                    if (!coarse_skipped_[c]) discs.push_back(disc(s.coarse_first + c, c));
+                root_ = discs_.build(discs.data(), uint32_t(discs.size()));
+            } else {
+                insertion_order(mesh_->coarse_count, order);
+                for (uint32_t c : order)
+                    if (!coarse_skipped_[c]) lines_.insert(root_, sun_box_prism(s.coarse_obbs[c], s.origin, frame_), c);
+            }
+        }
+        tree_stack_ = disc_trees() ? 0 : lines_.stack_size();
+    }
+
+    // The walk of the tree at `root` by the points `in`: pass(id, top, points) for each volume that may hold
+    // some of them still alive.
+    template <class Pass>
+    void walk_tree(uint32_t root, uint64_t in, Tile& t, uint32_t* stack, Pass pass) const {
+        const Prism P = make_prism(t, in, bounds().extent);
+        if (disc_trees())
+            discs_.walk(root, in, t.alive, t.u, t.v, t.w, P, pass);
+        else
+            lines_.walk(root, in, t.alive, t.u, t.v, t.w, P, stack, pass);
+    }
+
+    // Fine cluster f for the points `points` whose ray may meet its volume, whose top is `top`: its box in
+    // float, then the pending list.
+    void add_pending(uint32_t f, double top, uint64_t points, Tile& t) const {
+        uint64_t unsure;
+        points = fine_box_points(f, points & t.alive, t, unsure);
+        if (!points) return;
+        if (t.pending_count == Tile::pending_capacity) test_pending(t);
+        t.pending[t.pending_count++] = {-top, f, points, unsure};
+    }
+
+    // The coarse clusters whose volumes the tile's points may meet, with those points, onto the entered list
+    // (one tree: the fine clusters, onto the pending list). The coarse walk takes the stack's first half.
+    void find_coarse(Tile& t, uint32_t* stack) const {
+        auto enter = [&](uint32_t c, double top, uint64_t points) {
             points &= t.alive;  // less once the entered list filled up and was walked
             if (coarse_skipped_[c] || !points) return;
             uint64_t unsure;  // coarse boxes are not tested again
             points = t.small ? box_points(coarse_boxes_[c], points, t, unsure)
                              : double_box_points(bounds().coarse_obbs[c], points, t);
             if (!points) return;
-            if (t.entered_count == Tile::entered_capacity) walk_entered(t);
-            t.entered[t.entered_count++] = {-(s.w + s.r), c, points, 0};
-        });
+            if (t.entered_count == Tile::entered_capacity) walk_entered(t, stack);
+            t.entered[t.entered_count++] = {-top, c, points, 0};
+        };
+        if (traversal_ == Traversal::scan) {
+            const uint32_t first = bounds().coarse_first;
+            scan_spheres(first, mesh_->coarse_count, t.alive, t,
+                         [&](uint32_t i, const Sphere& s, uint64_t points) { enter(i - first, s.w + s.r, points); });
+        } else if (two_levels()) {
+            walk_tree(root_, t.alive, t, stack, enter);
+        } else {
+            walk_tree(root_, t.alive, t, stack,
+                      [&](uint32_t f, double top, uint64_t points) { add_pending(f, top, points, t); });
+        }
     }
 
-    // The entered coarse clusters, the sun's side first: their fine spheres scanned, each one's clusters
-    // tested before the next coarse cluster's.
-    void walk_entered(Tile& t) const {
+    // The entered coarse clusters, the sun's side first: their fine clusters found (scan or tree, on the
+    // stack's second half), each one's tested before the next coarse cluster's.
+    void walk_entered(Tile& t, uint32_t* stack) const {
         const uint32_t count = t.entered_count;
         t.entered_count = 0;
         sort_by_near(t.entered, count);
         for (uint32_t e = 0; e < count && t.alive; ++e) {
             const uint64_t in = t.entered[e].points & t.alive;
             if (!in) continue;
-            const ClusterRange& r = view_->coarse[mesh_->first_coarse + t.entered[e].id];
-            scan_spheres(r.first, r.count, in, t, [&](uint32_t f, const Sphere& sphere, uint64_t points) {
-                if (fine_faces_the_sun(f)) return;
-                uint64_t unsure;
-                points = fine_box_points(f, points & t.alive, t, unsure);
-                if (!points) return;
-                if (t.pending_count == Tile::pending_capacity) test_pending(t);
-                t.pending[t.pending_count++] = {-(sphere.w + sphere.r), f, points, unsure};
-            });
+            const uint32_t c = t.entered[e].id;
+            if (traversal_ == Traversal::scan) {
+                const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
+                scan_spheres(r.first, r.count, in, t, [&](uint32_t f, const Sphere& sphere, uint64_t points) {
+                    if (!fine_faces_the_sun(f)) add_pending(f, sphere.w + sphere.r, points, t);
+                });
+            } else {
+                walk_tree(fine_roots_[c], in, t, stack + tree_stack_,
+                          [&](uint32_t f, double top, uint64_t points) { add_pending(f, top, points, t); });
+            }
             test_pending(t);
         }
     }
@@ -454,6 +547,7 @@ private:
 
     const AssetView* view_ = nullptr;
     const MeshRecord* mesh_ = nullptr;
+    Traversal traversal_ = Traversal::scan;
     double inverse_[12] = {}, toward_[3] = {}, world_toward_[3] = {}, frame_[3][3] = {}, from_ = 0;
     double start_ = 0;  // blocking_start(from_) along the unit direction frame_[0]
     bool usable_ = false, one_sided_ = false, spheres_ = false, boxes_small_ = false;
@@ -462,6 +556,11 @@ private:
     ScanBounds own_bounds_;
     std::vector<SunBox> coarse_boxes_;     // the coarse boxes set up for box_points (when boxes_small_)
     std::vector<uint8_t> coarse_skipped_;  // one-sided: coarse clusters the sun sees from the front
+    SunLineTree lines_;                    // Traversal::trees and one_tree
+    SunDiscTree discs_;                    // Traversal::mtsv and mtsv_two
+    uint32_t root_ = none;                 // the coarse tree (one tree: the fine tree)
+    std::vector<uint32_t> fine_roots_;     // two levels: each coarse cluster's fine tree
+    size_t tree_stack_ = 0;                // stack entries a line tree's walk needs
     size_t skipped_ = 0;
 };
 

@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <utility>
+#include <vector>
 
 #include "../cb_asset.h"
 #include "cb_lit_triangles.h"
@@ -112,6 +114,20 @@ struct TileCache {
 struct IndexRange {
     uint32_t first = 0, count = 0;
 };
+
+// 0 .. n - 1 into `order`, shuffled the same way for every build (xorshift with a fixed seed): the trees insert
+// their volumes in this order, which keeps them balanced whatever order the bake left the clusters in.
+inline void insertion_order(uint32_t n, std::vector<uint32_t>& order) {
+    order.resize(n);
+    for (uint32_t i = 0; i < n; ++i) order[i] = i;
+    uint64_t state = 0x9e3779b97f4a7c15ULL;
+    for (uint32_t i = n; i > 1; --i) {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        std::swap(order[i - 1], order[state % i]);
+    }
+}
 
 // The triangles of coarse cluster c of a mesh: its fine clusters' triangles follow one another.
 inline IndexRange coarse_triangle_range(const AssetView& v, const MeshRecord& mesh, uint32_t c) {

@@ -431,27 +431,15 @@ private:
         return false;
     }
 
-    // Insertion order for n items, the same for every build (xorshift with a fixed seed).
-    static std::vector<uint32_t> shuffled(uint32_t n) {
-        std::vector<uint32_t> order(n);
-        for (uint32_t i = 0; i < n; ++i) order[i] = i;
-        uint64_t state = 0x9e3779b97f4a7c15ULL;
-        for (uint32_t i = n; i > 1; --i) {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            std::swap(order[i - 1], order[state % i]);
-        }
-        return order;
-    }
-
     // The tree over the coarse clusters set in `wanted`, in the shuffled order, into root_; `fill(c, leaf)`
     // says where each one's cluster node leads. A coarse cluster whose box holds the light (or is level
     // with it) gets no volume: its node goes to always_coarse_, entered by every point. Returns the depth.
     template <class Fill>
     uint32_t build_coarse_tree(Nodes& all, const std::vector<uint8_t>& wanted, Fill fill) {
         uint32_t depth = 0;
-        for (uint32_t c : shuffled(mesh_->coarse_count)) {
+        std::vector<uint32_t> order;
+        insertion_order(mesh_->coarse_count, order);
+        for (uint32_t c : order) {
             if (!wanted[c]) continue;
             ShadowVolume v = make_shadow_volume(view_->coarse_bounds.obb(mesh_->first_coarse + c), light_);
             ClusterNode leaf;
@@ -471,7 +459,9 @@ private:
     uint32_t build_fine_tree(Nodes& nodes, uint32_t first, uint32_t count, uint32_t& depth,
                              std::vector<uint32_t>& always, size_t& skipped) const {
         uint32_t root = none;
-        for (uint32_t i : shuffled(count)) {
+        std::vector<uint32_t> order;
+        insertion_order(count, order);
+        for (uint32_t i : order) {
             uint32_t f = first + i;
             const FineCluster& r = view_->fine[mesh_->first_fine + f];
             if (one_sided_ &&
