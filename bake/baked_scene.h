@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "asset_writer.h"
+#include "asset_content.h"
 #include "bake.h"
 #include "load.h"
 

@@ -45,12 +45,12 @@ struct Options {
     int view = 1024;             // bench_shadow: the camera's resolution
     std::string only;            // run only inputs whose name contains this
     int one_sided = 0;           // bench_shadow: 1 builds one-sided trees (chapter 2's mode for closed models)
-    std::string level = "scan";  // bench_shadow: scan, trees, one-tree, mtsv, mtsv-two, or compare (all of them)
+    std::string level = "scan";  // bench_shadow: scan, top-two, top-one, mtsv-one, mtsv-two, or compare (all of them)
     int frames = 0;  // bench_shadow: N > 0 times only our frames (build and queries, one thread), N per light
 };
 
-// --data DIR --fine N --runs N --copies N --view N --only NAME --one-sided 0|1 --traversal scan|trees|one-tree|mtsv|mtsv-two|compare
-// --frames N, over the given defaults.
+// --data DIR --fine N --runs N --copies N --view N --only NAME --one-sided 0|1
+// --traversal scan|top-two|top-one|mtsv-one|mtsv-two|compare --frames N, over the given defaults.
 inline Options parse_options(int argc, char** argv, Options o) {
     for (int i = 1; i + 1 < argc; i += 2) {
         std::string a = argv[i];

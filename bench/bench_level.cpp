@@ -15,7 +15,7 @@
 //
 //   bench_level [--data DIR] [--view 512] [--runs 3] [--cities 10,100,1000,10000,100000] [--only NAME]
 //               [--lights all|points|suns]
-//               [--traversal scan|trees|one-tree|mtsv|mtsv-two] [--one-sided 1] [--threads 2]
+//               [--traversal scan|top-two|top-one|mtsv-one|mtsv-two] [--one-sided 1] [--threads 2]
 #include <embree3/rtcore.h>
 
 #include <cb_level.h>
@@ -200,7 +200,10 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
         for (size_t k = 0; k < m.vertex_count(); ++k) {
             auto w =
                 cb::transform_point(inst.world, m.positions[k * 3], m.positions[k * 3 + 1], m.positions[k * 3 + 2]);
-            for (int j = 0; j < 3; ++j) lo[j] = std::min(lo[j], w[j]), hi[j] = std::max(hi[j], w[j]);
+            for (int j = 0; j < 3; ++j) {
+                lo[j] = std::min(lo[j], w[j]);
+                hi[j] = std::max(hi[j], w[j]);
+            }
         }
     }
     const double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
@@ -218,9 +221,14 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
         if (hi[k] - lo[k] < hi[up_axis] - lo[up_axis]) up_axis = k;
     const int a1 = (up_axis + 1) % 3, a2 = (up_axis + 2) % 3;
     double eye[3], fw[3], right[3], up[3] = {0, 0, 0}, len = 0;
-    eye[a1] = centre[a1] + 0.9 * size, eye[a2] = centre[a2] + 0.6 * size, eye[up_axis] = centre[up_axis] + 0.8 * size;
+    eye[a1] = centre[a1] + 0.9 * size;
+    eye[a2] = centre[a2] + 0.6 * size;
+    eye[up_axis] = centre[up_axis] + 0.8 * size;
     up[up_axis] = 1;
-    for (int k = 0; k < 3; ++k) fw[k] = centre[k] - eye[k], len += fw[k] * fw[k];
+    for (int k = 0; k < 3; ++k) {
+        fw[k] = centre[k] - eye[k];
+        len += fw[k] * fw[k];
+    }
     for (double& x : fw) x /= std::sqrt(len);
     cb::math::cross3(fw, up, right);
     len = std::sqrt(cb::math::dot3(right, right));
@@ -233,16 +241,26 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
 
     double lights[6][3];
     for (int k = 0; k < 3; ++k) {
-        lights[0][k] = centre[k], lights[1][k] = centre[k], lights[2][k] = centre[k], lights[3][k] = centre[k];
+        lights[0][k] = centre[k];
+        lights[1][k] = centre[k];
+        lights[2][k] = centre[k];
+        lights[3][k] = centre[k];
     }
-    lights[0][a1] -= 0.7 * size, lights[0][a2] += 0.4 * size, lights[0][up_axis] = hi[up_axis] + 0.8 * size;  // outside
-    lights[1][a1] += 0.05 * size, lights[1][up_axis] = hi[up_axis] + 0.5 * size;  // overhead
-    lights[2][a1] -= 1.5 * size,
-        lights[2][up_axis] = lo[up_axis] + 0.02 * (hi[up_axis] - lo[up_axis]) + 1e-3 * size;  // grazing
-    lights[3][a1] += 0.1 * size, lights[3][a2] -= 0.07 * size,
-        lights[3][up_axis] = lo[up_axis] + 0.3 * (hi[up_axis] - lo[up_axis]);  // inside
+    lights[0][a1] -= 0.7 * size;
+    lights[0][a2] += 0.4 * size;
+    lights[0][up_axis] = hi[up_axis] + 0.8 * size;  // outside
+    lights[1][a1] += 0.05 * size;
+    lights[1][up_axis] = hi[up_axis] + 0.5 * size;  // overhead
+    lights[2][a1] -= 1.5 * size;
+    lights[2][up_axis] = lo[up_axis] + 0.02 * (hi[up_axis] - lo[up_axis]) + 1e-3 * size;  // grazing
+    lights[3][a1] += 0.1 * size;
+    lights[3][a2] -= 0.07 * size;
+    lights[3][up_axis] = lo[up_axis] + 0.3 * (hi[up_axis] - lo[up_axis]);  // inside
     // Suns: the directions from the centre toward the outside and the grazing lights.
-    for (int k = 0; k < 3; ++k) lights[4][k] = lights[0][k] - centre[k], lights[5][k] = lights[2][k] - centre[k];
+    for (int k = 0; k < 3; ++k) {
+        lights[4][k] = lights[0][k] - centre[k];
+        lights[5][k] = lights[2][k] - centre[k];
+    }
     const char* light_names[6] = {"outside", "overhead", "grazing", "inside", "sun high", "sun low"};
 
     uint32_t in_scene = 0;
@@ -259,7 +277,9 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
         size_t met = 0, built = 0, bytes = 0;
         for (int r = 0; r < std::max(1, s.runs); ++r) {
             our_t.push_back(our_pass(shadow, level, light, pts, s.options, 1, ours, sun));
-            met = shadow.instances_met(), built = shadow.build_count(), bytes = shadow.memory_bytes();
+            met = shadow.instances_met();
+            built = shadow.build_count();
+            bytes = shadow.memory_bytes();
             our_tt.push_back(our_pass(shadow, level, light, pts, s.options, threads, ours_t, sun));
             for (int way = 0; way < 4; ++way) {
                 RTCScene scene = way < 2 ? e.flat : e.instanced;
@@ -274,13 +294,18 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
         double best = INFINITY, best_t = INFINITY, way_ms[4];
         for (int way = 0; way < 4; ++way) {
             way_ms[way] = embree_t[way].empty() ? NAN : cb::median(embree_t[way]) * 1e3;
-            if (!embree_t[way].empty())
-                best = std::min(best, cb::median(embree_t[way])), best_t = std::min(best_t, cb::median(embree_tt[way]));
+            if (!embree_t[way].empty()) {
+                best = std::min(best, cb::median(embree_t[way]));
+                best_t = std::min(best_t, cb::median(embree_tt[way]));
+            }
         }
         const double o = cb::median(our_t), ot = cb::median(our_tt);
         size_t differ = 0, dark = 0, threads_differ = 0;
-        for (size_t k = 0; k < n; ++k)
-            differ += ours[k] != ref[k], dark += ours[k], threads_differ += ours[k] != ours_t[k];
+        for (size_t k = 0; k < n; ++k) {
+            differ += ours[k] != ref[k];
+            dark += ours[k];
+            threads_differ += ours[k] != ours_t[k];
+        }
         (sun ? sun_ratios : ratios).push_back(o / best);
         (sun ? sun_threaded_ratios : threaded_ratios).push_back(ot / best_t);
         auto ms = [](double v) {
@@ -308,7 +333,8 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
             const uint32_t h = uint32_t(rng() % level.handle_limit());
             double m[12];
             std::copy(level.transform_of(h), level.transform_of(h) + 12, m);
-            m[9] += 0.01, m[10] -= 0.01;
+            m[9] += 0.01;
+            m[10] -= 0.01;
             level.move(h, m);
         }
         level.commit();

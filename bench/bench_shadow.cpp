@@ -9,7 +9,7 @@
 //   bench_shadow [--data DIR] [--view 1024] [--copies 25] [--runs 3] [--only NAME] [--one-sided 1] [--traversal T]
 //                [--frames N]
 //   (NAME "big": only the big scene; --one-sided 1: our trees in one-sided mode, whose answers equal
-//   two-sided ones outside closed meshes; Embree stays two-sided; T: scan (default), trees, one-tree, mtsv or
+//   two-sided ones outside closed meshes; Embree stays two-sided; T: scan (default), top-two, top-one, mtsv-one or
 //   mtsv-two, how our trees reach the fine clusters, cb::Traversal, or compare: every traversal and the metric
 //   trees' settings on the same points, one thread, beside Embree; --frames N: no Embree passes, only N of
 //   our frames per light on one thread, their shortest and median time; and the queries of each frame
@@ -125,21 +125,21 @@ struct Config {
     const char* name;
     cb::Traversal traversal;
     cb::MetricBuild build;
-    double capsule_ratio;
+    double capsule_aspect;
     bool fitted;  // the asset baked with --bounds all
 };
 
 const Config configs[] = {
     {"scan", cb::Traversal::scan, cb::MetricBuild::heuristic, 2, false},
-    {"CPSV two levels (trees)", cb::Traversal::trees, cb::MetricBuild::heuristic, 2, false},
-    {"CPSV one level (one-tree)", cb::Traversal::one_tree, cb::MetricBuild::heuristic, 2, false},
-    {"MTSV heuristic", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 4, true},
-    {"MTSV reference build", cb::Traversal::mtsv, cb::MetricBuild::reference, 4, true},
-    {"MTSV about the boxes", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 4, false},
+    {"CPSV two levels (top-two)", cb::Traversal::top_two, cb::MetricBuild::heuristic, 2, false},
+    {"CPSV one level (top-one)", cb::Traversal::top_one, cb::MetricBuild::heuristic, 2, false},
+    {"MTSV heuristic", cb::Traversal::mtsv_one, cb::MetricBuild::heuristic, 4, true},
+    {"MTSV reference build", cb::Traversal::mtsv_one, cb::MetricBuild::reference, 4, true},
+    {"MTSV about the boxes", cb::Traversal::mtsv_one, cb::MetricBuild::heuristic, 4, false},
     {"MTSV two levels", cb::Traversal::mtsv_two, cb::MetricBuild::heuristic, 4, true},
-    {"MTSV capsules from 1.25", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 1.25, true},
-    {"MTSV capsules from 2", cb::Traversal::mtsv, cb::MetricBuild::heuristic, 2, true},
-    {"MTSV spheres only", cb::Traversal::mtsv, cb::MetricBuild::heuristic, INFINITY, true},
+    {"MTSV capsules from 1.25", cb::Traversal::mtsv_one, cb::MetricBuild::heuristic, 1.25, true},
+    {"MTSV capsules from 2", cb::Traversal::mtsv_one, cb::MetricBuild::heuristic, 2, true},
+    {"MTSV spheres only", cb::Traversal::mtsv_one, cb::MetricBuild::heuristic, INFINITY, true},
 };
 
 // Every configuration against one light on one thread, the same points, rounds alternating between them
@@ -164,7 +164,7 @@ void compare_light(const cb::AssetView& boxes, const cb::AssetView& fitted, cons
             options.traversal = config.traversal;
             options.one_sided = one_sided;
             options.bounds = config.fitted ? nullptr : scan.data();
-            options.capsule_ratio = config.capsule_ratio;
+            options.capsule_aspect = config.capsule_aspect;
             options.metric_build = config.build;
             options.bias = bias;
             auto b0 = std::chrono::steady_clock::now();
@@ -477,11 +477,11 @@ static int run(int argc, char** argv) {
     defaults.runs = 3;
     cb::bench::Options o = cb::bench::parse_options(argc, argv, defaults);
     using Level = cb::Traversal;
-    Level level = o.level == "trees" ? Level::trees
-        : o.level == "one-tree"      ? Level::one_tree
-        : o.level == "mtsv"          ? Level::mtsv
-        : o.level == "mtsv-two"      ? Level::mtsv_two
-                                     : Level::scan;
+    Level level = o.level == "top-two" || o.level == "trees" ? Level::top_two
+        : o.level == "top-one" || o.level == "one-tree"      ? Level::top_one
+        : o.level == "mtsv-one" || o.level == "mtsv"         ? Level::mtsv_one
+        : o.level == "mtsv-two"                              ? Level::mtsv_two
+                                                             : Level::scan;
     const bool comparing = o.level == "compare";
     if (comparing) {
         std::printf(

@@ -117,10 +117,12 @@ nlohmann::json stats_json(const QueryArgs& a, const cb::SceneQueryResult& q, siz
 
 void print_json(const QueryArgs& a, const double* light, const cb::SceneQueryResult& q, size_t shadowed) {
     size_t n = q.shadowed.size();
+    cb::Traversal traversal = cb::Traversal::scan;
+    cb::parse_traversal(a.traversal, traversal);  // the name as written, or an older spelling of it
     nlohmann::json j = {{"tool", cb::tool_version()},
                         {"asset", a.asset},
                         {a.sun.empty() ? "light" : "sun", {light[0], light[1], light[2]}},
-                        {"traversal", a.reference ? "reference" : a.traversal},
+                        {"traversal", a.reference ? "reference" : cb::traversal_name(traversal)},
                         {"one_sided", a.one_sided},
                         {"bias", q.bias},
                         {"points", n},
@@ -158,9 +160,11 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
                      "clusterbake: query takes one light: --light X,Y,Z (a point) or --sun X,Y,Z (a direction)\n");
         return exit_usage;
     }
-    if (a.traversal != "mtsv" && a.traversal != "mtsv-two" &&
+    cb::Traversal traversal = cb::Traversal::scan;
+    cb::parse_traversal(a.traversal, traversal);  // the option's check read the name
+    if (traversal != cb::Traversal::mtsv_one && traversal != cb::Traversal::mtsv_two &&
         refuse_given(c, {"--capsule-aspect", "--capsule-ratio", "--mtsv-build"},
-                     "they set up the metric trees of --traversal mtsv"))
+                     "they set up the metric trees of --traversal mtsv-one and mtsv-two"))
         return exit_usage;
     if (!(a.bias >= 0 && a.bias < INFINITY)) {  // NaN too
         std::fprintf(stderr, "clusterbake: --bias takes a distance of at least 0 (0: the level's default)\n");
@@ -233,22 +237,32 @@ Command add_query(CLI::App& app) {
     c->add_option("--threads", a->threads, threads_help("the answers do not depend on it"));
     c->add_option("--traversal", a->traversal,
                   "How queries find the clusters: 'scan' (default: no per-light tree; the coarse clusters' "
-                  "spheres, then the entered ones' fine spheres), 'trees' (per light, a tree over the coarse "
-                  "clusters and one per coarse cluster over its fine clusters), 'one-tree' (one tree over "
-                  "the fine clusters), 'mtsv' (per light, a metric tree over the fine clusters' sphere and "
-                  "capsule cones, by angle from the light) or 'mtsv-two' (a metric tree over the coarse "
-                  "clusters' cones entering one per coarse cluster); with --sun, the same structures across the "
-                  "sun's direction (trees of lines about the boxes' prisms, metric trees of the spheres' "
-                  "discs); same answers")
-        ->check(CLI::IsMember({"scan", "trees", "one-tree", "mtsv", "mtsv-two"}));
-    c->add_option("--capsule-aspect", a->capsule_aspect,
-                  "mtsv: a cluster's volume is its capsule when that is at least this many times as long as "
-                  "wide, else its sphere (default 4; inf: spheres only; the old spelling --capsule-ratio is still "
-                  "accepted)");
+                  "spheres, then the entered ones' fine spheres), 'top-two' (per light, a TOP tree of planes "
+                  "over the coarse clusters and one per coarse cluster over its fine clusters), 'top-one' (one "
+                  "TOP tree over the fine clusters), 'mtsv-one' (per light, a metric tree over the fine "
+                  "clusters' sphere and capsule cones, by angle from the light) or 'mtsv-two' (a metric tree "
+                  "over the coarse clusters' cones entering one per coarse cluster); with --sun, the same "
+                  "structures across the sun's direction (trees of lines about the boxes' prisms, metric trees "
+                  "of the spheres' discs); same answers. The older spellings trees, one-tree and mtsv are read "
+                  "as top-two, top-one and mtsv-one")
+        ->check(CLI::Validator(
+            [](std::string& name) {
+                cb::Traversal t;
+                return cb::parse_traversal(name, t)
+                    ? std::string()
+                    : "takes scan, top-two, top-one, mtsv-one or mtsv-two (got '" + name + "')";
+            },
+            "TRAVERSAL"));
+    c->add_option(
+        "--capsule-aspect", a->capsule_aspect,
+        "mtsv-one and mtsv-two: a cluster's volume is its capsule when that is at least this many times as long as "
+        "wide, else its sphere (default 4; inf: spheres only; the old spelling --capsule-ratio is still "
+        "accepted)");
     c->add_option("--capsule-ratio", a->capsule_aspect)->group("");  // the old spelling of --capsule-aspect
-    c->add_option("--mtsv-build", a->metric_build,
-                  "mtsv: 'heuristic' (default: shuffled insertion, split distance halved at each near step) or "
-                  "'reference' (far pivots, median split distances; slower)")
+    c->add_option(
+         "--mtsv-build", a->metric_build,
+         "mtsv-one and mtsv-two: 'heuristic' (default: shuffled insertion, split distance halved at each near step) or "
+         "'reference' (far pivots, median split distances; slower)")
         ->check(CLI::IsMember({"heuristic", "reference"}));
     c->add_option("--fine", a->fine)->group("");  // refused with a pointer to --traversal
     c->add_flag("--json", a->json,

@@ -26,7 +26,8 @@ std::vector<std::string> split_commas(const std::string& text) {
 
 struct ReportArgs {
     std::vector<std::string> files;
-    std::string out, methods = "kmeans,vco,morton", fine = "8,16,24,32", obbs = "refined,pca", traversals = "scan,mtsv";
+    std::string out, methods = "kmeans,vco,morton", fine = "8,16,24,32", obbs = "refined,pca",
+                     traversals = "scan,mtsv-one";
     cb::ReportOptions options;
     bool quiet = false, json = false;
 };
@@ -71,7 +72,7 @@ int run_report(const CLI::App* c, ReportArgs a) {
     if (!parse_list(a.methods, "--method takes a list of kmeans, vco, morton", cb::parse_method, o.methods) ||
         !parse_list(a.fine, "--fine takes a list of whole numbers", fine_size, o.fine_sizes) ||
         !parse_list(a.obbs, "--obb takes a list of refined, pca, pca-area, cgal", cb::parse_obb_method, o.obbs) ||
-        !parse_list(a.traversals, "--traversal takes a list of scan, trees, one-tree, mtsv, mtsv-two",
+        !parse_list(a.traversals, "--traversal takes a list of scan, top-two, top-one, mtsv-one, mtsv-two",
                     cb::parse_traversal, o.traversals))
         return exit_usage;
     if (o.runs < 1 || o.query_runs < 1 || o.view < 1 || o.frame_view < 1) {
@@ -136,8 +137,9 @@ Command add_report(CLI::App& app) {
                       " (default 8,16,24,32)");
     c->add_option("--obb", a->obbs, "Comma list of box fitters: refined, pca, pca-area, cgal (default refined,pca)");
     c->add_option("--traversal", a->traversals,
-                  "Comma list of runtime traversals, each a configuration: scan, trees, one-tree, mtsv, mtsv-two "
-                  "(default scan,mtsv; the metric trees' assets carry spheres, capsules and slabs too)");
+                  "Comma list of runtime traversals, each a configuration: scan, top-two, top-one, mtsv-one, "
+                  "mtsv-two (default scan,mtsv-one; the metric trees' assets carry spheres, capsules and slabs "
+                  "too)");
     c->add_option("--coarse", a->options.coarse_size, "Triangles per coarse cluster (default 2048)");
     c->add_option("--runs", a->options.runs, "Bake timings are the median of this many runs (default 3)");
     c->add_option(

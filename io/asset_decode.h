@@ -4,7 +4,7 @@
 
 #include <cb_asset.h>
 
-#include "asset_writer.h"
+#include "asset_content.h"
 
 namespace cb {
 

@@ -306,7 +306,7 @@ cb::SceneQueryOptions query_options(bool one_sided, const std::string& traversal
                                     bool sun) {
     cb::SceneQueryOptions o;
     if (!cb::parse_traversal(traversal, o.traversal))
-        throw py::value_error("traversal takes scan, trees, one-tree, mtsv or mtsv-two (got '" + traversal + "')");
+        throw py::value_error("traversal takes scan, top-two, top-one, mtsv-one or mtsv-two (got '" + traversal + "')");
     o.sun = sun;
     if (!(bias >= 0 && bias < INFINITY))
         throw py::value_error("bias takes a distance of at least 0 (0: the level's default)");

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace cb {
 
@@ -91,35 +92,25 @@ const Lanes& lanes() {
 }  // namespace
 
 bool parse_traversal(const std::string& name, Traversal& out) {
-    if (name == "scan") {
-        out = Traversal::scan;
-        return true;
-    }
-    if (name == "trees") {
-        out = Traversal::trees;
-        return true;
-    }
-    if (name == "one-tree") {
-        out = Traversal::one_tree;
-        return true;
-    }
-    if (name == "mtsv") {
-        out = Traversal::mtsv;
-        return true;
-    }
-    if (name == "mtsv-two") {
-        out = Traversal::mtsv_two;
-        return true;
-    }
+    // The names, then the older spellings of three of them, still read.
+    const std::pair<const char*, Traversal> names[] = {
+        {"scan", Traversal::scan},         {"top-two", Traversal::top_two},   {"top-one", Traversal::top_one},
+        {"mtsv-one", Traversal::mtsv_one}, {"mtsv-two", Traversal::mtsv_two}, {"trees", Traversal::top_two},
+        {"one-tree", Traversal::top_one},  {"mtsv", Traversal::mtsv_one}};
+    for (const auto& [spelling, traversal] : names)
+        if (name == spelling) {
+            out = traversal;
+            return true;
+        }
     return false;
 }
 
 const char* traversal_name(Traversal t) {
     switch (t) {
         case Traversal::scan: return "scan";
-        case Traversal::trees: return "trees";
-        case Traversal::one_tree: return "one-tree";
-        case Traversal::mtsv: return "mtsv";
+        case Traversal::top_two: return "top-two";
+        case Traversal::top_one: return "top-one";
+        case Traversal::mtsv_one: return "mtsv-one";
         case Traversal::mtsv_two: return "mtsv-two";
     }
     return "scan";

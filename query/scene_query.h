@@ -16,8 +16,9 @@
 
 namespace cb {
 
-// The traversal (cb::Traversal, runtime/detail/cb_tile.h) named "scan", "trees", "one-tree", "mtsv" or "mtsv-two";
-// false on another name. Every traversal gives the same answers.
+// The traversal (cb::Traversal, runtime/detail/cb_tile.h) named "scan", "top-two", "top-one", "mtsv-one" or
+// "mtsv-two" (the older spellings "trees", "one-tree" and "mtsv" are read too); false on another name. Every
+// traversal gives the same answers.
 bool parse_traversal(const std::string& name, Traversal& out);
 // The name parse_traversal reads for a traversal.
 const char* traversal_name(Traversal t);

@@ -40,7 +40,7 @@ ShadowBuildOptions build_options(const SceneQueryOptions& o) {
     ShadowBuildOptions build;
     build.traversal = o.traversal;
     build.one_sided = o.one_sided;
-    build.capsule_ratio = o.capsule_aspect;
+    build.capsule_aspect = o.capsule_aspect;
     build.metric_build = o.metric_build;
     build.bias = o.bias;
     return build;

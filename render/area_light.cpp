@@ -28,11 +28,15 @@ struct SplitMix64 {
 void square_to_disc(double a, double b, double& x, double& y) {
     if (a == 0 && b == 0) return void(x = y = 0);
     double r, phi;
-    if (std::fabs(a) > std::fabs(b))
-        r = a, phi = pi / 4 * (b / a);
-    else
-        r = b, phi = pi / 2 - pi / 4 * (a / b);
-    x = r * std::cos(phi), y = r * std::sin(phi);
+    if (std::fabs(a) > std::fabs(b)) {
+        r = a;
+        phi = pi / 4 * (b / a);
+    } else {
+        r = b;
+        phi = pi / 2 - pi / 4 * (a / b);
+    }
+    x = r * std::cos(phi);
+    y = r * std::sin(phi);
 }
 
 }  // namespace
@@ -40,17 +44,24 @@ void square_to_disc(double a, double b, double& x, double& y) {
 std::vector<double> area_light_samples(const AreaLight& light, const double* facing) {
     // The light's plane: spanned by u and v, perpendicular to the direction to `facing`.
     double n[3] = {facing[0] - light.centre[0], facing[1] - light.centre[1], facing[2] - light.centre[2]};
-    if (!(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] > 0)) n[0] = 0, n[1] = 1, n[2] = 0;
+    if (!(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] > 0)) {
+        n[0] = 0;
+        n[1] = 1;
+        n[2] = 0;
+    }
     normalise(n);
     int least = 0;  // the axis least along n makes the first side
     for (int k = 1; k < 3; ++k)
         if (std::fabs(n[k]) < std::fabs(n[least])) least = k;
     double axis[3] = {0, 0, 0}, u[3], v[3];
     axis[least] = 1;
-    u[0] = axis[1] * n[2] - axis[2] * n[1], u[1] = axis[2] * n[0] - axis[0] * n[2],
+    u[0] = axis[1] * n[2] - axis[2] * n[1];
+    u[1] = axis[2] * n[0] - axis[0] * n[2];
     u[2] = axis[0] * n[1] - axis[1] * n[0];
     normalise(u);
-    v[0] = n[1] * u[2] - n[2] * u[1], v[1] = n[2] * u[0] - n[0] * u[2], v[2] = n[0] * u[1] - n[1] * u[0];
+    v[0] = n[1] * u[2] - n[2] * u[1];
+    v[1] = n[2] * u[0] - n[0] * u[2];
+    v[2] = n[0] * u[1] - n[1] * u[0];
 
     const uint32_t count = light.samples;
     const uint32_t rows = std::max<uint32_t>(1, uint32_t(std::lround(std::sqrt(double(count)))));

@@ -47,9 +47,11 @@ void one_sided_filter(const RTCFilterFunctionNArguments* args) {
                     *b = &scene->vertices[size_t(scene->triangles[t * 3 + 1]) * 3],
                     *c = &scene->vertices[size_t(scene->triangles[t * 3 + 2]) * 3];
         double e1[3], e2[3], to_light[3];
-        for (int k = 0; k < 3; ++k)
-            e1[k] = double(b[k]) - a[k], e2[k] = double(c[k]) - a[k],
+        for (int k = 0; k < 3; ++k) {
+            e1[k] = double(b[k]) - a[k];
+            e2[k] = double(c[k]) - a[k];
             to_light[k] = context->sun ? context->light[k] : context->light[k] - a[k];
+        }
         const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
                              e1[0] * e2[1] - e1[1] * e2[0]};
         if (n[0] * to_light[0] + n[1] * to_light[1] + n[2] * to_light[2] >= 0) args->valid[i] = 0;  // lit side
@@ -123,19 +125,31 @@ std::vector<uint8_t> EmbreeShadows::occluded(const double* light, double bias, c
     parallel_for((count + chunk - 1) / chunk, threads_, [&](size_t c) {
         ShadowContext context;
         rtcInitIntersectContext(&context.embree);
-        context.light = light, context.sun = sun;
+        context.light = light;
+        context.sun = sun;
         for (size_t i = c * chunk; i < std::min(count, c * chunk + chunk); ++i) {
             const double* p = &points[i * 3];
             RTCRay r;
-            r.org_x = float(p[0]), r.org_y = float(p[1]), r.org_z = float(p[2]);
+            r.org_x = float(p[0]);
+            r.org_y = float(p[1]);
+            r.org_z = float(p[2]);
             if (sun) {
-                r.dir_x = float(light[0]), r.dir_y = float(light[1]), r.dir_z = float(light[2]);
-                r.tnear = float(sun_from(light, bias)), r.tfar = INFINITY;
+                r.dir_x = float(light[0]);
+                r.dir_y = float(light[1]);
+                r.dir_z = float(light[2]);
+                r.tnear = float(sun_from(light, bias));
+                r.tfar = INFINITY;
             } else {
-                r.dir_x = float(light[0] - p[0]), r.dir_y = float(light[1] - p[1]), r.dir_z = float(light[2] - p[2]);
-                r.tnear = float(shadow_from(p, light, bias)), r.tfar = 1.0f;  // the runtime's self-shadowing rule
+                r.dir_x = float(light[0] - p[0]);
+                r.dir_y = float(light[1] - p[1]);
+                r.dir_z = float(light[2] - p[2]);
+                r.tnear = float(shadow_from(p, light, bias));
+                r.tfar = 1.0f;  // the runtime's self-shadowing rule
             }
-            r.time = 0, r.mask = 0xffffffff, r.id = 0, r.flags = 0;
+            r.time = 0;
+            r.mask = 0xffffffff;
+            r.id = 0;
+            r.flags = 0;
             rtcOccluded1(scene_->scene, &context.embree, &r);
             out[i] = r.tfar < 0;
         }

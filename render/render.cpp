@@ -66,7 +66,8 @@ void add_ground(LevelInput& level, const double* up, const double* lo, const dou
     const float corners[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};  // counter-clockwise about +u
     for (const auto& c : corners) {
         float p[3] = {0, 0, 0};
-        p[a] = c[0], p[b] = c[1];
+        p[a] = c[0];
+        p[b] = c[1];
         square.positions.insert(square.positions.end(), p, p + 3);
     }
     square.indices = flip ? std::vector<uint32_t>{0, 2, 1, 0, 3, 2} : std::vector<uint32_t>{0, 1, 2, 0, 2, 3};
@@ -107,7 +108,9 @@ void turn_to_up(const double* up, const double* centre, double* p) {
     double turned[3];
     if (sine < 1e-12) {
         const double flip = cosine < 0 ? -1 : 1;  // none, or a half turn about x
-        turned[0] = v[0], turned[1] = flip * v[1], turned[2] = flip * v[2];
+        turned[0] = v[0];
+        turned[1] = flip * v[1];
+        turned[2] = flip * v[2];
     } else {  // Rodrigues' formula about the unit axis k
         const double k[3] = {axis[0] / sine, 0, axis[2] / sine};
         const double kv = k[0] * v[0] + k[2] * v[2];
@@ -154,7 +157,8 @@ void classify(const LevelInput& level, const SceneQueryOptions& query, const dou
               const VisibleSurface& surface, const std::vector<uint8_t>& shadowed, const std::vector<size_t>& differing,
               CompareCounts& counts, std::vector<uint8_t>& mark) {
     SceneQueryOptions exact = query;
-    exact.reference = true, exact.per_point = true;
+    exact.reference = true;
+    exact.per_point = true;
     exact.threads = 1;  // each call asks one point: no threads to start
     for (size_t i : differing) {
         const double* p = &surface.points[i * 3];
@@ -168,12 +172,14 @@ void classify(const LevelInput& level, const SceneQueryOptions& query, const dou
             double moved_point[3], moved_light[3];
             for (int k = 0; k < 3; ++k) {
                 const double d = (m % 2 ? -step : step) * (m < 2 ? n[k] : double(k == m / 2 - 1));
-                moved_point[k] = p[k] + d, moved_light[k] = query.sun ? light[k] : light[k] + d;  // a sun: its way
+                moved_point[k] = p[k] + d;
+                moved_light[k] = query.sun ? light[k] : light[k] + d;  // a sun: its way
             }
             near = query_level(level, moved_light, moved_point, 1, exact).shadowed[0] != shadowed[i];
         }
         (shadowed[i] ? counts.runtime_only : counts.embree_only) += 1;
-        counts.ties += tie, counts.near_ties += near;
+        counts.ties += tie;
+        counts.near_ties += near;
         const uint8_t kind = tie || near ? 1 : shadowed[i] ? 2 : 3;
         mark[i] = std::max(mark[i], kind);
     }
@@ -245,7 +251,8 @@ void default_light(const Camera& c, const double* up, const double* lo, const do
 
 RenderResult render_level(const LevelInput& level, const RenderOptions& o, const RenderProgress& progress) {
     RenderResult r;
-    r.width = o.width, r.height = o.height;
+    r.width = o.width;
+    r.height = o.height;
     r.aa = std::max(1u, o.aa);
     std::vector<std::array<double, 6>> boxes;  // each instance's world box, for the level's and the framing
     double lo[3], hi[3];
@@ -281,12 +288,14 @@ RenderResult render_level(const LevelInput& level, const RenderOptions& o, const
 
     // aa x aa samples a pixel: the picture's camera, aa times as many rows and columns.
     Camera sampled = r.camera;
-    sampled.width *= r.aa, sampled.height *= r.aa;
+    sampled.width *= r.aa;
+    sampled.height *= r.aa;
     if (progress) progress("drawing the clusters the camera sees", -1);
     auto start = std::chrono::steady_clock::now();
     const VisibleSurface surface = primary_visibility(drawn, sampled, o.threads);
     r.visibility_seconds = seconds_since(start);
-    r.clusters_drawn = surface.clusters_drawn, r.triangles_drawn = surface.triangles_drawn;
+    r.clusters_drawn = surface.clusters_drawn;
+    r.triangles_drawn = surface.triangles_drawn;
     r.points = surface.points;
     const size_t n = surface.pixel.size();
     // The picture's pixel of each covered sample.
@@ -308,7 +317,10 @@ RenderResult render_level(const LevelInput& level, const RenderOptions& o, const
     std::vector<double> diffuse(n, 0.0);
     std::vector<uint8_t> mark(n, 0);  // with compare: as classify marks
     SceneQueryOptions query;
-    query.one_sided = o.one_sided, query.threads = o.threads, query.bias = bias, query.sun = o.sun;
+    query.one_sided = o.one_sided;
+    query.threads = o.threads;
+    query.bias = bias;
+    query.sun = o.sun;
     if (progress) progress("light 1 of " + std::to_string(light_count), 0);
     r.bounds_seconds = query_level_lights(
         drawn, r.lights.data(), light_count, surface.points.data(), n, query, [&](size_t l, const SceneQueryResult& q) {
@@ -385,7 +397,10 @@ RenderResult render_level(const LevelInput& level, const RenderOptions& o, const
             for (size_t p = 0; p < pixels; ++p)
                 if (pixel_mark[p] == kind)
                     dot(r.compare_rgb, r.width, r.height, p % r.width, p / r.width, colours[kind]);
-        for (uint8_t m : pixel_mark) r.compare.pixels += m != 0, r.compare.pixels_other += m > 1;
+        for (uint8_t m : pixel_mark) {
+            r.compare.pixels += m != 0;
+            r.compare.pixels_other += m > 1;
+        }
     }
     return r;
 }

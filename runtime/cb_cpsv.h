@@ -6,9 +6,9 @@
 //
 // - cb_scan.h, Traversal::scan (the default): no tree; the clusters' bounding spheres (cb_scan_bounds.h,
 //   made once per asset) are scanned against each tile's pyramid from the light.
-// - cb_top_tree.h, Traversal::trees and Traversal::one_tree: the thesis's ternary trees of planes through
+// - cb_top_tree.h, Traversal::top_two and Traversal::top_one: the thesis's ternary trees of planes through
 //   the light over the clusters' shadow volumes, built per light.
-// - cb_metric_tree.h, Traversal::mtsv and Traversal::mtsv_two: the thesis's second structure, ternary metric
+// - cb_metric_tree.h, Traversal::mtsv_one and Traversal::mtsv_two: the thesis's second structure, ternary metric
 //   trees over the cones and capsule-cones of the clusters' spheres and capsules, by angle from the light.
 // - cb_sun.h, a sun (a light at infinity, given by its direction; build_sun): every volume is a prism along
 //   the direction. Traversal::scan scans the clusters' spheres against each tile's prism; the others walk
@@ -56,12 +56,12 @@ public:
     void build(const AssetView& view, Placement at, const double* world_light, const ShadowBuildOptions& options = {}) {
         sun_ = false;
         traversal_ =
-            options.traversal == Traversal::scan && !view.coarse_bounds.obbs ? Traversal::one_tree : options.traversal;
+            options.traversal == Traversal::scan && !view.coarse_bounds.obbs ? Traversal::top_one : options.traversal;
         switch (traversal_) {
             case Traversal::scan: return build_as<ScanTraversal>(view, at, world_light, options);
-            case Traversal::trees:
-            case Traversal::one_tree: return build_as<TopTreeTraversal>(view, at, world_light, options);
-            case Traversal::mtsv:
+            case Traversal::top_two:
+            case Traversal::top_one: return build_as<TopTreeTraversal>(view, at, world_light, options);
+            case Traversal::mtsv_one:
             case Traversal::mtsv_two: return build_as<MetricTreeTraversal>(view, at, world_light, options);
         }
     }
@@ -78,7 +78,7 @@ public:
         build_as<SunTraversal>(view, at, toward, options);
     }
 
-    // The traversal built (for a point light, Traversal::one_tree where the asset has no coarse boxes).
+    // The traversal built (for a point light, Traversal::top_one where the asset has no coarse boxes).
     Traversal traversal() const { return traversal_; }
     // Built for a sun: world_light() is then the direction toward it.
     bool sun() const { return sun_; }
@@ -136,10 +136,10 @@ private:
         if (sun_) return f(*std::get_if<SunTraversal>(&held_));
         switch (traversal_) {
             case Traversal::scan: return f(*std::get_if<ScanTraversal>(&held_));
-            case Traversal::mtsv:
+            case Traversal::mtsv_one:
             case Traversal::mtsv_two: return f(*std::get_if<MetricTreeTraversal>(&held_));
-            case Traversal::trees:
-            case Traversal::one_tree: break;
+            case Traversal::top_two:
+            case Traversal::top_one: break;
         }
         return f(*std::get_if<TopTreeTraversal>(&held_));
     }

@@ -86,9 +86,15 @@ inline SegmentTest segment_triangle(const double* p, const double* q, const doub
     // The crossing is at t = Dp / (Dp - Dq) with D the plane determinants; it counts when t >= f (f = from),
     // that is when Dp + f (Dq - Dp) = (1 - f) Dp + f Dq has Dp's sign or is zero (Dp and Dq have opposite
     // signs or Dq is zero).
-    if (!may_block(from)) return r;               // every contact is nearer than `from` (or `from` is not a number)
-    if (sp == 0) return r.blocks = from <= 0, r;  // at the query point itself: t = 0
-    if (sq == 0) return r.blocks = true, r;       // at the light: t = 1
+    if (!may_block(from)) return r;  // every contact is nearer than `from` (or `from` is not a number)
+    if (sp == 0) {                   // at the query point itself: t = 0
+        r.blocks = from <= 0;
+        return r;
+    }
+    if (sq == 0) {  // at the light: t = 1
+        r.blocks = true;
+        return r;
+    }
     // In double first: the estimate of (1 - f) Dp + f Dq is off by at most the bounds' blend and its own
     // rounding (1 - f's included); only when that cannot decide, exactly.
     const double f = from;
@@ -153,7 +159,8 @@ inline SegmentTest ray_triangle(const double* p, const double* d, const double* 
     if ((e0 > 0 || e1 > 0 || e2 > 0) && (e0 < 0 || e1 < 0 || e2 < 0)) return r;
     const bool touching = sp == 0 || e0 == 0 || e1 == 0 || e2 == 0;
     auto answer = [&](bool blocks) {
-        r.blocks = blocks, r.touching = touching && blocks;
+        r.blocks = blocks;
+        r.touching = touching && blocks;
         return r;
     };
     if (!(std::fabs(from) < INFINITY)) return r;  // not a number
@@ -225,7 +232,10 @@ inline void add_placed_box(const double* box_lo, const double* box_hi, const dou
     if (!(box_lo[0] <= box_hi[0] && box_lo[1] <= box_hi[1] && box_lo[2] <= box_hi[2]) || !invert_instance(m, inverse))
         return;
     double c[3], h[3], wc[3];
-    for (int k = 0; k < 3; ++k) c[k] = 0.5 * (box_lo[k] + box_hi[k]), h[k] = 0.5 * (box_hi[k] - box_lo[k]);
+    for (int k = 0; k < 3; ++k) {
+        c[k] = 0.5 * (box_lo[k] + box_hi[k]);
+        h[k] = 0.5 * (box_hi[k] - box_lo[k]);
+    }
     apply_instance(m, c, wc);
     for (int k = 0; k < 3; ++k) {
         const double wh = std::fabs(m[k]) * h[0] + std::fabs(m[3 + k]) * h[1] + std::fabs(m[6 + k]) * h[2];
@@ -233,7 +243,8 @@ inline void add_placed_box(const double* box_lo, const double* box_hi, const dou
     }
     for (int k = 0; k < 3; ++k) {
         const double wh = std::fabs(m[k]) * h[0] + std::fabs(m[3 + k]) * h[1] + std::fabs(m[6 + k]) * h[2];
-        lo[k] = std::min(lo[k], wc[k] - wh), hi[k] = std::max(hi[k], wc[k] + wh);
+        lo[k] = std::min(lo[k], wc[k] - wh);
+        hi[k] = std::max(hi[k], wc[k] + wh);
     }
 }
 
@@ -246,10 +257,16 @@ inline double box_size(const double* lo, const double* hi) {
 
 // The mesh's box in its own frame, from its vertices (empty, lo > hi, without any).
 inline void mesh_box(const AssetView& v, const MeshRecord& mesh, double* lo, double* hi) {
-    for (int k = 0; k < 3; ++k) lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = INFINITY;
+        hi[k] = -INFINITY;
+    }
     for (uint32_t i = 0; i < mesh.vertex_count; ++i) {
         const float* p = v.position(mesh, i);
-        for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], double(p[k])), hi[k] = std::max(hi[k], double(p[k]));
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], double(p[k]));
+            hi[k] = std::max(hi[k], double(p[k]));
+        }
     }
 }
 
@@ -287,7 +304,8 @@ inline bool segment_may_touch_box(const Obb& box, const double* p, const double*
         }
         double ta = (-reach - dp) / d, tb = (reach - dp) / d;
         if (ta > tb) std::swap(ta, tb);
-        t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
         if (t0 > t1) return false;
     }
     return true;

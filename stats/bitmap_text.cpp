@@ -88,7 +88,9 @@ Colour RgbImage::get(uint32_t x, uint32_t y) const {
 void RgbImage::set(int x, int y, Colour c) {
     if (x < 0 || y < 0 || uint32_t(x) >= width || uint32_t(y) >= height) return;
     uint8_t* p = &pixels[(size_t(y) * width + uint32_t(x)) * 3];
-    p[0] = c.r, p[1] = c.g, p[2] = c.b;
+    p[0] = c.r;
+    p[1] = c.g;
+    p[2] = c.b;
 }
 
 void RgbImage::fill(int x, int y, int w, int h, Colour c) {

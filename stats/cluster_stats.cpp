@@ -144,9 +144,12 @@ void sample_sun_prism(const MeshContext& ctx, const Obb& box, const double* towa
             for (int a = 0; a < 3; ++a) corner[k] += (c >> a & 1 ? 1.0 : -1.0) * double(box.half[a]) * box.axis[a][k];
             bound[k] = c >> k & 1 ? ctx.hi[k] : ctx.lo[k];
         }
-        for (int j = 0; j < 2; ++j)
-            lo[j] = std::min(lo[j], dot3(corner, frame[1 + j])), hi[j] = std::max(hi[j], dot3(corner, frame[1 + j]));
-        top = std::max(top, dot3(corner, frame[0])), bottom = std::min(bottom, dot3(bound, frame[0]));
+        for (int j = 0; j < 2; ++j) {
+            lo[j] = std::min(lo[j], dot3(corner, frame[1 + j]));
+            hi[j] = std::max(hi[j], dot3(corner, frame[1 + j]));
+        }
+        top = std::max(top, dot3(corner, frame[0]));
+        bottom = std::min(bottom, dot3(bound, frame[0]));
     }
     if (!(top > bottom)) return;
     const float* pos = ctx.mesh->positions.data();
@@ -202,7 +205,10 @@ ClusterFigures cluster_figures(const MeshContext& ctx, const LevelVolumes& volum
         double c[3][3], e1[3], e2[3], n[3];
         for (int k = 0; k < 3; ++k)
             for (int j = 0; j < 3; ++j) c[k][j] = m.positions[size_t(m.triangles[size_t(t) * 3 + k]) * 3 + j];
-        for (int j = 0; j < 3; ++j) e1[j] = c[1][j] - c[0][j], e2[j] = c[2][j] - c[0][j];
+        for (int j = 0; j < 3; ++j) {
+            e1[j] = c[1][j] - c[0][j];
+            e2[j] = c[2][j] - c[0][j];
+        }
         cross3(e1, e2, n);
         f.area += 0.5 * length(n);
     }
@@ -259,10 +265,16 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
     uint64_t sun_samples = 0, sun_useless = 0, sun_skips = 0;
     for (const ClusterFigures& f : figures) {
         tris.push_back(f.triangles), verts.push_back(f.vertices), comps.push_back(f.components);
-        total_tris += f.triangles, total_verts += f.vertices;
+        total_tris += f.triangles;
+        total_verts += f.vertices;
         s.split_clusters += f.components > 1;
-        samples += f.samples, useless += f.useless, skips += f.lights_skipping, no_volume += f.no_volume;
-        sun_samples += f.sun_samples, sun_useless += f.sun_useless, sun_skips += f.suns_skipping;
+        samples += f.samples;
+        useless += f.useless;
+        skips += f.lights_skipping;
+        no_volume += f.no_volume;
+        sun_samples += f.sun_samples;
+        sun_useless += f.sun_useless;
+        sun_skips += f.suns_skipping;
     }
     s.triangles = distribution(tris, true);
     s.vertices = distribution(verts, true);
@@ -288,7 +300,9 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
             const LevelVolumes& v = volumes_of(items[i]);
             const Obb b = unpack_obb(v.obbs[items[i].cluster]);
             double a = obb_area(b);
-            volume += obb_volume(b), area += a, triangle_area += figures[i].area;
+            volume += obb_volume(b);
+            area += a;
+            triangle_area += figures[i].area;
             fill_sum += a > 0 ? figures[i].area / a : 0;
             double box = obb_volume(b);
             // Flat boxes (a planar cluster) would make any ratio infinite: left out of the medians.
@@ -307,13 +321,21 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
                 if (solid) capsule_ratio.push_back(v_capsule / box);
             }
         }
-        s.obb_volume_sum = volume, s.obb_area_sum = area;
-        s.obb_volume_mean = volume / double(items.size()), s.obb_area_mean = area / double(items.size());
-        s.fill = ratio(triangle_area, area), s.fill_mean = fill_sum / double(items.size());
+        s.obb_volume_sum = volume;
+        s.obb_area_sum = area;
+        s.obb_volume_mean = volume / double(items.size());
+        s.obb_area_mean = area / double(items.size());
+        s.fill = ratio(triangle_area, area);
+        s.fill_mean = fill_sum / double(items.size());
         auto median_or_nan = [](const std::vector<double>& v) { return v.empty() ? double(NAN) : median(v); };
-        if (spheres) s.sphere_over_obb = ratio(sphere, volume), s.sphere_over_obb_median = median_or_nan(sphere_ratio);
-        if (capsules)
-            s.capsule_over_obb = ratio(capsule, volume), s.capsule_over_obb_median = median_or_nan(capsule_ratio);
+        if (spheres) {
+            s.sphere_over_obb = ratio(sphere, volume);
+            s.sphere_over_obb_median = median_or_nan(sphere_ratio);
+        }
+        if (capsules) {
+            s.capsule_over_obb = ratio(capsule, volume);
+            s.capsule_over_obb_median = median_or_nan(capsule_ratio);
+        }
         // World space: each instance's linear part scales volumes by |det| and maps box faces to parallelograms.
         double world_volume = 0, world_area = 0;
         std::vector<std::vector<uint32_t>> items_of_mesh(contexts.size());
@@ -360,7 +382,8 @@ LevelStats level_statistics(const std::vector<MeshContext>& contexts, const std:
         }
         s.normal_cone_degrees = distribution(cone_degrees, false, 9);
         if (!cone_degrees.empty()) {  // ten-degree bins over [0, 90]
-            s.normal_cone_degrees.first = 0, s.normal_cone_degrees.width = 10;
+            s.normal_cone_degrees.first = 0;
+            s.normal_cone_degrees.width = 10;
             s.normal_cone_degrees.counts.assign(9, 0);
             for (double a : cone_degrees) ++s.normal_cone_degrees.counts[std::min<size_t>(8, size_t(a / 10))];
         }
@@ -404,14 +427,19 @@ SceneStats cluster_statistics(const std::vector<AssetMesh>& meshes, const std::v
     s.meshes = meshes.size();
     s.instances = instances.size();
     s.acmr_cache = options.acmr_cache;
-    for (int k = 0; k < 3; ++k) s.bounds_min[k] = INFINITY, s.bounds_max[k] = -INFINITY;
+    for (int k = 0; k < 3; ++k) {
+        s.bounds_min[k] = INFINITY;
+        s.bounds_max[k] = -INFINITY;
+    }
     for (const Instance& inst : instances) {
         const AssetMesh& m = meshes[inst.mesh];
         s.scene_triangles += m.triangles.size() / 3;
         for (size_t v = 0; v < m.positions.size() / 3; ++v) {
             auto p = transform_point(inst.world, m.positions[v * 3], m.positions[v * 3 + 1], m.positions[v * 3 + 2]);
-            for (int k = 0; k < 3; ++k)
-                s.bounds_min[k] = std::min(s.bounds_min[k], p[k]), s.bounds_max[k] = std::max(s.bounds_max[k], p[k]);
+            for (int k = 0; k < 3; ++k) {
+                s.bounds_min[k] = std::min(s.bounds_min[k], p[k]);
+                s.bounds_max[k] = std::max(s.bounds_max[k], p[k]);
+            }
         }
     }
     if (!(s.bounds_min[0] <= s.bounds_max[0]))
@@ -431,7 +459,10 @@ SceneStats cluster_statistics(const std::vector<AssetMesh>& meshes, const std::v
         s.triangles += tris;
         acmr_weighted +=
             fifo_acmr(mesh.triangles.data(), tris, mesh.positions.size() / 3, options.acmr_cache) * double(tris);
-        for (int k = 0; k < 3; ++k) c.lo[k] = INFINITY, c.hi[k] = -INFINITY;
+        for (int k = 0; k < 3; ++k) {
+            c.lo[k] = INFINITY;
+            c.hi[k] = -INFINITY;
+        }
         for (size_t v = 0; v < mesh.positions.size(); ++v)
             c.lo[v % 3] = std::min(c.lo[v % 3], double(mesh.positions[v])),
                      c.hi[v % 3] = std::max(c.hi[v % 3], double(mesh.positions[v]));

@@ -76,11 +76,13 @@ PixelBox mark_light(RgbImage& img, int ox, int oy, int n, const Projection& p, i
         disc(img, ox + p.x, oy + p.y, r + 1, ink);
         disc(img, ox + p.x, oy + p.y, r, light_colour);
         box = {ox + int(std::floor(p.x - r - 1)), oy + int(std::floor(p.y - r - 1)), int(2 * r + 3), int(2 * r + 3)};
-        lx = p.x, ly = p.y;
+        lx = p.x;
+        ly = p.y;
     } else {
         double dx = p.in_front ? p.x - c : p.x, dy = p.in_front ? p.y - c : p.y;
         double reach = std::max({std::fabs(dx), std::fabs(dy), 1e-300}), inset = 2 * s + 2;
-        dx /= reach, dy /= reach;  // now max(|dx|, |dy|) = 1: the tip lands on the inset border
+        dx /= reach;
+        dy /= reach;  // now max(|dx|, |dy|) = 1: the tip lands on the inset border
         double tip_x = c + dx * (c - inset), tip_y = c + dy * (c - inset), len = std::hypot(dx, dy);
         double ux = dx / len, uy = dy / len, shaft = 8 * s + 6, head = 4 * s + 2;
         double tail_x = tip_x - ux * shaft, tail_y = tip_y - uy * shaft;
@@ -101,12 +103,14 @@ PixelBox mark_light(RgbImage& img, int ox, int oy, int n, const Projection& p, i
         double x1 = std::max({tail_x, tip_x, wing[0][0], wing[1][0]}) + s + 2;
         double y1 = std::max({tail_y, tip_y, wing[0][1], wing[1][1]}) + s + 2;
         box = {ox + int(std::floor(x0)), oy + int(std::floor(y0)), int(std::ceil(x1 - x0)), int(std::ceil(y1 - y0))};
-        lx = tail_x, ly = tail_y;
+        lx = tail_x;
+        ly = tail_y;
     }
     // The label on the side of the marker that faces the panel's centre, kept inside the panel.
     int w = text_width(label, s), h = glyph_rows * s, gap = 4 * s + 2;
     double tx = lx < c ? lx + gap : lx - gap - w, ty = ly < c ? ly + gap : ly - gap - h;
-    tx = std::clamp(tx, double(s), double(n - w - s)), ty = std::clamp(ty, double(s), double(n - h - s));
+    tx = std::clamp(tx, double(s), double(n - w - s));
+    ty = std::clamp(ty, double(s), double(n - h - s));
     draw_text_outlined(img, ox + int(tx), oy + int(ty), label, s, paper, ink);
     return box;
 }
@@ -179,7 +183,8 @@ void compose(Heatmap& h, const std::vector<uint32_t> counts[2], const std::vecto
     const int key_y = key_beside ? caption_y : caption_y + line_h;
     const int height = key_y + glyph_rows * s + margin;
 
-    h.width = uint32_t(width), h.height = uint32_t(height);
+    h.width = uint32_t(width);
+    h.height = uint32_t(height);
     RgbImage img(h.width, h.height, paper);
     for (int panel = 0; panel < 2; ++panel) {
         const int ox = margin + panel * (n + gap);

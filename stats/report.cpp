@@ -153,9 +153,12 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
             for (uint32_t fine : o.fine_sizes)
                 for (ObbMethod obb : o.obbs) {
                     ConfigResult c;
-                    c.method = method, c.fine_size = fine, c.obb = obb;
+                    c.method = method;
+                    c.fine_size = fine;
+                    c.obb = obb;
                     ClusterOptions co = base;
-                    co.method = method, co.fine_size = fine;
+                    co.method = method;
+                    co.fine_size = fine;
                     std::vector<double> cluster_t;
                     BakedScene baked;
                     baked.instances = scene.instances;
@@ -174,7 +177,7 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                         if (progress)
                             progress(s.name + ": " + c.name() + " (" + std::to_string(++done) + "/" +
                                      std::to_string(total) + ")");
-                        const bool metric = traversal == Traversal::mtsv || traversal == Traversal::mtsv_two;
+                        const bool metric = traversal == Traversal::mtsv_one || traversal == Traversal::mtsv_two;
                         BoundsOptions bo = auto_bounds;
                         bo.obb = obb;
                         if (metric) bo.mask |= bounds_sphere | bounds_capsule | bounds_slab;
@@ -191,7 +194,8 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
                             so.threads = o.threads;
                             so.suns = 0;  // the tightness figure is the point lights' shadow volumes
                             SceneStats st = cluster_statistics(baked.meshes, baked.instances, so);
-                            c.fine_clusters = st.fine.clusters, c.coarse_clusters = st.coarse.clusters;
+                            c.fine_clusters = st.fine.clusters;
+                            c.coarse_clusters = st.coarse.clusters;
                             c.obb_volume_relative = st.fine.obb_volume_relative;
                             c.useless_share = st.fine.useless_share;
                             measured = true;
@@ -236,7 +240,8 @@ Report run_report(const std::vector<std::string>& files, const ReportOptions& o,
             ho.one_sided = o.one_sided;
             Heatmap h = render_heatmap(scene, ho);
             s.heatmap_png = h.png;
-            s.heatmap_width = h.width, s.heatmap_height = h.height;
+            s.heatmap_width = h.width;
+            s.heatmap_height = h.height;
             s.heatmap_caption = h.caption();
         }
         r.scenes.push_back(std::move(s));

@@ -25,7 +25,7 @@ struct ReportOptions {
     std::vector<ObbMethod> obbs = {ObbMethod::refined, ObbMethod::pca};
     // How the runtime finds the clusters (cb::Traversal): each one a configuration of its own. A metric tree
     // (mtsv, mtsv_two) reads an asset baked with its spheres, capsules and slabs too.
-    std::vector<Traversal> traversals = {Traversal::scan, Traversal::mtsv};
+    std::vector<Traversal> traversals = {Traversal::scan, Traversal::mtsv_one};
     uint32_t coarse_size = 2048;
     int runs = 3;        // bake timings are the median of this many runs
     int query_runs = 7;  // runtime timings: the median of this many rounds over every configuration

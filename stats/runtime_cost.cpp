@@ -25,9 +25,10 @@ RuntimeCost measure_runtime(const AssetView& view, const std::vector<double>& li
             SceneQueryResult q = query_scene(view, light, points.data(), n, options);
             build_times.push_back(q.build_seconds), query_times.push_back(q.query_seconds);
             if (r == 0) {  // the counts are the same every run
-                cost.stats.nodes_visited += q.stats.nodes_visited,
-                    cost.stats.clusters_tested += q.stats.clusters_tested;
-                cost.stats.triangles_tested += q.stats.triangles_tested, cost.stats.touching += q.stats.touching;
+                cost.stats.nodes_visited += q.stats.nodes_visited;
+                cost.stats.clusters_tested += q.stats.clusters_tested;
+                cost.stats.triangles_tested += q.stats.triangles_tested;
+                cost.stats.touching += q.stats.touching;
                 for (uint8_t s : q.shadowed) cost.shadowed += s;
             }
         }

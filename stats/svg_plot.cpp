@@ -55,7 +55,8 @@ Axis make_axis(const std::vector<double>& values, bool log) {
     if (mn >= 0 && mn < 0.35 * mx) mn = 0;
     if (mx - mn <= 0) {
         double pad = mx != 0 ? std::fabs(mx) * 0.1 : 1;
-        mn -= pad, mx += pad;
+        mn -= pad;
+        mx += pad;
     }
     double span = mx - mn, raw = span / 5, step = std::pow(10, std::floor(std::log10(raw)));
     for (double m : {1.0, 2.0, 5.0, 10.0})
@@ -242,7 +243,10 @@ std::string svg_scatter(const Plot& plot, const std::vector<std::string>& colour
     std::vector<size_t> front = pareto_front(plot.points);
     std::vector<bool> on_front(plot.points.size(), false);
     s += "<polyline class=\"pareto-front\" fill=\"none\" stroke=\"#444\" stroke-dasharray=\"4 3\" points=\"";
-    for (size_t i : front) s += num(X(plot.points[i].x)) + "," + num(Y(plot.points[i].y)) + " ", on_front[i] = true;
+    for (size_t i : front) {
+        s += num(X(plot.points[i].x)) + "," + num(Y(plot.points[i].y)) + " ";
+        on_front[i] = true;
+    }
     s += "\"/>\n";
 
     // Markers keep their method's colour; the front is ringed in dark grey, the recommendation in gold.

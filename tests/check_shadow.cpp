@@ -2,9 +2,10 @@
 // files), answered by the runtime's shadow trees (each Traversal) and by its reference walk, each
 // compared with the fast exact oracle (scene_oracle.h), in two-sided and one-sided mode.
 // Lights per scene: outside the bounds, grazing their top, beside them exactly level with the topmost
-// vertex, inside them, exactly on a vertex, and exactly on a triangle's plane beside the triangle. Points: surface points seen from cameras outside the bounds,
-// vertices, points just behind (or far behind) triangles, random points in and around the bounds, and for
-// the plane light points on that plane. Files that do not load are skipped with the reason.
+// vertex, inside them, exactly on a vertex, and exactly on a triangle's plane beside the triangle. Points:
+// surface points seen from cameras outside the bounds, vertices, points just behind (or far behind)
+// triangles, random points in and around the bounds, and for the plane light points on that plane. Files
+// that do not load are skipped with the reason.
 // Exit code 1 on any disagreement (the first ones are printed in full), 2 when nothing was checked.
 //
 //   check_shadow [--queries N] [--threads T] [--brute-force-every K] [FILE...]
@@ -220,9 +221,9 @@ std::vector<Answer> answer_all(const cb::AssetView& v, const SceneOracle& oracle
     for (uint32_t i = 0; i < v.instance_count; ++i) {
         const double* at = light.at.data();
         scan[i].build(v, i, at, {.traversal = Traversal::scan, .one_sided = one_sided, .bias = bias});
-        two[i].build(v, i, at, {.traversal = Traversal::trees, .one_sided = one_sided, .bias = bias});
-        one[i].build(v, i, at, {.traversal = Traversal::one_tree, .one_sided = one_sided, .bias = bias});
-        metric[i].build(v, i, at, {.traversal = Traversal::mtsv, .one_sided = one_sided, .bias = bias});
+        two[i].build(v, i, at, {.traversal = Traversal::top_two, .one_sided = one_sided, .bias = bias});
+        one[i].build(v, i, at, {.traversal = Traversal::top_one, .one_sided = one_sided, .bias = bias});
+        metric[i].build(v, i, at, {.traversal = Traversal::mtsv_one, .one_sided = one_sided, .bias = bias});
         metric2[i].build(v, i, at, {.traversal = Traversal::mtsv_two, .one_sided = one_sided, .bias = bias});
     }
     std::vector<Answer> answers(points.size());

@@ -210,8 +210,9 @@ TEST(Cli, QueryAnswersOneLinePerPoint) {
     EXPECT_EQ(three.out, one.out);
     EXPECT_EQ(three_ref.out, one.out);
     for (const char* traversal :
-         {"trees", "one-tree", "mtsv", "mtsv-two", "mtsv --mtsv-build reference", "mtsv --capsule-aspect 1.2",
-          "mtsv --capsule-aspect inf", "mtsv --capsule-ratio 1.2"})  // the same answers
+         {"top-two", "top-one", "mtsv-one", "mtsv-two", "mtsv-one --mtsv-build reference",
+          "mtsv-one --capsule-aspect 1.2", "mtsv-one --capsule-aspect inf", "mtsv-one --capsule-ratio 1.2", "trees",
+          "one-tree", "mtsv"})  // the same answers (the last three: the older spellings)
         EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --traversal " + traversal).out, one.out)
             << traversal;
     EXPECT_EQ(run("query " + asset + " --light -4,30,2 --points " + pts + " --traversal leaves").code, 2);
@@ -289,7 +290,7 @@ TEST(Cli, QuerySunAnswersAsItsReference) {
             EXPECT_EQ(one.out.size(), 1600u * 2);
             EXPECT_EQ(three.out, one.out);
             EXPECT_EQ(ref.out, one.out);
-            for (const char* traversal : {"trees", "one-tree", "mtsv", "mtsv-two"})
+            for (const char* traversal : {"top-two", "top-one", "mtsv-one", "mtsv-two"})
                 EXPECT_EQ(run(q + " --traversal " + traversal).out, one.out) << traversal;
             dark += size_t(std::count(one.out.begin(), one.out.end(), '1'));
         }
@@ -334,7 +335,7 @@ TEST(Cli, QueryTakesALevelFile) {
     CliRun ref = run("query " + trs + light + " --reference");
     ASSERT_EQ(ref.code, 0) << ref.err;
     EXPECT_EQ(ref.out.size(), 2400u * 2);
-    for (const char* traversal : {"scan", "trees", "one-tree", "mtsv", "mtsv-two"})
+    for (const char* traversal : {"scan", "top-two", "top-one", "mtsv-one", "mtsv-two"})
         EXPECT_EQ(run("query " + trs + light + " --traversal " + traversal + " --threads 2").out, ref.out) << traversal;
     EXPECT_EQ(run("query " + matrix + light).out, ref.out);
     const std::string asset_only = run("query " + asset + light).out;
@@ -587,7 +588,7 @@ TEST(Cli, OneFlagNameHasOneMeaning) {
     CliRun fine = run("query " + asset + " --light 0,5,0 --points " + pts + " --fine trees");
     expect_usage_error(fine, "--fine", "query --fine");
     EXPECT_NE(fine.err.find("--traversal"), std::string::npos) << fine.err;
-    EXPECT_EQ(run("query " + asset + " --light 0,5,0 --points " + pts + " --traversal trees").out, "0\n");
+    EXPECT_EQ(run("query " + asset + " --light 0,5,0 --points " + pts + " --traversal top-two").out, "0\n");
     EXPECT_EQ(help_line(run("query --help").out, "--fine"), "");
     // Every command's --fine is the fine cluster size; report's takes a list of them.
     for (const char* command : {"cluster", "bake", "batch", "stats", "report", "heatmap"}) {
@@ -599,17 +600,17 @@ TEST(Cli, OneFlagNameHasOneMeaning) {
         run("report " + data("small/cube.obj") + " -o " + scratch("names_report").string() + " --methods kmeans"),
         "--methods", "report --methods");
     CliRun report = run("report " + data("small/cube.obj") + " -o " + scratch("names_report").string() + quick_report +
-                        " --method kmeans,vco --obb refined,pca --traversal scan,trees,mtsv-two --json -q");
+                        " --method kmeans,vco --obb refined,pca --traversal scan,top-two,mtsv-two --json -q");
     ASSERT_EQ(report.code, 0) << report.err;
     nlohmann::json j = nlohmann::json::parse(report.out);
     EXPECT_EQ(j["options"]["methods"], nlohmann::json::array({"kmeans", "vco"}));
     EXPECT_EQ(j["options"]["obbs"], nlohmann::json::array({"refined", "pca"}));
-    EXPECT_EQ(j["options"]["traversals"], nlohmann::json::array({"scan", "trees", "mtsv-two"}));
+    EXPECT_EQ(j["options"]["traversals"], nlohmann::json::array({"scan", "top-two", "mtsv-two"}));
     EXPECT_EQ(j["scenes"][0]["configs"].size(), 12u);
     // --traversal is query's name for the same choice; an unknown one is a usage error.
     expect_usage_error(run("report " + data("small/cube.obj") + " -o " + scratch("names_report").string() +
                            " --traversal scan,leaves"),
-                       "--traversal takes a list of scan, trees, one-tree, mtsv, mtsv-two", "report --traversal");
+                       "--traversal takes a list of scan, top-two, top-one, mtsv-one, mtsv-two", "report --traversal");
     // The shadow-volume sampling lights are --sample-lights in stats as in report; --lights is report's own.
     expect_usage_error(run("stats " + data("small/cube.obj") + " --lights 2"), "--lights", "stats --lights");
     EXPECT_EQ(run("stats " + data("small/cube.obj") + " --sample-lights 2 --samples 4").code, 0);
@@ -755,7 +756,7 @@ TEST(Cli, OptionsACommandWouldIgnoreAreRefused) {
     // The reference walk takes no traversal.
     std::string pts = scratch("ignored.txt").string();
     std::ofstream(pts) << "0 2 0\n";
-    expect_usage_error(run("query " + asset + " --light 0,5,0 --points " + pts + " --reference --traversal trees"),
+    expect_usage_error(run("query " + asset + " --light 0,5,0 --points " + pts + " --reference --traversal top-two"),
                        "--traversal does nothing here", "--reference --traversal");
     EXPECT_EQ(run("query " + asset + " --light 0,5,0 --points " + pts + " --reference --one-sided").out, "0\n");
     for (const std::string& f : {asset, all, pts}) std::filesystem::remove(f);
@@ -796,12 +797,12 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCode2) {
              query + " --fine 8",
              query + " --reference --traversal scan",
              query + " --capsule-ratio 3",
-             query + " --traversal trees --mtsv-build reference",
-             query + " --traversal mtsv --mtsv-build best",
-             query + " --traversal mtsv --capsule-ratio 0.5",
-             query + " --traversal mtsv --capsule-ratio nan",
+             query + " --traversal top-two --mtsv-build reference",
+             query + " --traversal mtsv-one --mtsv-build best",
+             query + " --traversal mtsv-one --capsule-ratio 0.5",
+             query + " --traversal mtsv-one --capsule-ratio nan",
              query + " --capsule-aspect 3",
-             query + " --traversal mtsv --capsule-aspect 0.5",
+             query + " --traversal mtsv-one --capsule-aspect 0.5",
              "query " + asset + " --points " + pts + " --light 0,5",
              "stats",
              "stats " + cube + " --fine 86",

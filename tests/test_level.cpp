@@ -22,8 +22,8 @@ namespace {
 using cb::test::SceneOracle;
 using Points = std::vector<std::array<double, 3>>;
 
-constexpr cb::Traversal all_traversals[] = {cb::Traversal::scan, cb::Traversal::trees, cb::Traversal::one_tree,
-                                            cb::Traversal::mtsv, cb::Traversal::mtsv_two};
+constexpr cb::Traversal all_traversals[] = {cb::Traversal::scan, cb::Traversal::top_two, cb::Traversal::top_one,
+                                            cb::Traversal::mtsv_one, cb::Traversal::mtsv_two};
 
 // The loaded scene the exact oracle reads for the level's live instances: the baked meshes (the asset
 // stores them in the same frames) under each instance's transform. `assets` holds the scene each asset
@@ -159,7 +159,7 @@ TEST(Level, SunAnswersEqualTheExactOracle) {
             EXPECT_EQ(disagreements(oracle, sun, p, got, one_sided, &dark, true), 0u)
                 << "sun " << sun[0] << "," << sun[1] << "," << sun[2] << (one_sided ? " one-sided" : "");
             for (cb::Traversal t :
-                 {cb::Traversal::trees, cb::Traversal::one_tree, cb::Traversal::mtsv, cb::Traversal::mtsv_two})
+                 {cb::Traversal::top_two, cb::Traversal::top_one, cb::Traversal::mtsv_one, cb::Traversal::mtsv_two})
                 EXPECT_EQ(answer_sun(level, sun, p, one_sided, nullptr, t), got)
                     << "traversal " << int(t) << " sun " << sun[0] << "," << sun[1] << "," << sun[2]
                     << (one_sided ? " one-sided" : "");
@@ -197,7 +197,7 @@ TEST(Level, MovedRemovedAndAddedInstancesOfTwoAssets) {
         const cb::Scene world = oracle_scene(level, {&city, &towers});
         const SceneOracle oracle(world, level.shadow_bias());
         const Points p = level_points(world, 1500, 11 + frame);
-        for (cb::Traversal t : {cb::Traversal::scan, cb::Traversal::trees, cb::Traversal::mtsv_two})
+        for (cb::Traversal t : {cb::Traversal::scan, cb::Traversal::top_two, cb::Traversal::mtsv_two})
             for (bool one_sided : {false, true})
                 EXPECT_EQ(disagreements(oracle, light, p, answer(level, light, p, t, one_sided), one_sided), 0u)
                     << "frame " << frame << " traversal " << int(t) << (one_sided ? " one-sided" : "");
@@ -305,7 +305,9 @@ TEST(Level, ConcurrentQueriesFromEightThreadsGiveTheSingleThreadedAnswers) {
     const Points p = level_points(city, 20000, 8);
     const double light[3] = {100, -60, 150}, sun[3] = {0.3, -0.4, 1};
     for (int k = 0; k < 4; ++k) {  // three traversals, then the sun
-        const cb::Traversal t = k == 1 ? cb::Traversal::trees : k == 2 ? cb::Traversal::mtsv : cb::Traversal::scan;
+        const cb::Traversal t = k == 1 ? cb::Traversal::top_two
+            : k == 2                   ? cb::Traversal::mtsv_one
+                                       : cb::Traversal::scan;
         cb::ShadowBuildOptions o;
         o.traversal = t;
         cb::LevelShadow shadow;

@@ -84,14 +84,14 @@ std::vector<double> scene_points(const WorldSample& w, size_t n, std::mt19937& r
 struct Variant {
     cb::Traversal traversal;
     cb::MetricBuild build;
-    double capsule_ratio;
+    double capsule_aspect;
 };
 
 const Variant variants[] = {
-    {cb::Traversal::mtsv, cb::MetricBuild::heuristic, 2.0},
-    {cb::Traversal::mtsv, cb::MetricBuild::reference, 2.0},
-    {cb::Traversal::mtsv, cb::MetricBuild::heuristic, 1.0},
-    {cb::Traversal::mtsv, cb::MetricBuild::heuristic, INFINITY},
+    {cb::Traversal::mtsv_one, cb::MetricBuild::heuristic, 2.0},
+    {cb::Traversal::mtsv_one, cb::MetricBuild::reference, 2.0},
+    {cb::Traversal::mtsv_one, cb::MetricBuild::heuristic, 1.0},
+    {cb::Traversal::mtsv_one, cb::MetricBuild::heuristic, INFINITY},
     {cb::Traversal::mtsv_two, cb::MetricBuild::heuristic, 2.0},
     {cb::Traversal::mtsv_two, cb::MetricBuild::reference, 1.0},
 };
@@ -112,7 +112,7 @@ void check_light(const cb::AssetView& v, const double* light, const std::vector<
                            {.traversal = variant.traversal,
                             .one_sided = one_sided,
                             .bias = bias,
-                            .capsule_ratio = variant.capsule_ratio,
+                            .capsule_aspect = variant.capsule_aspect,
                             .metric_build = variant.build});
         }
         std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
@@ -268,7 +268,7 @@ TEST(MetricTree, ConesAndSplitsHoldTheirClusters) {
                 for (cb::MetricBuild build : {cb::MetricBuild::heuristic, cb::MetricBuild::reference}) {
                     cb::MetricTreeTraversal tree;
                     tree.build(v, 0, world_light.data(),
-                               {.traversal = cb::Traversal::mtsv, .capsule_ratio = 1.5, .metric_build = build});
+                               {.traversal = cb::Traversal::mtsv_one, .capsule_aspect = 1.5, .metric_build = build});
                     capsules += tree.capsules();
                     const cb::MeshRecord& m = v.meshes[v.instances[0].mesh];
                     double inverse[12], light[3];
@@ -335,8 +335,8 @@ TEST(MetricTree, TakesAtMostHalfTheTopTreesBytes) {
         WorldSample w = cb::test::sample_scene(b.scene, 1);
         const auto light = scene_lights(w)[0];
         cb::InstanceShadow metric, top;
-        metric.build(b.view, 0, light.data(), {.traversal = cb::Traversal::mtsv});
-        top.build(b.view, 0, light.data(), {.traversal = cb::Traversal::one_tree});
+        metric.build(b.view, 0, light.data(), {.traversal = cb::Traversal::mtsv_one});
+        top.build(b.view, 0, light.data(), {.traversal = cb::Traversal::top_one});
         EXPECT_GT(metric.node_count(), 0u);
         EXPECT_LE(2 * metric.memory_bytes(), top.memory_bytes())
             << "metric " << metric.memory_bytes() << " B, TOP-tree " << top.memory_bytes() << " B";

@@ -138,7 +138,7 @@ static void expect_blocked_by_a_crossing(const cb::test::Baked& b, const double*
     EXPECT_TRUE(cb::occluded_reference(b.view, p, light, bias, false));
     using cb::Traversal;
     for (Traversal traversal :
-         {Traversal::scan, Traversal::trees, Traversal::one_tree, Traversal::mtsv, Traversal::mtsv_two}) {
+         {Traversal::scan, Traversal::top_two, Traversal::top_one, Traversal::mtsv_one, Traversal::mtsv_two}) {
         cb::InstanceShadow tree;
         tree.build(b.view, 0, light, {.traversal = traversal});
         std::vector<uint32_t> stack(tree.stack_size());

@@ -87,7 +87,9 @@ protected:
         o.size = 80;
         if (light_in_view) {  // above the middle of the ground, which the camera looks at
             o.has_light = true;
-            o.light[0] = 0, o.light[1] = 6, o.light[2] = 0;
+            o.light[0] = 0;
+            o.light[1] = 6;
+            o.light[2] = 0;
         }
         return cb::render_heatmap(scene, o);
     }

@@ -74,7 +74,11 @@ uint64_t query_shadowed(const std::string& points, const std::string& light, con
 // The ray o + t d (t > 0) against triangle a, b, c in double: t, or INFINITY.
 double ray_triangle(const double* o, const double* d, const double* a, const double* b, const double* c) {
     double e1[3], e2[3], s[3], p[3], q[3];
-    for (int k = 0; k < 3; ++k) e1[k] = b[k] - a[k], e2[k] = c[k] - a[k], s[k] = o[k] - a[k];
+    for (int k = 0; k < 3; ++k) {
+        e1[k] = b[k] - a[k];
+        e2[k] = c[k] - a[k];
+        s[k] = o[k] - a[k];
+    }
     cb::math::cross3(d, e2, p);
     const double det = cb::math::dot3(e1, p);
     if (det == 0) return INFINITY;
@@ -91,8 +95,13 @@ TEST(RenderVisibility, MatchesABruteForceRayCast) {
     // where a brute-force ray cast over every triangle first hits.
     cb::Scene scene = cb::test::scene_of(cb::test::unit_cube());
     cb::Transform moved = cb::identity_transform();
-    moved[0] = 0, moved[2] = -1, moved[8] = 1, moved[10] = 0;  // a quarter turn about y
-    moved[12] = 1.7, moved[13] = 0.2, moved[14] = -0.4;
+    moved[0] = 0;
+    moved[2] = -1;
+    moved[8] = 1;
+    moved[10] = 0;  // a quarter turn about y
+    moved[12] = 1.7;
+    moved[13] = 0.2;
+    moved[14] = -0.4;
     scene.instances.push_back({0, moved, "moved"});
     cb::ClusterOptions clustering;
     clustering.fine_size = 4;
@@ -150,8 +159,12 @@ TEST(RenderAreaLight, StratifiedJitteredAndRepeatable) {
     for (cb::AreaShape shape : {cb::AreaShape::square, cb::AreaShape::disc})
         for (uint32_t n : {1u, 5u, 16u, 17u, 64u}) {
             cb::AreaLight light;
-            light.centre[0] = 3, light.centre[1] = 10, light.centre[2] = -2;
-            light.size = 2, light.samples = n, light.shape = shape;
+            light.centre[0] = 3;
+            light.centre[1] = 10;
+            light.centre[2] = -2;
+            light.size = 2;
+            light.samples = n;
+            light.shape = shape;
             const std::vector<double> a = cb::area_light_samples(light, facing),
                                       b = cb::area_light_samples(light, facing);
             ASSERT_EQ(a.size(), size_t(n) * 3);
@@ -161,7 +174,10 @@ TEST(RenderAreaLight, StratifiedJitteredAndRepeatable) {
             std::set<std::array<double, 3>> distinct;
             for (uint32_t i = 0; i < n; ++i) {
                 double off[3];
-                for (int k = 0; k < 3; ++k) off[k] = a[i * 3 + k] - light.centre[k], mean[k] += off[k] / n;
+                for (int k = 0; k < 3; ++k) {
+                    off[k] = a[i * 3 + k] - light.centre[k];
+                    mean[k] += off[k] / n;
+                }
                 EXPECT_NEAR(cb::math::dot3(off, axis), 0, 1e-12) << "in the plane facing the scene";
                 const double r = std::sqrt(cb::math::dot3(off, off));
                 EXPECT_LE(r, shape == cb::AreaShape::disc ? 1 + 1e-12 : std::sqrt(2.0) + 1e-12);
@@ -470,8 +486,10 @@ TEST(Render, DefaultViewFramesTheObjectsAndLightsTheSideSeen) {
     EXPECT_GT(hi[0] - lo[0], 17) << "every object: the fence and the colonnade span 17 m";
     EXPECT_GT(j["pixels_covered"].get<uint64_t>(), 640u * 480u / 2) << "the ground fills most of the view";
     double to_light[3], to_eye[3];
-    for (int k = 0; k < 3; ++k)
-        to_light[k] = light[k] - 0.5 * (lo[k] + hi[k]), to_eye[k] = eye[k] - 0.5 * (lo[k] + hi[k]);
+    for (int k = 0; k < 3; ++k) {
+        to_light[k] = light[k] - 0.5 * (lo[k] + hi[k]);
+        to_eye[k] = eye[k] - 0.5 * (lo[k] + hi[k]);
+    }
     EXPECT_GT(cb::math::dot3(to_light, to_eye), 0) << "the light is on the camera's side";
     EXPECT_GT(light[1], hi[1]);
     const double fraction = j["shadowed_fraction"];
@@ -514,7 +532,9 @@ TEST(Render, AntiAliasingAveragesTheSamplesOfAFinerPicture) {
                 int lo = 255, hi = 0;
                 for (uint32_t s = 0; s < 4; ++s) {
                     const uint8_t c = fine.pixels[(size_t(2 * y + s / 2) * fine.width + 2 * x + s % 2) * 3 + k];
-                    mean += linear(c) / 4, lo = std::min<int>(lo, c), hi = std::max<int>(hi, c);
+                    mean += linear(c) / 4;
+                    lo = std::min<int>(lo, c);
+                    hi = std::max<int>(hi, c);
                 }
                 const int expected = int(std::lround(255 * std::pow(mean, 1 / 2.2)));
                 // The background's rows are those of the coarse picture: a level apart at most.

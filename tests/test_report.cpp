@@ -181,12 +181,12 @@ TEST(Report, WritesThreeFilesWithOnePointPerConfiguration) {
     EXPECT_EQ(j["options"]["methods"], nlohmann::json::array({"kmeans", "vco"}));
     EXPECT_EQ(j["options"]["fine_sizes"], nlohmann::json::array({8, 16}));
     // The default traversals: the scan and the metric tree, each configuration twice, with the same answers.
-    EXPECT_EQ(j["options"]["traversals"], nlohmann::json::array({"scan", "mtsv"}));
+    EXPECT_EQ(j["options"]["traversals"], nlohmann::json::array({"scan", "mtsv-one"}));
     std::map<std::string, double> shadowed;
     for (const auto& c : scene["configs"]) {
         std::string name = c["name"].get<std::string>();
-        const bool metric = c["traversal"] == "mtsv";
-        EXPECT_EQ(metric, name.size() > 5 && name.substr(name.size() - 5) == "/mtsv") << name;
+        const bool metric = c["traversal"] == "mtsv-one";
+        EXPECT_EQ(metric, name.size() > 9 && name.substr(name.size() - 9) == "/mtsv-one") << name;
         if (metric) name.resize(name.size() - 5);
         auto [at, fresh] = shadowed.emplace(name, c["shadowed_share"].get<double>());
         if (!fresh) {
@@ -206,7 +206,7 @@ TEST(Report, WritesThreeFilesWithOnePointPerConfiguration) {
         const std::string points = p.substr(0, p.find("<g class=\"legend\">"));
         EXPECT_EQ(count_of(points, "<path class=\"marker\""), configs / 2);
         EXPECT_NE(p.find(">traversal scan</text>"), std::string::npos);
-        EXPECT_NE(p.find(">traversal mtsv</text>"), std::string::npos);
+        EXPECT_NE(p.find(">traversal mtsv-one</text>"), std::string::npos);
     }
     // Self-contained: no scripts, nothing fetched (the SVG namespace is a name, never loaded).
     EXPECT_EQ(html.find("<script"), std::string::npos);
@@ -221,7 +221,9 @@ TEST(Report, OverTheMemoryBudgetConfigurationsAreMeasuredOneAtATime) {
     o.fine_sizes = {16};
     o.obbs = {cb::ObbMethod::pca};
     o.traversals = {cb::Traversal::scan};
-    o.runs = 1, o.query_runs = 2, o.view = 48;
+    o.runs = 1;
+    o.query_runs = 2;
+    o.view = 48;
     cb::Report rounds = cb::run_report({data("default_scene.glb")}, o);
     o.memory_budget = 0;
     cb::Report alone = cb::run_report({data("default_scene.glb")}, o);
@@ -252,7 +254,10 @@ TEST(Report, SunsCountAsTheirExactReferenceCounts) {
         for (size_t v = 0; v < m.vertex_count(); ++v) {
             auto p =
                 cb::transform_point(inst.world, m.positions[v * 3], m.positions[v * 3 + 1], m.positions[v * 3 + 2]);
-            for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], p[k]);
+                hi[k] = std::max(hi[k], p[k]);
+            }
         }
     }
     const std::vector<double> points = cb::hit_points(cb::first_hits(baked, cb::default_camera(lo, hi, 96, 96)));
@@ -260,7 +265,8 @@ TEST(Report, SunsCountAsTheirExactReferenceCounts) {
     ASSERT_GT(n, 1000u);
     auto reference_count = [&](const double* light, bool sun) {
         cb::SceneQueryOptions o;
-        o.reference = true, o.sun = sun;
+        o.reference = true;
+        o.sun = sun;
         const std::vector<uint8_t> s = cb::query_scene(asset.view, light, points.data(), n, o).shadowed;
         return uint64_t(std::count(s.begin(), s.end(), uint8_t(1)));
     };
@@ -274,7 +280,8 @@ TEST(Report, SunsCountAsTheirExactReferenceCounts) {
     EXPECT_EQ(alone.shadowed, high + low);
     const cb::RuntimeCost beside = cb::measure_runtime(asset.view, lights, suns, points, 1, true);
     cb::SceneQueryOptions one_sided;
-    one_sided.reference = true, one_sided.one_sided = true;
+    one_sided.reference = true;
+    one_sided.one_sided = true;
     uint64_t expected = 0;
     for (const double* light : {&lights[0], &suns[0], &suns[3]}) {
         one_sided.sun = light != &lights[0];
@@ -318,17 +325,32 @@ TEST(Report, ColumnsOfZerosAreLeftOut) {
     r.options.fine_sizes = {8};
     r.options.obbs = {cb::ObbMethod::refined};
     cb::SceneReport s;
-    s.file = "made-up.glb", s.name = "made-up", s.triangles = 100, s.instances = 1, s.points = 50;
+    s.file = "made-up.glb";
+    s.name = "made-up";
+    s.triangles = 100;
+    s.instances = 1;
+    s.points = 50;
     s.lights = {0, 10, 0};
     for (int i = 0; i < 2; ++i) {
         cb::ConfigResult c;
-        c.method = i ? cb::ClusterMethod::vco : cb::ClusterMethod::kmeans, c.fine_size = 8;
+        c.method = i ? cb::ClusterMethod::vco : cb::ClusterMethod::kmeans;
+        c.fine_size = 8;
         c.obb = cb::ObbMethod::refined;
-        c.fine_clusters = 12 + i, c.coarse_clusters = 1, c.bytes_per_triangle = 15;
-        c.cluster_seconds = 0.002 * (i + 1), c.fit_seconds = 0.001, c.obb_volume_relative = 0.4;
-        c.useless_share = 0.3, c.build_seconds = 0.001, c.queries_per_second = 2e6;
-        c.nodes_per_query = 0, c.clusters_per_query = 4, c.useless_per_query = 3 - i, c.triangles_per_query = 40;
-        c.shadowed_share = 0, c.frame_seconds = 0.01 * (2 - i);
+        c.fine_clusters = 12 + i;
+        c.coarse_clusters = 1;
+        c.bytes_per_triangle = 15;
+        c.cluster_seconds = 0.002 * (i + 1);
+        c.fit_seconds = 0.001;
+        c.obb_volume_relative = 0.4;
+        c.useless_share = 0.3;
+        c.build_seconds = 0.001;
+        c.queries_per_second = 2e6;
+        c.nodes_per_query = 0;
+        c.clusters_per_query = 4;
+        c.useless_per_query = 3 - i;
+        c.triangles_per_query = 40;
+        c.shadowed_share = 0;
+        c.frame_seconds = 0.01 * (2 - i);
         s.configs.push_back(c);
     }
     r.scenes.push_back(s);
@@ -369,15 +391,21 @@ TEST(Report, BakeTimesOverDecadesGetALogAxis) {
     r.options.fine_sizes = {8, 32};
     r.options.obbs = {cb::ObbMethod::refined};
     cb::SceneReport s;
-    s.file = "city.obj", s.name = "city", s.lights = {0, 10, 0};
+    s.file = "city.obj";
+    s.name = "city";
+    s.lights = {0, 10, 0};
     // As on the shared city model: morton bakes in about a millisecond, k-means in over a second.
     const double bake[4] = {1.4, 0.6, 0.0011, 0.0009}, frame[4] = {0.02, 0.025, 0.03, 0.028};
     for (int i = 0; i < 4; ++i) {
         cb::ConfigResult c;
-        c.method = i < 2 ? cb::ClusterMethod::kmeans : cb::ClusterMethod::morton, c.fine_size = i % 2 ? 32 : 8;
+        c.method = i < 2 ? cb::ClusterMethod::kmeans : cb::ClusterMethod::morton;
+        c.fine_size = i % 2 ? 32 : 8;
         c.obb = cb::ObbMethod::refined;
-        c.cluster_seconds = bake[i], c.frame_seconds = frame[i], c.useless_per_query = 2 + i;
-        c.clusters_per_query = 8, c.queries_per_second = 1e6;
+        c.cluster_seconds = bake[i];
+        c.frame_seconds = frame[i];
+        c.useless_per_query = 2 + i;
+        c.clusters_per_query = 8;
+        c.queries_per_second = 1e6;
         s.configs.push_back(c);
     }
     r.scenes.push_back(s);

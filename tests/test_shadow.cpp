@@ -100,12 +100,18 @@ TEST(Exact, OrientationAgreesWithCgal) {
             for (double& x : p) x = u(rng);
         if (kind == 1) {  // exactly coplanar: z = x + 2y on small integers, then offset far away
             for (auto& p : pts) {
-                p[0] = small(rng), p[1] = small(rng), p[2] = p[0] + 2 * p[1];
+                p[0] = small(rng);
+                p[1] = small(rng);
+                p[2] = p[0] + 2 * p[1];
                 for (double& x : p) x += 1e7;
             }
         } else if (kind == 2) {  // coplanar, moved off zero (subnormals are outside the predicate's domain),
                                  // then the last point nudged by one ulp
-            for (auto& p : pts) p[0] = small(rng) * 0.5 + 10, p[1] = small(rng) * 0.25 + 10, p[2] = p[0] - p[1] + 10;
+            for (auto& p : pts) {
+                p[0] = small(rng) * 0.5 + 10;
+                p[1] = small(rng) * 0.25 + 10;
+                p[2] = p[0] - p[1] + 10;
+            }
             pts[3][2] = std::nextafter(pts[3][2], 100.0);
         } else if (kind == 3) {  // float coordinates far out, as assets hold them
             for (auto& p : pts)
@@ -181,7 +187,8 @@ TEST(Exact, RayTestAgreesWithCgalOracle) {
                               theirs = cb::test::oracle_ray(p, d, a, b, c, from, two_sided);
         ASSERT_EQ(ours.blocks, theirs.blocks) << "case " << i;
         ASSERT_EQ(ours.touching, theirs.touching) << "case " << i;
-        touching += ours.touching, blocks += ours.blocks;
+        touching += ours.touching;
+        blocks += ours.blocks;
     }
     std::printf("60000 ray tests (%zu parallel to the plane): %zu block, %zu touching\n", parallel, blocks, touching);
     EXPECT_GT(touching, 100u);  // boundary contacts that count (245 with this seed)
@@ -223,7 +230,9 @@ TEST(Shadow, ReferenceQueryAgreesWithExactOracle) {
                 double p[3];
                 if (k % 2 == 0) {
                     const auto& s = surface[(k * 7919) % surface.size()];
-                    p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                    p[0] = s[0];
+                    p[1] = s[1];
+                    p[2] = s[2];
                 } else {
                     for (int j = 0; j < 3; ++j) p[j] = lo[j] + (hi[j] - lo[j]) * (1.2 * u(rng) - 0.1);
                 }
@@ -269,7 +278,9 @@ TEST(Shadow, ShadowVolumesHoldEverythingTheirBoxCanShadow) {
         double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
         double scale = i % 3 == 0 ? 1e6 : 1;  // far from the origin too
         for (int k = 0; k < 3; ++k) {
-            box.axis[0][k] = float(a[k]), box.axis[1][k] = float(b[k]), box.axis[2][k] = float(c[k]);
+            box.axis[0][k] = float(a[k]);
+            box.axis[1][k] = float(b[k]);
+            box.axis[2][k] = float(c[k]);
             box.center[k] = float(u(rng) * 10 + scale);
         }
         for (int k = 0; k < 3; ++k) box.half[k] = float(i % 7 == 0 ? 0.0 : 0.01 + 3 * pos(rng));  // flat boxes too
@@ -363,7 +374,7 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
                                {.traversal = level,
                                 .one_sided = one_sided,
                                 .bounds = variant % 2 == 0 ? bounds.data() : nullptr,
-                                .capsule_ratio = variant % 2 ? 1.0 : 2.0,
+                                .capsule_aspect = variant % 2 ? 1.0 : 2.0,
                                 .metric_build = build});
                 stack = std::max(stack, trees[i].stack_size());
                 skipped += trees[i].skipped_clusters();
@@ -375,7 +386,9 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
                 double p[3];
                 if (k % 2 == 0) {
                     const auto& s = surface[size_t(k * 104729) % surface.size()];
-                    p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                    p[0] = s[0];
+                    p[1] = s[1];
+                    p[2] = s[2];
                 } else {
                     for (int j = 0; j < 3; ++j) p[j] = lo[j] + (hi[j] - lo[j]) * (1.2 * u(rng) - 0.1);
                 }
@@ -389,7 +402,8 @@ TEST(Shadow, InstanceShadowAnswersLikeTheReference) {
                 bool reference = cb::occluded_reference(v, p, light, bias, one_sided, &r);
                 disagreements += tree != reference;
                 shadowed += reference;
-                tested_tree += a.triangles_tested, tested_reference += r.triangles_tested;
+                tested_tree += a.triangles_tested;
+                tested_reference += r.triangles_tested;
                 ++queries;
                 points.insert(points.end(), p, p + 3);
                 references.push_back(reference);
@@ -461,7 +475,7 @@ TEST(Shadow, PointsAndLightsThatAreNotFiniteAreNeverInShadow) {
     const size_t n = points.size() / 3;
     using cb::Traversal;
     for (Traversal traversal :
-         {Traversal::scan, Traversal::trees, Traversal::one_tree, Traversal::mtsv, Traversal::mtsv_two}) {
+         {Traversal::scan, Traversal::top_two, Traversal::top_one, Traversal::mtsv_one, Traversal::mtsv_two}) {
         SCOPED_TRACE(int(traversal));
         std::vector<cb::InstanceShadow> trees(v.instance_count);
         for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light, {.traversal = traversal});
@@ -511,11 +525,11 @@ TEST(Shadow, ReusedBuildScratchGivesTheSameTree) {
             cb::BuildScratch kept;
             const double other_light[3] = {light[0] + 0.3 * size, light[1] - 2.5 * size, light[2] + 0.7 * size};
             for (uint32_t i = 0; i < v.instance_count; ++i)
-                reused[i].build(v, i, other_light, {.traversal = cb::Traversal::trees, .scratch = &kept});
+                reused[i].build(v, i, other_light, {.traversal = cb::Traversal::top_two, .scratch = &kept});
             for (uint32_t i = 0; i < v.instance_count; ++i) {
-                fresh[i].build(v, i, light, {.traversal = cb::Traversal::trees, .one_sided = one_sided});
+                fresh[i].build(v, i, light, {.traversal = cb::Traversal::top_two, .one_sided = one_sided});
                 reused[i].build(v, i, light,
-                                {.traversal = cb::Traversal::trees, .one_sided = one_sided, .scratch = &kept});
+                                {.traversal = cb::Traversal::top_two, .one_sided = one_sided, .scratch = &kept});
                 EXPECT_EQ(fresh[i].node_count(), reused[i].node_count());
                 EXPECT_EQ(fresh[i].stack_size(), reused[i].stack_size());
                 EXPECT_EQ(fresh[i].always_tested(), reused[i].always_tested());
@@ -569,7 +583,7 @@ TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
     for (size_t k = 0; k < n; ++k) shadowed += reference[k] = cb::occluded_reference(v, &points[k * 3], light, bias);
     EXPECT_GT(shadowed, 50u);
     using Level = cb::Traversal;
-    for (Level level : {Level::scan, Level::trees, Level::one_tree, Level::mtsv, Level::mtsv_two}) {
+    for (Level level : {Level::scan, Level::top_two, Level::top_one, Level::mtsv_one, Level::mtsv_two}) {
         std::vector<cb::InstanceShadow> trees(v.instance_count);
         for (uint32_t i = 0; i < v.instance_count; ++i) trees[i].build(v, i, light, {.traversal = level});
         std::vector<uint32_t> scratch(cb::batch_scratch_size(trees.data(), trees.size(), n));
@@ -579,7 +593,8 @@ TEST(Shadow, CoarseBoxesWithoutFineBoxes) {
         for (size_t k = 0; k < n; ++k) {
             bool walk = false;
             for (const cb::InstanceShadow& t : trees) walk = walk || t.occluded(&points[k * 3], scratch.data());
-            bad += batch[k] != reference[k], bad_walk += walk != bool(reference[k]);
+            bad += batch[k] != reference[k];
+            bad_walk += walk != bool(reference[k]);
         }
         EXPECT_EQ(bad, 0u) << "traversal " << int(level);
         EXPECT_EQ(bad_walk, 0u) << "traversal " << int(level);
@@ -672,7 +687,10 @@ TEST(Shadow, SunAgreesWithExactOracle) {
             cb::apply_instance(v.instances[0].transform, local, corner[k]);
         }
         double edge[3], across[3], in_plane[3];
-        for (int k = 0; k < 3; ++k) edge[k] = corner[1][k] - corner[0][k], across[k] = corner[2][k] - corner[0][k];
+        for (int k = 0; k < 3; ++k) {
+            edge[k] = corner[1][k] - corner[0][k];
+            across[k] = corner[2][k] - corner[0][k];
+        }
         for (int k = 0; k < 3; ++k) in_plane[k] = edge[k] + across[k];
         const double suns[][3] = {{0.1, 1, 0.2},
                                   {0.2, 0.3, 1},
@@ -687,7 +705,9 @@ TEST(Shadow, SunAgreesWithExactOracle) {
                 double p[3];
                 if (k % 3 == 0) {
                     const auto& s = world.surface[size_t(k) * 7919 % world.surface.size()];
-                    p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                    p[0] = s[0];
+                    p[1] = s[1];
+                    p[2] = s[2];
                 } else if (k % 3 == 1) {  // on the first triangle's plane (to rounding), in and beyond it
                     const double s = 1.5 * std::fabs(u(rng)), t = 1.5 * std::fabs(u(rng));
                     for (int j = 0; j < 3; ++j) p[j] = corner[0][j] + s * edge[j] + t * across[j];
@@ -708,8 +728,8 @@ TEST(Shadow, SunAgreesWithExactOracle) {
             }
             // The sun's traversal (cb_sun.h) on the same points, finding clusters by each traversal: as a batch
             // over every instance, and point by point.
-            for (cb::Traversal traversal : {cb::Traversal::scan, cb::Traversal::trees, cb::Traversal::one_tree,
-                                            cb::Traversal::mtsv, cb::Traversal::mtsv_two})
+            for (cb::Traversal traversal : {cb::Traversal::scan, cb::Traversal::top_two, cb::Traversal::top_one,
+                                            cb::Traversal::mtsv_one, cb::Traversal::mtsv_two})
                 for (bool one_sided : {false, true}) {
                     cb::ShadowBuildOptions o;
                     o.one_sided = one_sided;
@@ -780,7 +800,9 @@ TEST(Shadow, HardCasesAgreeWithTheOracle) {
                     double p[3];
                     if (k % 3 == 0) {  // on the surface: a vertex
                         const auto& s = world.surface[size_t(k) % world.surface.size()];
-                        p[0] = s[0], p[1] = s[1], p[2] = s[2];
+                        p[0] = s[0];
+                        p[1] = s[1];
+                        p[2] = s[2];
                     } else if (k % 5 == 4) {  // beyond a point of the bounds, seen from the light: twice as far, or
                         // 1e31 times (such points walk alone: beyond float's range)
                         double scale = k % 50 == 49 ? 1e31 : 2;
@@ -866,11 +888,15 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
             uint32_t id[3];
             v.triangle(m, f, c.first_triangle + uint32_t(rng() % c.triangle_count), id);
             double a[3], bb[3], cc[3], normal[3], light[3];
-            for (int k = 0; k < 3; ++k)
-                a[k] = v.position(m, id[0])[k], bb[k] = v.position(m, id[1])[k], cc[k] = v.position(m, id[2])[k];
+            for (int k = 0; k < 3; ++k) {
+                a[k] = v.position(m, id[0])[k];
+                bb[k] = v.position(m, id[1])[k];
+                cc[k] = v.position(m, id[2])[k];
+            }
             const double e1[3] = {bb[0] - a[0], bb[1] - a[1], bb[2] - a[2]},
                          e2[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]};
-            normal[0] = e1[1] * e2[2] - e1[2] * e2[1], normal[1] = e1[2] * e2[0] - e1[0] * e2[2],
+            normal[0] = e1[1] * e2[2] - e1[2] * e2[1];
+            normal[1] = e1[2] * e2[0] - e1[0] * e2[2];
             normal[2] = e1[0] * e2[1] - e1[1] * e2[0];
             const double nl = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
             const double s = u(rng), t = u(rng) * (1 - s);
@@ -888,19 +914,27 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
             const double dl = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
             for (double& q : d) q /= dl;
             const double pick[3] = {std::fabs(d[0]) < 0.5 ? 1.0 : 0.0, std::fabs(d[0]) < 0.5 ? 0.0 : 1.0, 0.0};
-            x[0] = d[1] * pick[2] - d[2] * pick[1], x[1] = d[2] * pick[0] - d[0] * pick[2],
+            x[0] = d[1] * pick[2] - d[2] * pick[1];
+            x[1] = d[2] * pick[0] - d[0] * pick[2];
             x[2] = d[0] * pick[1] - d[1] * pick[0];
             const double xl = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
             for (double& q : x) q /= xl;
-            y[0] = d[1] * x[2] - d[2] * x[1], y[1] = d[2] * x[0] - d[0] * x[2], y[2] = d[0] * x[1] - d[1] * x[0];
+            y[0] = d[1] * x[2] - d[2] * x[1];
+            y[1] = d[2] * x[0] - d[0] * x[2];
+            y[2] = d[0] * x[1] - d[1] * x[0];
             const double spread = at_edge ? 1e-9 : std::pow(10.0, -4 + 3 * u(rng));
             alignas(64) float rx[4], ry[4], rz[4];
             for (int j = 0; j < 4; ++j) {
                 const double sx = (j == 0 || j == 3) ? -spread : spread, sy = j < 2 ? -spread : spread;
                 double r[3], rl = 0;
-                for (int k = 0; k < 3; ++k) r[k] = d[k] + sx * x[k] + sy * y[k], rl += r[k] * r[k];
+                for (int k = 0; k < 3; ++k) {
+                    r[k] = d[k] + sx * x[k] + sy * y[k];
+                    rl += r[k] * r[k];
+                }
                 rl = std::sqrt(rl);
-                rx[j] = float(r[0] / rl), ry[j] = float(r[1] / rl), rz[j] = float(r[2] / rl);
+                rx[j] = float(r[0] / rl);
+                ry[j] = float(r[1] / rl);
+                rz[j] = float(r[2] / rl);
             }
             // 64 points, each a positive mix of the float rays (each weight at least 1/100 of the largest).
             double p[64][3];
@@ -910,12 +944,20 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
             for (int i = 0; i < 64; ++i) {
                 double w[4], e[3] = {0, 0, 0};
                 for (double& q : w) q = (0.01 + u(rng)) * reach;
-                for (int j = 0; j < 4; ++j) e[0] += w[j] * rx[j], e[1] += w[j] * ry[j], e[2] += w[j] * rz[j];
+                for (int j = 0; j < 4; ++j) {
+                    e[0] += w[j] * rx[j];
+                    e[1] += w[j] * ry[j];
+                    e[2] += w[j] * rz[j];
+                }
                 for (int k = 0; k < 3; ++k) p[i][k] = light[k] + e[k];
                 const double f0 = p[i][0] - light[0], f1 = p[i][1] - light[1], f2 = p[i][2] - light[2];
-                ex[i] = float(f0), ey[i] = float(f1), ez[i] = float(f2);
-                l1[i] = std::fabs(f0) + std::fabs(f1) + std::fabs(f2), vl[i] = float(l1[i] * 1.000001);
-                from[i] = cb::shadow_from(p[i], light, bias), keep[i] = float(1 - from[i]);
+                ex[i] = float(f0);
+                ey[i] = float(f1);
+                ez[i] = float(f2);
+                l1[i] = std::fabs(f0) + std::fabs(f1) + std::fabs(f2);
+                vl[i] = float(l1[i] * 1.000001);
+                from[i] = cb::shadow_from(p[i], light, bias);
+                keep[i] = float(1 - from[i]);
             }
             const cb::lit::TileView tile{
                 ex, ey, ez, vl, keep, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64), rx, ry, rz};
@@ -1152,33 +1194,41 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
             uint32_t id[3];
             v.triangle(m, f, c.first_triangle + uint32_t(rng() % c.triangle_count), id);
             double a[3], bb[3], cc[3], p[3], light[3];
-            for (int k = 0; k < 3; ++k)
-                a[k] = v.position(m, id[0])[k], bb[k] = v.position(m, id[1])[k], cc[k] = v.position(m, id[2])[k];
+            for (int k = 0; k < 3; ++k) {
+                a[k] = v.position(m, id[0])[k];
+                bb[k] = v.position(m, id[1])[k];
+                cc[k] = v.position(m, id[2])[k];
+            }
             double s = u(rng), t = u(rng) * (1 - s),
                    far[3] = {offset + 20 * u(rng) - 7, offset + 20 * u(rng) - 7, offset + 5 + 5 * u(rng)};
             double bias = 1e-4 * (1 + u(rng));  // a world distance: cells are 1 unit
             switch (trial % 4) {
                 case 0:  // p within rounding of the triangle's plane, the light above or below
-                    for (int k = 0; k < 3; ++k)
-                        p[k] = a[k] + s * (bb[k] - a[k]) + t * (cc[k] - a[k]), light[k] = far[k];
+                    for (int k = 0; k < 3; ++k) {
+                        p[k] = a[k] + s * (bb[k] - a[k]) + t * (cc[k] - a[k]);
+                        light[k] = far[k];
+                    }
                     if (trial % 2) std::swap(p, light);
                     break;
                 case 1:  // the light within rounding of the plane of p, a and b: the segment grazes edge a-b
-                    for (int k = 0; k < 3; ++k)
-                        p[k] = far[k],
+                    for (int k = 0; k < 3; ++k) {
+                        p[k] = far[k];
                         light[k] = a[k] + s * (bb[k] - a[k]) + 1.5 * (a[k] + s * (bb[k] - a[k]) - far[k]);
+                    }
                     break;
                 case 2:  // both within rounding of the triangle's plane (edge-on, nearly)
-                    for (int k = 0; k < 3; ++k)
-                        p[k] = a[k] + 3 * s * (bb[k] - a[k]) - t * (cc[k] - a[k]),
+                    for (int k = 0; k < 3; ++k) {
+                        p[k] = a[k] + 3 * s * (bb[k] - a[k]) - t * (cc[k] - a[k]);
                         light[k] = a[k] - 2 * t * (bb[k] - a[k]) + 4 * s * (cc[k] - a[k]);
+                    }
                     break;
                 default: {  // the segment crosses the triangle within rounding of where contacts start to count
                     const double f0 = 1.0 / (8192 + 3 * u(rng));
                     double d2 = 0;
                     for (int k = 0; k < 3; ++k) {
                         double x = a[k] + s * (bb[k] - a[k]) + t * (cc[k] - a[k]);
-                        light[k] = far[k], p[k] = (x - f0 * far[k]) / (1 - f0);
+                        light[k] = far[k];
+                        p[k] = (x - f0 * far[k]) / (1 - f0);
                         d2 += (far[k] - p[k]) * (far[k] - p[k]);
                     }
                     bias = f0 * std::sqrt(d2);  // from = bias / |light - p| is f0 to rounding
@@ -1223,8 +1273,10 @@ void for_each_lit_plane_sample(uint32_t seed, Visit visit) {
                                   double corner[3][3], e1[3], e2[3], n[3], points[4][3];
                                   for (int k = 0; k < 3; ++k)
                                       for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];
-                                  for (int j = 0; j < 3; ++j)
-                                      e1[j] = corner[1][j] - corner[0][j], e2[j] = corner[2][j] - corner[0][j];
+                                  for (int j = 0; j < 3; ++j) {
+                                      e1[j] = corner[1][j] - corner[0][j];
+                                      e2[j] = corner[2][j] - corner[0][j];
+                                  }
                                   cb::math::cross3(e1, e2, n);
                                   for (int k = 0; k < 4; ++k) {
                                       const double s = u(rng), w = u(rng) * (1 - s), lift[4] = {0, 1e-12, 1e-6, 0.3};
@@ -1505,7 +1557,10 @@ TEST(Shadow, SegmentBoxFilterNeverMissesATouch) {
             dir[k] = u(rng);
         }
         double s = 0.5 + u(rng), len = 3 * std::fabs(u(rng)) + 1e-3;
-        for (int k = 0; k < 3; ++k) p[k] = on[k] - s * len * dir[k], q[k] = on[k] + (1 - s) * len * dir[k];
+        for (int k = 0; k < 3; ++k) {
+            p[k] = on[k] - s * len * dir[k];
+            q[k] = on[k] + (1 - s) * len * dir[k];
+        }
         if (trial % 4 == 3) {
             // Along a face, within rounding of its plane: from the face's centre (dot with the axis equal to
             // the half extent up to rounding), across the face's other axis.
@@ -1514,7 +1569,10 @@ TEST(Shadow, SegmentBoxFilterNeverMissesATouch) {
             double a2 = double(a[0]) * a[0] + double(a[1]) * a[1] + double(a[2]) * a[2];
             double w[3] = {double(a[1]) * b[2] - double(a[2]) * b[1], double(a[2]) * b[0] - double(a[0]) * b[2],
                            double(a[0]) * b[1] - double(a[1]) * b[0]};
-            for (int k = 0; k < 3; ++k) p[k] = box.center[k] + a[k] * (coeff[face] / a2), q[k] = p[k] + len * w[k];
+            for (int k = 0; k < 3; ++k) {
+                p[k] = box.center[k] + a[k] * (coeff[face] / a2);
+                q[k] = p[k] + len * w[k];
+            }
         }
         // Exact clipping of the whole segment, and of its part from `from` on (where a contact can block: the
         // filter clipped at blocking_start(from) must keep those).
@@ -1534,7 +1592,8 @@ TEST(Shadow, SegmentBoxFilterNeverMissesATouch) {
                 }
                 FT ta = (-h - dp) / d, tb = (h - dp) / d;
                 if (ta > tb) std::swap(ta, tb);
-                t0 = CGAL::max(t0, ta), t1 = CGAL::min(t1, tb);
+                t0 = CGAL::max(t0, ta);
+                t1 = CGAL::min(t1, tb);
                 meets = t0 <= t1;
             }
             ++tests;

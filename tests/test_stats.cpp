@@ -72,7 +72,8 @@ TEST(Stats, SingleClusterCube) {
 
 TEST(Stats, OneTriangle) {
     cb::StatsOptions so;
-    so.lights = 200, so.suns = 200;
+    so.lights = 200;
+    so.suns = 200;
     cb::SceneStats s = stats_of(scene_of(mesh_of({0, 0, 0, 1, 0, 0, 0, 1, 0}, {0, 1, 2})), 16, so);
     const cb::LevelStats& f = s.fine;
     EXPECT_EQ(f.clusters, 1u);
@@ -107,7 +108,8 @@ TEST(Stats, TwoDisjointPartsInOneCluster) {
 TEST(Stats, InstancesScaleWorldVolumes) {
     cb::Scene s = scene_of(unit_cube());
     cb::Transform t = cb::identity_transform();
-    t[0] = t[5] = t[10] = 2, t[12] = 3;  // scaled by 2, moved to x = 3
+    t[0] = t[5] = t[10] = 2;
+    t[12] = 3;  // scaled by 2, moved to x = 3
     s.instances.push_back({0, t, "big"});
     cb::SceneStats st = stats_of(s);
     EXPECT_EQ(st.fine.clusters, 1u);  // the mesh is stored once

@@ -20,12 +20,16 @@ constexpr double pi = 3.14159265358979323846;
 
 Camera default_camera(const double* lo, const double* hi, uint32_t width, uint32_t height) {
     Camera c;
-    c.width = width, c.height = height;
+    c.width = width;
+    c.height = height;
     double size = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-30});
     double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
     const double from[3] = {1.2, 0.8, 1.5};
     double up[3] = {0, 1, 0};
-    for (int k = 0; k < 3; ++k) c.eye[k] = centre[k] + from[k] * size, c.forward[k] = -from[k];
+    for (int k = 0; k < 3; ++k) {
+        c.eye[k] = centre[k] + from[k] * size;
+        c.forward[k] = -from[k];
+    }
     normalise(c.forward);
     cross3(c.forward, up, c.right);
     normalise(c.right);
@@ -46,8 +50,12 @@ Camera default_camera(const double* lo, const double* hi, uint32_t width, uint32
 Camera camera_looking_at(const double* eye, const double* target, const double* up, double fov_degrees, uint32_t width,
                          uint32_t height) {
     Camera c;
-    c.width = width, c.height = height;
-    for (int k = 0; k < 3; ++k) c.eye[k] = eye[k], c.forward[k] = target[k] - eye[k];
+    c.width = width;
+    c.height = height;
+    for (int k = 0; k < 3; ++k) {
+        c.eye[k] = eye[k];
+        c.forward[k] = target[k] - eye[k];
+    }
     normalise(c.forward);
     double upright[3] = {up[0], up[1], up[2]};
     normalise(upright);

@@ -30,7 +30,8 @@ double ray_box_entry(const Obb& b, const double* o, const double* v) {
         }
         double ta = (-h - oc) / dv, tb = (h - oc) / dv;
         if (ta > tb) std::swap(ta, tb);
-        t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
         if (t0 > t1) return INFINITY;
     }
     return t0;
@@ -41,7 +42,11 @@ namespace {
 // Moller-Trumbore in double; INFINITY when missed.
 double ray_triangle(const double* o, const double* v, const double* a, const double* b, const double* c) {
     double e1[3], e2[3], p[3], s[3], q[3];
-    for (int k = 0; k < 3; ++k) e1[k] = b[k] - a[k], e2[k] = c[k] - a[k], s[k] = o[k] - a[k];
+    for (int k = 0; k < 3; ++k) {
+        e1[k] = b[k] - a[k];
+        e2[k] = c[k] - a[k];
+        s[k] = o[k] - a[k];
+    }
     cross3(v, e2, p);
     double det = dot3(e1, p);
     if (!(std::fabs(det) > 0)) return INFINITY;

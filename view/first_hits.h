@@ -7,7 +7,7 @@
 
 #include <vector>
 
-#include "asset_writer.h"
+#include "asset_content.h"
 #include "camera.h"
 
 namespace cb {

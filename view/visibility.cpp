@@ -87,7 +87,9 @@ int project_triangle(const Camera& c, double aspect, double near, const double (
     double cam[3][3];
     for (int i = 0; i < 3; ++i) {
         double e[3] = {world[i][0] - c.eye[0], world[i][1] - c.eye[1], world[i][2] - c.eye[2]};
-        cam[i][0] = dot3(e, c.right), cam[i][1] = dot3(e, c.up), cam[i][2] = dot3(e, c.forward);
+        cam[i][0] = dot3(e, c.right);
+        cam[i][1] = dot3(e, c.up);
+        cam[i][2] = dot3(e, c.forward);
     }
     double poly[4][3];
     int n = 0;
@@ -129,7 +131,8 @@ struct DepthBuffer {
 
 VisibleSurface primary_visibility(const LevelInput& level, const Camera& c, unsigned threads) {
     VisibleSurface out;
-    out.width = c.width, out.height = c.height;
+    out.width = c.width;
+    out.height = c.height;
     const size_t pixel_count = size_t(c.width) * c.height;
     double lo[3], hi[3];
     if (!level_world_box(level, lo, hi) || !pixel_count) return out;
@@ -155,13 +158,18 @@ VisibleSurface primary_visibility(const LevelInput& level, const Camera& c, unsi
             double world[3][3], screen[4][2];
             cluster_triangle(level, clusters[i], t, world);
             int n = project_triangle(c, aspect, near, world, screen);
-            for (int k = 0; k < n; ++k) top = std::min(top, screen[k][1]), bottom = std::max(bottom, screen[k][1]);
+            for (int k = 0; k < n; ++k) {
+                top = std::min(top, screen[k][1]);
+                bottom = std::max(bottom, screen[k][1]);
+            }
         }
         triangles[i] = count;
         if (top <= bottom)
             centre_range(top, bottom, c.height, first_row[i], last_row[i]);
-        else
-            first_row[i] = 1, last_row[i] = 0;
+        else {
+            first_row[i] = 1;
+            last_row[i] = 0;
+        }
     });
     for (uint32_t n : triangles) out.triangles_drawn += n;
 
@@ -182,9 +190,11 @@ VisibleSurface primary_visibility(const LevelInput& level, const Camera& c, unsi
                 const int n = project_triangle(c, aspect, near, world, screen);
                 if (n < 3) continue;
                 double e1[3], e2[3], normal[3], to_a[3];
-                for (int k = 0; k < 3; ++k)
-                    e1[k] = world[1][k] - world[0][k], e2[k] = world[2][k] - world[0][k],
+                for (int k = 0; k < 3; ++k) {
+                    e1[k] = world[1][k] - world[0][k];
+                    e2[k] = world[2][k] - world[0][k];
                     to_a[k] = world[0][k] - c.eye[k];
+                }
                 cross3(e1, e2, normal);
                 const double plane = dot3(to_a, normal);
                 for (int fan = 1; fan + 1 < n; ++fan) {
@@ -194,7 +204,8 @@ VisibleSurface primary_visibility(const LevelInput& level, const Camera& c, unsi
                     int64_t y0, y1, x0, x1;
                     centre_range(std::min({a[1], b[1], d[1]}), std::max({a[1], b[1], d[1]}), c.height, y0, y1);
                     centre_range(std::min({a[0], b[0], d[0]}), std::max({a[0], b[0], d[0]}), c.width, x0, x1);
-                    y0 = std::max(y0, band_first), y1 = std::min(y1, band_last);
+                    y0 = std::max(y0, band_first);
+                    y1 = std::min(y1, band_last);
                     for (int64_t y = y0; y <= y1; ++y)
                         for (int64_t x = x0; x <= x1; ++x) {
                             const double px = x + 0.5, py = y + 0.5;
@@ -227,7 +238,10 @@ VisibleSurface primary_visibility(const LevelInput& level, const Camera& c, unsi
             const VisibleCluster& vc = clusters[buffer.key[p] >> 8];
             double world[3][3], e1[3], e2[3], dir[3];
             cluster_triangle(level, vc, uint32_t(buffer.key[p] & 255), world);
-            for (int k = 0; k < 3; ++k) e1[k] = world[1][k] - world[0][k], e2[k] = world[2][k] - world[0][k];
+            for (int k = 0; k < 3; ++k) {
+                e1[k] = world[1][k] - world[0][k];
+                e2[k] = world[2][k] - world[0][k];
+            }
             double* normal = &out.normals[j * 3];
             cross3(e1, e2, normal);
             normalise(normal);

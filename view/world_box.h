@@ -7,7 +7,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "asset_writer.h"
+#include "asset_content.h"
 #include "scene.h"
 #include "scene_query.h"
 
@@ -22,7 +22,10 @@ inline void instance_matrix(const Transform& world, double* m) {
 
 // Grows the box [lo, hi] to hold the box [box_lo, box_hi].
 inline void grow_box(double* lo, double* hi, const double* box_lo, const double* box_hi) {
-    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], box_lo[k]), hi[k] = std::max(hi[k], box_hi[k]);
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = std::min(lo[k], box_lo[k]);
+        hi[k] = std::max(hi[k], box_hi[k]);
+    }
 }
 
 // The world box [lo, hi] of `count` vertices (xyz floats, in their mesh's frame) placed by the instance

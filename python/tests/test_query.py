@@ -27,8 +27,8 @@ def points(tmp_path_factory):
 @pytest.mark.parametrize("light", LIGHTS)
 @pytest.mark.parametrize(
     "options, flags",
-    [({}, []), ({"one_sided": True}, ["--one-sided"]), ({"traversal": "trees"}, ["--traversal", "trees"]),
-     ({"traversal": "mtsv", "bias": 0.01}, ["--traversal", "mtsv", "--bias", "0.01"])],
+    [({}, []), ({"one_sided": True}, ["--one-sided"]), ({"traversal": "top-two"}, ["--traversal", "top-two"]),
+     ({"traversal": "mtsv-one", "bias": 0.01}, ["--traversal", "mtsv-one", "--bias", "0.01"])],
 )
 def test_answers_equal_the_command_line(scene_asset, scene_asset_file, points, light, options, flags):
     pts, path = points
@@ -53,7 +53,7 @@ def test_suns_equal_the_command_line(scene_asset, scene_asset_file, points, sun,
     assert np.array_equal(ours, theirs)
     together = scene_asset.occluded(pts, np.array(SUNS), sun=True, **options)
     assert np.array_equal(together[SUNS.index(sun)], ours)
-    for traversal in ("trees", "one-tree", "mtsv", "mtsv-two"):
+    for traversal in ("top-two", "top-one", "mtsv-one", "mtsv-two"):
         walked = scene_asset.occluded(pts, sun, sun=True, traversal=traversal, **options)
         assert np.array_equal(walked, ours), traversal
 
@@ -102,7 +102,7 @@ BAD_QUERIES = [
     (np.zeros((4, 3)), (0, 10), {}, ValueError, r"light must have shape \(3,\)"),
     (np.zeros((4, 3)), np.zeros((2, 4)), {}, ValueError, "light must have shape"),
     (np.zeros((4, 3)), (0, np.nan, 0), {}, ValueError, "light: row 0: coordinate is not finite"),
-    (np.zeros((4, 3)), (0, 10, 0), {"traversal": "bvh"}, ValueError, "traversal takes scan, trees"),
+    (np.zeros((4, 3)), (0, 10, 0), {"traversal": "bvh"}, ValueError, "traversal takes scan, top-two"),
     (np.zeros((4, 3)), (0, 10, 0), {"bias": -1.0}, ValueError, "bias takes a distance of at least 0"),
     (np.zeros((4, 3)), (0, 10, 0), {"bias": float("nan")}, ValueError, "bias takes a distance"),
     (np.zeros((4, 3)), (0, 10, 0), {"threads": -1}, TypeError, ""),

@@ -82,7 +82,10 @@ struct Triangles {
 inline void triangle_corners(const Triangles& lit, uint32_t t, const double* light, double (&p)[3][3],
                              double (&u)[3][3]) {
     for (int k = 0; k < 3; ++k)
-        for (int j = 0; j < 3; ++j) p[k][j] = lit.corner[t][k][j], u[k][j] = p[k][j] - light[j];
+        for (int j = 0; j < 3; ++j) {
+            p[k][j] = lit.corner[t][k][j];
+            u[k][j] = p[k][j] - light[j];
+        }
 }
 
 // Triangle t's plane terms, from its corners.
@@ -91,7 +94,9 @@ inline void plane_terms(const Triangles& lit, uint32_t t, const double* light, T
     triangle_corners(lit, t, light, p, u);
     const double e1x = p[1][0] - p[0][0], e1y = p[1][1] - p[0][1], e1z = p[1][2] - p[0][2];
     const double e2x = p[2][0] - p[0][0], e2y = p[2][1] - p[0][1], e2z = p[2][2] - p[0][2];
-    out.plane[0] = e1y * e2z - e1z * e2y, out.plane[1] = e1z * e2x - e1x * e2z, out.plane[2] = e1x * e2y - e1y * e2x;
+    out.plane[0] = e1y * e2z - e1z * e2y;
+    out.plane[1] = e1z * e2x - e1x * e2z;
+    out.plane[2] = e1x * e2y - e1y * e2x;
     out.plane_bound = det_error * (std::fabs(e1x) + std::fabs(e1y) + std::fabs(e1z)) *
         (std::fabs(e2x) + std::fabs(e2y) + std::fabs(e2z));
     for (int j = 0; j < 3; ++j) out.a[j] = p[0][j];
@@ -107,7 +112,8 @@ inline void edge_terms(const Triangles& lit, uint32_t t, const double* light, Tr
     for (int k = 0; k < 3; ++k) u1[k] = std::fabs(u[k][0]) + std::fabs(u[k][1]) + std::fabs(u[k][2]);
     for (int k = 0; k < 3; ++k) {
         const int j = (k + 1) % 3;
-        out.n[k][0] = u[k][1] * u[j][2] - u[k][2] * u[j][1], out.n[k][1] = u[k][2] * u[j][0] - u[k][0] * u[j][2],
+        out.n[k][0] = u[k][1] * u[j][2] - u[k][2] * u[j][1];
+        out.n[k][1] = u[k][2] * u[j][0] - u[k][0] * u[j][2];
         out.n[k][2] = u[k][0] * u[j][1] - u[k][1] * u[j][0];
         out.scale[k] = u1[k] * u1[j];
     }
@@ -179,9 +185,11 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     // Each corner's offset from the light, rounded from its double value (the edges' u, and the plane's below).
     alignas(64) float ox[3][capacity], oy[3][capacity], oz[3][capacity];
     for (int k = 0; k < 3; ++k)
-        for (uint32_t t = 0; t < capacity; ++t)
-            ox[k][t] = float(double(px[k][t]) - light[0]), oy[k][t] = float(double(py[k][t]) - light[1]),
+        for (uint32_t t = 0; t < capacity; ++t) {
+            ox[k][t] = float(double(px[k][t]) - light[0]);
+            oy[k][t] = float(double(py[k][t]) - light[1]);
             oz[k][t] = float(double(pz[k][t]) - light[2]);
+        }
     alignas(64) float widest[capacity] = {};  // per triangle, its usable edges' largest max(A)
     for (int k = 0; k < 3; ++k) {
         const int j = (k + 1) % 3;
@@ -193,7 +201,9 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
             const float amax = std::max(std::max(ax, ay), az);
             const bool usable =
                 amax >= 1e-18f && amax <= 1e30f && std::fabs(ex) + std::fabs(ey) + std::fabs(ez) <= 1e20f;
-            out.fx[k][t] = uy * ez - uz * ey, out.fy[k][t] = uz * ex - ux * ez, out.fz[k][t] = ux * ey - uy * ex;
+            out.fx[k][t] = uy * ez - uz * ey;
+            out.fy[k][t] = uz * ex - ux * ez;
+            out.fz[k][t] = ux * ey - uy * ex;
             out.fbound[k][t] = usable ? 6e-7f * amax : INFINITY;
             widest[t] = std::max(widest[t], usable ? amax : 0.0f);
         }
@@ -218,15 +228,22 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
         const float qbound = 9e-7f * amax * (u_l1 * 1.000001f) + 1e-30f, pbound = 9e-7f * amax;
         const bool usable = (amax >= 1e-18f) & (amax <= 1e30f) & (u_l1 <= 1e20f) & (qbound <= 1e30f);
         const float nx = by * cz - bz * cy, ny = bz * cx - bx * cz, nz = bx * cy - by * cx;
-        out.nx[t] = nx, out.ny[t] = ny, out.nz[t] = nz, out.dq[t] = nx * ux + ny * uy + nz * uz;
-        out.qbound[t] = usable ? qbound : INFINITY, out.pbound[t] = usable ? pbound : INFINITY;
+        out.nx[t] = nx;
+        out.ny[t] = ny;
+        out.nz[t] = nz;
+        out.dq[t] = nx * ux + ny * uy + nz * uz;
+        out.qbound[t] = usable ? qbound : INFINITY;
+        out.pbound[t] = usable ? pbound : INFINITY;
         flat[t] = usable ? amax : 0.0f;
     }
     // The largest, halving the arrays each step (a loop carrying one maximum would not run as vectors).
     for (uint32_t half = capacity / 2; half > 0; half /= 2)
-        for (uint32_t t = 0; t < half; ++t)
-            widest[t] = std::max(widest[t], widest[t + half]), flat[t] = std::max(flat[t], flat[t + half]);
-    out.max_scale = widest[0], out.plane_scale = flat[0];
+        for (uint32_t t = 0; t < half; ++t) {
+            widest[t] = std::max(widest[t], widest[t + half]);
+            flat[t] = std::max(flat[t], flat[t + half]);
+        }
+    out.max_scale = widest[0];
+    out.plane_scale = flat[0];
     out.has_plane = out.has_edges = 0;
 }
 
@@ -248,7 +265,8 @@ inline void crossing_signs(simd::Floats ex, simd::Floats ey, simd::Floats ez, si
                            simd::Floats keep, simd::Mask& up, simd::Mask& down) {
     const simd::Floats mix = simd::fma(simd::splat(0.0f) - keep, simd::dot(ex, ey, ez, nx, ny, nz), dq);
     const simd::Floats bound = simd::fma(vl, pbound, qbound);
-    up = mix > bound, down = -mix > bound;
+    up = mix > bound;
+    down = -mix > bound;
 }
 
 // The first step of triangles_block, for the points p[i], i in `which` (bits of a mask): in may_meet[i],
@@ -270,7 +288,8 @@ inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], const dou
         const uint32_t i = math::lowest_bit(which);
         const double e0 = p[i][0] - light[0], e1 = p[i][1] - light[1], e2 = p[i][2] - light[2];
         const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2);
-        may_meet[i] = all, through[i] = 0;
+        may_meet[i] = all;
+        through[i] = 0;
         if (!(e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20 && e_l1 > 1e-30)) {
             left |= uint64_t(1) << i;
             continue;
@@ -286,7 +305,8 @@ inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], const dou
                 simd::Floats o = simd::dot(v0, v1, v2, simd::load(lit.fx[k] + t), simd::load(lit.fy[k] + t),
                                            simd::load(lit.fz[k] + t));
                 settled = settled & (simd::abs(o) > simd::fma(vl, simd::load(lit.fbound[k] + t), tiny));
-                lo = simd::min(lo, o), hi = simd::max(hi, o);
+                lo = simd::min(lo, o);
+                hi = simd::max(hi, o);
             }
             simd::Mask mixed = (lo < zero) & (hi > zero);
             missed |= simd::bits(settled & mixed) << t;
@@ -305,9 +325,11 @@ inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], const dou
             crossed |= (simd::bits(light_up & mix_down) | (simd::bits(light_down & mix_up) & (lit.two_sided >> t)))
                 << t;
         }
-        may_meet[i] = all & ~missed, through[i] = inside & all & ~missed;  // not the padding
+        may_meet[i] = all & ~missed;
+        through[i] = inside & all & ~missed;  // not the padding
         const bool sure = (crossed & inside & all) != 0;
-        blocked |= uint64_t(sure) << i, left |= uint64_t(!sure && may_meet[i] != 0) << i;
+        blocked |= uint64_t(sure) << i;
+        left |= uint64_t(!sure && may_meet[i] != 0) << i;
     }
     *candidates = left;
     return blocked;
@@ -351,9 +373,12 @@ inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t
             for (int j = 0; j < 4; ++j) {
                 const simd::Floats g =
                     simd::dot(simd::splat(tile.rx[j]), simd::splat(tile.ry[j]), simd::splat(tile.rz[j]), fx, fy, fz);
-                above &= simd::bits(g > clear), below &= simd::bits(-g > clear);
+                above &= simd::bits(g > clear);
+                below &= simd::bits(-g > clear);
             }
-            settled &= above | below, positive &= above, negative &= below;
+            settled &= above | below;
+            positive &= above;
+            negative &= below;
             if ((settled & lanes) != lanes) return false;  // some triangle undecided: the points are tested one by one
         }
         inside |= (positive | negative) << t;
@@ -385,15 +410,16 @@ inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t
                 simd::Mask up, down;
                 crossing_signs(simd::load(tile.ex + i), simd::load(tile.ey + i), simd::load(tile.ez + i),
                                simd::load(tile.vl + i), nx, ny, nz, sdq, sqb, spb, simd::load(tile.keep + i), up, down);
-                ruled |= uint64_t(simd::bits(dq > 0 ? up : down)) << i,
-                    across |= uint64_t(simd::bits(dq > 0 ? down : up)) << i;
+                ruled |= uint64_t(simd::bits(dq > 0 ? up : down)) << i;
+                across |= uint64_t(simd::bits(dq > 0 ? down : up)) << i;
             }
             kept[t] &= ~(ruled & planes);
             if (blocks) crossed |= across & planes & which;
         }
         left |= kept[t];
     }
-    *blocked = crossed, *candidates = left & ~crossed;
+    *blocked = crossed;
+    *candidates = left & ~crossed;
     for (uint64_t w = *candidates; w; w &= w - 1) {
         const uint32_t i = math::lowest_bit(w);
         uint32_t meet = 0;
@@ -503,7 +529,9 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
             lit = &cache->entry[slot];
             if (!cache->holds(owner, f, first)) {
                 light_triangles(v, mesh, c, first, count, light, one_sided, *lit);
-                cache->owner[slot] = owner, cache->cluster[slot] = f, cache->first[slot] = first;
+                cache->owner[slot] = owner;
+                cache->cluster[slot] = f;
+                cache->first[slot] = first;
             }
         } else {
             light_triangles(v, mesh, c, first, count, light, one_sided, own);
@@ -518,11 +546,14 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         if (stats)
             stats->triangles_tested +=
                 uint64_t(lit->count) * (math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32)));
-        blocked |= sure, which &= ~sure;
+        blocked |= sure;
+        which &= ~sure;
         for (uint64_t w = left; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
-            if (triangles_block(*lit, p[i], from[i], light, may_meet[i], through[i], touched))
-                blocked |= uint64_t(1) << i, which &= ~(uint64_t(1) << i);
+            if (triangles_block(*lit, p[i], from[i], light, may_meet[i], through[i], touched)) {
+                blocked |= uint64_t(1) << i;
+                which &= ~(uint64_t(1) << i);
+            }
         }
     }
     return blocked;

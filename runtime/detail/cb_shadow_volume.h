@@ -1,5 +1,6 @@
 // The shadow volume of a box seen from a point light (the thesis's figure 2.7), the building block of the
-// TOP-trees (cb_top_tree.h). Header-only C++17, no dependencies, no exceptions, no allocation. MIT licensed (runtime/LICENSE).
+// TOP-trees (cb_top_tree.h). Header-only C++17, no dependencies, no exceptions, no allocation. MIT licensed
+// (runtime/LICENSE).
 #pragma once
 
 #include <algorithm>

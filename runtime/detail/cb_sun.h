@@ -398,8 +398,8 @@ private:
         }
     }
 
-    bool disc_trees() const { return traversal_ == Traversal::mtsv || traversal_ == Traversal::mtsv_two; }
-    bool two_levels() const { return traversal_ == Traversal::trees || traversal_ == Traversal::mtsv_two; }
+    bool disc_trees() const { return traversal_ == Traversal::mtsv_one || traversal_ == Traversal::mtsv_two; }
+    bool two_levels() const { return traversal_ == Traversal::top_two || traversal_ == Traversal::mtsv_two; }
 
     // Sphere i of bounds() as a disc across the direction, for cluster `id`.
     SunDisc disc(uint32_t i, uint32_t id) const {
@@ -556,8 +556,8 @@ private:
     ScanBounds own_bounds_;
     std::vector<SunBox> coarse_boxes_;     // the coarse boxes set up for box_points (when boxes_small_)
     std::vector<uint8_t> coarse_skipped_;  // one-sided: coarse clusters the sun sees from the front
-    SunLineTree lines_;                    // Traversal::trees and one_tree
-    SunDiscTree discs_;                    // Traversal::mtsv and mtsv_two
+    SunLineTree lines_;                    // Traversal::top_two and one_tree
+    SunDiscTree discs_;                    // Traversal::mtsv_one and mtsv_two
     uint32_t root_ = none;                 // the coarse tree (one tree: the fine tree)
     std::vector<uint32_t> fine_roots_;     // two levels: each coarse cluster's fine tree
     size_t tree_stack_ = 0;                // stack entries a line tree's walk needs

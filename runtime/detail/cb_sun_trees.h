@@ -4,11 +4,11 @@
 // A point may be shadowed by a volume only when its (u, v) lies in the volume's shadow across the direction
 // and its w lies below the volume's top.
 //
-// - SunLineTree (Traversal::trees and one_tree): the TOP tree of cb_top_tree.h with lines across the
+// - SunLineTree (Traversal::top_two and one_tree): the TOP tree of cb_top_tree.h with lines across the
 //   direction in place of planes through a light. A box's prism is 4 lines that hold its shadow (a rectangle
 //   along its longest projected axis) and its top; line nodes are ternary (inside, outside, straddling), each
 //   volume a chain of its 4 lines ending in a prism node, inserted one by one in insertion_order().
-// - SunDiscTree (Traversal::mtsv and mtsv_two): a metric tree over the discs the clusters' bounding spheres
+// - SunDiscTree (Traversal::mtsv_one and mtsv_two): a metric tree over the discs the clusters' bounding spheres
 //   cast across the direction, with the Euclidean metric of that plane (a sun has no angles to measure):
 //   each node a disc that holds the discs below it, split at the median of the wider spread of their
 //   centres, laid out in walk order with the index past each subtree, so that the walk needs no stack.
@@ -150,6 +150,10 @@ public:
                 const double s = double(node.n[0]) * x[0] + double(node.n[1]) * x[1] - double(node.c);
                 lo = std::min(lo, s);
                 hi = std::max(hi, s);
+                if (!(std::fabs(s) < INFINITY)) {  // a side beyond float's range: straddles, reaching everywhere
+                    lo = -INFINITY;
+                    hi = INFINITY;
+                }
             }
             which = lo > 0 ? 0 : hi < 0 ? 1 : 2;
             if (which == 2) node.reach = std::max(node.reach, math::round_up(std::max(hi, -lo)));

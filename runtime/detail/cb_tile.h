@@ -28,10 +28,10 @@ enum class Traversal : uint8_t {
     scan,      // no tree (ScanTraversal): the coarse clusters' bounding spheres are scanned against a tile's
                // pyramid, then each entered one's fine spheres against the pyramid of its points (the default:
                // the only per-light work is setting up the coarse boxes)
-    trees,     // TopTreeTraversal: a tree over the coarse clusters whose cluster nodes enter a tree over that
-               // coarse cluster's fine clusters (the thesis's two levels)
-    one_tree,  // TopTreeTraversal: one tree over all the fine clusters
-    mtsv,      // MetricTreeTraversal: one metric tree over the fine clusters' sphere and capsule cones
+    top_two,   // TopTreeTraversal: a TOP tree over the coarse clusters whose cluster nodes enter a tree over
+               // that coarse cluster's fine clusters (the thesis's two levels)
+    top_one,   // TopTreeTraversal: one TOP tree over all the fine clusters
+    mtsv_one,  // MetricTreeTraversal: one metric tree over the fine clusters' sphere and capsule cones
     mtsv_two,  // MetricTreeTraversal: a metric tree over the coarse clusters' cones whose nodes enter a tree
                // over their fine clusters'
 };
@@ -67,11 +67,11 @@ struct ShadowBuildOptions {
     // then reuses memory instead of asking the system for fresh pages. The traversal's own arrays are reused
     // the same way when its object is.
     BuildScratch* scratch = nullptr;
-    // Traversal::mtsv and mtsv_two: a cluster's volume is its capsule when that is at least this many times
+    // Traversal::mtsv_one and mtsv_two: a cluster's volume is its capsule when that is at least this many times
     // as long (caps included) as it is wide, else its sphere; and how the metric trees are built. A capsule-cone
     // costs more to walk than a cone and, on compact clusters, prunes no better (docs/RUNTIME.md): only
     // clearly elongated clusters get one by default.
-    double capsule_ratio = 4.0;
+    double capsule_aspect = 4.0;
     MetricBuild metric_build = MetricBuild::heuristic;
 };
 

@@ -1,4 +1,4 @@
-// The TOP-tree traversal (Traversal::trees and Traversal::one_tree, the thesis's method): ternary trees of
+// The TOP-tree traversal (Traversal::top_two and Traversal::top_one, the thesis's method): ternary trees of
 // planes through the light over the shadow volumes of cluster boxes (cb_shadow_volume.h). Each volume is a
 // chain of its 4 planes: the inside branch of one plane leads to the next, and the last to a cluster node. A
 // plane node has three children: inside (volumes entirely on its inside), outside (entirely outside) and
@@ -9,8 +9,8 @@
 // cluster and shadowed by a later one. Volumes go in, one by one, in a shuffled order (fixed seed) that keeps
 // the trees balanced. Clusters whose box holds the light, or is level with it, have no volume: they are
 // tested for every point that gets that far. Two levels: a tree over the coarse clusters' volumes whose
-// cluster nodes enter a tree over that coarse cluster's fine clusters (Traversal::trees, when the asset has
-// coarse boxes; otherwise, and with Traversal::one_tree, one tree over the fine clusters).
+// cluster nodes enter a tree over that coarse cluster's fine clusters (Traversal::top_two, when the asset has
+// coarse boxes; otherwise, and with Traversal::top_one, one tree over the fine clusters).
 //
 // Every node also keeps the smallest closing distance of the volumes below it: a point nearer the light
 // than that skips the whole subtree (nothing there can shadow it). Plane nodes and cluster nodes live in
@@ -85,7 +85,7 @@ struct BuildScratch {
 class TopTreeTraversal : public TraversalBase {
 public:
     // One instance of the asset's meshes, for one light given in world space: two levels unless
-    // options.traversal is Traversal::one_tree or the asset has no coarse boxes.
+    // options.traversal is Traversal::top_one or the asset has no coarse boxes.
     void build(const AssetView& view, uint32_t instance, const double* world_light, const ShadowBuildOptions& options) {
         build(view, placement_of(view, instance), world_light, options);
     }
@@ -101,7 +101,7 @@ public:
         depth_ = 0;
         top_always_ = {};
         if (!set_instance(view, at, world_light, options.one_sided, options.bias)) return;
-        const bool two = options.traversal != Traversal::one_tree && view.coarse_bounds.obbs;
+        const bool two = options.traversal != Traversal::top_one && view.coarse_bounds.obbs;
         Nodes& all = work.built;
         all.planes.clear();
         all.clusters.clear();
