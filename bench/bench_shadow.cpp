@@ -19,7 +19,7 @@
 //   alternately)
 #include <embree3/rtcore.h>
 
-#include <cb_cpsv.h>
+#include <cb_instance_shadow.h>
 #include <cb_shadow.h>
 
 #include <algorithm>

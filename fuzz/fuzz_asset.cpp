@@ -1,7 +1,7 @@
 // libFuzzer target for the runtime's asset reader: open_asset must reject any corruption with an error
 // code and, when it accepts, every range it vouched for must be readable (AddressSanitizer watches).
 #include <cb_asset.h>
-#include <cb_cpsv.h>
+#include <cb_instance_shadow.h>
 #include <cb_cull.h>
 #include <cb_level.h>
 

@@ -5,7 +5,7 @@
 #pragma once
 
 #include <cb_asset.h>
-#include <cb_cpsv.h>
+#include <cb_instance_shadow.h>
 #include <cb_shadow.h>
 
 #include <cstddef>

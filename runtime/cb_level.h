@@ -21,7 +21,7 @@
 
 #include "cb_asset.h"
 #include "cb_batch.h"
-#include "cb_cpsv.h"
+#include "cb_instance_shadow.h"
 #include "cb_cull.h"
 #include "detail/cb_math.h"
 #include "cb_scan_bounds.h"

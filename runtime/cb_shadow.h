@@ -3,7 +3,7 @@
 // touch, and the same for suns (a light at infinity, given by a direction); it includes the parts every
 // query is made of: the exact segment test and its semantics
 // (cb_segment.h), the test of a cluster's triangles (cb_lit_triangles.h) and the shadow volume of a box
-// (cb_shadow_volume.h). The clustered structures, per light, are in cb_cpsv.h. Header-only C++17, no
+// (cb_shadow_volume.h). The clustered structures, per light, are in cb_instance_shadow.h. Header-only C++17, no
 // dependencies, no exceptions, no allocation. MIT licensed (runtime/LICENSE).
 #pragma once
 

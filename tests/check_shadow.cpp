@@ -11,7 +11,7 @@
 //   check_shadow [--queries N] [--threads T] [--brute-force-every K] [FILE...]
 //     N queries in all, spread evenly over the scenes (default 1000000); T = 0: every core; with K, every K-th
 //     query also asks the oracle without its AABB trees (every triangle), which must give the same answer.
-#include <cb_cpsv.h>
+#include <cb_instance_shadow.h>
 #include <detail/cb_math.h>
 
 #include <algorithm>

@@ -3,7 +3,7 @@
 // fixes: a point on the ground under blob_a is in shadow of a light straight above, a point above the
 // blob is not. Usage: runtime_cxx17 ASSET
 #include <cb_asset.h>
-#include <cb_cpsv.h>
+#include <cb_instance_shadow.h>
 #include <cb_cull.h>
 #include <detail/cb_exact.h>
 #include <cb_level.h>

@@ -4,7 +4,7 @@
 // trees take at most half the TOP-trees' bytes.
 #include <gtest/gtest.h>
 
-#include <cb_cpsv.h>
+#include <cb_instance_shadow.h>
 #include <detail/cb_metric_tree.h>
 #include <cb_shadow.h>
 

@@ -3,7 +3,7 @@
 // modes, with lights outside, inside, on a vertex and exactly on a triangle's plane.
 #include <gtest/gtest.h>
 
-#include <cb_cpsv.h>
+#include <cb_instance_shadow.h>
 
 #include <array>
 #include <filesystem>

@@ -6,7 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <detail/cb_exact.h>
-#include <cb_cpsv.h>
+#include <cb_instance_shadow.h>
 #include <cb_shadow.h>
 
 #include <cstring>

@@ -7,7 +7,7 @@
 // query ASSET --light X,Y,Z --points POINTS` prints), then on stderr how many fine clusters a camera at the
 // light looking at the scene's centre may see.
 #include <clusterbake/cb_asset.h>
-#include <clusterbake/cb_cpsv.h>
+#include <clusterbake/cb_instance_shadow.h>
 #include <clusterbake/cb_cull.h>
 
 #include <algorithm>

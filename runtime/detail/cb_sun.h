@@ -35,9 +35,10 @@ public:
 
     // One mesh of the asset placed by the caller, for the sun in world direction `toward` (from the scene
     // toward the sun, any length above zero). options.traversal chooses how the clusters are found: the scan
-    // (Traversal::scan), line trees over the boxes' prisms (trees: a coarse tree whose leaves lead to their
-    // fine clusters' trees; one_tree: one tree over the fine clusters), or disc trees over the spheres' discs
-    // (mtsv_two, mtsv). An asset without coarse boxes is answered point by point, as the reference walks it.
+    // (Traversal::scan), line trees over the boxes' prisms (top_two: a coarse tree whose leaves lead to their
+    // fine clusters' trees; top_one: one tree over the fine clusters), or disc trees over the spheres' discs
+    // (mtsv_two, mtsv_one). An asset without coarse boxes is answered point by point, as the reference walks
+    // it.
     void build(const AssetView& view, Placement at, const double* toward, const ShadowBuildOptions& options) {
         view_ = &view;
         one_sided_ = options.one_sided;
@@ -556,7 +557,7 @@ private:
     ScanBounds own_bounds_;
     std::vector<SunBox> coarse_boxes_;     // the coarse boxes set up for box_points (when boxes_small_)
     std::vector<uint8_t> coarse_skipped_;  // one-sided: coarse clusters the sun sees from the front
-    SunLineTree lines_;                    // Traversal::top_two and one_tree
+    SunLineTree lines_;                    // Traversal::top_two and top_one
     SunDiscTree discs_;                    // Traversal::mtsv_one and mtsv_two
     uint32_t root_ = none;                 // the coarse tree (one tree: the fine tree)
     std::vector<uint32_t> fine_roots_;     // two levels: each coarse cluster's fine tree

@@ -4,7 +4,7 @@
 // A point may be shadowed by a volume only when its (u, v) lies in the volume's shadow across the direction
 // and its w lies below the volume's top.
 //
-// - SunLineTree (Traversal::top_two and one_tree): the TOP tree of cb_top_tree.h with lines across the
+// - SunLineTree (Traversal::top_two and top_one): the TOP tree of cb_top_tree.h with lines across the
 //   direction in place of planes through a light. A box's prism is 4 lines that hold its shadow (a rectangle
 //   along its longest projected axis) and its top; line nodes are ternary (inside, outside, straddling), each
 //   volume a chain of its 4 lines ending in a prism node, inserted one by one in insertion_order().

@@ -12,8 +12,8 @@
 //   trees over the cones and capsule-cones of the clusters' spheres and capsules, by angle from the light.
 // - cb_sun.h, a sun (a light at infinity, given by its direction; build_sun): every volume is a prism along
 //   the direction. Traversal::scan scans the clusters' spheres against each tile's prism; the others walk
-//   trees across the direction built per sun (cb_sun_trees.h): lines over the boxes' prisms for trees and
-//   one_tree, discs of the spheres for mtsv and mtsv_two.
+//   trees across the direction built per sun (cb_sun_trees.h): lines over the boxes' prisms for top_two and
+//   top_one, discs of the spheres for mtsv_one and mtsv_two.
 // - cb_tile.h: what they share (the instance's frame, the tile of points, the box filters, the cluster
 //   tests); cb_batch.h: batches of points, sorted by direction and taken in tiles.
 //
