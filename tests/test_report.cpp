@@ -187,7 +187,7 @@ TEST(Report, WritesThreeFilesWithOnePointPerConfiguration) {
         std::string name = c["name"].get<std::string>();
         const bool metric = c["traversal"] == "mtsv-one";
         EXPECT_EQ(metric, name.size() > 9 && name.substr(name.size() - 9) == "/mtsv-one") << name;
-        if (metric) name.resize(name.size() - 5);
+        if (metric) name.resize(name.size() - 9);
         auto [at, fresh] = shadowed.emplace(name, c["shadowed_share"].get<double>());
         if (!fresh) {
             EXPECT_EQ(at->second, c["shadowed_share"].get<double>()) << name;
