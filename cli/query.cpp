@@ -253,16 +253,14 @@ Command add_query(CLI::App& app) {
                     : "takes scan, top-two, top-one, mtsv-one or mtsv-two (got '" + name + "')";
             },
             "TRAVERSAL"));
-    c->add_option(
-        "--capsule-aspect", a->capsule_aspect,
-        "mtsv-one and mtsv-two: a cluster's volume is its capsule when that is at least this many times as long as "
-        "wide, else its sphere (default 4; inf: spheres only; the old spelling --capsule-ratio is still "
-        "accepted)");
+    c->add_option("--capsule-aspect", a->capsule_aspect,
+                  "mtsv-one and mtsv-two: a cluster's volume is its capsule when that is at least this many "
+                  "times as long as wide, else its sphere (default 4; inf: spheres only; the old spelling "
+                  "--capsule-ratio is still accepted)");
     c->add_option("--capsule-ratio", a->capsule_aspect)->group("");  // the old spelling of --capsule-aspect
-    c->add_option(
-         "--mtsv-build", a->metric_build,
-         "mtsv-one and mtsv-two: 'heuristic' (default: shuffled insertion, split distance halved at each near step) or "
-         "'reference' (far pivots, median split distances; slower)")
+    c->add_option("--mtsv-build", a->metric_build,
+                  "mtsv-one and mtsv-two: 'heuristic' (default: shuffled insertion, split distance halved at "
+                  "each near step) or 'reference' (far pivots, median split distances; slower)")
         ->check(CLI::IsMember({"heuristic", "reference"}));
     c->add_option("--fine", a->fine)->group("");  // refused with a pointer to --traversal
     c->add_flag("--json", a->json,
