@@ -115,10 +115,9 @@ nlohmann::json stats_json(const QueryArgs& a, const cb::SceneQueryResult& q, siz
     return j;
 }
 
-void print_json(const QueryArgs& a, const double* light, const cb::SceneQueryResult& q, size_t shadowed) {
+void print_json(const QueryArgs& a, cb::Traversal traversal, const double* light, const cb::SceneQueryResult& q,
+                size_t shadowed) {
     size_t n = q.shadowed.size();
-    cb::Traversal traversal = cb::Traversal::scan;
-    cb::parse_traversal(a.traversal, traversal);  // the name as written, or an older spelling of it
     nlohmann::json j = {{"tool", cb::tool_version()},
                         {"asset", a.asset},
                         {a.sun.empty() ? "light" : "sun", {light[0], light[1], light[2]}},
@@ -161,7 +160,7 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
         return exit_usage;
     }
     cb::Traversal traversal = cb::Traversal::scan;
-    cb::parse_traversal(a.traversal, traversal);  // the option's check read the name
+    cb::parse_traversal(a.traversal, traversal);  // the option's check read the name (or an older spelling)
     if (traversal != cb::Traversal::mtsv_one && traversal != cb::Traversal::mtsv_two &&
         refuse_given(c, {"--capsule-aspect", "--capsule-ratio", "--mtsv-build"},
                      "they set up the metric trees of --traversal mtsv-one and mtsv-two"))
@@ -183,7 +182,7 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     if (!read_points(a, pts)) return exit_bad_input;
 
     cb::SceneQueryOptions options;
-    cb::parse_traversal(a.traversal, options.traversal);           // CLI11 checked the name
+    options.traversal = traversal;
     cb::parse_metric_build(a.metric_build, options.metric_build);  // CLI11 checked the name
     options.one_sided = a.one_sided;
     options.threads = a.threads;
@@ -194,7 +193,7 @@ int run_query(const CLI::App* c, const QueryArgs& a) {
     cb::SceneQueryResult q = cb::query_level(level.level, light, pts.data(), pts.size() / 3, options);
     size_t shadowed = size_t(std::count(q.shadowed.begin(), q.shadowed.end(), uint8_t(1)));
     if (a.json) {
-        print_json(a, light, q, shadowed);
+        print_json(a, traversal, light, q, shadowed);
         return 0;
     }
     std::string answers;

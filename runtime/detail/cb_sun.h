@@ -231,14 +231,8 @@ private:
     // across the direction, and the sphere reaches above the point. Every ray runs along w, so both are
     // comparisons of coordinates.
     static uint64_t sphere_points(const Sphere& s, uint64_t in, const Tile& t, double margin) {
-        const double r = s.r + margin, r2 = r * r, top = s.w + r;
-        uint64_t keep = 0;
-        for (uint64_t b = in; b; b &= b - 1) {
-            const uint32_t i = math::lowest_bit(b);
-            const double du = s.u - t.u[i], dv = s.v - t.v[i];
-            if (du * du + dv * dv <= r2 && t.w[i] <= top) keep |= uint64_t(1) << i;
-        }
-        return keep;
+        const double r = s.r + margin;
+        return sun_disc_points(s.u, s.v, r, s.w + r, in, t.u, t.v, t.w);
     }
 
     // Whether sphere s may meet prism P at all.
@@ -413,39 +407,34 @@ private:
         const ScanBounds& s = bounds();
         std::vector<uint32_t> order;
         std::vector<SunDisc> discs;
-        // One tree over fine clusters [first, first + count); returns its root.
-        auto fine_tree = [&](uint32_t first, uint32_t count) {
-            uint32_t root = none;
+        // One tree over clusters [first, first + count) of one level, whose boxes are `boxes` (indexed by
+        // cluster) and spheres those of bounds() from `first_sphere` on; those `skip` names are left out.
+        // Returns its root.
+        auto tree = [&](uint32_t first, uint32_t count, const Obb* boxes, uint32_t first_sphere, auto skip) {
             if (disc_trees()) {
                 discs.clear();
-                for (uint32_t f = first; f < first + count; ++f)
-                    if (!fine_faces_the_sun(f)) discs.push_back(disc(f, f));
+                for (uint32_t i = 0; i < count; ++i)
+                    if (!skip(first + i)) discs.push_back(disc(first_sphere + i, first + i));
                 return discs_.build(discs.data(), uint32_t(discs.size()));
             }
+            uint32_t root = none;
             insertion_order(count, order);
             for (uint32_t i : order)
-                if (!fine_faces_the_sun(first + i))
-                    lines_.insert(root, sun_box_prism(s.fine_obbs[first + i], s.origin, frame_), first + i);
+                if (!skip(first + i)) lines_.insert(root, sun_box_prism(boxes[first + i], s.origin, frame_), first + i);
             return root;
         };
+        auto fine_skipped = [&](uint32_t f) { return fine_faces_the_sun(f); };
         if (!two_levels()) {
-            root_ = fine_tree(0, mesh_->fine_count);
+            root_ = tree(0, mesh_->fine_count, s.fine_obbs.data(), 0, fine_skipped);
         } else {
             fine_roots_.assign(mesh_->coarse_count, none);
             for (uint32_t c = 0; c < mesh_->coarse_count; ++c) {
                 const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
-                if (!coarse_skipped_[c]) fine_roots_[c] = fine_tree(r.first, r.count);
+                if (!coarse_skipped_[c])
+                    fine_roots_[c] = tree(r.first, r.count, s.fine_obbs.data(), r.first, fine_skipped);
             }
-            if (disc_trees()) {
-                discs.clear();
-                for (uint32_t c = 0; c < mesh_->coarse_count; ++c)
-                    if (!coarse_skipped_[c]) discs.push_back(disc(s.coarse_first + c, c));
-                root_ = discs_.build(discs.data(), uint32_t(discs.size()));
-            } else {
-                insertion_order(mesh_->coarse_count, order);
-                for (uint32_t c : order)
-                    if (!coarse_skipped_[c]) lines_.insert(root_, sun_box_prism(s.coarse_obbs[c], s.origin, frame_), c);
-            }
+            root_ = tree(0, mesh_->coarse_count, s.coarse_obbs.data(), s.coarse_first,
+                         [&](uint32_t c) { return coarse_skipped_[c] != 0; });
         }
         tree_stack_ = disc_trees() ? 0 : lines_.stack_size();
     }

@@ -89,6 +89,19 @@ inline SunBoxPrism sun_box_prism(const Obb& box, const double* origin, const dou
     return p;
 }
 
+// The points of `subset` (coordinates u, v, w, indexed by bit) within distance r of (cu, cv) across the
+// direction and no higher than `top`: those whose ray toward the sun may meet a disc's sphere. In double.
+inline uint64_t sun_disc_points(double cu, double cv, double r, double top, uint64_t subset, const double* u,
+                                const double* v, const double* w) {
+    const double r2 = r * r;
+    for (uint64_t b = subset; b; b &= b - 1) {
+        const uint32_t i = math::lowest_bit(b);
+        const double du = u[i] - cu, dv = v[i] - cv;
+        if (!(du * du + dv * dv <= r2 && w[i] <= top)) subset &= ~(uint64_t(1) << i);
+    }
+    return subset;
+}
+
 namespace sun_tree {
 constexpr uint32_t none = 0xffffffffu;
 constexpr uint32_t prism_bit = 0x80000000u;  // in a child reference: a prism node
@@ -291,7 +304,8 @@ public:
                 continue;
             }
             if (node.id != none) {
-                const uint64_t points = disc_points(node, in & alive, u, v, w, m);
+                const uint64_t points =
+                    sun_disc_points(node.u, node.v, double(node.r) + m, double(node.top) + m, in & alive, u, v, w);
                 if (points) pass(node.id, double(node.top), points);
             }
             ++at;
@@ -299,18 +313,6 @@ public:
     }
 
 private:
-    // The points of `subset` within leaf's disc and below its top, within margin m.
-    static uint64_t disc_points(const sun_tree::DiscNode& leaf, uint64_t subset, const double* u, const double* v,
-                                const double* w, double m) {
-        const double r = double(leaf.r) + m, top = double(leaf.top) + m;
-        for (uint64_t b = subset; b; b &= b - 1) {
-            const uint32_t i = math::lowest_bit(b);
-            const double du = u[i] - leaf.u, dv = v[i] - leaf.v;
-            if (!(du * du + dv * dv <= r * r && w[i] <= top)) subset &= ~(uint64_t(1) << i);
-        }
-        return subset;
-    }
-
     // Adds the subtree of discs [0, n), depth first: a node, its nearer half, its farther half.
     void add(SunDisc* d, uint32_t n) {
         const uint32_t at = uint32_t(nodes_.size());
