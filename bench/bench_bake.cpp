@@ -119,9 +119,10 @@ std::string read_all(const fs::path& p) {
 // `clusterbake bake PLY -o OUT --threads T --json -q` as a child process.
 Run bake(const Options& o, const fs::path& ply, const fs::path& dir, unsigned threads) {
     fs::path out = dir / "bench.cbk", json = dir / "bench.json";
+    // A budget past the default's 4 GB, as a user baking 30 M triangles or more gives one (docs/SECURITY.md).
     std::vector<std::string> args = {
-        o.tool,   "bake", ply.string(), "-o", out.string(), "--threads", std::to_string(threads),
-        "--json", "-q",   "--force"};
+        o.tool, "bake",    ply.string(),      "-o",  out.string(), "--threads", std::to_string(threads), "--json",
+        "-q",   "--force", "--memory-budget", "64GB"};
     std::vector<char*> argv;
     for (std::string& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

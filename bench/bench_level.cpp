@@ -16,6 +16,7 @@
 //   bench_level [--data DIR] [--view 512] [--runs 3] [--cities 10,100,1000,10000,100000] [--only NAME]
 //               [--lights all|points|suns]
 //               [--traversal scan|top-two|top-one|mtsv-one|mtsv-two] [--one-sided 1] [--threads 2]
+//               [--obb refined|pca|pca-area|cgal]
 #include <embree3/rtcore.h>
 
 #include <cb_level.h>
@@ -51,6 +52,7 @@ struct Settings {
     std::string only;
     std::string lights = "all";  // "points" or "suns": only those
     cb::ShadowBuildOptions options;
+    cb::ObbMethod obb = cb::ObbMethod::refined;  // the bake's box fitter: what box tightness is worth at run time
 };
 
 // Ours / the fastest Embree, per scene and light: point lights, then suns.
@@ -154,7 +156,8 @@ double embree_pass(RTCScene scene, const std::vector<double>& pts, const double*
 
 // Ours for one light (or sun) on `threads` threads: order (one thread), cull, set up and answer in ranges.
 double our_pass(cb::LevelShadow& shadow, const cb::Level& level, const double* light, const std::vector<double>& pts,
-                const cb::ShadowBuildOptions& options, unsigned threads, std::vector<uint8_t>& out, bool sun) {
+                const cb::ShadowBuildOptions& options, unsigned threads, std::vector<uint8_t>& out, bool sun,
+                cb::QueryStats* stats = nullptr) {
     const size_t n = pts.size() / 3;
     auto t0 = std::chrono::steady_clock::now();
     if (sun)
@@ -169,7 +172,7 @@ double our_pass(cb::LevelShadow& shadow, const cb::Level& level, const double* l
                [&](unsigned t) { shadow.build(built * t / threads, built * (t + 1) / threads, &build_scratch[t]); });
     on_threads(threads, [&](unsigned t) {
         std::vector<uint32_t> scratch(shadow.scratch_size());
-        shadow.occluded(tiles * t / threads, tiles * (t + 1) / threads, out.data(), scratch.data());
+        shadow.occluded(tiles * t / threads, tiles * (t + 1) / threads, out.data(), scratch.data(), stats);
     });
     return cb::seconds_since(t0);
 }
@@ -179,6 +182,7 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
     std::vector<cb::AssetMesh> meshes = cb::cluster_scene(scene, {}, bs);
     cb::BoundsOptions bo;
     bo.mask = cb::bounds_auto;
+    bo.obb = s.obb;
     cb::fit_scene_bounds(meshes, bo, 1, bs);
     cb::LoadedAsset loaded;
     if (cb::open_asset_copy(cb::encode_asset(meshes, scene.instances), loaded) != cb::AssetError::ok) return;
@@ -299,6 +303,10 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
                 best_t = std::min(best_t, cb::median(embree_tt[way]));
             }
         }
+        // The work behind our answers, counted in a pass of its own (counting is not free): fine clusters and
+        // triangles tested per point, what looser cluster boxes would add to.
+        cb::QueryStats work;
+        our_pass(shadow, level, light, pts, s.options, 1, ours_t, sun, &work);
         const double o = cb::median(our_t), ot = cb::median(our_tt);
         size_t differ = 0, dark = 0, threads_differ = 0;
         for (size_t k = 0; k < n; ++k) {
@@ -315,10 +323,11 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
         };
         std::printf(
             "| %s | %zu / %zu / %u | %s | %zu | %.1f%% | %.2f | %s / %s | %s / %s | **%.2f** | %.2f / %.2f / **%.2f** "
-            "| %.2f | %zu | %.1f | %.1f / %.1f | %zu / %zu |\n",
+            "| %.2f | %.2f / %.2f | %zu | %.1f | %.1f / %.1f | %zu / %zu |\n",
             name.c_str(), scene.meshes.size(), scene.instances.size(), in_scene, light_names[li], n, 100.0 * dark / n,
             o * 1e3, ms(way_ms[0]).c_str(), ms(way_ms[1]).c_str(), ms(way_ms[2]).c_str(), ms(way_ms[3]).c_str(),
-            o / best, ot * 1e3, best_t * 1e3, ot / best_t, double(n) / o / 1e6, built,
+            o / best, ot * 1e3, best_t * 1e3, ot / best_t, double(n) / o / 1e6,
+            double(work.clusters_tested) / double(n), double(work.triangles_tested) / double(n), built,
             double(met) / double(shadow.tile_count()), double(level.memory_bytes() + bytes) / (1 << 20),
             double(e.flat ? e.flat_bytes : e.instanced_bytes) / (1 << 20), differ, threads_differ);
         std::fflush(stdout);
@@ -364,11 +373,18 @@ int main(int argc, char** argv) {
             s.only = v;
         else if (a == "--lights" && (v == "all" || v == "points" || v == "suns"))
             s.lights = v;
-        else if (a == "--one-sided")
+        else if (a == "--obb") {
+            if (!cb::parse_obb_method(v, s.obb)) {
+                std::fprintf(stderr, "unknown box fitter %s\n", v.c_str());
+                return 2;
+            }
+        } else if (a == "--one-sided")
             s.options.one_sided = v == "1";
         else if (a == "--traversal") {
-            if (!cb::parse_traversal(v, s.options.traversal))
-                return std::fprintf(stderr, "unknown traversal %s\n", v.c_str()), 2;
+            if (!cb::parse_traversal(v, s.options.traversal)) {
+                std::fprintf(stderr, "unknown traversal %s\n", v.c_str());
+                return 2;
+            }
         } else if (a == "--cities") {
             s.cities.clear();
             for (size_t at = 0; at < v.size();) {
@@ -382,20 +398,22 @@ int main(int argc, char** argv) {
         }
     }
     std::printf(
-        "%s traversal%s, view %d x %d, medians of %d rounds. Ours: order + cull + set-up + queries per light; "
+        "%s traversal%s, boxes %s, view %d x %d, medians of %d rounds. Ours: order + cull + set-up + queries per "
+        "light; "
         "Embree: rtcOccluded1 / rtcOccluded16 over a flat BVH of every instance's triangles and over two-level "
         "instancing, BVH builds not counted. ratio = ours / the fastest of Embree's four, on one thread and on %u "
         "(ours ms / Embree's fastest ms / ratio). Answers differing: ours against Embree's rtcOccluded1 "
         "(flat when built; float ties), and ours on 1 thread against ours on %u.\n\n",
-        cb::traversal_name(s.options.traversal), s.options.one_sided ? ", one-sided" : "", s.view, s.view, s.runs,
-        s.threads, s.threads);
+        cb::traversal_name(s.options.traversal), s.options.one_sided ? ", one-sided" : "", cb::obb_method_name(s.obb),
+        s.view, s.view, s.runs, s.threads, s.threads);
     std::printf(
         "| scene | meshes / instances / triangles in scene | light | points | shadowed | ours ms, 1 thread | Embree "
         "flat ms occluded1 / 16 | Embree inst ms occluded1 / 16 | ratio, 1 thread | %u threads: ours ms / Embree "
-        "ms / ratio | our M points/s | instances set up | instances met per tile | memory MB ours / Embree | "
+        "ms / ratio | our M points/s | clusters / triangles tested per point | instances set up | instances met per "
+        "tile | memory MB ours / Embree | "
         "answers differing: from Embree's / 1 and %u threads |\n",
         s.threads, s.threads);
-    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     auto wanted = [&](const std::string& name) { return s.only.empty() || name.find(s.only) != std::string::npos; };
     for (uint32_t c : s.cities) {
         const std::string name = "city " + std::to_string(c);

@@ -45,7 +45,7 @@ struct ClusterBounds {
 enum class ObbMethod {
     pca,          // covariance of the vertices
     pca_area,     // area-weighted covariance of the triangles (resists uneven tessellation)
-    refined,      // both PCA frames, each tightened by the minimum-area rectangle in its three planes (default)
+    refined,      // rectangles across PCA axes and triangle normals, then a descent (default)
     cgal_optimal  // CGAL::oriented_bounding_box (slow reference; boxes from 4 points up)
 };
 

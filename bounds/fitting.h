@@ -57,7 +57,7 @@ struct Frame {
 
 // The box frame `method` fits to the points `pts` (local); `positions`, `indices`, `tris` and `count` are
 // the cluster's triangles, for the area-weighted frame and the triangle normals (may be null), `origin`
-// the local origin.
+// the local origin. Its axes are ordered and signed as the box's rotation nearest the identity.
 Frame best_frame(const double* pts, size_t n, ObbMethod method, const float* positions, const uint32_t* indices,
                  const uint32_t* tris, size_t count, const double* origin);
 

@@ -235,42 +235,54 @@ double soa_cost(const double* x, const double* y, const double* z, size_t n, con
     return (hi[0] - lo[0] + pad) * (hi[1] - lo[1] + pad) * (hi[2] - lo[2] + pad);
 }
 
-// The padded area of the points' rectangle in a plane after turning its axes by the angle of cosine c and
-// sine s: (x, y) are the points' coordinates along the two axes before turning. Two points per step in SSE2
-// lanes, the same expressions as the scalar tail.
-double turned_area(const double* x, const double* y, size_t n, double c, double s, double pad) {
-    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+// The padded areas of the points' rectangle in a plane after turning its axes by the angle of cosine c and
+// sine s (area[0]) and by its opposite (area[1]): (x, y) are the points' coordinates along the two axes
+// before turning. Both turns share the four products of a point; two points per step in SSE2 lanes, the
+// same expressions as the scalar tail.
+void turned_areas(const double* x, const double* y, size_t n, double c, double s, double pad, double area[2]) {
+    // lo/hi[t][j]: turn t (0 by +s, 1 by -s), coordinate j of the turned pair.
+    double lo[2][2] = {{INFINITY, INFINITY}, {INFINITY, INFINITY}};
+    double hi[2][2] = {{-INFINITY, -INFINITY}, {-INFINITY, -INFINITY}};
     size_t v = 0;
 #if defined(__SSE2__)
     const __m128d vc = _mm_set1_pd(c), vs = _mm_set1_pd(s);
-    __m128d lo0 = _mm_set1_pd(INFINITY), lo1 = lo0, hi0 = _mm_set1_pd(-INFINITY), hi1 = hi0;
+    __m128d vlo[2][2], vhi[2][2];
+    for (int t = 0; t < 2; ++t)
+        for (int j = 0; j < 2; ++j) {
+            vlo[t][j] = _mm_set1_pd(INFINITY);
+            vhi[t][j] = _mm_set1_pd(-INFINITY);
+        }
     for (; v + 2 <= n; v += 2) {
-        __m128d px = _mm_loadu_pd(x + v), py = _mm_loadu_pd(y + v);
-        __m128d a = _mm_add_pd(_mm_mul_pd(vc, px), _mm_mul_pd(vs, py));
-        __m128d b = _mm_sub_pd(_mm_mul_pd(vc, py), _mm_mul_pd(vs, px));
-        lo0 = _mm_min_pd(lo0, a);
-        hi0 = _mm_max_pd(hi0, a);
-        lo1 = _mm_min_pd(lo1, b);
-        hi1 = _mm_max_pd(hi1, b);
+        const __m128d px = _mm_loadu_pd(x + v), py = _mm_loadu_pd(y + v);
+        const __m128d cx = _mm_mul_pd(vc, px), sy = _mm_mul_pd(vs, py), cy = _mm_mul_pd(vc, py),
+                      sx = _mm_mul_pd(vs, px);
+        const __m128d turned[2][2] = {{_mm_add_pd(cx, sy), _mm_sub_pd(cy, sx)},
+                                      {_mm_sub_pd(cx, sy), _mm_add_pd(cy, sx)}};
+        for (int t = 0; t < 2; ++t)
+            for (int j = 0; j < 2; ++j) {
+                vlo[t][j] = _mm_min_pd(vlo[t][j], turned[t][j]);
+                vhi[t][j] = _mm_max_pd(vhi[t][j], turned[t][j]);
+            }
     }
-    double l0[2], h0[2], l1[2], h1[2];
-    _mm_storeu_pd(l0, lo0);
-    _mm_storeu_pd(h0, hi0);
-    _mm_storeu_pd(l1, lo1);
-    _mm_storeu_pd(h1, hi1);
-    lo[0] = std::min(l0[0], l0[1]);
-    hi[0] = std::max(h0[0], h0[1]);
-    lo[1] = std::min(l1[0], l1[1]);
-    hi[1] = std::max(h1[0], h1[1]);
+    for (int t = 0; t < 2; ++t)
+        for (int j = 0; j < 2; ++j) {
+            double l[2], h[2];
+            _mm_storeu_pd(l, vlo[t][j]);
+            _mm_storeu_pd(h, vhi[t][j]);
+            lo[t][j] = std::min(l[0], l[1]);
+            hi[t][j] = std::max(h[0], h[1]);
+        }
 #endif
     for (; v < n; ++v) {
-        double a = c * x[v] + s * y[v], b = c * y[v] - s * x[v];
-        lo[0] = std::min(lo[0], a);
-        hi[0] = std::max(hi[0], a);
-        lo[1] = std::min(lo[1], b);
-        hi[1] = std::max(hi[1], b);
+        const double cx = c * x[v], sy = s * y[v], cy = c * y[v], sx = s * x[v];
+        const double turned[2][2] = {{cx + sy, cy - sx}, {cx - sy, cy + sx}};
+        for (int t = 0; t < 2; ++t)
+            for (int j = 0; j < 2; ++j) {
+                lo[t][j] = std::min(lo[t][j], turned[t][j]);
+                hi[t][j] = std::max(hi[t][j], turned[t][j]);
+            }
     }
-    return (hi[0] - lo[0] + pad) * (hi[1] - lo[1] + pad);
+    for (int t = 0; t < 2; ++t) area[t] = (hi[t][0] - lo[t][0] + pad) * (hi[t][1] - lo[t][1] + pad);
 }
 
 // Axes spread evenly over a half sphere (a golden-angle spiral), for extreme_points.
@@ -363,10 +375,11 @@ void extreme_points(const double* pts, size_t n, std::vector<double>& out) {
 // 3dfier) for a quarter of the fitting time; on coarse ones they gain 0.5 to 1.5%.
 const size_t frame_search_limit = 64;
 
-// The best box whose one axis is a PCA axis or (with `positions`) a triangle normal and whose other two
-// form the minimum-area rectangle across it; then a descent over small rotations about each axis.
-Frame refined_frame(const double* pts, size_t n, const std::vector<Frame>& pca, double pad, const float* positions,
-                    const uint32_t* indices, const uint32_t* tris, size_t count) {
+// The best box whose one axis is a PCA axis or (in a large cluster, with `positions`) a triangle normal and
+// whose other two form the minimum-area rectangle across it; then a descent over small rotations about each
+// axis. `fine`: the cluster has at most frame_search_limit points, given in full.
+Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_count, double pad, bool fine,
+                    const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count) {
     thread_local std::vector<double> soa;
     soa.resize(n * 3);
     for (size_t v = 0; v < n; ++v) {
@@ -384,16 +397,20 @@ Frame refined_frame(const double* pts, size_t n, const std::vector<Frame>& pca, 
             best = f;
         }
     };
-    // Across every axis of the vertex PCA frame; across only the thinnest (the patch normal) of the
-    // area-weighted one, whose other fixings rarely win.
-    for (size_t p = 0; p < pca.size(); ++p) {
+    // A large cluster tries rectangles across every axis of the vertex PCA frame, and across the thinnest (the
+    // patch normal) of the area-weighted one, whose other fixings rarely win. A fine cluster tries only the
+    // vertex frame's thinnest axis: the other three rectangles and the area-weighted frame moved the mean fine
+    // box by under 0.2% on 12 scanned meshes, for half the fitting time (docs/PERFORMANCE.md).
+    for (size_t p = 0; p < pca_count; ++p) {
         consider(pca[p]);
-        for (int fixed = p == 0 ? 0 : 2; fixed < 3; ++fixed) consider(min_area_rect_frame(pts, n, pca[p], fixed));
+        for (int fixed = p == 0 && !fine ? 0 : 2; fixed < 3; ++fixed)
+            consider(min_area_rect_frame(pts, n, pca[p], fixed));
     }
-    // Up to 4 triangle normals, evenly spaced through the cluster: bounded work, and 8 gave no tighter boxes
-    // on the dragon.
-    size_t stride = std::max<size_t>(1, count / 4);
-    for (size_t i = 0; positions && i < count; i += stride) {
+    // Up to 4 triangle normals of a large cluster, evenly spaced through it: bounded work, and 8 gave no tighter
+    // boxes on the dragon. A fine cluster's largest triangle made boxes no tighter on the scanned meshes and
+    // looser on fandisk (the descent ends in another local optimum), for a tenth of the fitting time.
+    const size_t stride = std::max<size_t>(1, count / 4);
+    for (size_t i = 0; !fine && positions && i < count; i += stride) {
         double p[3][3];
         for (int k = 0; k < 3; ++k)
             for (int j = 0; j < 3; ++j) p[k][j] = positions[size_t(indices[size_t(tris[i]) * 3 + k]) * 3 + j];
@@ -429,17 +446,20 @@ Frame refined_frame(const double* pts, size_t n, const std::vector<Frame>& pca, 
     for (const auto& [c, s] : turns) {
         for (bool improved = true; improved;) {
             improved = false;
-            for (int k = 0; k < 3; ++k)
-                for (double sign : {1.0, -1.0}) {
-                    const int u = (k + 1) % 3, w = (k + 2) % 3;
-                    double* x = proj.data() + size_t(u) * n;
-                    double* y = proj.data() + size_t(w) * n;
-                    const double turned = (extent[k] + pad) * turned_area(x, y, n, c, sign * s, pad);
+            for (int k = 0; k < 3; ++k) {
+                const int u = (k + 1) % 3, w = (k + 2) % 3;
+                double* x = proj.data() + size_t(u) * n;
+                double* y = proj.data() + size_t(w) * n;
+                double area[2];
+                turned_areas(x, y, n, c, s, pad, area);
+                for (int t = 0; t < 2; ++t) {
+                    const double sign = t == 0 ? 1.0 : -1.0;
+                    const double turned = (extent[k] + pad) * area[t];
                     if (!(turned < best_cost)) continue;
                     best_cost = turned;
                     best = rotated(best, k, c, sign * s);
                     improved = true;
-                    // The winning try's projections, turned as turned_area turned them, become the current ones.
+                    // The winning try's projections, turned as turned_areas turned them, become the current ones.
                     double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
                     for (size_t v = 0; v < n; ++v) {
                         const double a = c * x[v] + sign * s * y[v], b = c * y[v] - sign * s * x[v];
@@ -452,7 +472,10 @@ Frame refined_frame(const double* pts, size_t n, const std::vector<Frame>& pca, 
                     }
                     extent[u] = hi[0] - lo[0];
                     extent[w] = hi[1] - lo[1];
+                    // The turn back is then a try of its own, on the turned projections.
+                    if (t == 0) turned_areas(x, y, n, c, s, pad, area);
                 }
+            }
         }
     }
     make_right_handed(best);
@@ -501,10 +524,26 @@ void pack_rotation(const Frame& f, PackedObb& out) {
     }
 }
 
-}  // namespace
+// The same box under the rotation of its 24 that is nearest the identity: each world axis in turn takes the
+// remaining axis most along it, pointing its way. Rotations near the identity pack with the least rounding,
+// and a box along the world axes (a building, a CAD face) packs exactly, however its axes were found.
+Frame nearest_identity(const Frame& f) {
+    Frame out = f;
+    bool used[3] = {false, false, false};
+    for (int slot = 0; slot < 2; ++slot) {
+        int pick = -1;
+        for (int i = 0; i < 3; ++i)
+            if (!used[i] && (pick < 0 || std::fabs(f.axis[i][slot]) > std::fabs(f.axis[pick][slot]))) pick = i;
+        used[pick] = true;
+        const double sign = f.axis[pick][slot] < 0 ? -1 : 1;
+        for (int k = 0; k < 3; ++k) out.axis[slot][k] = sign * f.axis[pick][k];
+    }
+    make_right_handed(out);
+    return out;
+}
 
-Frame best_frame(const double* pts, size_t n, ObbMethod method, const float* positions, const uint32_t* indices,
-                 const uint32_t* tris, size_t count, const double* origin) {
+Frame search_frame(const double* pts, size_t n, ObbMethod method, const float* positions, const uint32_t* indices,
+                   const uint32_t* tris, size_t count, const double* origin) {
     double lo = INFINITY, hi = -INFINITY;
     for (size_t i = 0; i < n * 3; ++i) {
         lo = std::min(lo, pts[i]);
@@ -520,20 +559,29 @@ Frame best_frame(const double* pts, size_t n, ObbMethod method, const float* pos
         }
         method = ObbMethod::refined;  // CGAL needs 4 points or more, not all in a plane
     }
-    std::vector<Frame> pca;
-    if (method == ObbMethod::pca || method == ObbMethod::refined) pca.push_back(pca_frame(pts, n));
-    if (method == ObbMethod::pca_area || method == ObbMethod::refined) {
+    const bool fine = n <= frame_search_limit;
+    Frame pca[2];
+    size_t pca_count = 0;
+    if (method == ObbMethod::pca || method == ObbMethod::refined) pca[pca_count++] = pca_frame(pts, n);
+    if (method == ObbMethod::pca_area || (method == ObbMethod::refined && !fine)) {
         Frame f;
         if (positions && area_frame(positions, indices, tris, count, origin, f))
-            pca.push_back(f);
+            pca[pca_count++] = f;
         else if (method == ObbMethod::pca_area)
-            pca.push_back(pca_frame(pts, n));
+            pca[pca_count++] = pca_frame(pts, n);
     }
     if (method != ObbMethod::refined) return pca[0];
-    if (n <= frame_search_limit) return refined_frame(pts, n, pca, pad, nullptr, indices, tris, count);
+    if (fine) return refined_frame(pts, n, pca, pca_count, pad, true, positions, indices, tris, count);
     thread_local std::vector<double> few;
     extreme_points(pts, n, few);
-    return refined_frame(few.data(), few.size() / 3, pca, pad, positions, indices, tris, count);
+    return refined_frame(few.data(), few.size() / 3, pca, pca_count, pad, false, positions, indices, tris, count);
+}
+
+}  // namespace
+
+Frame best_frame(const double* pts, size_t n, ObbMethod method, const float* positions, const uint32_t* indices,
+                 const uint32_t* tris, size_t count, const double* origin) {
+    return nearest_identity(search_frame(pts, n, method, positions, indices, tris, count, origin));
 }
 
 PackedObb store_obb(const Frame& f, const double* local, size_t n, const double* origin, const double* world) {

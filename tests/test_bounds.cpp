@@ -249,6 +249,28 @@ TEST(Bounds, RotatedBoxIsFoundExactly) {
     EXPECT_NEAR(cb::obb_volume(optimal), 8.0, 8 * 3e-4);
 }
 
+TEST(Bounds, BoxesAlongTheWorldAxesPackExactly) {
+    // A flat face in the plane y = 0.25, longer along z than along x: PCA finds its axes in the order z, x, y,
+    // a turn of the world axes. Stored as found, the 16-bit quaternion would turn it by a few 1e-5 radians and
+    // the box would grow about 1e-5 thick to hold the face; stored under the identity it stays flat.
+    std::vector<double> face;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 4; ++j) face.insert(face.end(), {0.5 * i, 0.25, 1.0 * j});
+    // A 1 x 3 x 2 box, its sides in no order of size.
+    std::vector<double> box;
+    for (int i = 0; i < 8; ++i) box.insert(box.end(), {i & 1 ? 0.5 : -0.5, i & 2 ? 1.5 : -1.5, i & 4 ? 1.0 : -1.0});
+    const double origin[3] = {0, 0, 0};
+    for (cb::ObbMethod m : {cb::ObbMethod::refined, cb::ObbMethod::pca, cb::ObbMethod::pca_area}) {
+        SCOPED_TRACE(cb::obb_method_name(m));
+        const cb::Obb flat = cb::fit_obb(face.data(), 12, origin, m);
+        EXPECT_LT(*std::min_element(flat.half, flat.half + 3), 1e-6);
+        EXPECT_NEAR(*std::max_element(flat.half, flat.half + 3), 1.5, 1e-6);
+        const cb::Obb b = cb::fit_obb(box.data(), 8, origin, m);
+        EXPECT_GE(cb::obb_volume(b), 6.0);
+        EXPECT_NEAR(cb::obb_volume(b), 6.0, 6 * 1e-5);
+    }
+}
+
 TEST(Bounds, MinimalSphereIsMinimal) {
     // Regular tetrahedron with circumradius 1, plus interior points: the minimal sphere has radius 1.
     std::vector<double> pts = {1, 1, 1, 1, -1, -1, -1, 1, -1, -1, -1, 1, 0.1, 0.2, 0.1, -0.3, 0, 0.2};
