@@ -399,15 +399,15 @@ Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_co
     };
     // A large cluster tries rectangles across every axis of the vertex PCA frame, and across the thinnest (the
     // patch normal) of the area-weighted one, whose other fixings rarely win. A fine cluster tries only the
-    // vertex frame's thinnest axis: the other three rectangles and the area-weighted frame moved the mean fine
-    // box by under 0.2% on 12 scanned meshes, for half the fitting time (docs/PERFORMANCE.md).
+    // vertex frame's thinnest axis: the other three rectangles and the area-weighted frame move the mean fine
+    // box by at most 0.2% on the 13 scanned meshes, for 40% of the box fitting time (docs/PERFORMANCE.md).
     for (size_t p = 0; p < pca_count; ++p) {
         consider(pca[p]);
         for (int fixed = p == 0 && !fine ? 0 : 2; fixed < 3; ++fixed)
             consider(min_area_rect_frame(pts, n, pca[p], fixed));
     }
     // Up to 4 triangle normals of a large cluster, evenly spaced through it: bounded work, and 8 gave no tighter
-    // boxes on the dragon. A fine cluster's largest triangle made boxes no tighter on the scanned meshes and
+    // boxes on the dragon. A fine cluster's largest triangle makes boxes no tighter on the scanned meshes and
     // looser on fandisk (the descent ends in another local optimum), for a tenth of the fitting time.
     const size_t stride = std::max<size_t>(1, count / 4);
     for (size_t i = 0; !fine && positions && i < count; i += stride) {
