@@ -139,22 +139,18 @@ public:
         Tile t;
         uint64_t alone;
         const uint64_t off = start_tile(t, points, index, count, alive, stats, cache, nullptr, alone);
-        alone |= off;
-        if (t.alive) {
-            Directions d;
+        Directions d;
+        auto find = [&] {
             set_directions(t, d);
             for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count && t.alive; ++i)
                 test_points(always_fine_[i], slab_points(always_fine_[i], t.alive, t), t);
             for (uint32_t c : always_coarse_)
                 if (t.alive) enter_coarse(c, t.alive, t, d, stack);
             if (root_ != none && t.alive) tile_walk(root_, t.alive, t, d, stack);
-            walk_entered(t, d, stack);
-            test_pending(t);
-        }
-        for (uint32_t i = 0; i < count; ++i)
-            if ((alone >> i & 1) && walk_alone(points + size_t(index[i]) * 3, stack, stats))
-                t.shadowed |= uint64_t(1) << i;
-        return t.shadowed;
+        };
+        return walk_tile(
+            t, alone | off, find, [&](uint32_t c, uint64_t in) { enter_coarse(c, in, t, d, stack); },
+            [&](uint32_t i) { return walk_alone(points + size_t(index[i]) * 3, stack, stats); });
     }
 
     size_t node_count() const { return nodes_.size(); }
@@ -578,13 +574,13 @@ private:
                 const uint32_t c = node.cluster & ~coarse_bit;
                 const uint64_t meeting = coarse_box_points(c, in, t);
                 if (!meeting) continue;
-                if (t.entered_count == Tile::entered_capacity) walk_entered(t, d, stack + top);
-                t.entered[t.entered_count++] = {node.near, c, meeting};
+                uint32_t* rest = stack + top;  // the stack above this walk's entries
+                add_entered(t, node.near, c, meeting,
+                            [&](uint32_t id, uint64_t points) { enter_coarse(id, points, t, d, rest); });
             } else {
                 const uint64_t crossing = slab_points(node.cluster, in, t);
                 if (!crossing) continue;
-                if (t.pending_count == Tile::pending_capacity) test_pending(t);
-                t.pending[t.pending_count++] = {node.near, node.cluster, crossing};
+                add_pending(t, node.near, node.cluster, crossing);
             }
         }
     }
@@ -595,20 +591,6 @@ private:
         for (uint32_t k = r.first; k < r.first + r.count && (in & t.alive); ++k)
             test_points(always_fine_[k], slab_points(always_fine_[k], in & t.alive, t), t);
         if (fine_roots_[c] != none && (in & t.alive)) tile_walk(fine_roots_[c], in & t.alive, t, d, stack);
-    }
-
-    // The entered coarse clusters, nearest first; each one's pending clusters are tested before the next's.
-    void walk_entered(Tile& t, const Directions& d, uint32_t* stack) const {
-        Tile::Entered* e = t.entered;
-        const uint32_t count = t.entered_count;
-        t.entered_count = 0;
-        sort_by_near(e, count);
-        for (uint32_t i = 0; i < count && t.alive; ++i) {
-            const uint64_t in = e[i].points & t.alive;
-            if (!in) continue;
-            enter_coarse(e[i].id, in, t, d, stack);
-            test_pending(t);
-        }
     }
 
     // One point on its own, in double: the tree walk, testing each cluster as its volume is met.

@@ -77,17 +77,14 @@ public:
         Tile t;
         uint64_t alone;
         const uint64_t off = start_tile(t, points, index, count, alive, stats, cache, fine_obbs(), alone);
-        if (t.alive) {
-            scan_coarse(t);
-            walk_entered(t);
-            test_pending(t);
-        }
-        for (uint32_t i = 0; i < count; ++i) {
-            if (((off >> i & 1) && occluded_tile(points, index + i, 1, 1, stack, stats, cache)) ||
-                ((alone >> i & 1) && walk_alone(points + size_t(index[i]) * 3, stats)))
-                t.shadowed |= uint64_t(1) << i;
-        }
-        return t.shadowed;
+        // The points over 60 degrees off the tile's mean direction make tiles of one; the others that go
+        // alone walk every sphere in double.
+        return walk_tile(
+            t, alone | off, [&] { scan_coarse(t); }, [&](uint32_t c, uint64_t in) { enter_coarse(c, in, t); },
+            [&](uint32_t i) {
+                return off >> i & 1 ? occluded_tile(points, index + i, 1, 1, stack, stats, cache) != 0
+                                    : walk_alone(points + size_t(index[i]) * 3, stats);
+            });
     }
 
     size_t node_count() const { return 0; }
@@ -121,20 +118,10 @@ private:
         return false;
     }
 
-    // The entered coarse clusters, nearest first: their fine spheres scanned; each one's pending clusters are
-    // tested before the next coarse cluster's.
-    void walk_entered(Tile& t) const {
-        Tile::Entered* e = t.entered;
-        const uint32_t count = t.entered_count;
-        t.entered_count = 0;
-        sort_by_near(e, count);
-        for (uint32_t i = 0; i < count && t.alive; ++i) {
-            uint64_t in = e[i].points & t.alive;
-            if (!in) continue;
-            const ClusterRange& r = view_->coarse[mesh_->first_coarse + e[i].id];
-            scan_fine({r.first, r.count}, in, t);
-            test_pending(t);
-        }
+    // Coarse cluster c entered by the points `in`: its fine spheres scanned (walk_entered).
+    void enter_coarse(uint32_t c, uint64_t in, Tile& t) const {
+        const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
+        scan_fine({r.first, r.count}, in, t);
     }
 
     // Sphere i of scan_bounds() from the light, for the float tests of sphere_points: the centre in
@@ -270,8 +257,7 @@ private:
                 points = b.usable ? box_points(b, points, t) : sphere_points(lit_sphere(i), points, t);
                 if (!points) return;
             }
-            if (t.entered_count == Tile::entered_capacity) walk_entered(t);
-            t.entered[t.entered_count++] = {key, c, points};
+            add_entered(t, key, c, points, [&](uint32_t id, uint64_t in) { enter_coarse(id, in, t); });
         });
     }
 
@@ -281,8 +267,7 @@ private:
         scan_spheres<true>(range.first, range.count, in, t, [&](uint32_t f, uint64_t points, float key) {
             if (skippable_fine(f)) return;
             prefetch(f);
-            if (t.pending_count == Tile::pending_capacity) test_pending(t);
-            t.pending[t.pending_count++] = {key, f, points};
+            add_pending(t, key, f, points);
         });
     }
 

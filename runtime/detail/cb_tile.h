@@ -1,11 +1,11 @@
-// What every shadow traversal (cb_scan.h, cb_top_tree.h) shares: the build options, the instance's frame
-// (the mesh, the inverse of its transform, the light in the mesh's frame), the tile of points a batch query
-// takes at once (their directions from the light in float, and a pyramid from the light that holds them),
-// the float box filters, and the steps that test the clusters a traversal finds (pending clusters, nearest
-// first; a cluster's triangles, cb_lit_triangles.h). A traversal is one more class on TraversalBase with
-// the same small interface (build, occluded, occluded_tile, stack_size, node_count, memory_bytes,
-// always_tested); no call is virtual. Header-only C++17, no exceptions, no allocation in queries. MIT
-// licensed (runtime/LICENSE).
+// What every point light's traversal (cb_scan.h, cb_top_tree.h, cb_metric_tree.h) shares: the build options, the
+// instance's frame (the mesh, the inverse of its transform, the light in the mesh's frame), the tile of points a
+// batch query takes at once (their directions from the light in float, and a pyramid from the light that holds
+// them), the float box filters, the tile's walk (walk_tile: the entered coarse clusters, then the pending fine
+// ones, nearest first; a traversal gives only its searches) and the steps that test the clusters it finds (a
+// cluster's triangles, cb_lit_triangles.h). A traversal is one more class on TraversalBase with the same small
+// interface (build, occluded, occluded_tile, stack_size, node_count, memory_bytes, always_tested); no call is
+// virtual. Header-only C++17, no exceptions, no allocation in queries. MIT licensed (runtime/LICENSE).
 #pragma once
 
 #include <algorithm>
@@ -643,6 +643,58 @@ protected:
             test_triangles(p[i].cluster, p[i].points, t);
         }
         t.pending_count = 0;
+    }
+
+    // The walk every traversal makes of a tile, given its own two searches: after start_tile, `find()`
+    // looks for the coarse clusters the tile's pyramid meets (a tree walk may test clusters itself, and
+    // puts the coarse ones on the entered list, add_entered), then the entered ones are walked with
+    // `enter` (walk_entered) and the last pending clusters tested. Last, each point of `alone` (those the
+    // tile did not take) answers on its own, `walk_alone(i)` true when it is in shadow. Returns the tile's
+    // points in shadow.
+    template <class Find, class Enter, class WalkAlone>
+    uint64_t walk_tile(Tile& t, uint64_t alone, Find find, Enter enter, WalkAlone walk_alone) const {
+        if (t.alive) {
+            find();
+            walk_entered(t, enter);
+            test_pending(t);
+        }
+        for (uint64_t b = alone; b; b &= b - 1) {
+            const uint32_t i = math::lowest_bit(b);
+            if (walk_alone(i)) t.shadowed |= uint64_t(1) << i;
+        }
+        return t.shadowed;
+    }
+
+    // The entered coarse clusters, nearest first: `enter(id, points)` finds one's fine clusters for the
+    // points still alive (add_pending), and those are tested before the next one is entered, so that farther
+    // ones leave out the points already found in shadow.
+    template <class Enter>
+    void walk_entered(Tile& t, Enter enter) const {
+        Tile::Entered* e = t.entered;
+        const uint32_t count = t.entered_count;
+        t.entered_count = 0;
+        sort_by_near(e, count);
+        for (uint32_t i = 0; i < count && t.alive; ++i) {
+            const uint64_t in = e[i].points & t.alive;
+            if (!in) continue;
+            enter(e[i].id, in);
+            test_pending(t);
+        }
+    }
+
+    // A coarse cluster (or cluster node) entered by the points `points`, `near` its closing distance; a
+    // full list is walked first (walk_entered with `enter`).
+    template <class Enter>
+    void add_entered(Tile& t, float near, uint32_t id, uint64_t points, Enter enter) const {
+        if (t.entered_count == Tile::entered_capacity) walk_entered(t, enter);
+        t.entered[t.entered_count++] = {near, id, points};
+    }
+
+    // A fine cluster whose volume the points `points` meet, to be tested in order of `near`; a full list is
+    // tested first.
+    void add_pending(Tile& t, float near, uint32_t f, uint64_t points) const {
+        if (t.pending_count == Tile::pending_capacity) test_pending(t);
+        t.pending[t.pending_count++] = {near, f, points};
     }
 
     // Fine cluster f's box: decoded already (`fine_obbs`, ScanBounds) or from the asset.

@@ -169,20 +169,17 @@ public:
         Tile t;
         uint64_t alone;
         const uint64_t off = start_tile(t, points, index, count, alive, stats, cache, nullptr, alone);
-        alone |= off;  // over 60 degrees off the tile's mean direction: walk alone too
-        if (t.alive) {
+        auto find = [&] {
             for (uint32_t i = top_always_.first; i < top_always_.first + top_always_.count && t.alive; ++i)
                 test_points(always_fine_[i], t.alive, t);
             for (uint32_t node : always_coarse_)
                 if (t.alive) tile_walk(node, t.alive, t, stack);
             if (root_ != none && t.alive) tile_walk(root_, t.alive, t, stack);
-            walk_entered(t, stack);
-            test_pending(t);
-        }
-        for (uint32_t i = 0; i < count; ++i)
-            if ((alone >> i & 1) && walk_alone(points + size_t(index[i]) * 3, stack, stats))
-                t.shadowed |= uint64_t(1) << i;
-        return t.shadowed;
+        };
+        // Points over 60 degrees off the tile's mean direction walk alone too.
+        return walk_tile(
+            t, alone | off, find, [&](uint32_t id, uint64_t in) { enter_coarse(id, in, t, stack); },
+            [&](uint32_t i) { return walk_alone(points + size_t(index[i]) * 3, stack, stats); });
     }
 
     size_t node_count() const { return planes_.size() + clusters_.size(); }
@@ -270,22 +267,13 @@ private:
         return root_ != none && walk(root_, stack, q);
     }
 
-    // The entered coarse clusters, nearest first: their always-tested fine clusters then their fine trees;
-    // each one's pending clusters are tested before the next coarse cluster's.
-    void walk_entered(Tile& t, uint32_t* stack) const {
-        Tile::Entered* e = t.entered;
-        const uint32_t count = t.entered_count;
-        t.entered_count = 0;
-        sort_by_near(e, count);
-        for (uint32_t i = 0; i < count && t.alive; ++i) {
-            uint64_t in = e[i].points & t.alive;
-            if (!in) continue;
-            const ClusterNode& leaf = clusters_[e[i].id];
-            for (uint32_t k = leaf.always.first; k < leaf.always.first + leaf.always.count; ++k)
-                test_points(always_fine_[k], in, t);
-            if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in & t.alive, t, stack);
-            test_pending(t);
-        }
+    // A coarse cluster's node entered by the points `in` (walk_entered): its always-tested fine clusters, then
+    // its fine tree.
+    void enter_coarse(uint32_t id, uint64_t in, Tile& t, uint32_t* stack) const {
+        const ClusterNode& leaf = clusters_[id];
+        for (uint32_t k = leaf.always.first; k < leaf.always.first + leaf.always.count; ++k)
+            test_points(always_fine_[k], in, t);
+        if (leaf.fine_root != none && (in & t.alive)) walk_fine_tree(leaf.fine_root, in & t.alive, t, stack);
     }
 
     // The walk of `walk` for a tile's points `subset` at once (see occluded_tile).
@@ -313,11 +301,11 @@ private:
                     uint64_t in = volume_points(leaf, subset & t.alive, chain, t);
                     if (!in) break;
                     if (leaf.cluster != none) {
-                        if (t.pending_count == Tile::pending_capacity) test_pending(t);
-                        t.pending[t.pending_count++] = {leaf.near, leaf.cluster, in};
+                        add_pending(t, leaf.near, leaf.cluster, in);
                     } else {
-                        if (t.entered_count == Tile::entered_capacity) walk_entered(t, stack + top);
-                        t.entered[t.entered_count++] = {leaf.near, uint32_t(&leaf - clusters_.data()), in};
+                        uint32_t* rest = stack + top;  // the stack above this walk's entries
+                        add_entered(t, leaf.near, uint32_t(&leaf - clusters_.data()), in,
+                                    [&](uint32_t id, uint64_t points) { enter_coarse(id, points, t, rest); });
                     }
                     break;
                 }
