@@ -327,6 +327,17 @@ public:
         visit([&](const level_detail::Box& b, double& near) { return level_detail::prism_meets_box(w, b, near); }, f);
     }
 
+    // f(handle) for each live instance with a box (as of the last commit).
+    template <class F>
+    void visit_all(F f) const {
+        visit(
+            [](const level_detail::Box& b, double& near) {
+                near = 0;
+                return !b.empty();
+            },
+            [&](uint32_t h, double) { f(h); });
+    }
+
     // f(handle, 0) for each live instance whose world box may meet the ray p + t d, t >= 0.
     template <class F>
     void visit_ray(const double* p, const double* d, F f) const {
@@ -731,6 +742,26 @@ private:
         if (tile_lists_.size() < tiles) tile_lists_.resize(tiles);
         tile_count_ = tiles;
         built_count_ = 0;
+        list_every_instance();
+    }
+
+    // A tile's list entry: the float bits of `near` (not below 0, so that entries order as integers; NaN: 0)
+    // above the handle.
+    static uint64_t entry(double near, uint32_t h) {
+        const float key = near > 0 ? float(near) : 0.0f;
+        uint32_t bits;
+        std::memcpy(&bits, &key, 4);
+        return uint64_t(bits) << 32 | h;
+    }
+
+    // A level of one instance is not culled per tile: every tile lists it, and a point enters it only when its
+    // segment may meet the instance's bounding sphere (instance_points, in float lanes). Making the tile's
+    // pyramid costs more than the tiles it could leave out save. With more instances, lists of all of them
+    // cost more than the culling: their spheres let through points that their boxes do not.
+    void list_every_instance() {
+        every_.clear();
+        every_tile_ = level_->instance_count() == 1;
+        if (every_tile_) level_->visit_all([&](uint32_t h) { every_.push_back(entry(0, h)); });
     }
 
     // A sun's tile: each point's coordinates in the sun's frame (across: a, b; along: z, up toward the sun);
@@ -838,12 +869,6 @@ private:
             reach += std::fabs(w.z[k]) * 0.5 * (hi[k] - lo[k]);
         }
         w.top = math::dot3(centre, w.z) + reach;
-        auto entry = [](double near, uint32_t h) {
-            const float key = near > 0 ? float(near) : 0.0f;  // NaN: 0
-            uint32_t bits;
-            std::memcpy(&bits, &key, 4);
-            return uint64_t(bits) << 32 | h;
-        };
         if (regular) level_->visit_prism(w, [&](uint32_t h, double near) { list.push_back(entry(near, h)); });
         uint64_t alone = 0;
         for (uint32_t i = 0; i < count; ++i)
@@ -911,6 +936,10 @@ private:
     // they order as integers) above its handle.
     void cull_tile(size_t t) {
         level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
+        if (every_tile_) {
+            list.assign(every_.begin(), every_.end());
+            return;
+        }
         list.clear();
         if (sun_) return cull_sun_tile(t, list);
         const size_t begin = t * tile_capacity;
@@ -931,12 +960,6 @@ private:
             taken |= uint64_t(1) << i;
             for (int k = 0; k < 3; ++k) m[k] += e[i][k] / dist[i];
         }
-        auto entry = [](double near, uint32_t h) {
-            const float key = near > 0 ? float(near) : 0.0f;  // NaN: 0
-            uint32_t bits;
-            std::memcpy(&bits, &key, 4);
-            return uint64_t(bits) << 32 | h;
-        };
         level_detail::WorldPyramid w;
         const uint64_t held = taken ? make_pyramid(e, dist, taken, m, w) : 0;
         if (held) level_->visit_pyramid(w, [&](uint32_t h, double near) { list.push_back(entry(near, h)); });
@@ -1006,6 +1029,8 @@ private:
     double sun_frame_[3][3] = {};  // the sun's direction and two unit axes across it (direction_frame)
     ShadowBuildOptions options_;
     level_detail::LaneVector<uint32_t> order_, order_scratch_;
+    bool every_tile_ = false;                   // every tile lists every instance (list_every_instance)
+    level_detail::LaneVector<uint64_t> every_;  // then that list
     level_detail::LaneVector<level_detail::LaneVector<uint64_t>>
         tile_lists_;  // per tile: cull_tile's entries, then (gather) slots of needed_
     level_detail::LaneVector<uint32_t> slot_of_, stamp_, needed_;
