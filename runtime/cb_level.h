@@ -1004,12 +1004,15 @@ private:
             hi[k] += 1e-6;
         }
         const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
-        double ray[4][3];
+        double ray[4][3], inside[3];
         for (int r = 0; r < 4; ++r) frame_ray(frame, corner[r][0], corner[r][1], ray[r]);
+        // Each side's normal turned toward the rectangle's centre: the mean direction z may lie outside the
+        // rectangle when points over 60 degrees off it were left out.
+        frame_ray(frame, 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), inside);
         for (int r = 0; r < 4; ++r) {
             double* n = w.n[r];
             math::cross3(ray[r], ray[(r + 1) & 3], n);
-            if (math::dot3(n, z) < 0)
+            if (math::dot3(n, inside) < 0)
                 for (int k = 0; k < 3; ++k) n[k] = -n[k];
             const double nl = std::sqrt(math::dot3(n, n));
             for (int k = 0; k < 3; ++k) n[k] = nl > 0 ? n[k] / nl : 0.0;

@@ -229,6 +229,47 @@ TEST(Level, MovedRemovedAndAddedInstancesOfTwoAssets) {
     EXPECT_EQ(level.add_instance(7, 0, lift), cb::Level::none);     // no such asset
 }
 
+TEST(Level, MovesAndRemovalsAloneRefitTheHierarchyAsARebuildWould) {
+    // Frames of moves and removals only (a refit, no rebuild): buildings thrown beyond the city's edge, some
+    // moved twice in a frame. Every box up the hierarchy must hold its instances again, and every tile's
+    // pyramid the buildings its points reach, or tiles would pass them by: answers against the oracle, and
+    // the root box against a level built afresh from the same placements.
+    std::unique_ptr<CityLevel> c = city_level(200, 13);
+    cb::Level& level = c->level;
+    std::mt19937_64 rng(21);
+    std::uniform_real_distribution<double> u(-1, 1);
+    const double light[3] = {40, 90, 70};
+    for (int frame = 0; frame < 3; ++frame) {
+        for (int k = 0; k < 40; ++k) {
+            const uint32_t h = uint32_t(rng() % level.handle_limit());
+            if (!level.alive(h)) continue;
+            double m[12];
+            std::copy(level.transform_of(h), level.transform_of(h) + 12, m);
+            const double reach = k % 4 == 0 ? 150 : 5;  // a quarter thrown beyond the city's edge
+            m[9] += reach * u(rng);
+            m[10] += reach * u(rng);
+            EXPECT_TRUE(level.move(h, m));
+        }
+        EXPECT_TRUE(level.remove(uint32_t(1 + frame)));
+        level.commit();
+        const cb::Scene world = oracle_scene(level, {&c->city});
+        const SceneOracle oracle(world, level.shadow_bias());
+        const Points p = level_points(world, 800, 31 + frame);
+        for (cb::Traversal t : {cb::Traversal::scan, cb::Traversal::top_two})
+            EXPECT_EQ(disagreements(oracle, light, p, answer(level, light, p, t, false), false), 0u)
+                << "frame " << frame << " traversal " << int(t);
+        cb::Level fresh;
+        const uint32_t asset = fresh.add_asset(c->baked.view);
+        for (uint32_t h = 0; h < level.handle_limit(); ++h)
+            if (level.alive(h)) fresh.add_instance(asset, level.mesh_of(h), level.transform_of(h));
+        fresh.commit();
+        for (int k = 0; k < 3; ++k) {
+            EXPECT_EQ(level.world_lo()[k], fresh.world_lo()[k]) << "frame " << frame;
+            EXPECT_EQ(level.world_hi()[k], fresh.world_hi()[k]) << "frame " << frame;
+        }
+    }
+}
+
 TEST(Level, SingularAndFarInstancesBlockNothingOrAnswerExactly) {
     // A flattened instance blocks nothing, and a level 1e7 from the origin answers as the oracle does.
     cb::Scene towers;
