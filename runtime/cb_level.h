@@ -509,23 +509,18 @@ private:
         }
     }
 
-    // The moved instances' leaves and their ancestors, each once, children before parents (a child's index is
-    // above its parent's).
+    // Each moved instance's leaf and its ancestors refitted, in the order of the moves, up to the first node
+    // whose box comes out the same: a node's last refit then follows every change below it, and no list of
+    // the nodes touched needs sorting.
     void refit() {
-        level_detail::LaneVector<uint32_t>& touched = refit_scratch_;
-        touched.clear();
-        if (marks_.size() < nodes_.size()) marks_.assign(nodes_.size(), 0);
-        for (uint32_t h : moved_) {
-            for (uint32_t n = leaf_[h]; n != none && !marks_[n]; n = parent_[n]) {
-                marks_[n] = 1;
-                touched.push_back(n);
+        for (uint32_t h : moved_)
+            for (uint32_t n = leaf_[h]; n != none; n = parent_[n]) {
+                const level_detail::Box before = nodes_[n].box;
+                fit(n);
+                if (std::equal(before.lo, before.lo + 3, nodes_[n].box.lo) &&
+                    std::equal(before.hi, before.hi + 3, nodes_[n].box.hi))
+                    break;
             }
-        }
-        std::sort(touched.begin(), touched.end(), [](uint32_t a, uint32_t b) { return a > b; });
-        for (uint32_t n : touched) {
-            fit(n);
-            marks_[n] = 0;
-        }
     }
 
     // f(handle, near) for each live instance of a leaf whose box, and whose ancestors' boxes, `meets` keeps.
@@ -557,8 +552,6 @@ private:
     level_detail::LaneVector<uint32_t> free_, moved_;
     std::vector<Node> nodes_;
     level_detail::LaneVector<uint32_t> parent_, items_;
-    level_detail::LaneVector<uint32_t> refit_scratch_;
-    level_detail::LaneVector<uint8_t> marks_;
     uint32_t live_ = 0;
     bool rebuild_ = false;
     level_detail::Box empty_;
