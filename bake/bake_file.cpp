@@ -80,9 +80,16 @@ bool up_to_date(const BakeRequest& r, BakeResult& result) {
     return true;
 }
 
-// Bytes a bake holds per triangle of the scene's meshes at its peak (clustering, fitting and encoding
-// side by side), measured with some margin: about 80 on a 2 M-triangle grid.
-constexpr uint64_t bake_bytes_per_triangle = 128;
+// Bytes a bake holds per triangle of the scene's meshes at its peak besides the loaded scene (clustering,
+// fitting and encoding side by side). Measured as peak resident bytes less the scene's and the idle
+// process's, on 2 M-triangle copies of fandisk, teapot, homer and spot and on a 2 M-triangle grid (1 and 2
+// threads; every method and `--bounds all` on homer): 41-45, and 73 when k-means grows one tree over a
+// whole mesh (`--presplit 0`). The estimates keep about half again as margin.
+uint64_t bake_bytes_per_triangle(const ClusterOptions& c) {
+    const bool one_tree =
+        c.method == ClusterMethod::kmeans && (c.kmeans_presplit == 0 || c.kmeans_presplit > (uint32_t(1) << 20));
+    return one_tree ? 112 : 64;
+}
 
 void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResult& result) {
     auto t0 = std::chrono::steady_clock::now();
@@ -169,7 +176,7 @@ void check_bake_memory(const Scene& scene, const BakeRequest& r) {
         held += m.positions.size() * sizeof(float) + m.indices.size() * sizeof(uint32_t);
     }
     held += scene.instances.size() * sizeof(Instance);
-    const uint64_t need = held + triangles * bake_bytes_per_triangle;
+    const uint64_t need = held + triangles * bake_bytes_per_triangle(r.clustering);
     if (need <= r.load.memory_budget) return;
     throw LoadError(r.input + ": " + std::to_string(triangles) + " triangles need about " + byte_size_text(need) +
                     " to bake, over the memory budget of " + byte_size_text(r.load.memory_budget) +
