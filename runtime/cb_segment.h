@@ -231,20 +231,19 @@ inline void add_placed_box(const double* box_lo, const double* box_hi, const dou
     double inverse[12];
     if (!(box_lo[0] <= box_hi[0] && box_lo[1] <= box_hi[1] && box_lo[2] <= box_hi[2]) || !invert_instance(m, inverse))
         return;
-    double c[3], h[3], wc[3];
+    double c[3], h[3], wc[3], wh[3];
     for (int k = 0; k < 3; ++k) {
         c[k] = 0.5 * (box_lo[k] + box_hi[k]);
         h[k] = 0.5 * (box_hi[k] - box_lo[k]);
     }
     apply_instance(m, c, wc);
     for (int k = 0; k < 3; ++k) {
-        const double wh = std::fabs(m[k]) * h[0] + std::fabs(m[3 + k]) * h[1] + std::fabs(m[6 + k]) * h[2];
-        if (!std::isfinite(wc[k] - wh) || !std::isfinite(wc[k] + wh)) return;
+        wh[k] = std::fabs(m[k]) * h[0] + std::fabs(m[3 + k]) * h[1] + std::fabs(m[6 + k]) * h[2];
+        if (!std::isfinite(wc[k] - wh[k]) || !std::isfinite(wc[k] + wh[k])) return;
     }
     for (int k = 0; k < 3; ++k) {
-        const double wh = std::fabs(m[k]) * h[0] + std::fabs(m[3 + k]) * h[1] + std::fabs(m[6 + k]) * h[2];
-        lo[k] = std::min(lo[k], wc[k] - wh);
-        hi[k] = std::max(hi[k], wc[k] + wh);
+        lo[k] = std::min(lo[k], wc[k] - wh[k]);
+        hi[k] = std::max(hi[k], wc[k] + wh[k]);
     }
 }
 
