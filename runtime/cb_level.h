@@ -735,7 +735,7 @@ private:
         if (tile_lists_.size() < tiles) tile_lists_.resize(tiles);
         tile_count_ = tiles;
         built_count_ = 0;
-        list_every_instance();
+        lone_ = lone_instance();
     }
 
     // A tile's list entry: the float bits of `near` (not below 0, so that entries order as integers; NaN: 0)
@@ -750,11 +750,12 @@ private:
     // A level of one instance is not culled per tile: every tile lists it, and a point enters it only when its
     // segment may meet the instance's bounding sphere (instance_points, in float lanes). Making the tile's
     // pyramid costs more than the tiles it could leave out save. With more instances, lists of all of them
-    // cost more than the culling: their spheres let through points that their boxes do not.
-    void list_every_instance() {
-        every_.clear();
-        every_tile_ = level_->instance_count() == 1;
-        if (every_tile_) level_->visit_all([&](uint32_t h) { every_.push_back(entry(0, h)); });
+    // cost more than the culling: their spheres let through points that their boxes do not. Returns that
+    // instance, or none (another count of instances, or one without a box, which blocks nothing).
+    uint32_t lone_instance() const {
+        uint32_t lone = none;
+        if (level_->instance_count() == 1) level_->visit_all([&](uint32_t h) { lone = h; });
+        return lone;
     }
 
     // A sun's tile: each point's coordinates in the sun's frame (across: a, b; along: z, up toward the sun);
@@ -929,8 +930,8 @@ private:
     // they order as integers) above its handle.
     void cull_tile(size_t t) {
         level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
-        if (every_tile_) {
-            list.assign(every_.begin(), every_.end());
+        if (lone_ != none) {
+            list.assign(1, entry(0, lone_));
             return;
         }
         list.clear();
@@ -1025,8 +1026,7 @@ private:
     double sun_frame_[3][3] = {};  // the sun's direction and two unit axes across it (direction_frame)
     ShadowBuildOptions options_;
     level_detail::LaneVector<uint32_t> order_, order_scratch_;
-    bool every_tile_ = false;                   // every tile lists every instance (list_every_instance)
-    level_detail::LaneVector<uint64_t> every_;  // then that list
+    uint32_t lone_ = none;  // the level's one instance, listed by every tile unculled (lone_instance)
     level_detail::LaneVector<level_detail::LaneVector<uint64_t>>
         tile_lists_;  // per tile: cull_tile's entries, then (gather) slots of needed_
     level_detail::LaneVector<uint32_t> slot_of_, stamp_, needed_;
