@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "fitting.h"
+#include "vector_clones.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -288,14 +289,20 @@ void turned_areas(const double* x, const double* y, size_t n, double c, double s
     for (int t = 0; t < 2; ++t) area[t] = (hi[t][0] - lo[t][0] + pad) * (hi[t][1] - lo[t][1] + pad);
 }
 
-// Axes spread evenly over a half sphere (a golden-angle spiral), for extreme_points.
+// Axes spread evenly over a half sphere (a golden-angle spiral), for extreme_points: one array per
+// coordinate, so that the lanes run across axes.
 constexpr int spread_axes = 64;
-const std::array<Vec, spread_axes>& spread_directions() {
-    static const std::array<Vec, spread_axes> axes = [] {
-        std::array<Vec, spread_axes> out;
+struct SpreadAxes {
+    alignas(64) double x[spread_axes], y[spread_axes], z[spread_axes];
+};
+const SpreadAxes& spread_directions() {
+    static const SpreadAxes axes = [] {
+        SpreadAxes out;
         for (int i = 0; i < spread_axes; ++i) {
             double z = (i + 0.5) / spread_axes, r = std::sqrt(1 - z * z), a = i * 2.399963229728653;
-            out[i] = {r * std::cos(a), r * std::sin(a), z};
+            out.x[i] = r * std::cos(a);
+            out.y[i] = r * std::sin(a);
+            out.z[i] = z;
         }
         return out;
     }();
@@ -305,72 +312,37 @@ const std::array<Vec, spread_axes>& spread_directions() {
 // The points that are lowest or highest along one of the spread axes (at most two per axis, in input order).
 // They stand in for the hull's vertices when the frame search would otherwise sweep hundreds of points: a
 // box around them is nearly the box around all, and the stored extents are measured on all points anyway.
-void extreme_points(const double* pts, size_t n, std::vector<double>& out) {
-    thread_local std::vector<uint32_t> keep;
-    thread_local std::vector<double> soa;
-    keep.clear();
-    soa.resize(n * 3);
-    const double* x = soa.data();
-    const double* y = x + n;
-    const double* z = y + n;
+// Each point is projected on every axis at once, in lanes (vector_clones.h); an axis keeps the first point
+// of its lowest and of its highest projection, replacing only on a strictly lower or higher one, as a scan
+// along the axis finds them.
+CB_VECTOR_CLONES void extreme_points(const double* pts, size_t n, std::vector<double>& out) {
+    const SpreadAxes& axis = spread_directions();
+    alignas(64) double lo[spread_axes], hi[spread_axes];
+    alignas(64) uint64_t lo_at[spread_axes], hi_at[spread_axes];
+    for (int a = 0; a < spread_axes; ++a) {
+        lo[a] = INFINITY;
+        hi[a] = -INFINITY;
+        lo_at[a] = hi_at[a] = 0;
+    }
     for (size_t v = 0; v < n; ++v) {
-        soa[v] = pts[v * 3];
-        soa[n + v] = pts[v * 3 + 1];
-        soa[2 * n + v] = pts[v * 3 + 2];
+        const double x = pts[v * 3], y = pts[v * 3 + 1], z = pts[v * 3 + 2];
+        for (int a = 0; a < spread_axes; ++a) {
+            const double d = axis.x[a] * x + axis.y[a] * y + axis.z[a] * z;
+            // Branch-free, so that the compiler keeps the lanes: all-ones masks where lower or higher.
+            const uint64_t below = 0 - uint64_t(d < lo[a]), above = 0 - uint64_t(d > hi[a]);
+            lo_at[a] = (v & below) | (lo_at[a] & ~below);
+            hi_at[a] = (v & above) | (hi_at[a] & ~above);
+            lo[a] = d < lo[a] ? d : lo[a];
+            hi[a] = d > hi[a] ? d : hi[a];
+        }
     }
-    for (const Vec& a : spread_directions()) {
-        // The first point of the lowest and of the highest projection, as a scan keeping strict improvements
-        // finds them: two points per step in SSE2 lanes, each lane keeping its own first, ties then going to the
-        // lower index.
-        double lo = INFINITY, hi = -INFINITY;
-        size_t at_lo = 0, at_hi = 0, v = 0;
-#if defined(__SSE2__)
-        const __m128d ax = _mm_set1_pd(a[0]), ay = _mm_set1_pd(a[1]), az = _mm_set1_pd(a[2]), two = _mm_set1_pd(2);
-        __m128d vlo = _mm_set1_pd(INFINITY), vhi = _mm_set1_pd(-INFINITY), lo_at = _mm_setzero_pd(),
-                hi_at = _mm_setzero_pd(), index = _mm_set_pd(1, 0);
-        for (; v + 2 <= n; v += 2, index = _mm_add_pd(index, two)) {
-            __m128d d = _mm_add_pd(_mm_add_pd(_mm_mul_pd(ax, _mm_loadu_pd(x + v)), _mm_mul_pd(ay, _mm_loadu_pd(y + v))),
-                                   _mm_mul_pd(az, _mm_loadu_pd(z + v)));
-            __m128d below = _mm_cmplt_pd(d, vlo), above = _mm_cmpgt_pd(d, vhi);
-            vlo = _mm_or_pd(_mm_and_pd(below, d), _mm_andnot_pd(below, vlo));
-            lo_at = _mm_or_pd(_mm_and_pd(below, index), _mm_andnot_pd(below, lo_at));
-            vhi = _mm_or_pd(_mm_and_pd(above, d), _mm_andnot_pd(above, vhi));
-            hi_at = _mm_or_pd(_mm_and_pd(above, index), _mm_andnot_pd(above, hi_at));
-        }
-        double l[2], h[2], li[2], hj[2];
-        _mm_storeu_pd(l, vlo);
-        _mm_storeu_pd(h, vhi);
-        _mm_storeu_pd(li, lo_at);
-        _mm_storeu_pd(hj, hi_at);
-        for (int k = 0; k < 2 && v > 0; ++k) {
-            if (l[k] < lo || (l[k] == lo && size_t(li[k]) < at_lo)) {
-                lo = l[k];
-                at_lo = size_t(li[k]);
-            }
-            if (h[k] > hi || (h[k] == hi && size_t(hj[k]) < at_hi)) {
-                hi = h[k];
-                at_hi = size_t(hj[k]);
-            }
-        }
-#endif
-        for (; v < n; ++v) {
-            double d = a[0] * x[v] + a[1] * y[v] + a[2] * z[v];
-            if (d < lo) {
-                lo = d;
-                at_lo = v;
-            }
-            if (d > hi) {
-                hi = d;
-                at_hi = v;
-            }
-        }
-        keep.push_back(uint32_t(at_lo));
-        keep.push_back(uint32_t(at_hi));
-    }
+    thread_local std::vector<uint64_t> keep;
+    keep.assign(lo_at, lo_at + spread_axes);
+    keep.insert(keep.end(), hi_at, hi_at + spread_axes);
     std::sort(keep.begin(), keep.end());
     keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
     out.resize(keep.size() * 3);
-    for (size_t i = 0; i < keep.size(); ++i) std::copy_n(pts + size_t(keep[i]) * 3, 3, &out[i * 3]);
+    for (size_t i = 0; i < keep.size(); ++i) std::copy_n(pts + keep[i] * 3, 3, &out[i * 3]);
 }
 
 // Clusters of more points than this search their frame over extreme_points, and also across triangle

@@ -6,20 +6,15 @@
 #include <cmath>
 #include <vector>
 
+#include "vector_clones.h"
+
 namespace cb {
 
 // The tree wins from about 256 centres (bench_nearest_centre; figures in docs/PERFORMANCE.md): below, the
 // blocked scan's vector lanes beat its search. The default k0 = 8 never gets there; a large --k0 does.
 const size_t flann_crossover = 256;
 
-// Cloned for AVX-512 and AVX2 and picked when the program loads, by the processor it runs on (the build
-// targets any x86-64): the scan then takes 16 or 8 points a step instead of 4. Every lane does the same
-// float operations in the same order (no contraction, -ffp-contract=off), so the same assignments.
-#if defined(__x86_64__) && defined(__GNUC__)
-#define CB_VECTOR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define CB_VECTOR_CLONES
-#endif
+// Cloned (vector_clones.h): the block scan then takes 16 or 8 points a step instead of 4.
 CB_VECTOR_CLONES size_t assign_nearest_brute(const float* points, size_t n, const float* centres, size_t k,
                                              uint32_t* assignment, float* nearest_d2) {
     // Blocks of points transposed to one array per coordinate, so the scan over a block runs across points
