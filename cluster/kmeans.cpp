@@ -100,36 +100,53 @@ private:
 
     // k-means++: the first centre uniformly, each next one with probability proportional to the squared
     // distance to the nearest centre so far. Returns how many distinct centres exist (fewer than k when the
-    // points have fewer distinct values).
+    // points have fewer distinct values). The points go to six coordinate arrays once, for lower_nearest's
+    // lanes; a draw walks the sums of blocks of 64 points, then the points of one block.
     size_t seed_centres(const float* points, size_t n, size_t k, uint64_t seed) {
         SplitMix rng{seed};
         centres_.assign(k * 6, 0.0f);
-        nearest_.resize(n);
+        coords_.resize(n * 6);
+        for (size_t i = 0; i < n; ++i)
+            for (int j = 0; j < 6; ++j) coords_[size_t(j) * n + i] = points[i * 6 + j];
+        const size_t blocks = (n + lower_nearest_block - 1) / lower_nearest_block;
+        block_sums_.resize(blocks);
+        nearest_.assign(n, INFINITY);
         size_t first = size_t(rng.next() % n);
         std::copy_n(&points[first * 6], 6, &centres_[0]);
-        for (size_t i = 0; i < n; ++i) nearest_[i] = distance2(&points[i * 6], &centres_[0]);
+        lower_nearest(coords_.data(), n, &centres_[0], nearest_.data(), block_sums_.data());
         size_t found = 1;
         while (found < k) {
             double total = 0;
-            for (size_t i = 0; i < n; ++i) total += nearest_[i];
+            for (double b : block_sums_) total += b;
             if (!(total > 0)) break;
-            double target = rng.uniform() * total, run = 0;
-            size_t pick = n - 1;
-            for (size_t i = 0; i < n; ++i) {
-                run += nearest_[i];
-                if (run > target && nearest_[i] > 0) {
-                    pick = i;
-                    break;
-                }
-            }
-            if (!(nearest_[pick] > 0)) break;
-            float* c = &centres_[found * 6];
-            std::copy_n(&points[pick * 6], 6, c);
-            for (size_t i = 0; i < n; ++i) nearest_[i] = std::min(nearest_[i], distance2(&points[i * 6], c));
+            size_t pick = draw(rng.uniform() * total);
+            if (pick == SIZE_MAX) break;
+            std::copy_n(&points[pick * 6], 6, &centres_[found * 6]);
+            lower_nearest(coords_.data(), n, &centres_[found * 6], nearest_.data(), block_sums_.data());
             ++found;
         }
         centres_.resize(found * 6);
         return found;
+    }
+
+    // The first point whose running sum of nearest_ passes `target`, among points not on a centre; the
+    // last such point when rounding leaves the target unreached; SIZE_MAX when there is none.
+    size_t draw(double target) const {
+        double run = 0;
+        for (size_t b = 0; b < block_sums_.size(); ++b) {
+            const size_t at = b * lower_nearest_block, end = std::min(nearest_.size(), at + lower_nearest_block);
+            if (run + block_sums_[b] > target) {
+                double r = run;
+                for (size_t i = at; i < end; ++i) {
+                    r += nearest_[i];
+                    if (r > target && nearest_[i] > 0) return i;
+                }
+            }
+            run += block_sums_[b];
+        }
+        for (size_t i = nearest_.size(); i-- > 0;)
+            if (nearest_[i] > 0) return i;
+        return SIZE_MAX;
     }
 
     // Lloyd iterations until the assignments settle (or the cap). An empty cluster takes the point farthest
@@ -233,7 +250,8 @@ private:
 
     const float* boxes_;
     uint32_t max_size_, branching_, max_iterations_;
-    std::vector<float> points_, sample_, centres_, nearest_;
+    std::vector<float> points_, sample_, centres_, nearest_, coords_;
+    std::vector<double> block_sums_;
     std::vector<uint32_t> assignment_, pick_;
 };
 

@@ -67,6 +67,41 @@ CB_VECTOR_CLONES size_t assign_nearest_brute(const float* points, size_t n, cons
     return changed;
 }
 
+CB_VECTOR_CLONES void lower_nearest(const float* coords, size_t n, const float* centre, float* nearest_d2,
+                                    double* block_sums) {
+    const float* x[6];
+    for (int j = 0; j < 6; ++j) x[j] = coords + size_t(j) * n;
+    const float q0 = centre[0], q1 = centre[1], q2 = centre[2], q3 = centre[3], q4 = centre[4], q5 = centre[5];
+    for (size_t i = 0; i < n; ++i) {
+        float d = 0, e;
+        e = x[0][i] - q0;
+        d += e * e;
+        e = x[1][i] - q1;
+        d += e * e;
+        e = x[2][i] - q2;
+        d += e * e;
+        e = x[3][i] - q3;
+        d += e * e;
+        e = x[4][i] - q4;
+        d += e * e;
+        e = x[5][i] - q5;
+        d += e * e;
+        nearest_d2[i] = d < nearest_d2[i] ? d : nearest_d2[i];
+    }
+    // Each block sums in 8 running sums (point i into sum i mod 8), then those in a fixed tree: lanes for
+    // any vector width, and the same doubles on every processor.
+    constexpr size_t lanes = 8;
+    for (size_t b = 0; b * lower_nearest_block < n; ++b) {
+        const size_t at = b * lower_nearest_block, m = std::min(lower_nearest_block, n - at);
+        double acc[lanes] = {};
+        size_t i = 0;
+        for (; i + lanes <= m; i += lanes)
+            for (size_t l = 0; l < lanes; ++l) acc[l] += nearest_d2[at + i + l];
+        for (; i < m; ++i) acc[i % lanes] += nearest_d2[at + i];
+        block_sums[b] = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
+    }
+}
+
 size_t assign_nearest_flann(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,
                             float* nearest_d2) {
     flann::Matrix<float> data(const_cast<float*>(centres), k, 6);

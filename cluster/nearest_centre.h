@@ -16,6 +16,13 @@ extern const size_t flann_crossover;
 size_t assign_nearest(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,
                       float* nearest_d2);
 
+// k-means++ seeding's pass for one new centre over points given as six coordinate arrays (`coords`, each of
+// `n` floats: all the x of the boxes' minima, then all their y, ...). Lowers nearest_d2[i] to the squared
+// distance from point i to `centre` where that is smaller, and sets block_sums[b] to the sum of the lowered
+// nearest_d2 over points [64 b, 64 b + 64), in double, in an order fixed by the indices alone.
+void lower_nearest(const float* coords, size_t n, const float* centre, float* nearest_d2, double* block_sums);
+constexpr size_t lower_nearest_block = 64;
+
 // Both strategies, always, for the benchmark and the tests.
 size_t assign_nearest_brute(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,
                             float* nearest_d2);
