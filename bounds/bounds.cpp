@@ -73,17 +73,18 @@ ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const 
     }
     thread_local std::vector<uint32_t> ids;  // scratch, as the arrays below: no allocation per cluster
     thread_local std::vector<double> world, local;
-    ids.clear();
+    // Branch-free: whether a corner's vertex is new follows no pattern a predictor could learn.
+    ids.resize(count * 3);
+    size_t n = 0;
     for (size_t i = 0; i < count; ++i)
         for (int k = 0; k < 3; ++k) {
             uint32_t v = indices[size_t(triangle_ids[i]) * 3 + k];
             if (v >= stamp.size()) stamp.resize(size_t(v) + 1 + stamp.size() / 2, 0u);
-            if (stamp[v] != call) {
-                stamp[v] = call;
-                ids.push_back(v);
-            }
+            const bool fresh = stamp[v] != call;
+            stamp[v] = call;
+            ids[n] = v;
+            n += fresh;
         }
-    size_t n = ids.size();
     world.resize(n * 3);
     local.resize(n * 3);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};

@@ -54,15 +54,24 @@ Frame eigen_frame(const Eigen::Matrix3d& cov) {
     return f;
 }
 
+// The covariance's six distinct entries, each summed over the points in order.
 Frame pca_frame(const double* pts, size_t n) {
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (size_t v = 0; v < n; ++v) mean += Eigen::Vector3d(pts[v * 3], pts[v * 3 + 1], pts[v * 3 + 2]);
-    mean /= double(n);
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    double mean[3] = {0, 0, 0};
+    for (size_t v = 0; v < n; ++v)
+        for (int k = 0; k < 3; ++k) mean[k] += pts[v * 3 + k];
+    for (int k = 0; k < 3; ++k) mean[k] /= double(n);
+    double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
     for (size_t v = 0; v < n; ++v) {
-        Eigen::Vector3d d = Eigen::Vector3d(pts[v * 3], pts[v * 3 + 1], pts[v * 3 + 2]) - mean;
-        cov += d * d.transpose();
+        const double x = pts[v * 3] - mean[0], y = pts[v * 3 + 1] - mean[1], z = pts[v * 3 + 2] - mean[2];
+        xx += x * x;
+        xy += x * y;
+        xz += x * z;
+        yy += y * y;
+        yz += y * z;
+        zz += z * z;
     }
+    Eigen::Matrix3d cov;
+    cov << xx, xy, xz, xy, yy, yz, xz, yz, zz;
     return eigen_frame(cov);
 }
 
