@@ -37,13 +37,15 @@ bool place_apex(const std::vector<Plane>& planes, const Vec& axis, const double*
             stored[k] = float(centre[k] + double(stored_s) * axis[k]);
             coord = std::max(coord, std::fabs(stored[k]));
         }
-        // Signed clearance of the stored apex from the nearest plane, on the wanted side.
-        double d = INFINITY, scale = 0;
+        // Signed clearance of the stored apex from the nearest plane, on the wanted side. The farthest point's
+        // distance is the root of the largest squared one: the same double, as rounded roots keep their order.
+        double d = INFINITY, scale2 = 0;
         for (const Plane& pl : planes) {
             Vec e = sub(stored, pl.point.data());
             d = std::min(d, sign * dot3(e.data(), pl.n.data()));
-            scale = std::max(scale, norm(e));
+            scale2 = std::max(scale2, dot3(e.data(), e.data()));
         }
+        const double scale = std::sqrt(scale2);
         double needed = 1e-12 * (scale + extent) + 2 * axis_step * coord;
         if (d > needed && std::isfinite(d)) return true;
         if (!std::isfinite(d) || !std::isfinite(scale)) return false;
