@@ -389,6 +389,49 @@ TEST(Cluster, BlockedNearestCentreScanMatchesThePlainOne) {
     }
 }
 
+// k-means++ seeding's pass: the lowered distances are the plain scan's floats, and each block's sum is the
+// eight running sums (point i into sum i mod 8) added in a fixed tree, within rounding of a serial sum.
+TEST(Cluster, LoweredNearestDistancesAndBlockSumsMatchAPlainScan) {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> u(-1, 1);
+    std::uniform_int_distribution<int> exponent(-30, 30);
+    for (size_t n : {1, 7, 63, 64, 65, 1000}) {
+        // Each point at its own scale, over 60 binary orders of magnitude: the distances' sums in double round,
+        // so their order shows.
+        std::vector<float> points(n * 6), coords(n * 6);
+        for (size_t i = 0; i < n; ++i) {
+            const int e = exponent(rng);
+            for (int j = 0; j < 6; ++j) points[i * 6 + j] = std::ldexp(u(rng), e);
+        }
+        for (size_t i = 0; i < n; ++i)
+            for (int j = 0; j < 6; ++j) coords[size_t(j) * n + i] = points[i * 6 + j];
+        const size_t blocks = (n + cb::lower_nearest_block - 1) / cb::lower_nearest_block;
+        std::vector<float> got(n, INFINITY), want(n, INFINITY);
+        std::vector<double> sums(blocks, -1.0);
+        for (int round = 0; round < 4; ++round) {
+            const float* centre = &points[((round * 37) % n) * 6];  // a centre on a point: its distance is 0
+            cb::lower_nearest(coords.data(), n, centre, got.data(), sums.data());
+            for (size_t i = 0; i < n; ++i) {
+                float d = 0;
+                for (int j = 0; j < 6; ++j) d += (points[i * 6 + j] - centre[j]) * (points[i * 6 + j] - centre[j]);
+                want[i] = std::min(want[i], d);
+            }
+            EXPECT_EQ(got, want) << n << " points, round " << round;
+            for (size_t b = 0; b < blocks; ++b) {
+                double lanes[8] = {}, serial = 0;
+                for (size_t i = b * 64; i < std::min(n, b * 64 + 64); ++i) {
+                    lanes[(i - b * 64) % 8] += want[i];
+                    serial += want[i];
+                }
+                const double tree =
+                    ((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + ((lanes[4] + lanes[5]) + (lanes[6] + lanes[7]));
+                EXPECT_EQ(sums[b], tree) << n << " points, block " << b;
+                EXPECT_NEAR(sums[b], serial, 1e-12 * std::max(1.0, serial)) << n << " points, block " << b;
+            }
+        }
+    }
+}
+
 // The sort-based definition of a closed mesh, against which the linear check is compared.
 bool closed_by_sorting(const cb::Mesh& m) {
     std::vector<uint64_t> edges;
