@@ -15,6 +15,22 @@ namespace cb {
 const size_t flann_crossover = 256;
 
 // Cloned (vector_clones.h): the block scan then takes 16 or 8 points a step instead of 4.
+// A centre's six coordinates, held by value so that a loop over points keeps them in registers.
+struct Centre {
+    float q[6];
+};
+
+// The squared distance from point i of six coordinate arrays to centre c: the six terms summed in coordinate
+// order, as a point-by-point scan sums them, so the same float in any lane.
+inline float distance2_at(const float* const x[6], size_t i, const Centre& c) {
+    float d = 0;
+    for (int j = 0; j < 6; ++j) {
+        const float e = x[j][i] - c.q[j];
+        d += e * e;
+    }
+    return d;
+}
+
 CB_VECTOR_CLONES size_t assign_nearest_brute(const float* points, size_t n, const float* centres, size_t k,
                                              uint32_t* assignment, float* nearest_d2) {
     // Blocks of points transposed to one array per coordinate, so the scan over a block runs across points
@@ -23,6 +39,7 @@ CB_VECTOR_CLONES size_t assign_nearest_brute(const float* points, size_t n, cons
     constexpr size_t block = 64;
     alignas(64) float x[6][block], best[block];
     alignas(64) uint32_t best_c[block];
+    const float* const lanes[6] = {x[0], x[1], x[2], x[3], x[4], x[5]};
     size_t changed = 0;
     for (size_t at = 0; at < n; at += block) {
         const size_t m = std::min(block, n - at);
@@ -35,23 +52,11 @@ CB_VECTOR_CLONES size_t assign_nearest_brute(const float* points, size_t n, cons
             best_c[i] = 0;
         }
         for (size_t c = 0; c < k; ++c) {
-            const float* q = centres + c * 6;
-            const float q0 = q[0], q1 = q[1], q2 = q[2], q3 = q[3], q4 = q[4], q5 = q[5];
+            Centre q;
+            std::copy_n(centres + c * 6, 6, q.q);
             const uint32_t id = uint32_t(c);
             for (size_t i = 0; i < block; ++i) {
-                float d = 0, e;
-                e = x[0][i] - q0;
-                d += e * e;
-                e = x[1][i] - q1;
-                d += e * e;
-                e = x[2][i] - q2;
-                d += e * e;
-                e = x[3][i] - q3;
-                d += e * e;
-                e = x[4][i] - q4;
-                d += e * e;
-                e = x[5][i] - q5;
-                d += e * e;
+                const float d = distance2_at(lanes, i, q);
                 // Branch-free so that the compiler keeps the lanes: an all-ones mask where nearer.
                 const uint32_t nearer = 0u - uint32_t(d < best[i]);
                 best_c[i] = (id & nearer) | (best_c[i] & ~nearer);
@@ -71,21 +76,10 @@ CB_VECTOR_CLONES void lower_nearest(const float* coords, size_t n, const float* 
                                     double* block_sums) {
     const float* x[6];
     for (int j = 0; j < 6; ++j) x[j] = coords + size_t(j) * n;
-    const float q0 = centre[0], q1 = centre[1], q2 = centre[2], q3 = centre[3], q4 = centre[4], q5 = centre[5];
+    Centre q;
+    std::copy_n(centre, 6, q.q);
     for (size_t i = 0; i < n; ++i) {
-        float d = 0, e;
-        e = x[0][i] - q0;
-        d += e * e;
-        e = x[1][i] - q1;
-        d += e * e;
-        e = x[2][i] - q2;
-        d += e * e;
-        e = x[3][i] - q3;
-        d += e * e;
-        e = x[4][i] - q4;
-        d += e * e;
-        e = x[5][i] - q5;
-        d += e * e;
+        const float d = distance2_at(x, i, q);
         nearest_d2[i] = d < nearest_d2[i] ? d : nearest_d2[i];
     }
     // Each block sums in 8 running sums (point i into sum i mod 8), then those in a fixed tree: lanes for
