@@ -14,7 +14,6 @@ namespace cb {
 // blocked scan's vector lanes beat its search. The default k0 = 8 never gets there; a large --k0 does.
 const size_t flann_crossover = 256;
 
-// Cloned (vector_clones.h): the block scan then takes 16 or 8 points a step instead of 4.
 // A centre's six coordinates, held by value so that a loop over points keeps them in registers.
 struct Centre {
     float q[6];
@@ -31,6 +30,7 @@ inline float distance2_at(const float* const x[6], size_t i, const Centre& c) {
     return d;
 }
 
+// Cloned (vector_clones.h): the block scan then takes 16 or 8 points a step instead of 4.
 CB_VECTOR_CLONES size_t assign_nearest_brute(const float* points, size_t n, const float* centres, size_t k,
                                              uint32_t* assignment, float* nearest_d2) {
     // Blocks of points transposed to one array per coordinate, so the scan over a block runs across points
