@@ -11,6 +11,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -939,21 +940,40 @@ private:
         const size_t begin = t * tile_capacity;
         const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
         const uint32_t* index = order_.data() + begin;
-        double e[tile_capacity][3], dist[tile_capacity], m[3] = {0, 0, 0};
-        uint64_t taken = 0, alone = 0;
-        for (uint32_t i = 0; i < count; ++i) {
-            const double* p = points_ + size_t(index[i]) * 3;
-            if (!finite3(p)) continue;  // never in shadow
-            for (int k = 0; k < 3; ++k) e[i][k] = p[k] - light_[k];
-            dist[i] = std::sqrt(math::dot3(e[i], e[i]));
-            if (!(dist[i] > 0)) continue;               // at the light: a segment of no length blocks nothing
-            if (!(dist[i] > 1e-7 && dist[i] < 1e30)) {  // by the light, or beyond what a pyramid holds well
-                alone |= uint64_t(1) << i;
-                continue;
-            }
-            taken |= uint64_t(1) << i;
-            for (int k = 0; k < 3; ++k) m[k] += e[i][k] / dist[i];
+        // The points' offsets from the light and distances, in double lanes (past `count`: the light, taken by
+        // neither list).
+        using simd::Doubles;
+        alignas(64) double e[3][tile_capacity], dist[tile_capacity];
+        for (uint32_t i = 0; i < tile_capacity; ++i) {
+            const double* p = i < count ? points_ + size_t(index[i]) * 3 : light_;
+            for (int k = 0; k < 3; ++k) e[k][i] = p[k];
         }
+        uint64_t taken = 0, alone = 0;
+        const Doubles largest = simd::dsplat(DBL_MAX), zero = simd::dsplat(0), one = simd::dsplat(1);
+        Doubles sum[3] = {zero, zero, zero};
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            Doubles d[3];
+            simd::DoubleMask finite = simd::double_lanes(~0u);  // a point not finite is never in shadow
+            for (int k = 0; k < 3; ++k) {
+                const Doubles p = simd::load(e[k] + i);
+                finite = finite & (simd::abs(p) <= largest);
+                d[k] = p - simd::dsplat(light_[k]);
+                simd::store(e[k] + i, d[k]);
+            }
+            const Doubles l = simd::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            simd::store(dist + i, l);
+            // By the light, or beyond what a pyramid holds well: alone; at the light (no length): neither.
+            const simd::DoubleMask regular = (l > simd::dsplat(1e-7)) & (l < simd::dsplat(1e30));
+            taken |= uint64_t(simd::bits(regular)) << i;
+            alone |= uint64_t(simd::bits(finite & (l > zero))) << i;
+            const Doubles inv = one / l;
+            for (int k = 0; k < 3; ++k) sum[k] = sum[k] + simd::select(regular, d[k] * inv, zero);
+        }
+        const uint64_t present = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1;
+        taken &= present;
+        alone &= present & ~taken;
+        double m[3];
+        for (int k = 0; k < 3; ++k) m[k] = simd::lane_sum(sum[k]);
         level_detail::WorldPyramid w;
         const uint64_t held = taken ? make_pyramid(e, dist, taken, m, w) : 0;
         if (held) level_->visit_pyramid(w, [&](uint32_t h, double near) { list.push_back(entry(near, h)); });
@@ -968,35 +988,39 @@ private:
         std::sort(list.begin(), list.end(), [](uint64_t x, uint64_t y) { return x < y; });
     }
 
-    // The pyramid from the light holding the directions of the points `held` (e from the light, dist
-    // their lengths, m the sum of their unit directions): a frame on their mean direction, the bounding
-    // rectangle of their central projections, widened by 1e-6 (far above their rounding). Returns the points
-    // it holds: those of `taken` within 60 degrees of the mean direction.
-    uint64_t make_pyramid(const double (*e)[3], const double* dist, uint64_t taken, const double* m,
+    // The pyramid from the light holding the directions of the points `taken` (e from the light, by
+    // coordinate, dist their lengths, m the sum of their unit directions): a frame on their mean direction, the
+    // bounding rectangle of their central projections, widened by 1e-6 (far above their rounding). Returns the
+    // points it holds: those of `taken` within 60 degrees of the mean direction.
+    uint64_t make_pyramid(const double (*e)[tile_capacity], const double* dist, uint64_t taken, const double* m,
                           level_detail::WorldPyramid& w) const {
-        uint64_t held = 0;
         double frame[3][3];
         if (!direction_frame(m, frame)) return 0;
         const double *z = frame[0], *a = frame[1], *b = frame[2];
-        double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-        w.dmax = 0;
-        for (uint64_t bits = taken; bits; bits &= bits - 1) {
-            const uint32_t i = math::lowest_bit(bits);
-            const double depth = math::dot3(e[i], z);
-            if (!(depth > 0.5 * dist[i])) continue;
-            const double x = math::dot3(e[i], a) / depth, y = math::dot3(e[i], b) / depth;
-            lo[0] = std::min(lo[0], x);
-            hi[0] = std::max(hi[0], x);
-            lo[1] = std::min(lo[1], y);
-            hi[1] = std::max(hi[1], y);
-            w.dmax = std::max(w.dmax, dist[i]);
-            held |= uint64_t(1) << i;
+        using simd::Doubles;
+        const Doubles inf = simd::dsplat(INFINITY), ninf = simd::dsplat(-INFINITY), zero = simd::dsplat(0);
+        Doubles lo0 = inf, lo1 = inf, hi0 = ninf, hi1 = ninf, far = zero;
+        uint64_t held = 0;
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            const uint32_t group = uint32_t(taken >> i) & ((1u << simd::dwidth) - 1);
+            if (!group) continue;
+            const Doubles x = simd::load(e[0] + i), y = simd::load(e[1] + i), v = simd::load(e[2] + i),
+                          d = simd::load(dist + i);
+            const Doubles depth = x * simd::dsplat(z[0]) + y * simd::dsplat(z[1]) + v * simd::dsplat(z[2]);
+            const simd::DoubleMask in = simd::double_lanes(group) & (depth > simd::dsplat(0.5) * d);
+            const Doubles u = (x * simd::dsplat(a[0]) + y * simd::dsplat(a[1]) + v * simd::dsplat(a[2])) / depth,
+                          s = (x * simd::dsplat(b[0]) + y * simd::dsplat(b[1]) + v * simd::dsplat(b[2])) / depth;
+            lo0 = simd::min(lo0, simd::select(in, u, inf));
+            hi0 = simd::max(hi0, simd::select(in, u, ninf));
+            lo1 = simd::min(lo1, simd::select(in, s, inf));
+            hi1 = simd::max(hi1, simd::select(in, s, ninf));
+            far = simd::max(far, simd::select(in, d, zero));
+            held |= uint64_t(simd::bits(in)) << i;
         }
         if (!held) return 0;
-        for (int k = 0; k < 2; ++k) {
-            lo[k] -= 1e-6;
-            hi[k] += 1e-6;
-        }
+        const double lo[2] = {simd::lane_min(lo0) - 1e-6, simd::lane_min(lo1) - 1e-6},
+                     hi[2] = {simd::lane_max(hi0) + 1e-6, simd::lane_max(hi1) + 1e-6};
+        w.dmax = simd::lane_max(far);
         const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
         double ray[4][3], inside[3];
         for (int r = 0; r < 4; ++r) frame_ray(frame, corner[r][0], corner[r][1], ray[r]);

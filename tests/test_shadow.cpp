@@ -51,6 +51,52 @@ TEST(Lanes, BuiltForTheIntendedWidth) {
 #endif
 }
 
+// The double lanes (a tile's set-up in an instance's frame) give, lane by lane, the bits of the same operations
+// on one double: fused multiply-adds as std::fma, square roots, quotients, comparisons and selects by lane
+// masks, and the reductions. Values across 600 binary orders, with zeros, infinities and NaN among them.
+TEST(Lanes, DoubleLanesGiveTheScalarBits) {
+    using cb::simd::Doubles;
+    constexpr uint32_t w = cb::simd::dwidth;
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> mantissa(-1, 1);
+    std::uniform_int_distribution<int> order(-300, 300);
+    auto draw = [&](uint32_t i) {
+        if (rng() % 16 == 0) return std::vector<double>{0.0, -0.0, INFINITY, -INFINITY, NAN, 1.0}[i % 6];
+        return std::ldexp(mantissa(rng), order(rng));
+    };
+    auto same = [](double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0 || (a != a && b != b); };
+    for (int round = 0; round < 2000; ++round) {
+        alignas(64) double a[w], b[w], c[w], out[w];
+        for (uint32_t i = 0; i < w; ++i) {
+            a[i] = draw(i);
+            b[i] = draw(i + 1);
+            c[i] = draw(i + 2);
+        }
+        const Doubles x = cb::simd::load(a), y = cb::simd::load(b), z = cb::simd::load(c);
+        cb::simd::store(out, cb::simd::fused(x, y, z));
+        for (uint32_t i = 0; i < w; ++i) EXPECT_TRUE(same(out[i], std::fma(a[i], b[i], c[i]))) << a[i] << " " << b[i];
+        cb::simd::store(out, cb::simd::sqrt(cb::simd::abs(x)) + y / z - x * y);
+        for (uint32_t i = 0; i < w; ++i)
+            EXPECT_TRUE(same(out[i], std::sqrt(std::fabs(a[i])) + b[i] / c[i] - a[i] * b[i])) << a[i];
+        const uint32_t lanes = uint32_t(rng()) & ((1u << w) - 1);
+        const uint32_t less = cb::simd::bits(x < y), greater = cb::simd::bits(x > y), most = cb::simd::bits(x <= y);
+        cb::simd::store(out, cb::simd::select(cb::simd::double_lanes(lanes) & (x <= y), x, y));
+        double lo = a[0], hi = a[0], sum = 0;
+        for (uint32_t i = 0; i < w; ++i) {
+            EXPECT_EQ(less >> i & 1, uint32_t(a[i] < b[i]));
+            EXPECT_EQ(greater >> i & 1, uint32_t(a[i] > b[i]));
+            EXPECT_EQ(most >> i & 1, uint32_t(a[i] <= b[i]));
+            EXPECT_TRUE(same(out[i], (lanes >> i & 1) && a[i] <= b[i] ? a[i] : b[i]));
+            lo = a[i] < lo ? a[i] : lo;
+            hi = a[i] > hi ? a[i] : hi;
+            sum += a[i];
+        }
+        EXPECT_TRUE(same(cb::simd::lane_min(x), lo));
+        EXPECT_TRUE(same(cb::simd::lane_max(x), hi));
+        EXPECT_TRUE(same(cb::simd::lane_sum(x), sum));
+    }
+}
+
 // The inlined next float (rounding outward without a library call) against std::nextafter: zeros,
 // subnormals, the ends of the normal range, infinities and random bit patterns, both ways.
 TEST(Exact, NextFloatMatchesNextafter) {

@@ -228,6 +228,150 @@ inline Floats dot_plus(Floats x, Floats y, Floats z, float a, float b, float c, 
     return fma(z, splat(c), fma(y, splat(b), fma(x, splat(a), w)));
 }
 
+// Double lanes, for the per-point set-up that must stay in double (a tile's points moved into an instance's
+// frame): 8 with AVX-512, 4 with AVX, and 2 plain doubles otherwise (two SSE2 lanes gain little over them).
+// Loads and stores take any address. fused(a, b, c) rounds a * b + c once on every target (a software fma per
+// lane where there is no instruction), so that lanes give the bits std::fma gives.
+#if defined(CB_SIMD_AVX512)
+constexpr uint32_t dwidth = 8;
+struct Doubles {
+    __m512d v;
+};
+struct DoubleMask {
+    __mmask8 m;
+};
+inline Doubles load(const double* p) { return {_mm512_loadu_pd(p)}; }
+inline void store(double* p, Doubles a) { _mm512_storeu_pd(p, a.v); }
+inline Doubles dsplat(double x) { return {_mm512_set1_pd(x)}; }
+inline Doubles operator+(Doubles a, Doubles b) { return {_mm512_add_pd(a.v, b.v)}; }
+inline Doubles operator-(Doubles a, Doubles b) { return {_mm512_sub_pd(a.v, b.v)}; }
+inline Doubles operator*(Doubles a, Doubles b) { return {_mm512_mul_pd(a.v, b.v)}; }
+inline Doubles operator/(Doubles a, Doubles b) { return {_mm512_div_pd(a.v, b.v)}; }
+inline Doubles fused(Doubles a, Doubles b, Doubles c) { return {_mm512_fmadd_pd(a.v, b.v, c.v)}; }
+inline Doubles sqrt(Doubles a) { return {_mm512_mask_sqrt_pd(a.v, 0xff, a.v)}; }
+inline Doubles min(Doubles a, Doubles b) { return {_mm512_mask_min_pd(a.v, 0xff, a.v, b.v)}; }
+inline Doubles max(Doubles a, Doubles b) { return {_mm512_mask_max_pd(a.v, 0xff, a.v, b.v)}; }
+inline Doubles abs(Doubles a) { return {_mm512_abs_pd(a.v)}; }
+inline DoubleMask operator>(Doubles a, Doubles b) { return {_mm512_cmp_pd_mask(a.v, b.v, _CMP_GT_OQ)}; }
+inline DoubleMask operator<(Doubles a, Doubles b) { return {_mm512_cmp_pd_mask(a.v, b.v, _CMP_LT_OQ)}; }
+inline DoubleMask operator<=(Doubles a, Doubles b) { return {_mm512_cmp_pd_mask(a.v, b.v, _CMP_LE_OQ)}; }
+inline DoubleMask operator&(DoubleMask a, DoubleMask b) { return {__mmask8(a.m & b.m)}; }
+inline DoubleMask double_lanes(uint32_t bits) { return {__mmask8(bits)}; }
+inline uint32_t bits(DoubleMask m) { return m.m; }
+inline Doubles select(DoubleMask m, Doubles a, Doubles b) { return {_mm512_mask_blend_pd(m.m, b.v, a.v)}; }
+#elif defined(CB_SIMD_AVX)
+constexpr uint32_t dwidth = 4;
+struct Doubles {
+    __m256d v;
+};
+struct DoubleMask {
+    __m256d v;
+};
+inline Doubles load(const double* p) { return {_mm256_loadu_pd(p)}; }
+inline void store(double* p, Doubles a) { _mm256_storeu_pd(p, a.v); }
+inline Doubles dsplat(double x) { return {_mm256_set1_pd(x)}; }
+inline Doubles operator+(Doubles a, Doubles b) { return {_mm256_add_pd(a.v, b.v)}; }
+inline Doubles operator-(Doubles a, Doubles b) { return {_mm256_sub_pd(a.v, b.v)}; }
+inline Doubles operator*(Doubles a, Doubles b) { return {_mm256_mul_pd(a.v, b.v)}; }
+inline Doubles operator/(Doubles a, Doubles b) { return {_mm256_div_pd(a.v, b.v)}; }
+#if defined(__FMA__)
+inline Doubles fused(Doubles a, Doubles b, Doubles c) { return {_mm256_fmadd_pd(a.v, b.v, c.v)}; }
+#else
+inline Doubles fused(Doubles a, Doubles b, Doubles c) {
+    alignas(32) double x[4], y[4], z[4];
+    _mm256_store_pd(x, a.v);
+    _mm256_store_pd(y, b.v);
+    _mm256_store_pd(z, c.v);
+    for (int i = 0; i < 4; ++i) x[i] = std::fma(x[i], y[i], z[i]);
+    return {_mm256_load_pd(x)};
+}
+#endif
+inline Doubles sqrt(Doubles a) { return {_mm256_sqrt_pd(a.v)}; }
+inline Doubles min(Doubles a, Doubles b) { return {_mm256_min_pd(a.v, b.v)}; }
+inline Doubles max(Doubles a, Doubles b) { return {_mm256_max_pd(a.v, b.v)}; }
+inline Doubles abs(Doubles a) { return {_mm256_andnot_pd(_mm256_set1_pd(-0.0), a.v)}; }
+inline DoubleMask operator>(Doubles a, Doubles b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_GT_OQ)}; }
+inline DoubleMask operator<(Doubles a, Doubles b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_LT_OQ)}; }
+inline DoubleMask operator<=(Doubles a, Doubles b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_LE_OQ)}; }
+inline DoubleMask operator&(DoubleMask a, DoubleMask b) { return {_mm256_and_pd(a.v, b.v)}; }
+inline DoubleMask double_lanes(uint32_t bits) {  // (AVX implies SSE4.1's 64-bit compare)
+    const __m256i lane = _mm256_setr_epi64x(1, 2, 4, 8), set = _mm256_set1_epi64x(int64_t(bits & 15));
+    const __m256i both = _mm256_castpd_si256(_mm256_and_pd(_mm256_castsi256_pd(set), _mm256_castsi256_pd(lane)));
+    const __m128i lo = _mm_cmpeq_epi64(_mm256_castsi256_si128(both), _mm256_castsi256_si128(lane)),
+                  hi = _mm_cmpeq_epi64(_mm256_extractf128_si256(both, 1), _mm256_extractf128_si256(lane, 1));
+    return {_mm256_castsi256_pd(_mm256_set_m128i(hi, lo))};
+}
+inline uint32_t bits(DoubleMask m) { return uint32_t(_mm256_movemask_pd(m.v)); }
+inline Doubles select(DoubleMask m, Doubles a, Doubles b) { return {_mm256_blendv_pd(b.v, a.v, m.v)}; }
+#else
+constexpr uint32_t dwidth = 2;
+struct Doubles {
+    double v[2];
+};
+struct DoubleMask {
+    uint32_t b;
+};  // bit i: lane i
+inline Doubles load(const double* p) { return {{p[0], p[1]}}; }
+inline void store(double* p, Doubles a) {
+    p[0] = a.v[0];
+    p[1] = a.v[1];
+}
+inline Doubles dsplat(double x) { return {{x, x}}; }
+inline Doubles operator+(Doubles a, Doubles b) { return {{a.v[0] + b.v[0], a.v[1] + b.v[1]}}; }
+inline Doubles operator-(Doubles a, Doubles b) { return {{a.v[0] - b.v[0], a.v[1] - b.v[1]}}; }
+inline Doubles operator*(Doubles a, Doubles b) { return {{a.v[0] * b.v[0], a.v[1] * b.v[1]}}; }
+inline Doubles operator/(Doubles a, Doubles b) { return {{a.v[0] / b.v[0], a.v[1] / b.v[1]}}; }
+inline Doubles fused(Doubles a, Doubles b, Doubles c) {
+    return {{std::fma(a.v[0], b.v[0], c.v[0]), std::fma(a.v[1], b.v[1], c.v[1])}};
+}
+inline Doubles sqrt(Doubles a) { return {{std::sqrt(a.v[0]), std::sqrt(a.v[1])}}; }
+inline Doubles min(Doubles a, Doubles b) {
+    return {{a.v[0] < b.v[0] ? a.v[0] : b.v[0], a.v[1] < b.v[1] ? a.v[1] : b.v[1]}};
+}
+inline Doubles max(Doubles a, Doubles b) {
+    return {{a.v[0] > b.v[0] ? a.v[0] : b.v[0], a.v[1] > b.v[1] ? a.v[1] : b.v[1]}};
+}
+inline Doubles abs(Doubles a) { return {{std::fabs(a.v[0]), std::fabs(a.v[1])}}; }
+inline DoubleMask operator>(Doubles a, Doubles b) {
+    return {uint32_t(a.v[0] > b.v[0]) | uint32_t(a.v[1] > b.v[1]) << 1};
+}
+inline DoubleMask operator<(Doubles a, Doubles b) {
+    return {uint32_t(a.v[0] < b.v[0]) | uint32_t(a.v[1] < b.v[1]) << 1};
+}
+inline DoubleMask operator<=(Doubles a, Doubles b) {
+    return {uint32_t(a.v[0] <= b.v[0]) | uint32_t(a.v[1] <= b.v[1]) << 1};
+}
+inline DoubleMask operator&(DoubleMask a, DoubleMask b) { return {a.b & b.b}; }
+inline DoubleMask double_lanes(uint32_t bits) { return {bits & 3}; }
+inline uint32_t bits(DoubleMask m) { return m.b; }
+inline Doubles select(DoubleMask m, Doubles a, Doubles b) {
+    return {{m.b & 1 ? a.v[0] : b.v[0], m.b & 2 ? a.v[1] : b.v[1]}};
+}
+#endif
+
+// A vector of doubles reduced to one: the sum of its lanes in lane order, their least, their greatest.
+inline double lane_sum(Doubles v) {
+    alignas(64) double lane[dwidth];
+    store(lane, v);
+    double s = 0;
+    for (uint32_t j = 0; j < dwidth; ++j) s += lane[j];
+    return s;
+}
+inline double lane_min(Doubles v) {
+    alignas(64) double lane[dwidth];
+    store(lane, v);
+    double s = lane[0];
+    for (uint32_t j = 1; j < dwidth; ++j) s = lane[j] < s ? lane[j] : s;
+    return s;
+}
+inline double lane_max(Doubles v) {
+    alignas(64) double lane[dwidth];
+    store(lane, v);
+    double s = lane[0];
+    for (uint32_t j = 1; j < dwidth; ++j) s = lane[j] > s ? lane[j] : s;
+    return s;
+}
+
 // The lanes, in whole groups of `width`, that nonzero mask `subset` spans: [begin, end).
 inline void lane_span(uint64_t subset, uint32_t& begin, uint32_t& end) {
 #if defined(__GNUC__)

@@ -268,7 +268,7 @@ protected:
         alignas(64) float vl[tile_capacity];  // |e|_1 (l1) and a float just above it, for the triangle tests (TileView)
         double l1[tile_capacity], l1_lo, l1_hi;
         double frame[3][3];               // the mean direction from the light and two axes across it (make_frame)
-        double across[tile_capacity][2];  // each point's central projection in that frame
+        double across[2][tile_capacity];  // each point's central projection in that frame (x, then y)
         Pyramid pyramid;                  // holds the points walking now
         // Fine clusters met by the walk and the points inside their volumes, tested nearest to the light
         // first once the whole walk is done (or the list is full): a point in shadow then usually meets
@@ -297,46 +297,60 @@ protected:
         const Obb* fine_obbs;  // the fine boxes decoded (ScanBounds), or null: from the asset
     };
 
-    // The tile's frame: the mean direction z from the light of the points `which` and two unit axes across
-    // it, and each point's central projection onto the plane across z at distance 1. Returns the points it
-    // holds: all but those over 60 degrees off the mean.
-    static uint64_t make_frame(Tile& t, uint64_t which) {
-        double m[3] = {0, 0, 0};
-        for (uint64_t w = which; w; w &= w - 1) {
-            uint32_t i = math::lowest_bit(w);
-            const double inv = 1 / t.dist[i];
-            for (int k = 0; k < 3; ++k) m[k] += t.e[i][k] * inv;
+    // The tile's frame: the mean direction z from the light of the points `which` (their offsets ex, ey, ez
+    // from the light, in lanes) and two unit axes across it, and each point's central projection onto the
+    // plane across z at distance 1. Returns the points it holds: all but those over 60 degrees off the mean.
+    static uint64_t make_frame(Tile& t, uint64_t which, const double* ex, const double* ey, const double* ez) {
+        using simd::Doubles;
+        const Doubles zero = simd::dsplat(0), one = simd::dsplat(1);
+        Doubles sum[3] = {zero, zero, zero};
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            const uint32_t group = uint32_t(which >> i) & ((1u << simd::dwidth) - 1);
+            if (!group) continue;
+            const simd::DoubleMask in = simd::double_lanes(group);
+            const Doubles inv = one / simd::load(t.dist + i);
+            sum[0] = sum[0] + simd::select(in, simd::load(ex + i) * inv, zero);
+            sum[1] = sum[1] + simd::select(in, simd::load(ey + i) * inv, zero);
+            sum[2] = sum[2] + simd::select(in, simd::load(ez + i) * inv, zero);
         }
+        const double m[3] = {simd::lane_sum(sum[0]), simd::lane_sum(sum[1]), simd::lane_sum(sum[2])};
         if (!direction_frame(m, t.frame)) return 0;
         const double *z = t.frame[0], *a = t.frame[1], *b = t.frame[2];
         uint64_t held = 0;
-        for (uint64_t w = which; w; w &= w - 1) {
-            uint32_t i = math::lowest_bit(w);
-            const double* e = t.e[i];
-            double depth = math::dot3(e, z);
-            if (!(depth > 0.5 * t.dist[i])) continue;  // over 60 degrees off: walks alone
-            double inv = 1 / depth;
-            t.across[i][0] = math::dot3(e, a) * inv;
-            t.across[i][1] = math::dot3(e, b) * inv;
-            held |= uint64_t(1) << i;
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            if (!(uint32_t(which >> i) & ((1u << simd::dwidth) - 1))) continue;
+            const Doubles x = simd::load(ex + i), y = simd::load(ey + i), w = simd::load(ez + i);
+            const Doubles depth = x * simd::dsplat(z[0]) + y * simd::dsplat(z[1]) + w * simd::dsplat(z[2]);
+            const Doubles inv = one / depth;
+            simd::store(t.across[0] + i,
+                        (x * simd::dsplat(a[0]) + y * simd::dsplat(a[1]) + w * simd::dsplat(a[2])) * inv);
+            simd::store(t.across[1] + i,
+                        (x * simd::dsplat(b[0]) + y * simd::dsplat(b[1]) + w * simd::dsplat(b[2])) * inv);
+            // over 60 degrees off: walks alone
+            held |= uint64_t(simd::bits(depth > simd::dsplat(0.5) * simd::load(t.dist + i))) << i;
         }
-        return held;
+        return held & which;
     }
 
     // The pyramid from the light through the rectangle in the tile's frame that bounds the projections of
     // the points `which` (held by the frame).
     static void make_pyramid(const Tile& t, uint64_t which, Pyramid& out) {
-        double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-        out.dmax = 0;
-        for (uint64_t w = which; w; w &= w - 1) {
-            uint32_t i = math::lowest_bit(w);
-            const double x = t.across[i][0], y = t.across[i][1];
-            lo[0] = std::min(lo[0], x);
-            hi[0] = std::max(hi[0], x);
-            lo[1] = std::min(lo[1], y);
-            hi[1] = std::max(hi[1], y);
-            out.dmax = std::max(out.dmax, t.dist[i]);
+        using simd::Doubles;
+        const Doubles inf = simd::dsplat(INFINITY), ninf = simd::dsplat(-INFINITY), zero = simd::dsplat(0);
+        Doubles lo0 = inf, lo1 = inf, hi0 = ninf, hi1 = ninf, far = zero;
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            const uint32_t group = uint32_t(which >> i) & ((1u << simd::dwidth) - 1);
+            if (!group) continue;
+            const simd::DoubleMask in = simd::double_lanes(group);
+            const Doubles x = simd::load(t.across[0] + i), y = simd::load(t.across[1] + i);
+            lo0 = simd::min(lo0, simd::select(in, x, inf));
+            hi0 = simd::max(hi0, simd::select(in, x, ninf));
+            lo1 = simd::min(lo1, simd::select(in, y, inf));
+            hi1 = simd::max(hi1, simd::select(in, y, ninf));
+            far = simd::max(far, simd::select(in, simd::load(t.dist + i), zero));
         }
+        double lo[2] = {simd::lane_min(lo0), simd::lane_min(lo1)}, hi[2] = {simd::lane_max(hi0), simd::lane_max(hi1)};
+        out.dmax = simd::lane_max(far);
         // Widened far beyond the rounding of x and y (a few 1e-16 for |x|, |y| below 2) and of the rays to
         // float (below 1e-7): the float rays still hold every point's direction.
         for (int k = 0; k < 2; ++k) {
@@ -422,33 +436,56 @@ protected:
         t.fine_obbs = fine_obbs;
         t.alive = t.shadowed = 0;
         t.pending_count = t.entered_count = 0;
-        // Each point worked out in locals, then stored: read back from the tile (written through a reference),
-        // it would wait on the stores just made.
-        uint64_t taken = 0, lone = 0;
-        for (uint32_t i = 0; i < count; ++i) {
-            if (!(alive >> i & 1)) continue;
-            double p[3], e[3];
-            const double* world_p = points + size_t(index[i]) * 3;
-            const double from = shadow_from(world_p, world_light_, bias_);
-            if (!may_block(from)) continue;
-            t.from[i] = from;
-            apply_instance(inverse_, world_p, p);
-            for (int k = 0; k < 3; ++k) e[k] = p[k] - light_[k];
-            const double dist = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
-            for (int k = 0; k < 3; ++k) {
-                t.p[i][k] = p[k];
-                t.e[i][k] = e[k];
-            }
-            t.dist[i] = dist;
-            if (!(dist > float_tiny) || !(dist < 1e30)) {  // at or by the light, not finite, or beyond float's range
-                lone |= uint64_t(1) << i;
-                continue;
-            }
-            taken |= uint64_t(1) << i;
+        // Every point in double lanes, padded with the light (which nothing blocks): `from`, the point in the
+        // mesh's frame, its offset and distance from the light, each lane the same operations in the same order
+        // as shadow_from and apply_instance take on one point.
+        using simd::Doubles;
+        alignas(64) double wx[tile_capacity], wy[tile_capacity], wz[tile_capacity];
+        alignas(64) double ex[tile_capacity], ey[tile_capacity], ez[tile_capacity];
+        for (uint32_t i = 0; i < tile_capacity; ++i) {
+            const double* q = i < count ? points + size_t(index[i]) * 3 : world_light_;
+            wx[i] = q[0];
+            wy[i] = q[1];
+            wz[i] = q[2];
         }
-        alone = lone;
-        t.alive = taken;
-        uint64_t held = t.alive ? make_frame(t, t.alive) : 0;
+        const double* m = inverse_;
+        uint64_t blockable = 0, regular = 0;
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            const Doubles x = simd::load(wx + i), y = simd::load(wy + i), z = simd::load(wz + i);
+            const Doubles dx = simd::dsplat(world_light_[0]) - x, dy = simd::dsplat(world_light_[1]) - y,
+                          dz = simd::dsplat(world_light_[2]) - z;
+            const Doubles from = simd::dsplat(bias_) / simd::sqrt(simd::fused(dz, dz, simd::fused(dy, dy, dx * dx)));
+            Doubles p[3], e[3];
+            for (int k = 0; k < 3; ++k) {
+                p[k] = simd::dsplat(m[k]) * x + simd::dsplat(m[3 + k]) * y + simd::dsplat(m[6 + k]) * z +
+                    simd::dsplat(m[9 + k]);
+                e[k] = p[k] - simd::dsplat(light_[k]);
+            }
+            const Doubles dist = simd::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+            simd::store(t.from + i, from);
+            simd::store(t.dist + i, dist);
+            simd::store(wx + i, p[0]);
+            simd::store(wy + i, p[1]);
+            simd::store(wz + i, p[2]);
+            simd::store(ex + i, e[0]);
+            simd::store(ey + i, e[1]);
+            simd::store(ez + i, e[2]);
+            blockable |= uint64_t(simd::bits(from <= simd::dsplat(1))) << i;  // may_block
+            regular |= uint64_t(simd::bits((dist > simd::dsplat(float_tiny)) & (dist < simd::dsplat(1e30)))) << i;
+        }
+        for (uint32_t i = 0; i < tile_capacity; ++i) {
+            t.p[i][0] = wx[i];
+            t.p[i][1] = wy[i];
+            t.p[i][2] = wz[i];
+            t.e[i][0] = ex[i];
+            t.e[i][1] = ey[i];
+            t.e[i][2] = ez[i];
+        }
+        const uint64_t live = alive & blockable & (count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1);
+        // Not regular: at or by the light, not finite, or beyond float's range.
+        alone = live & ~regular;
+        t.alive = live & regular;
+        const uint64_t held = t.alive ? make_frame(t, t.alive, ex, ey, ez) : 0;
         const uint64_t off = t.alive & ~held;
         t.alive &= held;
         if (t.alive) {
@@ -456,20 +493,20 @@ protected:
             t.small = t.pyramid.dmax < float_safe;
             for (uint32_t i = 0; i < tile_capacity; ++i) {
                 bool in = t.alive >> i & 1;
-                t.ex[i] = in ? float(t.e[i][0]) : 0.0f;
-                t.ey[i] = in ? float(t.e[i][1]) : 0.0f;
-                t.ez[i] = in ? float(t.e[i][2]) : 0.0f;
+                t.ex[i] = in ? float(ex[i]) : 0.0f;
+                t.ey[i] = in ? float(ey[i]) : 0.0f;
+                t.ez[i] = in ? float(ez[i]) : 0.0f;
                 t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
                 t.slack[i] = 2e-6f * t.fd[i];
                 t.keep[i] = in ? float(1 - t.from[i]) : 1.0f;
                 t.reach[i] = in ? float(1 - blocking_start(t.from[i])) : 1.0f;
+                t.l1[i] = std::fabs(ex[i]) + std::fabs(ey[i]) + std::fabs(ez[i]);
+                t.vl[i] = float(t.l1[i] * 1.000001);
             }
             t.l1_lo = INFINITY;
             t.l1_hi = 0;
             for (uint64_t w = t.alive; w; w &= w - 1) {
                 const uint32_t i = math::lowest_bit(w);
-                t.l1[i] = std::fabs(t.e[i][0]) + std::fabs(t.e[i][1]) + std::fabs(t.e[i][2]);
-                t.vl[i] = float(t.l1[i] * 1.000001);
                 t.l1_lo = std::min(t.l1_lo, t.l1[i]);
                 t.l1_hi = std::max(t.l1_hi, t.l1[i]);
             }
