@@ -890,24 +890,30 @@ private:
     // sphere); returns the regular ones, whose distance lies between the float filters' bounds
     // (TraversalBase::float_tiny and float_safe, 1e-7 and 1e9).
     uint64_t directions(const uint32_t* index, uint32_t count, float* ex, float* ey, float* ez, float* fd) const {
-        uint64_t regular = 0;
+        using simd::Doubles;
+        alignas(64) double e[3][tile_capacity], dist[tile_capacity];
         for (uint32_t i = 0; i < tile_capacity; ++i) {
-            double e[3] = {0, 0, 0}, d = -1;
-            if (i < count) {
-                const double* p = points_ + size_t(index[i]) * 3;
-                for (int k = 0; k < 3; ++k) e[k] = p[k] - light_[k];
-                d = std::sqrt(math::dot3(e, e));
-                if (d > 1e-7 && d < 1e9) {
-                    regular |= uint64_t(1) << i;
-                } else {
-                    e[0] = e[1] = e[2] = 0;
-                    d = -1;
-                }
+            const double* p = i < count ? points_ + size_t(index[i]) * 3 : light_;
+            for (int k = 0; k < 3; ++k) e[k][i] = p[k];
+        }
+        uint64_t regular = 0;
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            Doubles d[3];
+            for (int k = 0; k < 3; ++k) {
+                d[k] = simd::load(e[k] + i) - simd::dsplat(light_[k]);
+                simd::store(e[k] + i, d[k]);
             }
-            ex[i] = float(e[0]);
-            ey[i] = float(e[1]);
-            ez[i] = float(e[2]);
-            fd[i] = float(d);
+            const Doubles l = simd::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            simd::store(dist + i, l);
+            regular |= uint64_t(simd::bits((l > simd::dsplat(1e-7)) & (l < simd::dsplat(1e9)))) << i;
+        }
+        regular &= count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1;
+        for (uint32_t i = 0; i < tile_capacity; ++i) {
+            const bool in = regular >> i & 1;
+            ex[i] = in ? float(e[0][i]) : 0.0f;
+            ey[i] = in ? float(e[1][i]) : 0.0f;
+            ez[i] = in ? float(e[2][i]) : 0.0f;
+            fd[i] = in ? float(dist[i]) : -1.0f;
         }
         return regular;
     }

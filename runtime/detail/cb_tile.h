@@ -436,14 +436,15 @@ protected:
         t.fine_obbs = fine_obbs;
         t.alive = t.shadowed = 0;
         t.pending_count = t.entered_count = 0;
-        // Every point in double lanes, padded with the light (which nothing blocks): `from`, the point in the
-        // mesh's frame, its offset and distance from the light, each lane the same operations in the same order
-        // as shadow_from and apply_instance take on one point.
+        // The points of `alive` in double lanes, padded with the light (which nothing blocks): `from`, the point
+        // in the mesh's frame, its offset and distance from the light, each lane the same operations in the same
+        // order as shadow_from and apply_instance take on one point.
         using simd::Doubles;
         alignas(64) double wx[tile_capacity], wy[tile_capacity], wz[tile_capacity];
         alignas(64) double ex[tile_capacity], ey[tile_capacity], ez[tile_capacity];
+        const uint64_t wanted = alive & (count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1);
         for (uint32_t i = 0; i < tile_capacity; ++i) {
-            const double* q = i < count ? points + size_t(index[i]) * 3 : world_light_;
+            const double* q = wanted >> i & 1 ? points + size_t(index[i]) * 3 : world_light_;
             wx[i] = q[0];
             wy[i] = q[1];
             wz[i] = q[2];
@@ -451,6 +452,11 @@ protected:
         const double* m = inverse_;
         uint64_t blockable = 0, regular = 0;
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            if (!(uint32_t(wanted >> i) & ((1u << simd::dwidth) - 1))) {  // (an instance often takes a few points)
+                const Doubles zero = simd::dsplat(0);
+                for (double* out : {t.from + i, t.dist + i, ex + i, ey + i, ez + i}) simd::store(out, zero);
+                continue;
+            }
             const Doubles x = simd::load(wx + i), y = simd::load(wy + i), z = simd::load(wz + i);
             const Doubles dx = simd::dsplat(world_light_[0]) - x, dy = simd::dsplat(world_light_[1]) - y,
                           dz = simd::dsplat(world_light_[2]) - z;
@@ -481,7 +487,7 @@ protected:
             t.e[i][1] = ey[i];
             t.e[i][2] = ez[i];
         }
-        const uint64_t live = alive & blockable & (count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1);
+        const uint64_t live = wanted & blockable;
         // Not regular: at or by the light, not finite, or beyond float's range.
         alone = live & ~regular;
         t.alive = live & regular;
