@@ -115,7 +115,11 @@ inline bool segment_meets_box(const double* p, const double* q, const Box& b) {
 // A pyramid from the light in world space that holds the segments of some points: four side planes
 // through the light (inside: n . (x - light) >= 0) and a far plane across its axis at the farthest point.
 struct WorldPyramid {
-    double light[3], n[4][3], axis[3], dmax;
+    double light[3], axis[3], dmax;
+    // The sides' unit normals by coordinate and their absolute values, zero past the fourth (lanes that never
+    // rule a box out): the four sides a vector of double lanes, or two.
+    static constexpr uint32_t sides = 4 > simd::dwidth ? 4 : simd::dwidth;
+    double nx[sides] = {}, ny[sides] = {}, nz[sides] = {}, ax[sides] = {}, ay[sides] = {}, az[sides] = {};
 };
 
 // False only when box b certainly lies outside the pyramid; `near` gets the distance along the axis from
@@ -129,10 +133,13 @@ inline bool pyramid_meets_box(const WorldPyramid& w, const Box& b, double& near)
         scale += std::fabs(c[k]) + h[k];
     }
     const double eps = 1e-9 * scale;
-    for (int s = 0; s < 4; ++s) {
-        const double* n = w.n[s];
-        const double reach = std::fabs(n[0]) * h[0] + std::fabs(n[1]) * h[1] + std::fabs(n[2]) * h[2];
-        if (math::dot3(n, c) + reach < -eps) return false;  // NaN: kept
+    using simd::Doubles;
+    const Doubles cx = simd::dsplat(c[0]), cy = simd::dsplat(c[1]), cz = simd::dsplat(c[2]), hx = simd::dsplat(h[0]),
+                  hy = simd::dsplat(h[1]), hz = simd::dsplat(h[2]);
+    for (uint32_t s = 0; s < 4; s += simd::dwidth) {
+        const Doubles reach = simd::load(w.ax + s) * hx + simd::load(w.ay + s) * hy + simd::load(w.az + s) * hz;
+        const Doubles side = simd::load(w.nx + s) * cx + simd::load(w.ny + s) * cy + simd::load(w.nz + s) * cz + reach;
+        if (simd::bits(side < simd::dsplat(-eps))) return false;  // NaN: kept
     }
     const double* z = w.axis;
     near = math::dot3(z, c) - (std::fabs(z[0]) * h[0] + std::fabs(z[1]) * h[1] + std::fabs(z[2]) * h[2]);
@@ -1034,12 +1041,18 @@ private:
         // rectangle when points over 60 degrees off it were left out.
         frame_ray(frame, 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), inside);
         for (int r = 0; r < 4; ++r) {
-            double* n = w.n[r];
+            double n[3];
             math::cross3(ray[r], ray[(r + 1) & 3], n);
             if (math::dot3(n, inside) < 0)
                 for (int k = 0; k < 3; ++k) n[k] = -n[k];
             const double nl = std::sqrt(math::dot3(n, n));
             for (int k = 0; k < 3; ++k) n[k] = nl > 0 ? n[k] / nl : 0.0;
+            w.nx[r] = n[0];
+            w.ny[r] = n[1];
+            w.nz[r] = n[2];
+            w.ax[r] = std::fabs(n[0]);
+            w.ay[r] = std::fabs(n[1]);
+            w.az[r] = std::fabs(n[2]);
         }
         for (int k = 0; k < 3; ++k) {
             w.light[k] = light_[k];
