@@ -14,7 +14,7 @@
 // and committing (a refit). Asserts nothing.
 //
 //   bench_level [--data DIR] [--view 512] [--runs 3] [--cities 10,100,1000,10000,100000] [--only NAME]
-//               [--lights all|points|suns]
+//               [--lights all|points|suns|outside|overhead|grazing|inside|"sun high"|"sun low"]
 //               [--traversal scan|top-two|top-one|mtsv-one|mtsv-two] [--one-sided 1] [--threads 2]
 //               [--obb refined|pca|pca-area|cgal]
 #include <embree3/rtcore.h>
@@ -50,7 +50,7 @@ struct Settings {
     unsigned threads = 2;  // the second measurement's (the first is one thread)
     std::vector<uint32_t> cities = {10, 100, 1000, 10000, 100000};
     std::string only;
-    std::string lights = "all";  // "points" or "suns": only those
+    std::string lights = "all";  // "points" or "suns": only those; or one light by name
     cb::ShadowBuildOptions options;
     cb::ObbMethod obb = cb::ObbMethod::refined;  // the bake's box fitter: what box tightness is worth at run time
 };
@@ -276,6 +276,7 @@ void run(const std::string& name, const cb::Scene& scene, const Settings& s) {
         const double* light = lights[li];
         const bool sun = li >= 4;
         if ((sun && s.lights == "points") || (!sun && s.lights == "suns")) continue;
+        if (s.lights != "all" && s.lights != "points" && s.lights != "suns" && s.lights != light_names[li]) continue;
         // Embree's four ways (flat or instanced, packets of 1 or 16), one thread and `threads`.
         std::vector<double> our_t, our_tt, embree_t[4], embree_tt[4];
         size_t met = 0, built = 0, bytes = 0;
@@ -371,7 +372,9 @@ int main(int argc, char** argv) {
             s.threads = unsigned(std::stoul(v));
         else if (a == "--only")
             s.only = v;
-        else if (a == "--lights" && (v == "all" || v == "points" || v == "suns"))
+        else if (a == "--lights" &&
+                 (v == "all" || v == "points" || v == "suns" || v == "outside" || v == "overhead" || v == "grazing" ||
+                  v == "inside" || v == "sun high" || v == "sun low"))
             s.lights = v;
         else if (a == "--obb") {
             if (!cb::parse_obb_method(v, s.obb)) {
