@@ -229,8 +229,8 @@ inline Floats dot_plus(Floats x, Floats y, Floats z, float a, float b, float c, 
 }
 
 // Double lanes, for the per-point set-up that must stay in double (a tile's points moved into an instance's
-// frame): 8 with AVX-512, 4 with AVX, and 2 plain doubles otherwise (two SSE2 lanes gain little over them).
-// Loads and stores take any address. fused(a, b, c) rounds a * b + c once on every target (a software fma per
+// frame): 8 with AVX-512, 4 with AVX, and 2 plain doubles otherwise (SSE2 builds included). Loads and stores
+// take any address. fused(a, b, c) rounds a * b + c once on every target (a software fma per
 // lane where there is no instruction), so that lanes give the bits std::fma gives.
 #if defined(CB_SIMD_AVX512)
 constexpr uint32_t dwidth = 8;
