@@ -664,7 +664,7 @@ public:
             const size_t begin = t * tile_capacity;
             const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
             const uint32_t* index = order_.data() + begin;
-            uint64_t alive = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1, shadowed = 0;
+            uint64_t alive = tile_lanes(count), shadowed = 0;
             const uint64_t regular = sun_ ? sun_across(index, count, across) : directions(index, count, ex, ey, ez, fd);
             if (sun_) sun_tile.make(across, regular);
             for (uint64_t slot : tile_lists_[t]) {
@@ -819,7 +819,7 @@ private:
                              math::dot3(sphere, sun_frame_[0])};
         const double size = std::fabs(sphere[0]) + std::fabs(sphere[1]) + std::fabs(sphere[2]) + sphere[3];
         if (!(size < 1e30)) return ~uint64_t(0);
-        const uint64_t all = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1;
+        const uint64_t all = tile_lanes(count);
         const double d[3] = {c[0] - f.centre[0], c[1] - f.centre[1], c[2] - f.centre[2]};
         const double reach = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]) + sphere[3] + f.size;
         const double slack = 1e-6 * reach + 1e-12 * (size + math::l1(f.centre));
@@ -897,24 +897,10 @@ private:
     // sphere); returns the regular ones, whose distance lies between the float filters' bounds
     // (TraversalBase::float_tiny and float_safe, 1e-7 and 1e9).
     uint64_t directions(const uint32_t* index, uint32_t count, float* ex, float* ey, float* ez, float* fd) const {
-        using simd::Doubles;
         alignas(64) double e[3][tile_capacity], dist[tile_capacity];
-        for (uint32_t i = 0; i < tile_capacity; ++i) {
-            const double* p = i < count ? points_ + size_t(index[i]) * 3 : light_;
-            for (int k = 0; k < 3; ++k) e[k][i] = p[k];
-        }
+        offsets(index, count, e, dist);
         uint64_t regular = 0;
-        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            Doubles d[3];
-            for (int k = 0; k < 3; ++k) {
-                d[k] = simd::load(e[k] + i) - simd::dsplat(light_[k]);
-                simd::store(e[k] + i, d[k]);
-            }
-            const Doubles l = simd::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-            simd::store(dist + i, l);
-            regular |= uint64_t(simd::bits((l > simd::dsplat(1e-7)) & (l < simd::dsplat(1e9)))) << i;
-        }
-        regular &= count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1;
+        for (uint32_t i = 0; i < count; ++i) regular |= uint64_t(dist[i] > 1e-7 && dist[i] < 1e9) << i;
         for (uint32_t i = 0; i < tile_capacity; ++i) {
             const bool in = regular >> i & 1;
             ex[i] = in ? float(e[0][i]) : 0.0f;
@@ -923,6 +909,31 @@ private:
             fd[i] = in ? float(dist[i]) : -1.0f;
         }
         return regular;
+    }
+
+    // The offsets from the light of tile points points_ + 3 * index[i], by coordinate, and their lengths, in
+    // double lanes (past `count`: the light's own, zero); returns the points whose coordinates are finite.
+    uint64_t offsets(const uint32_t* index, uint32_t count, double (*e)[tile_capacity], double* dist) const {
+        for (uint32_t i = 0; i < tile_capacity; ++i) {
+            const double* p = i < count ? points_ + size_t(index[i]) * 3 : light_;
+            for (int k = 0; k < 3; ++k) e[k][i] = p[k];
+        }
+        using simd::Doubles;
+        const Doubles largest = simd::dsplat(DBL_MAX);
+        uint64_t finite = 0;
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            Doubles d[3];
+            simd::DoubleMask bounded = simd::double_lanes(~0u);
+            for (int k = 0; k < 3; ++k) {
+                const Doubles p = simd::load(e[k] + i);
+                bounded = bounded & (simd::abs(p) <= largest);
+                d[k] = p - simd::dsplat(light_[k]);
+                simd::store(e[k] + i, d[k]);
+            }
+            simd::store(dist + i, simd::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]));
+            finite |= uint64_t(simd::bits(bounded)) << i;
+        }
+        return finite & tile_lanes(count);
     }
 
     // The tile's points whose segment may meet instance h's sphere: the regular ones by the float test (the
@@ -953,40 +964,25 @@ private:
         const size_t begin = t * tile_capacity;
         const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
         const uint32_t* index = order_.data() + begin;
-        // The points' offsets from the light and distances, in double lanes (past `count`: the light, taken by
-        // neither list).
-        using simd::Doubles;
         alignas(64) double e[3][tile_capacity], dist[tile_capacity];
-        for (uint32_t i = 0; i < tile_capacity; ++i) {
-            const double* p = i < count ? points_ + size_t(index[i]) * 3 : light_;
-            for (int k = 0; k < 3; ++k) e[k][i] = p[k];
-        }
+        const uint64_t finite = offsets(index, count, e, dist);  // a point not finite is never in shadow
+        // By the light, or beyond what a pyramid holds well: alone; at the light (no length): neither.
         uint64_t taken = 0, alone = 0;
-        const Doubles largest = simd::dsplat(DBL_MAX), zero = simd::dsplat(0), one = simd::dsplat(1);
+        for (uint32_t i = 0; i < count; ++i) {
+            taken |= uint64_t(dist[i] > 1e-7 && dist[i] < 1e30) << i;
+            alone |= uint64_t(dist[i] > 0) << i;
+        }
+        alone &= finite & ~taken;
+        using simd::Doubles;
+        const Doubles zero = simd::dsplat(0), one = simd::dsplat(1);
         Doubles sum[3] = {zero, zero, zero};
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            Doubles d[3];
-            simd::DoubleMask finite = simd::double_lanes(~0u);  // a point not finite is never in shadow
-            for (int k = 0; k < 3; ++k) {
-                const Doubles p = simd::load(e[k] + i);
-                finite = finite & (simd::abs(p) <= largest);
-                d[k] = p - simd::dsplat(light_[k]);
-                simd::store(e[k] + i, d[k]);
-            }
-            const Doubles l = simd::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-            simd::store(dist + i, l);
-            // By the light, or beyond what a pyramid holds well: alone; at the light (no length): neither.
-            const simd::DoubleMask regular = (l > simd::dsplat(1e-7)) & (l < simd::dsplat(1e30));
-            taken |= uint64_t(simd::bits(regular)) << i;
-            alone |= uint64_t(simd::bits(finite & (l > zero))) << i;
-            const Doubles inv = one / l;
-            for (int k = 0; k < 3; ++k) sum[k] = sum[k] + simd::select(regular, d[k] * inv, zero);
+            if (!simd::double_group(taken, i)) continue;
+            const simd::DoubleMask in = simd::double_lanes(simd::double_group(taken, i));
+            const Doubles inv = one / simd::load(dist + i);
+            for (int k = 0; k < 3; ++k) sum[k] = sum[k] + simd::select(in, simd::load(e[k] + i) * inv, zero);
         }
-        const uint64_t present = count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1;
-        taken &= present;
-        alone &= present & ~taken;
-        double m[3];
-        for (int k = 0; k < 3; ++k) m[k] = simd::lane_sum(sum[k]);
+        const double m[3] = {simd::lane_sum(sum[0]), simd::lane_sum(sum[1]), simd::lane_sum(sum[2])};
         level_detail::WorldPyramid w;
         const uint64_t held = taken ? make_pyramid(e, dist, taken, m, w) : 0;
         if (held) level_->visit_pyramid(w, [&](uint32_t h, double near) { list.push_back(entry(near, h)); });
@@ -1015,7 +1011,7 @@ private:
         Doubles lo0 = inf, lo1 = inf, hi0 = ninf, hi1 = ninf, far = zero;
         uint64_t held = 0;
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            const uint32_t group = uint32_t(taken >> i) & ((1u << simd::dwidth) - 1);
+            const uint32_t group = simd::double_group(taken, i);
             if (!group) continue;
             const Doubles x = simd::load(e[0] + i), y = simd::load(e[1] + i), v = simd::load(e[2] + i),
                           d = simd::load(dist + i);

@@ -387,6 +387,8 @@ inline void lane_span(uint64_t subset, uint32_t& begin, uint32_t& end) {
 
 // The bits of lanes [i, i + width) of a 64-bit mask.
 inline uint32_t group(uint64_t mask, uint32_t i) { return uint32_t(mask >> i) & ((1u << width) - 1); }
+// The same for double lanes: bits [i, i + dwidth).
+inline uint32_t double_group(uint64_t mask, uint32_t i) { return uint32_t(mask >> i) & ((1u << dwidth) - 1); }
 
 // Asks for the cache line holding p (any address: a prefetch never faults). An asm statement on x86, since
 // GCC deletes calls to a function that does nothing but __builtin_prefetch (it deems it pure).

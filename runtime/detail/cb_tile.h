@@ -80,6 +80,9 @@ struct ShadowBuildOptions {
 constexpr uint32_t tile_capacity = 64;
 static_assert(tile_capacity == 64, "a tile's points are the bits of a uint64_t");
 
+// The bits of a tile's first `count` points (count <= tile_capacity).
+inline uint64_t tile_lanes(uint32_t count) { return count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1; }
+
 // A box set up for one light's float separating-axis test (TraversalBase::box_filter).
 struct BoxFilter {
     float lo[3], hi[3], hf[3], w[3][3], ax[3][3], tol;
@@ -305,7 +308,7 @@ protected:
         const Doubles zero = simd::dsplat(0), one = simd::dsplat(1);
         Doubles sum[3] = {zero, zero, zero};
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            const uint32_t group = uint32_t(which >> i) & ((1u << simd::dwidth) - 1);
+            const uint32_t group = simd::double_group(which, i);
             if (!group) continue;
             const simd::DoubleMask in = simd::double_lanes(group);
             const Doubles inv = one / simd::load(t.dist + i);
@@ -318,7 +321,7 @@ protected:
         const double *z = t.frame[0], *a = t.frame[1], *b = t.frame[2];
         uint64_t held = 0;
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            if (!(uint32_t(which >> i) & ((1u << simd::dwidth) - 1))) continue;
+            if (!simd::double_group(which, i)) continue;
             const Doubles x = simd::load(ex + i), y = simd::load(ey + i), w = simd::load(ez + i);
             const Doubles depth = x * simd::dsplat(z[0]) + y * simd::dsplat(z[1]) + w * simd::dsplat(z[2]);
             const Doubles inv = one / depth;
@@ -339,7 +342,7 @@ protected:
         const Doubles inf = simd::dsplat(INFINITY), ninf = simd::dsplat(-INFINITY), zero = simd::dsplat(0);
         Doubles lo0 = inf, lo1 = inf, hi0 = ninf, hi1 = ninf, far = zero;
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            const uint32_t group = uint32_t(which >> i) & ((1u << simd::dwidth) - 1);
+            const uint32_t group = simd::double_group(which, i);
             if (!group) continue;
             const simd::DoubleMask in = simd::double_lanes(group);
             const Doubles x = simd::load(t.across[0] + i), y = simd::load(t.across[1] + i);
@@ -442,7 +445,7 @@ protected:
         using simd::Doubles;
         alignas(64) double wx[tile_capacity], wy[tile_capacity], wz[tile_capacity];
         alignas(64) double ex[tile_capacity], ey[tile_capacity], ez[tile_capacity];
-        const uint64_t wanted = alive & (count == 64 ? ~uint64_t(0) : (uint64_t(1) << count) - 1);
+        const uint64_t wanted = alive & tile_lanes(count);
         for (uint32_t i = 0; i < tile_capacity; ++i) {
             const double* q = wanted >> i & 1 ? points + size_t(index[i]) * 3 : world_light_;
             wx[i] = q[0];
@@ -452,7 +455,7 @@ protected:
         const double* m = inverse_;
         uint64_t blockable = 0, regular = 0;
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            if (!(uint32_t(wanted >> i) & ((1u << simd::dwidth) - 1))) {  // (an instance often takes a few points)
+            if (!simd::double_group(wanted, i)) {  // (an instance often takes a few points)
                 const Doubles zero = simd::dsplat(0);
                 for (double* out : {t.from + i, t.dist + i, ex + i, ey + i, ez + i}) simd::store(out, zero);
                 continue;
