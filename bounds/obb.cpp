@@ -431,7 +431,13 @@ Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_co
         }
         return t;
     }();
+    // A try on the same projections with the same step gives the same areas: each axis keeps its last areas
+    // and the number of wins they were measured after, and takes them again while no try has won since (the
+    // round that ends a step size then costs nothing, and the try after a win has its areas already).
+    size_t wins = 0;
     for (const auto& [c, s] : turns) {
+        double known[3][2];
+        size_t known_after[3] = {SIZE_MAX, SIZE_MAX, SIZE_MAX};
         for (bool improved = true; improved;) {
             improved = false;
             for (int k = 0; k < 3; ++k) {
@@ -439,7 +445,11 @@ Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_co
                 double* x = proj.data() + size_t(u) * n;
                 double* y = proj.data() + size_t(w) * n;
                 double area[2];
-                turned_areas(x, y, n, c, s, pad, area);
+                if (known_after[k] == wins)
+                    std::copy_n(known[k], 2, area);
+                else
+                    turned_areas(x, y, n, c, s, pad, area);
+                bool current = true;  // `area` measured on the projections as they are
                 for (int t = 0; t < 2; ++t) {
                     const double sign = t == 0 ? 1.0 : -1.0;
                     const double turned = (extent[k] + pad) * area[t];
@@ -447,6 +457,8 @@ Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_co
                     best_cost = turned;
                     best = rotated(best, k, c, sign * s);
                     improved = true;
+                    ++wins;
+                    current = false;
                     // The winning try's projections, turned as turned_areas turned them, become the current ones.
                     double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
                     for (size_t v = 0; v < n; ++v) {
@@ -461,7 +473,14 @@ Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_co
                     extent[u] = hi[0] - lo[0];
                     extent[w] = hi[1] - lo[1];
                     // The turn back is then a try of its own, on the turned projections.
-                    if (t == 0) turned_areas(x, y, n, c, s, pad, area);
+                    if (t == 0) {
+                        turned_areas(x, y, n, c, s, pad, area);
+                        current = true;
+                    }
+                }
+                if (current) {
+                    std::copy_n(area, 2, known[k]);
+                    known_after[k] = wins;
                 }
             }
         }
