@@ -260,16 +260,17 @@ void each_piece(const AssetLayout& L, Piece&& piece) {
     if (L.file_size > at) piece(zeros, L.file_size - at, at);
 }
 
-// FNV-1a over the pieces, skipping the checksum field (asset_checksum, computed as the file is written).
+// The checksum over the pieces, skipping the checksum field (asset_checksum, computed as the file is written).
 uint64_t layout_checksum(const AssetLayout& L) {
-    uint64_t h = fnv1a64(L.head.data(), checksum_at);
-    h = fnv1a64(L.head.data() + checksum_at + 8, L.head.size() - checksum_at - 8, h);
+    AssetChecksum sum;
+    sum.add(L.head.data(), checksum_at);
+    sum.add(L.head.data() + checksum_at + 8, L.head.size() - checksum_at - 8);
     bool first = true;
     each_piece(L, [&](const uint8_t* bytes, uint64_t size, uint64_t) {
-        if (!first) h = fnv1a64(bytes, size_t(size), h);
+        if (!first) sum.add(bytes, size_t(size));
         first = false;
     });
-    return h;
+    return sum.finish();
 }
 
 }  // namespace

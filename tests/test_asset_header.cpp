@@ -4,6 +4,7 @@
 
 #include <cb_asset.h>
 
+#include <algorithm>
 #include <cstddef>
 #include <cstring>
 #include <string>
@@ -67,4 +68,33 @@ TEST(AssetHeader, ReservedBytesMustBeZeroEvenUnderAGoodChecksum) {
     const uint64_t sum = cb::asset_checksum(bytes, size);
     std::memcpy(bytes + offsetof(cb::AssetHeader, checksum), &sum, 8);
     EXPECT_EQ(cb::open_asset(bytes, size, &view), cb::AssetError::ok);
+}
+
+// The checksum is a stream: fed in pieces of any size, cut anywhere in a stripe, it is the checksum of the
+// whole. A flipped bit anywhere in the stream changes it, and so does a zero byte more at the end (the
+// zero padding of the last stripe must not hide the length).
+TEST(AssetHeader, ChecksumOfPiecesIsTheChecksumOfTheWhole) {
+    std::vector<uint8_t> bytes(301);
+    for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = uint8_t(i * 37 + 11);
+    cb::AssetChecksum whole;
+    whole.add(bytes.data(), bytes.size());
+    const uint64_t expected = whole.finish();
+    for (size_t piece : {size_t(1), size_t(3), size_t(8), size_t(31), size_t(32), size_t(33), size_t(100)}) {
+        cb::AssetChecksum sum;
+        for (size_t at = 0; at < bytes.size(); at += piece)
+            sum.add(bytes.data() + at, std::min(piece, bytes.size() - at));
+        EXPECT_EQ(sum.finish(), expected) << "pieces of " << piece;
+    }
+    for (size_t i = 0; i < bytes.size(); ++i)
+        for (int bit = 0; bit < 8; ++bit) {
+            bytes[i] ^= uint8_t(1 << bit);
+            cb::AssetChecksum sum;
+            sum.add(bytes.data(), bytes.size());
+            EXPECT_NE(sum.finish(), expected) << "byte " << i << " bit " << bit;
+            bytes[i] ^= uint8_t(1 << bit);
+        }
+    bytes.push_back(0);
+    cb::AssetChecksum longer;
+    longer.add(bytes.data(), bytes.size());
+    EXPECT_NE(longer.finish(), expected);
 }

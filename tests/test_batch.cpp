@@ -261,7 +261,7 @@ TEST(BatchSource, BakeFileKeepsOnlyOutputsMadeFromTheSameInputsOptionsAndTool) {
     std::string error;
     ASSERT_TRUE(cb::read_asset_file(r.output, asset, error)) << error;
     std::string source(asset.view.source, asset.view.source_size);
-    EXPECT_EQ(source.find(std::string(cb::tool_version()) + ", asset format 3, build " + cb::build_id() +
+    EXPECT_EQ(source.find(std::string(cb::tool_version()) + ", asset format 4, build " + cb::build_id() +
                           "\nbake --method kmeans"),
               0u)
         << source;

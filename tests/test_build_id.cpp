@@ -98,13 +98,13 @@ TEST(BuildId, IsInEverySourceSectionAndInVersion) {
     r.input = cube;
     r.output = (d / "cube.cbk").string();
     ASSERT_EQ(cb::bake_file(r).status, cb::BakeStatus::baked);
-    EXPECT_EQ(source_of(r.output).rfind(std::string(cb::tool_version()) + ", asset format 3, build " + id + "\n", 0),
+    EXPECT_EQ(source_of(r.output).rfind(std::string(cb::tool_version()) + ", asset format 4, build " + id + "\n", 0),
               0u)
         << source_of(r.output);
     // The command line is built from the same tree: its --version and its assets name the same build.
     const CliResult version = run("--version");
     ASSERT_EQ(version.code, 0);
-    EXPECT_NE(version.out.find("(asset format 3, build " + id + ", "), std::string::npos) << version.out;
+    EXPECT_NE(version.out.find("(asset format 4, build " + id + ", "), std::string::npos) << version.out;
     ASSERT_EQ(run("bake " + cube + " -o " + (d / "cli.cbk").string() + " -q").code, 0);
     EXPECT_EQ(read(d / "cli.cbk"), read(r.output));
     fs::remove_all(d);

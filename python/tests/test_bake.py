@@ -45,7 +45,7 @@ def test_save_open_and_facts(tmp_path, scene_asset):
     assert again.to_bytes() == scene_asset.to_bytes()
     assert clusterbake.Asset.from_bytes(path.read_bytes()).info == scene_asset.info
     info = scene_asset.info
-    assert info["format"] == clusterbake.asset_format == 3
+    assert info["format"] == clusterbake.asset_format == 4
     assert info["bytes"] == len(scene_asset.to_bytes())
     assert info["triangles"] == 33952 and info["instances"] == 12
     assert info["fine_bounds"] == ["obb", "cone"] and info["coarse_bounds"] == ["obb", "cone"]
@@ -58,10 +58,10 @@ def test_save_open_and_facts(tmp_path, scene_asset):
         assert printed[key] == value, key
     lines = scene_asset.source.splitlines()
     assert lines == printed["source"]
-    assert lines[0] == f"clusterbake {clusterbake.__version__}, asset format 3, build {clusterbake.build_id}"
+    assert lines[0] == f"clusterbake {clusterbake.__version__}, asset format 4, build {clusterbake.build_id}"
     # One source tree, one build id: the command line's --version names the module's.
     _, version, _ = run_cli("--version")
-    assert f"(asset format 3, build {clusterbake.build_id}, " in version
+    assert f"(asset format 4, build {clusterbake.build_id}, " in version
     assert len(clusterbake.build_id) == 16 and int(clusterbake.build_id, 16) >= 0
     assert lines[1].startswith("bake --method kmeans --coarse 2048 --fine 16")
     assert lines[3] == "file " + os.path.basename(SCENE)

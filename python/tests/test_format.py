@@ -12,10 +12,28 @@ import clusterbake
 from conftest import SCENE
 
 
-def fnv1a64(data, h=0xCBF29CE484222325):
-    for b in data:
-        h = ((h ^ b) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
-    return h
+M64 = 0xFFFFFFFFFFFFFFFF
+A, B, C = 0x9E3779B97F4A7C15, 0xBF58476D1CE4E5B9, 0x94D049BB133111EB
+
+
+def mix(x):
+    x = ((x ^ (x >> 30)) * B) & M64
+    x = ((x ^ (x >> 27)) * C) & M64
+    return x ^ (x >> 31)
+
+
+def checksum(stream):
+    """The checksum of FORMAT.md over one stream of bytes."""
+    lanes = [A, B, C, 0]
+    padded = stream + bytes(-len(stream) % 32)
+    for at in range(0, len(padded), 32):
+        for j in range(4):
+            x = (lanes[j] + int.from_bytes(padded[at + 8 * j : at + 8 * j + 8], "little") * B) & M64
+            lanes[j] = ((((x << 31) | (x >> 33)) & M64) * A) & M64
+    h = mix(len(stream))
+    for j in range(4):
+        h = (mix(h ^ lanes[j]) + j) & M64
+    return mix(h)
 
 
 def table(data):
@@ -45,9 +63,9 @@ def scene_bytes():
 
 def test_checksum_and_layout(scene_bytes):
     data = scene_bytes
-    assert data[:8] == b"CLBAKE\r\n" and struct.unpack_from("<III", data, 8) == (3, 0, 64)
+    assert data[:8] == b"CLBAKE\r\n" and struct.unpack_from("<III", data, 8) == (4, 0, 64)
     assert struct.unpack_from("<Q", data, 24)[0] == len(data) and len(data) % 16 == 0
-    assert struct.unpack_from("<Q", data, 32)[0] == fnv1a64(data[40:], fnv1a64(data[:32]))
+    assert struct.unpack_from("<Q", data, 32)[0] == checksum(data[:32] + data[40:])
     assert data[40:64] == bytes(24)
     # The writer's layout: sections in table order, each at the next multiple of 16, zero gaps.
     at = 64 + 32 * len(table(data))
@@ -171,7 +189,7 @@ def test_source_section_grammar(scene_bytes):
     text = bytes(section(scene_bytes, 20, "u1")).decode()
     lines = text.split("\n")
     assert lines[-1] == ""  # every line ends in \n
-    assert lines[0] == f"clusterbake {clusterbake.__version__}, asset format 3, build {clusterbake.build_id}"
+    assert lines[0] == f"clusterbake {clusterbake.__version__}, asset format 4, build {clusterbake.build_id}"
     words = lines[2].split(" ")
     assert words[:2] == ["input", "xxh3-128"] and len(words[2]) == 33 and words[2].endswith(",")
     assert int(words[3]) == os.path.getsize(SCENE) and words[4] == "bytes"
