@@ -93,7 +93,9 @@ uint64_t bake_bytes_per_triangle(const ClusterOptions& c) {
 
 void bake_unguarded(const BakeRequest& r, const BakeProgress& progress, BakeResult& result) {
     auto t0 = std::chrono::steady_clock::now();
-    Scene scene = load_scene(r.input, r.load);
+    LoadOptions load = r.load;
+    load.threads = r.threads;  // a large mesh file's records and checks split across the bake's threads
+    Scene scene = load_scene(r.input, load);
     check_bake_memory(scene, r);
     result.load_seconds = seconds_since(t0);
     result.input_bytes = scene.report.source.bytes;

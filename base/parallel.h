@@ -85,4 +85,14 @@ void parallel_for(size_t n, unsigned threads, Body&& body) {
     if (failed) std::rethrow_exception(failed);
 }
 
+// [0, n) cut into at most 64 parts of at least `smallest` elements (the last one shorter), the items of a
+// parallel_for over a long array.
+struct Parts {
+    Parts(size_t n, size_t smallest) : n(n), size(std::max<size_t>({smallest, (n + 63) / 64, 1})) {}
+    size_t count() const { return (n + size - 1) / size; }
+    size_t first(size_t p) const { return p * size; }
+    size_t last(size_t p) const { return std::min(n, (p + 1) * size); }
+    size_t n, size;
+};
+
 }  // namespace cb

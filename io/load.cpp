@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <new>
 
 #include "file_access.h"
+#include "parallel.h"
 
 namespace cb {
 
@@ -44,7 +46,30 @@ uint64_t count_degenerate(const Mesh& mesh) {
     return n;
 }
 
-void validate_scene(Scene& scene, const std::string& name) {
+namespace {
+
+// A part of a mesh's elements for a thread: large enough that starting threads costs little beside it.
+constexpr size_t smallest_part = size_t(1) << 18;
+
+// The first i in [0, n) with fails(i), or SIZE_MAX: each part finds its own first, and the lowest of those is
+// the one a scan from 0 finds.
+template <class Fails>
+size_t first_failing(size_t n, unsigned threads, Fails&& fails) {
+    const Parts parts(n, smallest_part);
+    std::vector<size_t> first(std::max<size_t>(1, parts.count()), SIZE_MAX);
+    parallel_for(parts.count(), threads, [&](size_t p) {
+        for (size_t i = parts.first(p); i < parts.last(p); ++i)
+            if (fails(i)) {
+                first[p] = i;
+                return;
+            }
+    });
+    return *std::min_element(first.begin(), first.end());
+}
+
+}  // namespace
+
+void validate_scene(Scene& scene, const std::string& name, unsigned threads) {
     uint64_t degenerate = 0;
     for (size_t m = 0; m < scene.meshes.size(); ++m) {
         const Mesh& mesh = scene.meshes[m];
@@ -52,14 +77,22 @@ void validate_scene(Scene& scene, const std::string& name) {
         if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0)
             throw LoadError(where + ": arrays are not whole vertices or triangles");
         size_t n = mesh.vertex_count();
-        for (size_t i = 0; i < mesh.indices.size(); ++i)
-            if (mesh.indices[i] >= n)
-                throw LoadError(where + ": triangle " + std::to_string(i / 3) + ": index " +
-                                std::to_string(mesh.indices[i]) + " out of range (" + std::to_string(n) + " vertices)");
-        for (size_t i = 0; i < mesh.positions.size(); ++i)
-            if (!std::isfinite(mesh.positions[i]))
-                throw LoadError(where + ": vertex " + std::to_string(i / 3) + ": position is not finite");
-        degenerate += count_degenerate(mesh);
+        const size_t bad_index =
+            first_failing(mesh.indices.size(), threads, [&](size_t i) { return mesh.indices[i] >= n; });
+        if (bad_index != SIZE_MAX)
+            throw LoadError(where + ": triangle " + std::to_string(bad_index / 3) + ": index " +
+                            std::to_string(mesh.indices[bad_index]) + " out of range (" + std::to_string(n) +
+                            " vertices)");
+        const size_t bad_position =
+            first_failing(mesh.positions.size(), threads, [&](size_t i) { return !std::isfinite(mesh.positions[i]); });
+        if (bad_position != SIZE_MAX)
+            throw LoadError(where + ": vertex " + std::to_string(bad_position / 3) + ": position is not finite");
+        const Parts parts(mesh.triangle_count(), smallest_part);
+        std::vector<uint64_t> part_degenerate(parts.count(), 0);
+        parallel_for(parts.count(), threads, [&](size_t p) {
+            for (size_t t = parts.first(p); t < parts.last(p); ++t) part_degenerate[p] += is_degenerate(mesh, t);
+        });
+        for (uint64_t d : part_degenerate) degenerate += d;
     }
     for (size_t k = 0; k < scene.instances.size(); ++k) {
         const Instance& inst = scene.instances[k];
@@ -72,14 +105,14 @@ void validate_scene(Scene& scene, const std::string& name) {
     scene.report.degenerate_triangles = degenerate;
 }
 
-Scene single_mesh_scene(Mesh mesh, const std::string& name, const Origin& origin) {
+Scene single_mesh_scene(Mesh mesh, const std::string& name, const Origin& origin, unsigned threads) {
     mesh.name = name;
     mesh.primitives.push_back({0, uint32_t(mesh.triangle_count()), false});
     Scene scene;
     scene.report.primitives = 1;
     scene.meshes.push_back(std::move(mesh));
     scene.instances.push_back({0, with_origin(identity_transform(), origin), name});
-    validate_scene(scene, name);
+    validate_scene(scene, name, threads);
     return scene;
 }
 
@@ -135,7 +168,7 @@ Scene load_scene_unguarded(const std::string& path, const LoadOptions& options) 
         std::string base = std::filesystem::path(path).parent_path().string();
         scene = load_gltf_memory(bytes.data(), bytes.size(), path, base.empty() ? "." : base, &source, options);
     } else {
-        scene = load_mesh_memory(bytes.data(), bytes.size(), format, path);
+        scene = load_mesh_memory(bytes.data(), bytes.size(), format, path, options.threads);
     }
     scene.report.source = source.finish();
     return scene;

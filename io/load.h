@@ -54,6 +54,7 @@ struct LoadOptions {
     std::string root;                  // external files must lie below it; empty: the scene file's folder
     bool allow_outside_files = false;  // any readable file may be named (pipelines sharing buffers)
     uint64_t memory_budget = default_memory_budget;
+    unsigned threads = 1;  // for a mesh file's per-element passes (binary PLY records, validation); 0: all
 };
 
 // From the file extension, case-insensitive.
@@ -68,20 +69,23 @@ Scene load_scene(const std::string& path, const LoadOptions& options = {});
 // empty), and, when `source` is set, added to it as they are read.
 Scene load_gltf_memory(const uint8_t* data, size_t size, const std::string& name, const std::string& base_dir,
                        SourceHasher* source = nullptr, const LoadOptions& options = {});
-Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name);
+Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name,
+                       unsigned threads = 1);
 
 // The per-format readers behind load_mesh_memory.
 Scene load_obj_memory(const uint8_t* data, size_t size, const std::string& name);
 Scene load_off_memory(const uint8_t* data, size_t size, const std::string& name);
-Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name);
+Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name, unsigned threads = 1);
 Scene load_stl_memory(const uint8_t* data, size_t size, const std::string& name);
 Scene load_ascii_stl_memory(const uint8_t* data, size_t size, const std::string& name);  // after the 'solid' check
 
 // A scene of one mesh, one instance that places the mesh's origin (mesh_frame.h) and one single-sided
-// primitive, validated.
-Scene single_mesh_scene(Mesh mesh, const std::string& name, const Origin& origin = {0, 0, 0});
+// primitive, validated (on `threads`).
+Scene single_mesh_scene(Mesh mesh, const std::string& name, const Origin& origin = {0, 0, 0}, unsigned threads = 1);
 
 // Throws LoadError unless every index is in range and every position finite; fills report.degenerate_triangles.
-void validate_scene(Scene& scene, const std::string& name);
+// A mesh's elements are checked in parts on `threads` (0: all); the error names the first bad element all
+// the same.
+void validate_scene(Scene& scene, const std::string& name, unsigned threads = 1);
 
 }  // namespace cb

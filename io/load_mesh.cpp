@@ -130,11 +130,11 @@ void check_stl_kind(const uint8_t* data, size_t size, const std::string& name) {
 
 }  // namespace
 
-Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name) {
+Scene load_mesh_memory(const uint8_t* data, size_t size, FileFormat format, const std::string& name, unsigned threads) {
     switch (format) {
         case FileFormat::obj: return load_obj_memory(data, size, name);
         case FileFormat::off: return load_off_memory(data, size, name);
-        case FileFormat::ply: return load_ply_memory(data, size, name);
+        case FileFormat::ply: return load_ply_memory(data, size, name, threads);
         case FileFormat::stl: return load_stl_memory(data, size, name);
         default: throw LoadError(name + ": not an OBJ, PLY, OFF or STL file");
     }

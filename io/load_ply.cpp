@@ -6,6 +6,7 @@
 // writes out of bounds on a property that precedes every element, and grows without bound on a malformed
 // ASCII list.
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -13,6 +14,7 @@
 #include <limits>
 
 #include "load.h"
+#include "parallel.h"
 #include "polygon_triangulate.h"
 #include "text_scan.h"
 
@@ -152,7 +154,7 @@ int find_property(const Element& e, const char* name) {
 // record is not as expected (a polygon, an index out of range, a coordinate that is not finite): the general
 // reader then takes the file and words the error. The result is the general reader's, bit for bit.
 bool read_float_triangles(std::string_view body, const std::vector<Element>& elements, const Element& vertex_el,
-                          const int xyz_prop[3], Mesh& mesh) {
+                          const int xyz_prop[3], Mesh& mesh, unsigned threads) {
     if constexpr (std::endian::native != std::endian::little) return false;
     const Element* face_el = nullptr;
     size_t at = 0, vertex_at = 0, vertex_stride = 0, face_at = 0, index_bytes = 0;
@@ -187,29 +189,45 @@ bool read_float_triangles(std::string_view body, const std::vector<Element>& ele
     }
     if (!face_el) return false;
 
+    // Fixed-size records: parts of them go to threads, each record to its own place.
+    constexpr size_t smallest_part = size_t(1) << 18;
+    std::atomic<bool> taken{true};  // false once a part meets a record it cannot take as it is
     const size_t vertices = size_t(vertex_el.count), faces = size_t(face_el->count);
     mesh.positions.resize(vertices * 3);
-    const char* v = body.data() + vertex_at;
-    for (size_t r = 0; r < vertices; ++r, v += vertex_stride)
-        for (int k = 0; k < 3; ++k) {
-            float c;
-            std::memcpy(&c, v + xyz_offset[k], 4);
-            if (!std::isfinite(c)) return false;
-            mesh.positions[r * 3 + k] = c;
-        }
+    const Parts vertex_parts(vertices, smallest_part);
+    parallel_for(vertex_parts.count(), threads, [&](size_t p) {
+        const char* v = body.data() + vertex_at + vertex_parts.first(p) * vertex_stride;
+        for (size_t r = vertex_parts.first(p); r < vertex_parts.last(p); ++r, v += vertex_stride)
+            for (int k = 0; k < 3; ++k) {
+                float c;
+                std::memcpy(&c, v + xyz_offset[k], 4);
+                if (!std::isfinite(c)) {
+                    taken = false;
+                    return;
+                }
+                mesh.positions[r * 3 + k] = c;
+            }
+    });
     const bool signed_index = face_el->properties[0].type < 0;
     mesh.indices.resize(faces * 3);
-    const char* f = body.data() + face_at;
-    for (size_t r = 0; r < faces; ++r, f += index_bytes) {
-        if (f[0] != 3) return false;
-        for (int k = 0; k < 3; ++k) {
-            uint32_t i;
-            std::memcpy(&i, f + 1 + 4 * k, 4);
-            if ((signed_index && int32_t(i) < 0) || i >= vertices) return false;
-            mesh.indices[r * 3 + k] = i;
+    const Parts face_parts(faces, smallest_part);
+    parallel_for(face_parts.count(), threads, [&](size_t p) {
+        const char* f = body.data() + face_at + face_parts.first(p) * index_bytes;
+        for (size_t r = face_parts.first(p); r < face_parts.last(p); ++r, f += index_bytes) {
+            bool good = f[0] == 3;
+            for (int k = 0; k < 3; ++k) {
+                uint32_t i;
+                std::memcpy(&i, f + 1 + 4 * k, 4);
+                good &= !(signed_index && int32_t(i) < 0) && i < vertices;
+                mesh.indices[r * 3 + k] = i;
+            }
+            if (!good) {
+                taken = false;
+                return;
+            }
         }
-    }
-    return true;
+    });
+    return taken;
 }
 
 // The header: the encoding and the elements with their properties, up to end_header.
@@ -401,7 +419,7 @@ void read_records(const Header& h, const VertexElement& vertex, Body& body, std:
 
 }  // namespace
 
-Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name) {
+Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name, unsigned threads) {
     if (size == 0) throw LoadError(name + ": empty file");
     std::string_view text(reinterpret_cast<const char*>(data), size);
     const Header header = read_header(text, name);
@@ -409,9 +427,10 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name)
 
     Mesh mesh;
     if (header.enc == Encoding::little &&
-        read_float_triangles(text.substr(header.body_at), header.elements, *vertex.element, vertex.xyz, mesh)) {
+        read_float_triangles(text.substr(header.body_at), header.elements, *vertex.element, vertex.xyz, mesh,
+                             threads)) {
         Origin origin = shift_exactly(mesh.positions);
-        return single_mesh_scene(std::move(mesh), name, origin);
+        return single_mesh_scene(std::move(mesh), name, origin, threads);
     }
     mesh = Mesh{};
 

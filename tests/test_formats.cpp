@@ -298,3 +298,50 @@ TEST(Formats, BinaryPlyOfTrianglesReadsAsTheGeneralReaderDoes) {
     cut.resize(cut.size() - 5);
     EXPECT_EQ(error_of(cut, cb::FileFormat::ply), "t: face 37: unexpected end of data");
 }
+
+// A binary PLY of more records than one thread's part reads on two threads as on one, and validation on
+// two threads names the first bad element, not the first a thread happened to meet.
+TEST(Formats, LargeBinaryPlyReadsAndValidatesTheSameOnTwoThreads) {
+    const int side = 400;  // a grid of 160,000 vertices and 318,402 triangles: parts of 2^18 records
+    std::vector<float> xyz;
+    for (int y = 0; y < side; ++y)
+        for (int x = 0; x < side; ++x) xyz.insert(xyz.end(), {float(x), float(y), float((x * y) % 5)});
+    std::vector<std::vector<int32_t>> tris;
+    for (int y = 0; y + 1 < side; ++y)
+        for (int x = 0; x + 1 < side; ++x) {
+            const int v = y * side + x;
+            tris.push_back({v, v + 1, v + side});
+            tris.push_back({v + 1, v + side + 1, v + side});
+        }
+    tris[5] = {7, 7, 8};  // degenerate, counted by the validation
+    const std::string text = ply_pair(xyz, tris).little;
+    auto bytes = reinterpret_cast<const uint8_t*>(text.data());
+    const cb::Scene one = cb::load_mesh_memory(bytes, text.size(), cb::FileFormat::ply, "t", 1);
+    const cb::Scene two = cb::load_mesh_memory(bytes, text.size(), cb::FileFormat::ply, "t", 2);
+    EXPECT_EQ(one.meshes[0].positions, two.meshes[0].positions);
+    EXPECT_EQ(one.meshes[0].indices, two.meshes[0].indices);
+    EXPECT_EQ(one.report.degenerate_triangles, 1u);
+    EXPECT_EQ(two.report.degenerate_triangles, one.report.degenerate_triangles);
+
+    // Two bad indices in different parts of the index array, and two non-finite coordinates: the error names
+    // the first of each, on any thread count.
+    auto validation_error = [](cb::Scene s, unsigned threads) {
+        try {
+            cb::validate_scene(s, "t", threads);
+        } catch (const cb::LoadError& e) {
+            return std::string(e.what());
+        }
+        return std::string("validated");
+    };
+    cb::Scene bad = one;
+    bad.meshes[0].indices[size_t(300000) * 3 + 1] = uint32_t(side * side);
+    bad.meshes[0].indices[size_t(90000) * 3 + 2] = uint32_t(side * side + 5);
+    for (unsigned threads : {1u, 2u})
+        EXPECT_EQ(validation_error(bad, threads),
+                  "t: mesh 0: triangle 90000: index 160005 out of range (160000 vertices)");
+    bad = one;
+    bad.meshes[0].positions[size_t(150000) * 3] = std::numeric_limits<float>::infinity();
+    bad.meshes[0].positions[size_t(20) * 3 + 2] = std::numeric_limits<float>::quiet_NaN();
+    for (unsigned threads : {1u, 2u})
+        EXPECT_EQ(validation_error(bad, threads), "t: mesh 0: vertex 20: position is not finite");
+}
