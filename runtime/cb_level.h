@@ -977,8 +977,9 @@ private:
         const Doubles zero = simd::dsplat(0), one = simd::dsplat(1);
         Doubles sum[3] = {zero, zero, zero};
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            if (!simd::double_group(taken, i)) continue;
-            const simd::DoubleMask in = simd::double_lanes(simd::double_group(taken, i));
+            const uint32_t group = simd::double_group(taken, i);
+            if (!group) continue;
+            const simd::DoubleMask in = simd::double_lanes(group);
             const Doubles inv = one / simd::load(dist + i);
             for (int k = 0; k < 3; ++k) sum[k] = sum[k] + simd::select(in, simd::load(e[k] + i) * inv, zero);
         }
