@@ -238,6 +238,7 @@ public:
             h = uint32_t(instances_.size());
             instances_.emplace_back();
             leaf_.push_back(none);
+            position_.push_back(none);
         }
         Instance& i = instances_[h];
         i.asset = asset;
@@ -281,6 +282,7 @@ public:
         if (!alive(handle)) return false;
         instances_[handle].alive = false;
         instances_[handle].box = level_detail::Box{};
+        if (position_[handle] != none) item_boxes_[position_[handle]] = level_detail::Box{};
         free_.push_back(handle);
         --live_;
         if (leaf_[handle] != none) moved_.push_back(handle);  // an empty box: refitted out of its leaf
@@ -312,8 +314,10 @@ public:
     // Bytes the level holds besides the assets' own (their scan bounds included).
     size_t memory_bytes() const {
         size_t bytes = instances_.capacity() * sizeof(Instance) + nodes_.capacity() * sizeof(Node) +
-            (leaf_.capacity() + parent_.capacity() + items_.capacity() + free_.capacity() + moved_.capacity()) *
-                sizeof(uint32_t);
+            (leaf_.capacity() + position_.capacity() + parent_.capacity() + items_.capacity() + free_.capacity() +
+             moved_.capacity()) *
+                sizeof(uint32_t) +
+            item_boxes_.capacity() * sizeof(level_detail::Box);
         for (const Asset& a : assets_) {
             bytes += a.mesh_boxes.capacity() * sizeof(level_detail::Box);
             for (const ScanBounds& b : a.bounds) bytes += b.memory_bytes() + sizeof(ScanBounds);
@@ -439,6 +443,7 @@ private:
         Instance& i = instances_[h];
         std::copy(transform, transform + 12, i.transform);
         i.box = level_detail::transform_box(assets_[i.asset].mesh_boxes[i.mesh], i.transform);
+        if (position_[h] != none) item_boxes_[position_[h]] = i.box;
         double r2 = 0;
         for (int k = 0; k < 3; ++k) {
             i.sphere[k] = 0.5 * (i.box.lo[k] + i.box.hi[k]);
@@ -454,7 +459,9 @@ private:
         nodes_.clear();
         parent_.clear();
         items_.clear();
+        item_boxes_.clear();
         std::fill(leaf_.begin(), leaf_.end(), none);
+        std::fill(position_.begin(), position_.end(), none);
         for (uint32_t h = 0; h < instances_.size(); ++h)
             if (instances_[h].alive) items_.push_back(h);
         if (items_.empty()) return;
@@ -502,6 +509,10 @@ private:
             todo.push_back({left + 1, mid, r.end});
             todo.push_back({left, r.begin, mid});
         }
+        for (uint32_t i = 0; i < items_.size(); ++i) {
+            position_[items_[i]] = i;
+            item_boxes_.push_back(instances_[items_[i]].box);
+        }
         // Children follow their parents: boxes from the last node back.
         for (uint32_t n = uint32_t(nodes_.size()); n-- > 0;) fit(n);
     }
@@ -510,7 +521,7 @@ private:
         Node& node = nodes_[n];
         node.box = level_detail::Box{};
         if (node.count) {
-            for (uint32_t i = node.first; i < node.first + node.count; ++i) node.box.add(instances_[items_[i]].box);
+            for (uint32_t i = node.first; i < node.first + node.count; ++i) node.box.add(item_boxes_[i]);
         } else {
             node.box.add(nodes_[node.first].box);
             node.box.add(nodes_[node.first + 1].box);
@@ -543,10 +554,8 @@ private:
         while (top) {
             const Node& node = nodes_[stack[--top]];
             if (node.count) {
-                for (uint32_t i = node.first; i < node.first + node.count; ++i) {
-                    const uint32_t h = items_[i];
-                    if (instances_[h].alive && meets(instances_[h].box, near)) f(h, near);
-                }
+                for (uint32_t i = node.first; i < node.first + node.count; ++i)
+                    if (meets(item_boxes_[i], near)) f(items_[i], near);  // a removed instance's box is empty
                 continue;
             }
             for (uint32_t c = node.first; c < node.first + 2; ++c)
@@ -556,10 +565,13 @@ private:
 
     std::vector<Asset> assets_;
     std::vector<Instance> instances_;
-    level_detail::LaneVector<uint32_t> leaf_;  // per handle, its leaf node (none before the first commit)
+    level_detail::LaneVector<uint32_t> leaf_;      // per handle, its leaf node (none before the first commit)
+    level_detail::LaneVector<uint32_t> position_;  // per handle, its place in items_ (none before the first commit)
     level_detail::LaneVector<uint32_t> free_, moved_;
     std::vector<Node> nodes_;
     level_detail::LaneVector<uint32_t> parent_, items_;
+    // The instances' world boxes in the order of items_: the walks and the refits read a leaf's boxes together.
+    std::vector<level_detail::Box> item_boxes_;
     uint32_t live_ = 0;
     bool rebuild_ = false;
     level_detail::Box empty_;
@@ -624,6 +636,7 @@ public:
                 entry = slot_of_[h];
             }
         if (shadows_.size() < needed_.size()) shadows_.resize(needed_.size());
+        if (spheres_.size() < needed_.size()) spheres_.resize(needed_.size());
         built_count_ = needed_.size();
         return built_count_;
     }
@@ -637,6 +650,7 @@ public:
         o.scratch = scratch;
         for (size_t i = first; i < last; ++i) {
             const uint32_t h = needed_[i];
+            spheres_[i] = light_sphere(level_->world_sphere(h));
             o.bounds = level_->scan_bounds(level_->asset_of(h));
             if (sun_)
                 shadows_[i].build_sun(level_->asset(level_->asset_of(h)), level_->placement(h), light_, o);
@@ -672,8 +686,8 @@ public:
                 // Only the points whose segment may meet the instance's sphere enter it: an instance's set-up
                 // per tile costs per point.
                 const uint64_t in = alive &
-                    (sun_ ? sun_instance_points(needed_[slot], regular, count, across, sun_tile)
-                          : instance_points(needed_[slot], regular, ex, ey, ez, fd));
+                    (sun_ ? sun_instance_points(spheres_[slot], regular, count, across, sun_tile)
+                          : instance_points(spheres_[slot], regular, ex, ey, ez, fd));
                 if (!in) continue;
                 const uint64_t s = shadows_[slot].occluded_tile(points_, index, count, in, stack, stats, cache);
                 shadowed |= s;
@@ -721,11 +735,20 @@ public:
             bytes += l.capacity() * sizeof(uint64_t) + sizeof(l);
         for (size_t i = 0; i < shadows_.size(); ++i)
             bytes += sizeof(InstanceShadow) + (i < built_count_ ? shadows_[i].memory_bytes() : 0);
+        bytes += spheres_.capacity() * sizeof(LightSphere);
         return bytes;
     }
 
 private:
     static constexpr uint32_t none = 0xffffffffu;
+
+    // An instance's bounding sphere as the tiles test it for this light (instance_points, sun_instance_points):
+    // `whole` when every point must enter the instance, the tests' range exceeded.
+    struct LightSphere {
+        double c[3], r, size;  // suns: the centre in the sun's frame, the radius, and |centre|_1 + r
+        float f[4];            // points: the centre from the light and the grown radius, in float
+        bool whole;
+    };
 
     void start(const Level& level, const double* light, const double* points, size_t n,
                const ShadowBuildOptions& options, bool sun) {
@@ -807,31 +830,28 @@ private:
         }
     };
 
-    // The tile's points whose ray toward the sun may meet instance h's sphere, and every point that is not
+    // The tile's points whose ray toward the sun may meet an instance's sphere, and every point that is not
     // regular. In float over the lanes from the tile's centre (f, sun_sphere_points), the radius grown by 1e-6
     // of the sizes involved and by 1e-12 of the coordinates from the frame's origin (the double differences'
     // rounding); in double, the radius grown by 1e-9 of the sizes, where float could overflow or fall to
     // subnormals.
-    uint64_t sun_instance_points(uint32_t h, uint64_t regular, uint32_t count, const double (*across)[3],
+    uint64_t sun_instance_points(const LightSphere& sphere, uint64_t regular, uint32_t count, const double (*across)[3],
                                  const SunTile& f) const {
-        const double* sphere = level_->world_sphere(h);
-        const double c[3] = {math::dot3(sphere, sun_frame_[1]), math::dot3(sphere, sun_frame_[2]),
-                             math::dot3(sphere, sun_frame_[0])};
-        const double size = std::fabs(sphere[0]) + std::fabs(sphere[1]) + std::fabs(sphere[2]) + sphere[3];
-        if (!(size < 1e30)) return ~uint64_t(0);
+        if (sphere.whole) return ~uint64_t(0);
+        const double *c = sphere.c, r = sphere.r, size = sphere.size;
         const uint64_t all = tile_lanes(count);
         const double d[3] = {c[0] - f.centre[0], c[1] - f.centre[1], c[2] - f.centre[2]};
-        const double reach = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]) + sphere[3] + f.size;
+        const double reach = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]) + r + f.size;
         const double slack = 1e-6 * reach + 1e-12 * (size + math::l1(f.centre));
         if (reach < 1e18 && slack > 1e-15)
-            return sun_sphere_points(d[0], d[1], d[2], sphere[3], slack, regular, f.u, f.v, f.w) | (all & ~regular);
+            return sun_sphere_points(d[0], d[1], d[2], r, slack, regular, f.u, f.v, f.w) | (all & ~regular);
         uint64_t in = 0;
         for (uint64_t b = regular; b; b &= b - 1) {
             const uint32_t i = math::lowest_bit(b);
             const double* q = across[i];
-            const double r = sphere[3] + 1e-9 * (size + std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]));
+            const double grown = r + 1e-9 * (size + std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]));
             const double du = c[0] - q[0], dv = c[1] - q[1];
-            if (du * du + dv * dv <= r * r && q[2] <= c[2] + r) in |= uint64_t(1) << i;
+            if (du * du + dv * dv <= grown * grown && q[2] <= c[2] + grown) in |= uint64_t(1) << i;
         }
         return in | (all & ~regular);
     }
@@ -936,18 +956,39 @@ private:
         return finite & tile_lanes(count);
     }
 
-    // The tile's points whose segment may meet instance h's sphere: the regular ones by the float test (the
-    // radius grown by 2e-5 of itself and of the centre's distance, as the scan's spheres are), every other
-    // point, and all of them where the sphere is not within the float test's range.
-    uint64_t instance_points(uint32_t h, uint64_t regular, const float* ex, const float* ey, const float* ez,
-                             const float* fd) const {
-        const double* sphere = level_->world_sphere(h);
+    // Instance sphere `sphere` (centre, radius) for this light. For a point light, the radius grown by 2e-5 of
+    // itself and of the centre's distance, as the scan's spheres are, and rounded up to float; past the float
+    // test's range (lit_sphere_points) every point enters. For a sun, the centre in the sun's frame.
+    LightSphere light_sphere(const double* sphere) const {
+        LightSphere s{};
+        s.r = sphere[3];
+        if (sun_) {
+            s.c[0] = math::dot3(sphere, sun_frame_[1]);
+            s.c[1] = math::dot3(sphere, sun_frame_[2]);
+            s.c[2] = math::dot3(sphere, sun_frame_[0]);
+            s.size = std::fabs(sphere[0]) + std::fabs(sphere[1]) + std::fabs(sphere[2]) + sphere[3];
+            s.whole = !(s.size < 1e30);
+            return s;
+        }
         const double c[3] = {sphere[0] - light_[0], sphere[1] - light_[1], sphere[2] - light_[2]}, r = sphere[3];
         const double d1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]), grown = r + 2e-5 * (r + d1);
-        if (!(d1 + grown < 1e9 && d1 + grown > 1e-7)) return ~uint64_t(0);
+        s.whole = !(d1 + grown < 1e9 && d1 + grown > 1e-7);
+        if (s.whole) return s;
         float fr = float(grown);
         if (double(fr) < grown) fr = std::nextafter(fr, INFINITY);
-        return lit_sphere_points(float(c[0]), float(c[1]), float(c[2]), fr, regular, ex, ey, ez, fd) | ~regular;
+        s.f[0] = float(c[0]);
+        s.f[1] = float(c[1]);
+        s.f[2] = float(c[2]);
+        s.f[3] = fr;
+        return s;
+    }
+
+    // The tile's points whose segment may meet an instance's sphere: the regular ones by the float test, every
+    // other point, and all of them where the sphere is not within the float test's range.
+    static uint64_t instance_points(const LightSphere& s, uint64_t regular, const float* ex, const float* ey,
+                                    const float* ez, const float* fd) {
+        if (s.whole) return ~uint64_t(0);
+        return lit_sphere_points(s.f[0], s.f[1], s.f[2], s.f[3], regular, ex, ey, ez, fd) | ~regular;
     }
 
     // The instances tile t's pyramid (and the segments of its points the pyramid does not hold) may meet,
@@ -1072,6 +1113,7 @@ private:
     level_detail::LaneVector<uint32_t> slot_of_, stamp_, needed_;
     uint32_t generation_ = 0;
     std::vector<InstanceShadow> shadows_;
+    std::vector<LightSphere> spheres_;  // per gathered instance (gather)
 };
 
 // The fine clusters of every live instance that a camera may see (cull_clusters of cb_cull.h over an asset),

@@ -446,11 +446,14 @@ protected:
         alignas(64) double wx[tile_capacity], wy[tile_capacity], wz[tile_capacity];
         alignas(64) double ex[tile_capacity], ey[tile_capacity], ez[tile_capacity];
         const uint64_t wanted = alive & tile_lanes(count);
-        for (uint32_t i = 0; i < tile_capacity; ++i) {
-            const double* q = wanted >> i & 1 ? points + size_t(index[i]) * 3 : world_light_;
-            wx[i] = q[0];
-            wy[i] = q[1];
-            wz[i] = q[2];
+        for (uint32_t g = 0; g < tile_capacity; g += simd::dwidth) {
+            if (!simd::double_group(wanted, g)) continue;  // zeros below
+            for (uint32_t i = g; i < g + simd::dwidth; ++i) {
+                const double* q = wanted >> i & 1 ? points + size_t(index[i]) * 3 : world_light_;
+                wx[i] = q[0];
+                wy[i] = q[1];
+                wz[i] = q[2];
+            }
         }
         const double* m = inverse_;
         uint64_t blockable = 0, regular = 0;
@@ -482,7 +485,8 @@ protected:
             blockable |= uint64_t(simd::bits(from <= simd::dsplat(1))) << i;  // may_block
             regular |= uint64_t(simd::bits((dist > simd::dsplat(float_tiny)) & (dist < simd::dsplat(1e30)))) << i;
         }
-        for (uint32_t i = 0; i < tile_capacity; ++i) {
+        for (uint64_t w = wanted; w; w &= w - 1) {  // the exact tests read the points they test only
+            const uint32_t i = math::lowest_bit(w);
             t.p[i][0] = wx[i];
             t.p[i][1] = wy[i];
             t.p[i][2] = wz[i];
@@ -500,17 +504,21 @@ protected:
         if (t.alive) {
             make_pyramid(t, t.alive, t.pyramid);
             t.small = t.pyramid.dmax < float_safe;
-            for (uint32_t i = 0; i < tile_capacity; ++i) {
-                bool in = t.alive >> i & 1;
-                t.ex[i] = in ? float(ex[i]) : 0.0f;
-                t.ey[i] = in ? float(ey[i]) : 0.0f;
-                t.ez[i] = in ? float(ez[i]) : 0.0f;
-                t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
-                t.slack[i] = 2e-6f * t.fd[i];
-                t.keep[i] = in ? float(1 - t.from[i]) : 1.0f;
-                t.reach[i] = in ? float(1 - blocking_start(t.from[i])) : 1.0f;
-                t.l1[i] = std::fabs(ex[i]) + std::fabs(ey[i]) + std::fabs(ez[i]);
-                t.vl[i] = float(t.l1[i] * 1.000001);
+            // The float lanes of the groups that hold a live point: every lane test skips the other groups.
+            for (uint32_t g = 0; g < tile_capacity; g += simd::width) {
+                if (!simd::group(t.alive, g)) continue;
+                for (uint32_t i = g; i < g + simd::width; ++i) {
+                    bool in = t.alive >> i & 1;
+                    t.ex[i] = in ? float(ex[i]) : 0.0f;
+                    t.ey[i] = in ? float(ey[i]) : 0.0f;
+                    t.ez[i] = in ? float(ez[i]) : 0.0f;
+                    t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
+                    t.slack[i] = 2e-6f * t.fd[i];
+                    t.keep[i] = in ? float(1 - t.from[i]) : 1.0f;
+                    t.reach[i] = in ? float(1 - blocking_start(t.from[i])) : 1.0f;
+                    t.l1[i] = std::fabs(ex[i]) + std::fabs(ey[i]) + std::fabs(ez[i]);
+                    t.vl[i] = float(t.l1[i] * 1.000001);
+                }
             }
             t.l1_lo = INFINITY;
             t.l1_hi = 0;
