@@ -242,6 +242,7 @@ struct DoubleMask {
 };
 inline Doubles load(const double* p) { return {_mm512_loadu_pd(p)}; }
 inline void store(double* p, Doubles a) { _mm512_storeu_pd(p, a.v); }
+inline void store_floats(float* p, Doubles a) { _mm256_storeu_ps(p, _mm512_cvtpd_ps(a.v)); }  // each rounded
 inline Doubles dsplat(double x) { return {_mm512_set1_pd(x)}; }
 inline Doubles operator+(Doubles a, Doubles b) { return {_mm512_add_pd(a.v, b.v)}; }
 inline Doubles operator-(Doubles a, Doubles b) { return {_mm512_sub_pd(a.v, b.v)}; }
@@ -269,6 +270,7 @@ struct DoubleMask {
 };
 inline Doubles load(const double* p) { return {_mm256_loadu_pd(p)}; }
 inline void store(double* p, Doubles a) { _mm256_storeu_pd(p, a.v); }
+inline void store_floats(float* p, Doubles a) { _mm_storeu_ps(p, _mm256_cvtpd_ps(a.v)); }  // each rounded
 inline Doubles dsplat(double x) { return {_mm256_set1_pd(x)}; }
 inline Doubles operator+(Doubles a, Doubles b) { return {_mm256_add_pd(a.v, b.v)}; }
 inline Doubles operator-(Doubles a, Doubles b) { return {_mm256_sub_pd(a.v, b.v)}; }
@@ -315,6 +317,10 @@ inline Doubles load(const double* p) { return {{p[0], p[1]}}; }
 inline void store(double* p, Doubles a) {
     p[0] = a.v[0];
     p[1] = a.v[1];
+}
+inline void store_floats(float* p, Doubles a) {
+    p[0] = float(a.v[0]);
+    p[1] = float(a.v[1]);
 }
 inline Doubles dsplat(double x) { return {{x, x}}; }
 inline Doubles operator+(Doubles a, Doubles b) { return {{a.v[0] + b.v[0], a.v[1] + b.v[1]}}; }

@@ -504,21 +504,28 @@ protected:
         if (t.alive) {
             make_pyramid(t, t.alive, t.pyramid);
             t.small = t.pyramid.dmax < float_safe;
-            // The float lanes of the groups that hold a live point: every lane test skips the other groups.
+            // The float lanes of the groups that hold a live point (every lane test skips the other groups), in
+            // double lanes: the same operations as on one point, each rounded to float once.
+            const Doubles zero = simd::dsplat(0), one = simd::dsplat(1), unset = simd::dsplat(-1),
+                          half = simd::dsplat(0.5), grow = simd::dsplat(1.000001);
             for (uint32_t g = 0; g < tile_capacity; g += simd::width) {
                 if (!simd::group(t.alive, g)) continue;
-                for (uint32_t i = g; i < g + simd::width; ++i) {
-                    bool in = t.alive >> i & 1;
-                    t.ex[i] = in ? float(ex[i]) : 0.0f;
-                    t.ey[i] = in ? float(ey[i]) : 0.0f;
-                    t.ez[i] = in ? float(ez[i]) : 0.0f;
-                    t.fd[i] = in ? float(t.dist[i]) : -1.0f;  // -1: never inside a volume
-                    t.slack[i] = 2e-6f * t.fd[i];
-                    t.keep[i] = in ? float(1 - t.from[i]) : 1.0f;
-                    t.reach[i] = in ? float(1 - blocking_start(t.from[i])) : 1.0f;
-                    t.l1[i] = std::fabs(ex[i]) + std::fabs(ey[i]) + std::fabs(ez[i]);
-                    t.vl[i] = float(t.l1[i] * 1.000001);
+                for (uint32_t i = g; i < g + simd::width; i += simd::dwidth) {
+                    const simd::DoubleMask in = simd::double_lanes(simd::double_group(t.alive, i));
+                    const Doubles x = simd::load(ex + i), y = simd::load(ey + i), z = simd::load(ez + i),
+                                  from = simd::load(t.from + i);
+                    simd::store_floats(t.ex + i, simd::select(in, x, zero));
+                    simd::store_floats(t.ey + i, simd::select(in, y, zero));
+                    simd::store_floats(t.ez + i, simd::select(in, z, zero));
+                    // -1: never inside a volume
+                    simd::store_floats(t.fd + i, simd::select(in, simd::load(t.dist + i), unset));
+                    simd::store_floats(t.keep + i, simd::select(in, one - from, one));
+                    simd::store_floats(t.reach + i, simd::select(in, one - half * from, one));  // blocking_start
+                    const Doubles l1 = simd::abs(x) + simd::abs(y) + simd::abs(z);
+                    simd::store(t.l1 + i, l1);
+                    simd::store_floats(t.vl + i, l1 * grow);
                 }
+                simd::store(t.slack + g, simd::load(t.fd + g) * simd::splat(2e-6f));
             }
             t.l1_lo = INFINITY;
             t.l1_hi = 0;
