@@ -919,14 +919,18 @@ private:
     uint64_t directions(const uint32_t* index, uint32_t count, float* ex, float* ey, float* ez, float* fd) const {
         alignas(64) double e[3][tile_capacity], dist[tile_capacity];
         offsets(index, count, e, dist);
+        using simd::Doubles;
+        const Doubles zero = simd::dsplat(0), unset = simd::dsplat(-1), lo = simd::dsplat(1e-7), hi = simd::dsplat(1e9);
+        const uint64_t lanes = tile_lanes(count);
         uint64_t regular = 0;
-        for (uint32_t i = 0; i < count; ++i) regular |= uint64_t(dist[i] > 1e-7 && dist[i] < 1e9) << i;
-        for (uint32_t i = 0; i < tile_capacity; ++i) {
-            const bool in = regular >> i & 1;
-            ex[i] = in ? float(e[0][i]) : 0.0f;
-            ey[i] = in ? float(e[1][i]) : 0.0f;
-            ez[i] = in ? float(e[2][i]) : 0.0f;
-            fd[i] = in ? float(dist[i]) : -1.0f;
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            const Doubles d = simd::load(dist + i);
+            const simd::DoubleMask in = simd::double_lanes(simd::double_group(lanes, i)) & (d > lo) & (d < hi);
+            regular |= uint64_t(simd::bits(in)) << i;
+            simd::store_floats(ex + i, simd::select(in, simd::load(e[0] + i), zero));
+            simd::store_floats(ey + i, simd::select(in, simd::load(e[1] + i), zero));
+            simd::store_floats(ez + i, simd::select(in, simd::load(e[2] + i), zero));
+            simd::store_floats(fd + i, simd::select(in, d, unset));
         }
         return regular;
     }
@@ -1008,14 +1012,18 @@ private:
         alignas(64) double e[3][tile_capacity], dist[tile_capacity];
         const uint64_t finite = offsets(index, count, e, dist);  // a point not finite is never in shadow
         // By the light, or beyond what a pyramid holds well: alone; at the light (no length): neither.
+        using simd::Doubles;
+        const Doubles zero = simd::dsplat(0), one = simd::dsplat(1), tiny = simd::dsplat(1e-7),
+                      huge = simd::dsplat(1e30);
+        const uint64_t lanes = tile_lanes(count);
         uint64_t taken = 0, alone = 0;
-        for (uint32_t i = 0; i < count; ++i) {
-            taken |= uint64_t(dist[i] > 1e-7 && dist[i] < 1e30) << i;
-            alone |= uint64_t(dist[i] > 0) << i;
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            const Doubles d = simd::load(dist + i);
+            const simd::DoubleMask in = simd::double_lanes(simd::double_group(lanes, i));
+            taken |= uint64_t(simd::bits(in & (d > tiny) & (d < huge))) << i;
+            alone |= uint64_t(simd::bits(in & (d > zero))) << i;
         }
         alone &= finite & ~taken;
-        using simd::Doubles;
-        const Doubles zero = simd::dsplat(0), one = simd::dsplat(1);
         Doubles sum[3] = {zero, zero, zero};
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
             const uint32_t group = simd::double_group(taken, i);
