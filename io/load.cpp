@@ -40,16 +40,25 @@ bool is_degenerate(const Mesh& mesh, size_t t) {
     return u[1] * v[2] - u[2] * v[1] == 0 && u[2] * v[0] - u[0] * v[2] == 0 && u[0] * v[1] - u[1] * v[0] == 0;
 }
 
-uint64_t count_degenerate(const Mesh& mesh) {
-    uint64_t n = 0;
-    for (size_t t = 0; t < mesh.triangle_count(); ++t) n += is_degenerate(mesh, t);
-    return n;
-}
-
 namespace {
 
 // A part of a mesh's elements for a thread: large enough that starting threads costs little beside it.
 constexpr size_t smallest_part = size_t(1) << 18;
+
+}  // namespace
+
+uint64_t count_degenerate(const Mesh& mesh, unsigned threads) {
+    const Parts parts(mesh.triangle_count(), smallest_part);
+    std::vector<uint64_t> part_degenerate(parts.count(), 0);
+    parallel_for(parts.count(), threads, [&](size_t p) {
+        for (size_t t = parts.first(p); t < parts.last(p); ++t) part_degenerate[p] += is_degenerate(mesh, t);
+    });
+    uint64_t n = 0;
+    for (uint64_t d : part_degenerate) n += d;
+    return n;
+}
+
+namespace {
 
 // The first i in [0, n) with fails(i), or SIZE_MAX: each part finds its own first, and the lowest of those is
 // the one a scan from 0 finds.
@@ -87,12 +96,7 @@ void validate_scene(Scene& scene, const std::string& name, unsigned threads) {
             first_failing(mesh.positions.size(), threads, [&](size_t i) { return !std::isfinite(mesh.positions[i]); });
         if (bad_position != SIZE_MAX)
             throw LoadError(where + ": vertex " + std::to_string(bad_position / 3) + ": position is not finite");
-        const Parts parts(mesh.triangle_count(), smallest_part);
-        std::vector<uint64_t> part_degenerate(parts.count(), 0);
-        parallel_for(parts.count(), threads, [&](size_t p) {
-            for (size_t t = parts.first(p); t < parts.last(p); ++t) part_degenerate[p] += is_degenerate(mesh, t);
-        });
-        for (uint64_t d : part_degenerate) degenerate += d;
+        degenerate += count_degenerate(mesh, threads);
     }
     for (size_t k = 0; k < scene.instances.size(); ++k) {
         const Instance& inst = scene.instances[k];

@@ -119,6 +119,7 @@ Transform multiply(const Transform& a, const Transform& b);
 // True when the triangle has a repeated index or its three positions are collinear (zero area, exactly).
 bool is_degenerate(const Mesh& mesh, size_t triangle);
 
-uint64_t count_degenerate(const Mesh& mesh);
+// How many of the mesh's triangles are degenerate, counted in parts on `threads` (0: all).
+uint64_t count_degenerate(const Mesh& mesh, unsigned threads = 1);
 
 }  // namespace cb
