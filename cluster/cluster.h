@@ -88,6 +88,10 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
 std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count,
                                    unsigned threads = 1);
 
+// Sorts the n keys stably in place; order[i] gets the input index of the key that ends at i. The same for
+// any thread count (0: all hardware threads).
+void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads = 1);
+
 // Hierarchical k-means++ over the triangles `tris` (reordered in place) with at most `max_size` per leaf;
 // appends the leaf sizes to `leaf_sizes` in order. `boxes` holds 6 floats (min xyz, max xyz) per triangle.
 void kmeans_split(const float* boxes, uint32_t* tris, size_t count, uint32_t max_size, uint32_t branching,

@@ -1,6 +1,7 @@
-// Morton order of triangles: 21 bits per axis of each triangle's box centre, LSD radix sort.
+// Morton order of triangles: 21 bits per axis of each triangle's box centre, radix sorted.
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <utility>
 
@@ -28,7 +29,151 @@ inline double doubled_centre(const float* positions, const uint32_t* tri, int k)
     return double(std::min({a, b, c})) + double(std::max({a, b, c}));
 }
 
+// Key sorting: one split on the highest digit in which the keys differ, across the whole array and in
+// parallel parts, then each digit's range on its own, in cache: ranges of more than `cached_limit` keys
+// split again on their own highest differing digit, smaller ones take LSD passes over only the digits in
+// which their keys differ. Sorting all the keys by one LSD pass per digit scattered every key across the
+// whole array six times, most of the Morton order's time. Every step is stable, so the order is the one
+// stable order of the keys whatever the thread count.
+constexpr int radix_bits = 11;                    // 2048 counts: 8 KB, in the first-level cache
+constexpr size_t cached_limit = size_t(1) << 16;  // 64 Ki keys with their indices and scatter room: 1.5 MB
+constexpr size_t small_range = 4096;              // below this, 8-bit digits: fewer counts to clear and sum
+constexpr size_t insertion_limit = 32;
+
+// The bits in which some of the n keys differ from the first.
+uint64_t differing_bits(const uint64_t* keys, size_t n) {
+    uint64_t d = 0;
+    for (size_t i = 1; i < n; ++i) d |= keys[i] ^ keys[0];
+    return d;
+}
+
+// A stable counting pass on the `bits`-bit digit at `shift`, from (keys, order) to (to_keys, to_order);
+// `count` (2^bits entries) ends holding each digit's end.
+void scatter_digit(const uint64_t* keys, const uint32_t* order, size_t n, int shift, int bits, uint32_t* count,
+                   uint64_t* to_keys, uint32_t* to_order) {
+    const size_t digits = size_t(1) << bits;
+    const uint64_t mask = digits - 1;
+    std::fill_n(count, digits, 0u);
+    for (size_t i = 0; i < n; ++i) ++count[(keys[i] >> shift) & mask];
+    uint32_t sum = 0;
+    for (size_t d = 0; d < digits; ++d) {
+        const uint32_t c = count[d];
+        count[d] = sum;
+        sum += c;
+    }
+    for (size_t i = 0; i < n; ++i) {
+        const uint32_t slot = count[(keys[i] >> shift) & mask]++;
+        to_keys[slot] = keys[i];
+        to_order[slot] = order[i];
+    }
+}
+
+// Sorts (keys, order)[0, n) stably by key, with (tmp_keys, tmp_order)[0, n) as scatter room.
+void sort_range(uint64_t* keys, uint32_t* order, uint64_t* tmp_keys, uint32_t* tmp_order, size_t n) {
+    if (n <= insertion_limit) {
+        for (size_t i = 1; i < n; ++i) {
+            const uint64_t k = keys[i];
+            const uint32_t o = order[i];
+            size_t j = i;
+            for (; j > 0 && keys[j - 1] > k; --j) {
+                keys[j] = keys[j - 1];
+                order[j] = order[j - 1];
+            }
+            keys[j] = k;
+            order[j] = o;
+        }
+        return;
+    }
+    const uint64_t differ = differing_bits(keys, n);
+    if (!differ) return;
+    const int top = 64 - std::countl_zero(differ);
+    uint32_t count[size_t(1) << radix_bits];
+    if (n > cached_limit) {
+        const int shift = std::max(0, top - radix_bits);
+        scatter_digit(keys, order, n, shift, radix_bits, count, tmp_keys, tmp_order);
+        std::copy_n(tmp_keys, n, keys);
+        std::copy_n(tmp_order, n, order);
+        for (size_t d = 0, start = 0; d < (size_t(1) << radix_bits); start = count[d++])
+            sort_range(keys + start, order + start, tmp_keys + start, tmp_order + start, count[d] - start);
+        return;
+    }
+    const int bits = n < small_range ? 8 : radix_bits;
+    const uint64_t mask = (uint64_t(1) << bits) - 1;
+    bool in_tmp = false;
+    for (int shift = 0; shift < top; shift += bits) {
+        if (!((differ >> shift) & mask)) continue;  // every key has the same digit here: a pass would not move one
+        if (in_tmp)
+            scatter_digit(tmp_keys, tmp_order, n, shift, bits, count, keys, order);
+        else
+            scatter_digit(keys, order, n, shift, bits, count, tmp_keys, tmp_order);
+        in_tmp = !in_tmp;
+    }
+    if (in_tmp) {
+        std::copy_n(tmp_keys, n, keys);
+        std::copy_n(tmp_order, n, order);
+    }
+}
+
 }  // namespace
+
+void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads) {
+    const Parts parts(n, size_t(1) << 16);
+    std::vector<uint64_t> part_differ(parts.count());
+    parallel_for(parts.count(), threads, [&](size_t p) {
+        uint64_t d = 0;
+        for (size_t i = parts.first(p); i < parts.last(p); ++i) {
+            order[i] = uint32_t(i);
+            d |= keys[i] ^ keys[0];
+        }
+        part_differ[p] = d;
+    });
+    uint64_t differ = 0;
+    for (uint64_t d : part_differ) differ |= d;
+    if (!differ) return;
+    std::vector<uint64_t> tmp_keys(n);
+    std::vector<uint32_t> tmp_order(n);
+    if (n <= cached_limit) return sort_range(keys, order, tmp_keys.data(), tmp_order.data(), n);
+
+    // The split on the highest differing digit: each part counts its digits, then scatters its keys to
+    // their digit's range after those of earlier parts.
+    const int shift = std::max(0, 64 - std::countl_zero(differ) - radix_bits);
+    constexpr size_t digits = size_t(1) << radix_bits;
+    constexpr uint64_t mask = digits - 1;
+    std::vector<uint32_t> count(parts.count() * digits);
+    parallel_for(parts.count(), threads, [&](size_t p) {
+        uint32_t* c = &count[p * digits];
+        for (size_t i = parts.first(p); i < parts.last(p); ++i) ++c[(keys[i] >> shift) & mask];
+    });
+    std::vector<size_t> digit_start(digits + 1);
+    uint32_t sum = 0;
+    for (size_t d = 0; d < digits; ++d) {
+        digit_start[d] = sum;
+        for (size_t p = 0; p < parts.count(); ++p) {
+            const uint32_t c = count[p * digits + d];
+            count[p * digits + d] = sum;
+            sum += c;
+        }
+    }
+    digit_start[digits] = n;
+    parallel_for(parts.count(), threads, [&](size_t p) {
+        uint32_t* c = &count[p * digits];
+        for (size_t i = parts.first(p); i < parts.last(p); ++i) {
+            const uint32_t slot = c[(keys[i] >> shift) & mask]++;
+            tmp_keys[slot] = keys[i];
+            tmp_order[slot] = order[i];
+        }
+    });
+    parallel_for(parts.count(), threads, [&](size_t p) {
+        std::copy(tmp_keys.begin() + std::ptrdiff_t(parts.first(p)), tmp_keys.begin() + std::ptrdiff_t(parts.last(p)),
+                  keys + parts.first(p));
+        std::copy(tmp_order.begin() + std::ptrdiff_t(parts.first(p)), tmp_order.begin() + std::ptrdiff_t(parts.last(p)),
+                  order + parts.first(p));
+    });
+    parallel_for(digits, threads, [&](size_t d) {
+        const size_t start = digit_start[d], size = digit_start[d + 1] - start;
+        sort_range(keys + start, order + start, tmp_keys.data() + start, tmp_order.data() + start, size);
+    });
+}
 
 std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count,
                                    unsigned threads) {
@@ -60,8 +205,7 @@ std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indic
     double scale[3];
     for (int k = 0; k < 3; ++k) scale[k] = hi[k] > lo[k] ? cells / (hi[k] - lo[k]) : 0.0;
 
-    std::vector<uint64_t> keys(triangle_count), keys_tmp(triangle_count);
-    std::vector<uint32_t> order(triangle_count), order_tmp(triangle_count);
+    std::vector<uint64_t> keys(triangle_count);
     parallel_for(parts, threads, [&](size_t p) {
         auto [first, last] = range(p);
         for (size_t t = first; t < last; ++t) {
@@ -71,46 +215,10 @@ std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indic
                 code |= spread3(uint64_t(q)) << k;
             }
             keys[t] = code;
-            order[t] = uint32_t(t);
         }
     });
-
-    // Stable LSD radix sort, 11 bits per pass: a part's 2048 counts stay in the first-level cache, where
-    // 16-bit digits scatter over 64k places. Passes where every key has the same digit are skipped.
-    constexpr int bits = 11, passes = 6;
-    constexpr uint64_t mask = (1u << bits) - 1;
-    std::vector<uint32_t> count(parts << bits);
-    for (int pass = 0; pass < passes && triangle_count > 0; ++pass) {
-        const int shift = pass * bits;
-        parallel_for(parts, threads, [&](size_t p) {
-            uint32_t* c = &count[p << bits];
-            std::fill_n(c, size_t(1) << bits, 0u);
-            auto [first, last] = range(p);
-            for (size_t i = first; i < last; ++i) ++c[(keys[i] >> shift) & mask];
-        });
-        size_t same = 0;  // parts' counts of the first key's digit
-        for (size_t p = 0; p < parts; ++p) same += count[(p << bits) + ((keys[0] >> shift) & mask)];
-        if (same == triangle_count) continue;
-        // Each part's start for each digit: all smaller digits, then this digit in earlier parts.
-        uint32_t sum = 0;
-        for (size_t d = 0; d <= mask; ++d)
-            for (size_t p = 0; p < parts; ++p) {
-                uint32_t n = count[(p << bits) + d];
-                count[(p << bits) + d] = sum;
-                sum += n;
-            }
-        parallel_for(parts, threads, [&](size_t p) {
-            uint32_t* c = &count[p << bits];
-            auto [first, last] = range(p);
-            for (size_t i = first; i < last; ++i) {
-                uint32_t slot = c[(keys[i] >> shift) & mask]++;
-                keys_tmp[slot] = keys[i];
-                order_tmp[slot] = order[i];
-            }
-        });
-        keys.swap(keys_tmp);
-        order.swap(order_tmp);
-    }
+    std::vector<uint32_t> order(triangle_count);
+    sort_keys(keys.data(), order.data(), triangle_count, threads);
     return order;
 }
 

@@ -294,6 +294,43 @@ TEST(Cluster, MortonOrderIsTheSameInParallelAndStable) {
     for (size_t t = 0; t < half / 3; ++t) EXPECT_LT(position[t], position[t + m.triangles() - half / 3]) << t;
 }
 
+TEST(Cluster, SortKeysIsTheStableSortOfTheKeys) {
+    // Key sets that take every path: tiny, all equal, few distinct values (long runs of ties), keys that
+    // differ only in low bits, and spread keys in numbers that split more than once before ranges fit in
+    // cache; each against std::stable_sort, on one thread and on several.
+    std::mt19937_64 rng(7);
+    auto spread = [&](size_t n, uint64_t mask) {
+        std::vector<uint64_t> k(n);
+        for (uint64_t& x : k) x = rng() & mask;
+        return k;
+    };
+    std::vector<std::vector<uint64_t>> sets = {{},
+                                               {5},
+                                               {3, 1, 2, 1, 3},
+                                               std::vector<uint64_t>(100000, 42),
+                                               spread(1000, 7),
+                                               spread(5000, 0xff00),
+                                               spread(70000, (uint64_t(1) << 63) - 1),
+                                               spread(300000, 0x3ff),
+                                               spread(1200000, (uint64_t(1) << 63) - 1)};
+    // Clustered keys: a few dense groups far apart, each larger than a cached range.
+    std::vector<uint64_t> grouped = spread(400000, 0xfffff);
+    for (size_t i = 0; i < grouped.size(); ++i) grouped[i] |= uint64_t(i % 3) << 60;
+    sets.push_back(grouped);
+    for (const std::vector<uint64_t>& keys : sets) {
+        std::vector<uint32_t> expected(keys.size());
+        std::iota(expected.begin(), expected.end(), 0u);
+        std::stable_sort(expected.begin(), expected.end(), [&](uint32_t a, uint32_t b) { return keys[a] < keys[b]; });
+        for (unsigned threads : {1u, 2u, 3u}) {
+            std::vector<uint64_t> sorted = keys;
+            std::vector<uint32_t> order(keys.size());
+            cb::sort_keys(sorted.data(), order.data(), sorted.size(), threads);
+            ASSERT_EQ(order, expected) << keys.size() << " keys, " << threads << " threads";
+            for (size_t i = 0; i < sorted.size(); ++i) ASSERT_EQ(sorted[i], keys[order[i]]) << i;
+        }
+    }
+}
+
 TEST(Cluster, KMeansIsMoreCompactThanMortonSlices) {
     TestMesh m = grid(100, 100, 1, 0, 9);
     auto mean_extent = [&](cb::ClusterMethod method) {
