@@ -118,24 +118,40 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
     const ClusterOptions& o = options;
     Hierarchy h;
 
-    // Coarse level.
-    std::vector<uint32_t> chunk_sizes;
+    // Coarse level. With a Morton order, the triangles' corners are first copied into it, and the levels
+    // work on positions in that order (`work`): each chunk's k-means gathers its triangles' boxes, twice
+    // over (coarse, then fine), from corners that lie together instead of scattered over the mesh.
+    std::vector<uint32_t> chunk_sizes, morton, morton_indices;
+    const uint32_t* work_indices = indices;
+    auto work_in_morton_order = [&] {
+        morton = morton_order(positions, indices, triangle_count, threads);
+        morton_indices.resize(triangle_count * 3);
+        h.order.resize(triangle_count);
+        const Parts parts(triangle_count, size_t(1) << 16);
+        parallel_for(parts.count(), threads, [&](size_t p) {
+            for (size_t i = parts.first(p); i < parts.last(p); ++i) {
+                std::copy_n(indices + size_t(morton[i]) * 3, 3, &morton_indices[i * 3]);
+                h.order[i] = uint32_t(i);
+            }
+        });
+        work_indices = morton_indices.data();
+    };
     if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree && o.kmeans_presplit == 0) {
         h.order.resize(triangle_count);
         std::iota(h.order.begin(), h.order.end(), 0u);
         kmeans_tris(positions, indices, h.order.data(), triangle_count, o.coarse_size, o, o.seed, chunk_sizes);
     } else if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree) {
-        h.order = morton_order(positions, indices, triangle_count, threads);
+        work_in_morton_order();
         const size_t part = std::max<size_t>(o.kmeans_presplit, o.coarse_size),
                      parts = (triangle_count + part - 1) / part;
         std::vector<std::vector<uint32_t>> sizes(parts);
         parallel_for(parts, threads, [&](size_t p) {
-            kmeans_tris(positions, indices, h.order.data() + p * part, std::min(part, triangle_count - p * part),
+            kmeans_tris(positions, work_indices, h.order.data() + p * part, std::min(part, triangle_count - p * part),
                         o.coarse_size, o, splitmix(o.seed ^ (p + 1)), sizes[p]);
         });
         for (const auto& s : sizes) chunk_sizes.insert(chunk_sizes.end(), s.begin(), s.end());
     } else {
-        h.order = morton_order(positions, indices, triangle_count, threads);
+        work_in_morton_order();
         for (size_t at = 0; at < triangle_count; at += o.coarse_size)
             chunk_sizes.push_back(uint32_t(std::min<size_t>(o.coarse_size, triangle_count - at)));
     }
@@ -147,10 +163,17 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
     std::atomic<size_t> done{0};
     const std::thread::id caller = std::this_thread::get_id();  // progress is reported from the caller only
     parallel_for(chunk_sizes.size(), threads, [&](size_t c) {
-        split_chunk(positions, indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
+        split_chunk(positions, work_indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
         size_t finished = done.fetch_add(1) + 1;
         if (progress && std::this_thread::get_id() == caller) progress(finished, chunk_sizes.size());
     });
+    if (!morton.empty()) {  // positions in the Morton order back to the mesh's triangles
+        morton_indices = {};
+        const Parts parts(triangle_count, size_t(1) << 16);
+        parallel_for(parts.count(), threads, [&](size_t p) {
+            for (size_t i = parts.first(p); i < parts.last(p); ++i) h.order[i] = morton[h.order[i]];
+        });
+    }
 
     h.fine_offsets.push_back(0);
     h.coarse_offsets.push_back(0);
