@@ -65,20 +65,18 @@ public:
             nearest_.resize(n);
             assign_nearest(points_.data(), n, centres_.data(), found, assignment_.data(), nearest_.data());
         }
-        std::vector<std::vector<uint32_t>> groups = group(tris, n, found);
-        merge_small(groups);
-        if (groups.size() < 2) return slice(tris, n, leaves);
+        group(tris, n, found);
+        merge_small(groups_);
+        if (groups_.size() < 2) return slice(tris, n, leaves);
 
-        // Write the groups back contiguously, then recurse into each.
-        size_t at = 0;
-        std::vector<size_t> starts;
-        for (const auto& g : groups) {
-            starts.push_back(at);
-            std::copy(g.begin(), g.end(), tris + at);
-            at += g.size();
+        // Write the groups back contiguously, then recurse into each (which reuses groups_).
+        std::vector<size_t> sizes(groups_.size());
+        for (size_t g = 0, at = 0; g < groups_.size(); at += sizes[g++]) {
+            sizes[g] = groups_[g].size();
+            std::copy(groups_[g].begin(), groups_[g].end(), tris + at);
         }
-        for (size_t g = 0; g < groups.size(); ++g)
-            split(tris + starts[g], groups[g].size(), splitmix(seed ^ (g + 1)), leaves);
+        for (size_t g = 0, at = 0; g < sizes.size(); at += sizes[g++])
+            split(tris + at, sizes[g], splitmix(seed ^ (g + 1)), leaves);
     }
 
 private:
@@ -160,10 +158,18 @@ private:
             if (changed * lloyd_settled <= n) break;
             std::fill(sum.begin(), sum.end(), 0.0);
             std::fill(size.begin(), size.end(), 0u);
-            for (size_t i = 0; i < n; ++i) {
-                uint32_t a = assignment_[i];
-                ++size[a];
-                for (int d = 0; d < 6; ++d) sum[a * 6 + d] += points[i * 6 + d];
+            // Each cluster's sum adds its points in order. A run of points in one cluster (the points come
+            // in space order) adds in registers, not through memory, where each add waited on the last store.
+            for (size_t i = 0; i < n;) {
+                const uint32_t a = assignment_[i];
+                double run[6];
+                std::copy_n(&sum[a * 6], 6, run);
+                size_t end = i;
+                for (; end < n && assignment_[end] == a; ++end)
+                    for (int d = 0; d < 6; ++d) run[d] += points[end * 6 + d];
+                std::copy_n(run, 6, &sum[a * 6]);
+                size[a] += uint32_t(end - i);
+                i = end;
             }
             for (size_t c = 0; c < k; ++c) {
                 if (size[c] == 0) {
@@ -177,13 +183,14 @@ private:
         }
     }
 
-    // Members of each cluster in their current order (a stable counting sort), empty ones dropped.
-    std::vector<std::vector<uint32_t>> group(const uint32_t* tris, size_t n, size_t k) {
-        std::vector<std::vector<uint32_t>> groups(k);
-        for (size_t i = 0; i < n; ++i) groups[assignment_[i]].push_back(tris[i]);
-        groups.erase(std::remove_if(groups.begin(), groups.end(), [](const auto& g) { return g.empty(); }),
-                     groups.end());
-        return groups;
+    // groups_: the members of each cluster in their current order, empty ones dropped. The lists keep their
+    // storage from node to node.
+    void group(const uint32_t* tris, size_t n, size_t k) {
+        groups_.resize(k);
+        for (auto& g : groups_) g.clear();
+        for (size_t i = 0; i < n; ++i) groups_[assignment_[i]].push_back(tris[i]);
+        groups_.erase(std::remove_if(groups_.begin(), groups_.end(), [](const auto& g) { return g.empty(); }),
+                      groups_.end());
     }
 
     // Merges each group under half the limit into the sibling whose mean box is nearest, while the merged
@@ -253,6 +260,7 @@ private:
     std::vector<float> points_, sample_, centres_, nearest_, coords_;
     std::vector<double> block_sums_;
     std::vector<uint32_t> assignment_, pick_;
+    std::vector<std::vector<uint32_t>> groups_;
 };
 
 }  // namespace
