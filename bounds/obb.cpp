@@ -4,14 +4,11 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <cstring>
 #include <vector>
 
 #include "fitting.h"
 #include "vector_clones.h"
-
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 namespace cb {
 
@@ -207,95 +204,94 @@ Frame frame_around(const Vec& n) {
     return f;
 }
 
+// Four doubles: GCC's vector extension, one register under AVX2 and AVX-512, two under SSE2. The descent's
+// loops run over coordinate arrays padded to a multiple of four with copies of the last point, which change
+// no minimum or maximum, so they take whole vectors only.
+typedef double Lanes __attribute__((vector_size(32)));
+constexpr size_t lane_count = 4;
+
+// Helpers by reference: a vector passed or returned by value would take another calling convention in each
+// clone.
+void load_lanes(const double* p, Lanes& v) { std::memcpy(&v, p, sizeof v); }
+void fill_lanes(double x, Lanes& v) { v = Lanes{x, x, x, x}; }
+// Lane 0 of the result: the lowest (highest) of the four, halves folded in vector registers (std::min's
+// references kept the lanes in memory and took branches).
+typedef long long LaneIndex __attribute__((vector_size(32)));
+void fold_lowest(Lanes& v) {
+    Lanes w = __builtin_shuffle(v, LaneIndex{2, 3, 0, 1});
+    v = w < v ? w : v;
+    w = __builtin_shuffle(v, LaneIndex{1, 0, 3, 2});
+    v = w < v ? w : v;
+}
+void fold_highest(Lanes& v) {
+    Lanes w = __builtin_shuffle(v, LaneIndex{2, 3, 0, 1});
+    v = w > v ? w : v;
+    w = __builtin_shuffle(v, LaneIndex{1, 0, 3, 2});
+    v = w > v ? w : v;
+}
+double lowest(Lanes v) {
+    fold_lowest(v);
+    return v[0];
+}
+double highest(Lanes v) {
+    fold_highest(v);
+    return v[0];
+}
+
 // Box cost: volume, with every side padded by a tiny fraction of the diagonal so flat and needle sets still
-// compare by area and length instead of all tying at zero. Coordinates come as three arrays (x, y, z), the
-// form the refinement's hundred-odd evaluations per cluster run fastest on (docs/PERFORMANCE.md): one pass
-// for the three axes, two points per step in SSE2 lanes. Each projection is the same double expression as
-// in scalar code, and minima and maxima are exact, so the cost does not depend on the lanes.
-double soa_cost(const double* x, const double* y, const double* z, size_t n, const Frame& f, double pad) {
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    size_t v = 0;
-#if defined(__SSE2__)
-    __m128d vlo[3], vhi[3], a[3][3];
+// compare by area and length instead of all tying at zero. Coordinates come as three arrays (x, y, z) of a
+// multiple of four points, the form the refinement's evaluations run fastest on (docs/PERFORMANCE.md): one
+// pass for the three axes, in lanes. Each projection is the same double expression in every lane, and
+// minima and maxima are exact, so the cost does not depend on the lanes or the processor.
+CB_VECTOR_CLONES double soa_cost(const double* x, const double* y, const double* z, size_t n, const Frame& f,
+                                 double pad) {
+    Lanes lo[3], hi[3];
     for (int i = 0; i < 3; ++i) {
-        vlo[i] = _mm_set1_pd(INFINITY);
-        vhi[i] = _mm_set1_pd(-INFINITY);
-        for (int k = 0; k < 3; ++k) a[i][k] = _mm_set1_pd(f.axis[i][k]);
+        fill_lanes(INFINITY, lo[i]);
+        fill_lanes(-INFINITY, hi[i]);
     }
-    for (; v + 2 <= n; v += 2) {
-        __m128d px = _mm_loadu_pd(x + v), py = _mm_loadu_pd(y + v), pz = _mm_loadu_pd(z + v);
+    for (size_t v = 0; v < n; v += lane_count) {
+        Lanes px, py, pz;
+        load_lanes(x + v, px);
+        load_lanes(y + v, py);
+        load_lanes(z + v, pz);
         for (int i = 0; i < 3; ++i) {
-            __m128d d =
-                _mm_add_pd(_mm_add_pd(_mm_mul_pd(a[i][0], px), _mm_mul_pd(a[i][1], py)), _mm_mul_pd(a[i][2], pz));
-            vlo[i] = _mm_min_pd(vlo[i], d);
-            vhi[i] = _mm_max_pd(vhi[i], d);
+            const Lanes d = f.axis[i][0] * px + f.axis[i][1] * py + f.axis[i][2] * pz;
+            lo[i] = d < lo[i] ? d : lo[i];
+            hi[i] = d > hi[i] ? d : hi[i];
         }
     }
-    for (int i = 0; i < 3; ++i) {
-        double l[2], h[2];
-        _mm_storeu_pd(l, vlo[i]);
-        _mm_storeu_pd(h, vhi[i]);
-        lo[i] = std::min(l[0], l[1]);
-        hi[i] = std::max(h[0], h[1]);
-    }
-#endif
-    for (; v < n; ++v)
-        for (int i = 0; i < 3; ++i) {
-            double d = f.axis[i][0] * x[v] + f.axis[i][1] * y[v] + f.axis[i][2] * z[v];
-            lo[i] = std::min(lo[i], d);
-            hi[i] = std::max(hi[i], d);
-        }
-    return (hi[0] - lo[0] + pad) * (hi[1] - lo[1] + pad) * (hi[2] - lo[2] + pad);
+    double side[3];
+    for (int i = 0; i < 3; ++i) side[i] = highest(hi[i]) - lowest(lo[i]) + pad;
+    return side[0] * side[1] * side[2];
 }
 
 // The padded areas of the points' rectangle in a plane after turning its axes by the angle of cosine c and
 // sine s (area[0]) and by its opposite (area[1]): (x, y) are the points' coordinates along the two axes
-// before turning. Both turns share the four products of a point; two points per step in SSE2 lanes, the
-// same expressions as the scalar tail.
-void turned_areas(const double* x, const double* y, size_t n, double c, double s, double pad, double area[2]) {
+// before turning, a multiple of four. Both turns share the four products of a point, in lanes.
+CB_VECTOR_CLONES void turned_areas(const double* x, const double* y, size_t n, double c, double s, double pad,
+                                   double area[2]) {
     // lo/hi[t][j]: turn t (0 by +s, 1 by -s), coordinate j of the turned pair.
-    double lo[2][2] = {{INFINITY, INFINITY}, {INFINITY, INFINITY}};
-    double hi[2][2] = {{-INFINITY, -INFINITY}, {-INFINITY, -INFINITY}};
-    size_t v = 0;
-#if defined(__SSE2__)
-    const __m128d vc = _mm_set1_pd(c), vs = _mm_set1_pd(s);
-    __m128d vlo[2][2], vhi[2][2];
+    Lanes lo[2][2], hi[2][2];
     for (int t = 0; t < 2; ++t)
         for (int j = 0; j < 2; ++j) {
-            vlo[t][j] = _mm_set1_pd(INFINITY);
-            vhi[t][j] = _mm_set1_pd(-INFINITY);
+            fill_lanes(INFINITY, lo[t][j]);
+            fill_lanes(-INFINITY, hi[t][j]);
         }
-    for (; v + 2 <= n; v += 2) {
-        const __m128d px = _mm_loadu_pd(x + v), py = _mm_loadu_pd(y + v);
-        const __m128d cx = _mm_mul_pd(vc, px), sy = _mm_mul_pd(vs, py), cy = _mm_mul_pd(vc, py),
-                      sx = _mm_mul_pd(vs, px);
-        const __m128d turned[2][2] = {{_mm_add_pd(cx, sy), _mm_sub_pd(cy, sx)},
-                                      {_mm_sub_pd(cx, sy), _mm_add_pd(cy, sx)}};
+    for (size_t v = 0; v < n; v += lane_count) {
+        Lanes px, py;
+        load_lanes(x + v, px);
+        load_lanes(y + v, py);
+        const Lanes cx = c * px, sy = s * py, cy = c * py, sx = s * px;
+        const Lanes turned[2][2] = {{cx + sy, cy - sx}, {cx - sy, cy + sx}};
         for (int t = 0; t < 2; ++t)
             for (int j = 0; j < 2; ++j) {
-                vlo[t][j] = _mm_min_pd(vlo[t][j], turned[t][j]);
-                vhi[t][j] = _mm_max_pd(vhi[t][j], turned[t][j]);
+                lo[t][j] = turned[t][j] < lo[t][j] ? turned[t][j] : lo[t][j];
+                hi[t][j] = turned[t][j] > hi[t][j] ? turned[t][j] : hi[t][j];
             }
     }
     for (int t = 0; t < 2; ++t)
-        for (int j = 0; j < 2; ++j) {
-            double l[2], h[2];
-            _mm_storeu_pd(l, vlo[t][j]);
-            _mm_storeu_pd(h, vhi[t][j]);
-            lo[t][j] = std::min(l[0], l[1]);
-            hi[t][j] = std::max(h[0], h[1]);
-        }
-#endif
-    for (; v < n; ++v) {
-        const double cx = c * x[v], sy = s * y[v], cy = c * y[v], sx = s * x[v];
-        const double turned[2][2] = {{cx + sy, cy - sx}, {cx - sy, cy + sx}};
-        for (int t = 0; t < 2; ++t)
-            for (int j = 0; j < 2; ++j) {
-                lo[t][j] = std::min(lo[t][j], turned[t][j]);
-                hi[t][j] = std::max(hi[t][j], turned[t][j]);
-            }
-    }
-    for (int t = 0; t < 2; ++t) area[t] = (hi[t][0] - lo[t][0] + pad) * (hi[t][1] - lo[t][1] + pad);
+        area[t] = (highest(hi[t][0]) - lowest(lo[t][0]) + pad) * (highest(hi[t][1]) - lowest(lo[t][1]) + pad);
 }
 
 // Axes spread evenly over a half sphere (a golden-angle spiral), for extreme_points: one array per
@@ -364,14 +360,19 @@ const size_t frame_search_limit = 64;
 // axis. `fine`: the cluster has at most frame_search_limit points, given in full.
 Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_count, double pad, bool fine,
                     const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count) {
+    // The points as three coordinate arrays, padded to whole lanes with copies of the last point.
+    const size_t padded = (n + lane_count - 1) / lane_count * lane_count;
     thread_local std::vector<double> soa;
-    soa.resize(n * 3);
-    for (size_t v = 0; v < n; ++v) {
-        soa[v] = pts[v * 3];
-        soa[n + v] = pts[v * 3 + 1];
-        soa[2 * n + v] = pts[v * 3 + 2];
+    soa.resize(padded * 3);
+    for (size_t v = 0; v < padded; ++v) {
+        const double* p = pts + std::min(v, n - 1) * 3;
+        soa[v] = p[0];
+        soa[padded + v] = p[1];
+        soa[2 * padded + v] = p[2];
     }
-    auto cost = [&](const Frame& f) { return soa_cost(soa.data(), soa.data() + n, soa.data() + 2 * n, n, f, pad); };
+    auto cost = [&](const Frame& f) {
+        return soa_cost(soa.data(), soa.data() + padded, soa.data() + 2 * padded, padded, f, pad);
+    };
     Frame best = pca[0];
     double best_cost = cost(best);
     auto consider = [&](const Frame& f) {
@@ -407,13 +408,13 @@ Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_co
     // and the other two come from the points' projections on the frame, turned in the plane, so a try costs
     // four products per point instead of nine; a winning try's turned projections are kept.
     thread_local std::vector<double> proj;
-    proj.resize(n * 3);
+    proj.resize(padded * 3);
     double extent[3];
     for (int i = 0; i < 3; ++i) {
-        double* p = proj.data() + size_t(i) * n;
+        double* p = proj.data() + size_t(i) * padded;
         double lo = INFINITY, hi = -INFINITY;
-        for (size_t v = 0; v < n; ++v) {
-            p[v] = best.axis[i][0] * soa[v] + best.axis[i][1] * soa[n + v] + best.axis[i][2] * soa[2 * n + v];
+        for (size_t v = 0; v < padded; ++v) {
+            p[v] = best.axis[i][0] * soa[v] + best.axis[i][1] * soa[padded + v] + best.axis[i][2] * soa[2 * padded + v];
             lo = std::min(lo, p[v]);
             hi = std::max(hi, p[v]);
         }
@@ -442,13 +443,13 @@ Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_co
             improved = false;
             for (int k = 0; k < 3; ++k) {
                 const int u = (k + 1) % 3, w = (k + 2) % 3;
-                double* x = proj.data() + size_t(u) * n;
-                double* y = proj.data() + size_t(w) * n;
+                double* x = proj.data() + size_t(u) * padded;
+                double* y = proj.data() + size_t(w) * padded;
                 double area[2];
                 if (known_after[k] == wins)
                     std::copy_n(known[k], 2, area);
                 else
-                    turned_areas(x, y, n, c, s, pad, area);
+                    turned_areas(x, y, padded, c, s, pad, area);
                 bool current = true;  // `area` measured on the projections as they are
                 for (int t = 0; t < 2; ++t) {
                     const double sign = t == 0 ? 1.0 : -1.0;
@@ -461,7 +462,7 @@ Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_co
                     current = false;
                     // The winning try's projections, turned as turned_areas turned them, become the current ones.
                     double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-                    for (size_t v = 0; v < n; ++v) {
+                    for (size_t v = 0; v < padded; ++v) {  // the copies turn as their point does
                         const double a = c * x[v] + sign * s * y[v], b = c * y[v] - sign * s * x[v];
                         x[v] = a;
                         y[v] = b;
@@ -474,7 +475,7 @@ Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_co
                     extent[w] = hi[1] - lo[1];
                     // The turn back is then a try of its own, on the turned projections.
                     if (t == 0) {
-                        turned_areas(x, y, n, c, s, pad, area);
+                        turned_areas(x, y, padded, c, s, pad, area);
                         current = true;
                     }
                 }
