@@ -50,10 +50,13 @@ void connected_patches(const uint32_t* indices, uint32_t* tris, size_t count, st
 namespace {
 
 // k-means over the triangles tris[0..count): their boxes (6 floats each) gathered for this call only, so a
-// bake never holds a box per triangle of the mesh at once; `tris` reordered as the tree orders them.
+// bake never holds a box per triangle of the mesh at once; `tris` reordered as the tree orders them. The
+// arrays stay with the thread for its next call (as k-means's own, kmeans.cpp).
 void kmeans_tris(const float* positions, const uint32_t* indices, uint32_t* tris, size_t count, uint32_t max_size,
                  const ClusterOptions& o, uint64_t seed, std::vector<uint32_t>& leaves) {
-    std::vector<float> boxes(count * 6);
+    thread_local std::vector<float> boxes;
+    thread_local std::vector<uint32_t> local;
+    boxes.resize(count * 6);
     for (size_t i = 0; i < count; ++i) {
         const uint32_t* t = indices + size_t(tris[i]) * 3;
         const float* a = positions + size_t(t[0]) * 3;
@@ -64,7 +67,7 @@ void kmeans_tris(const float* positions, const uint32_t* indices, uint32_t* tris
             boxes[i * 6 + 3 + k] = std::max({a[k], b[k], c[k]});
         }
     }
-    std::vector<uint32_t> local(count);
+    local.resize(count);
     std::iota(local.begin(), local.end(), 0u);
     kmeans_split(boxes.data(), local.data(), count, max_size, o.kmeans_branching, o.kmeans_max_iterations, seed,
                  leaves);

@@ -29,13 +29,32 @@ inline float distance2(const float* a, const float* b) {
     return s;
 }
 
+// KMeans's working arrays, kept by each thread from call to call: a bake runs k-means on thousands of chunks,
+// and an array of a megabyte or more otherwise comes fresh from the system each time (the mmap threshold,
+// cli/main.cpp), every page of it faulted in and zeroed again.
+struct KMeansScratch {
+    std::vector<float> points, sample, centres, nearest, coords;
+    std::vector<double> block_sums;
+    std::vector<uint32_t> assignment, pick;
+    std::vector<std::vector<uint32_t>> groups;
+};
+
 class KMeans {
 public:
-    KMeans(const float* boxes, uint32_t max_size, uint32_t branching, uint32_t max_iterations)
+    KMeans(const float* boxes, uint32_t max_size, uint32_t branching, uint32_t max_iterations, KMeansScratch& s)
         : boxes_(boxes),
           max_size_(max_size),
           branching_(std::max(2u, branching)),
-          max_iterations_(std::max(1u, max_iterations)) {}
+          max_iterations_(std::max(1u, max_iterations)),
+          points_(s.points),
+          sample_(s.sample),
+          centres_(s.centres),
+          nearest_(s.nearest),
+          coords_(s.coords),
+          block_sums_(s.block_sums),
+          assignment_(s.assignment),
+          pick_(s.pick),
+          groups_(s.groups) {}
 
     void split(uint32_t* tris, size_t n, uint64_t seed, std::vector<uint32_t>& leaves) {
         if (n <= max_size_) {
@@ -257,17 +276,18 @@ private:
 
     const float* boxes_;
     uint32_t max_size_, branching_, max_iterations_;
-    std::vector<float> points_, sample_, centres_, nearest_, coords_;
-    std::vector<double> block_sums_;
-    std::vector<uint32_t> assignment_, pick_;
-    std::vector<std::vector<uint32_t>> groups_;
+    std::vector<float>&points_, &sample_, &centres_, &nearest_, &coords_;
+    std::vector<double>& block_sums_;
+    std::vector<uint32_t>&assignment_, &pick_;
+    std::vector<std::vector<uint32_t>>& groups_;
 };
 
 }  // namespace
 
 void kmeans_split(const float* boxes, uint32_t* tris, size_t count, uint32_t max_size, uint32_t branching,
                   uint32_t max_iterations, uint64_t seed, std::vector<uint32_t>& leaf_sizes) {
-    KMeans(boxes, std::max(1u, max_size), branching, max_iterations).split(tris, count, seed, leaf_sizes);
+    thread_local KMeansScratch scratch;
+    KMeans(boxes, std::max(1u, max_size), branching, max_iterations, scratch).split(tris, count, seed, leaf_sizes);
 }
 
 }  // namespace cb
