@@ -229,11 +229,13 @@ void fold_highest(Lanes& v) {
     w = __builtin_shuffle(v, LaneIndex{1, 0, 3, 2});
     v = w > v ? w : v;
 }
-double lowest(Lanes v) {
+double lowest(const Lanes& lanes) {
+    Lanes v = lanes;
     fold_lowest(v);
     return v[0];
 }
-double highest(Lanes v) {
+double highest(const Lanes& lanes) {
+    Lanes v = lanes;
     fold_highest(v);
     return v[0];
 }
