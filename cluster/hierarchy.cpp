@@ -121,9 +121,9 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
     const ClusterOptions& o = options;
     Hierarchy h;
 
-    // Coarse level. With a Morton order, the triangles' corners are first copied into it, and the levels
-    // work on positions in that order (`work`): each chunk's k-means gathers its triangles' boxes, twice
-    // over (coarse, then fine), from corners that lie together instead of scattered over the mesh.
+    // Coarse level. With a Morton order, the triangles' corners are first copied into it (`work_indices`),
+    // and both levels work on positions in that order: each chunk's k-means gathers its triangles' boxes,
+    // twice over (coarse, then fine), from corners that lie together instead of scattered over the mesh.
     std::vector<uint32_t> chunk_sizes, morton, morton_indices;
     const uint32_t* work_indices = indices;
     auto work_in_morton_order = [&] {

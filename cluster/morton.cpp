@@ -32,9 +32,9 @@ inline double doubled_centre(const float* positions, const uint32_t* tri, int k)
 // Key sorting: one split on the highest digit in which the keys differ, across the whole array and in
 // parallel parts, then each digit's range on its own, in cache: ranges of more than `cached_limit` keys
 // split again on their own highest differing digit, smaller ones take LSD passes over only the digits in
-// which their keys differ. Sorting all the keys by one LSD pass per digit scattered every key across the
-// whole array six times, most of the Morton order's time. Every step is stable, so the order is the one
-// stable order of the keys whatever the thread count.
+// which their keys differ, where one LSD pass per digit over the whole array would scatter every key across
+// it six times. Every step is stable, so the order is the one stable order of the keys whatever the thread
+// count.
 constexpr int radix_bits = 11;                    // 2048 counts: 8 KB, in the first-level cache
 constexpr size_t cached_limit = size_t(1) << 16;  // 64 Ki keys with their indices and scatter room: 1.5 MB
 constexpr size_t small_range = 4096;              // below this, 8-bit digits: fewer counts to clear and sum
@@ -177,8 +177,8 @@ void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads) {
 
 std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count,
                                    unsigned threads) {
-    // Work in parts of consecutive triangles, one item of parallel_for each: bounds, keys, and each radix
-    // pass's counts and scatter. A stable sort has one answer, so the parts change nothing in it.
+    // Bounds and keys in parts of consecutive triangles, one item of parallel_for each; sort_keys sorts them
+    // in parts of its own, with the one answer of a stable sort.
     const size_t part = std::max<size_t>(size_t(1) << 16, (triangle_count + 63) / 64);
     const size_t parts = std::max<size_t>(1, (triangle_count + part - 1) / part);
     auto range = [&](size_t p) { return std::pair(p * part, std::min(triangle_count, (p + 1) * part)); };
