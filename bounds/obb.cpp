@@ -214,8 +214,8 @@ constexpr size_t lane_count = 4;
 // clone.
 void load_lanes(const double* p, Lanes& v) { std::memcpy(&v, p, sizeof v); }
 void fill_lanes(double x, Lanes& v) { v = Lanes{x, x, x, x}; }
-// Lane 0 of the result: the lowest (highest) of the four, halves folded in vector registers (std::min's
-// references kept the lanes in memory and took branches).
+// Lane 0 of the result: the lowest (highest) of the four, halves folded in vector registers (through
+// std::min's references the lanes would go to memory, and the compares to branches).
 typedef long long LaneIndex __attribute__((vector_size(32)));
 void fold_lowest(Lanes& v) {
     Lanes w = __builtin_shuffle(v, LaneIndex{2, 3, 0, 1});

@@ -178,7 +178,8 @@ private:
             std::fill(sum.begin(), sum.end(), 0.0);
             std::fill(size.begin(), size.end(), 0u);
             // Each cluster's sum adds its points in order. A run of points in one cluster (the points come
-            // in space order) adds in registers, not through memory, where each add waited on the last store.
+            // in space order) adds in registers, not through memory, where each add would wait on the store
+            // before it.
             for (size_t i = 0; i < n;) {
                 const uint32_t a = assignment_[i];
                 double run[6];

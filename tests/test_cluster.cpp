@@ -296,8 +296,8 @@ TEST(Cluster, MortonOrderIsTheSameInParallelAndStable) {
 
 TEST(Cluster, SortKeysIsTheStableSortOfTheKeys) {
     // Key sets that take every path: tiny, all equal, few distinct values (long runs of ties), keys that
-    // differ only in low bits, and spread keys in numbers that split more than once before ranges fit in
-    // cache; each against std::stable_sort, on one thread and on several.
+    // differ only in low bits, keys spread over all 63 bits, and dense groups far apart whose ranges split
+    // twice before they fit in cache; each against std::stable_sort, on one thread and on several.
     std::mt19937_64 rng(7);
     auto spread = [&](size_t n, uint64_t mask) {
         std::vector<uint64_t> k(n);
@@ -313,7 +313,7 @@ TEST(Cluster, SortKeysIsTheStableSortOfTheKeys) {
                                                spread(70000, (uint64_t(1) << 63) - 1),
                                                spread(300000, 0x3ff),
                                                spread(1200000, (uint64_t(1) << 63) - 1)};
-    // Clustered keys: a few dense groups far apart, each larger than a cached range.
+    // Three dense groups far apart, each larger than a cached range.
     std::vector<uint64_t> grouped = spread(400000, 0xfffff);
     for (size_t i = 0; i < grouped.size(); ++i) grouped[i] |= uint64_t(i % 3) << 60;
     sets.push_back(grouped);
