@@ -216,17 +216,17 @@ void load_lanes(const double* p, Lanes& v) { std::memcpy(&v, p, sizeof v); }
 void fill_lanes(double x, Lanes& v) { v = Lanes{x, x, x, x}; }
 // Lane 0 of the result: the lowest (highest) of the four, halves folded in vector registers (through
 // std::min's references the lanes would go to memory, and the compares to branches).
-typedef long long LaneIndex __attribute__((vector_size(32)));
+// (__builtin_shufflevector: GCC 12 and clang both have it; the fuzzing build uses clang.)
 void fold_lowest(Lanes& v) {
-    Lanes w = __builtin_shuffle(v, LaneIndex{2, 3, 0, 1});
+    Lanes w = __builtin_shufflevector(v, v, 2, 3, 0, 1);
     v = w < v ? w : v;
-    w = __builtin_shuffle(v, LaneIndex{1, 0, 3, 2});
+    w = __builtin_shufflevector(v, v, 1, 0, 3, 2);
     v = w < v ? w : v;
 }
 void fold_highest(Lanes& v) {
-    Lanes w = __builtin_shuffle(v, LaneIndex{2, 3, 0, 1});
+    Lanes w = __builtin_shufflevector(v, v, 2, 3, 0, 1);
     v = w > v ? w : v;
-    w = __builtin_shuffle(v, LaneIndex{1, 0, 3, 2});
+    w = __builtin_shufflevector(v, v, 1, 0, 3, 2);
     v = w > v ? w : v;
 }
 double lowest(const Lanes& lanes) {
