@@ -190,23 +190,31 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
             oy[k][t] = float(double(py[k][t]) - light[1]);
             oz[k][t] = float(double(pz[k][t]) - light[2]);
         }
-    alignas(64) float widest[capacity] = {};  // per triangle, its usable edges' largest max(A)
-    for (int k = 0; k < 3; ++k) {
-        const int j = (k + 1) % 3;
-        for (uint32_t t = 0; t < capacity; ++t) {
-            const float ux = ox[k][t], uy = oy[k][t], uz = oz[k][t];
-            const float ex = px[j][t] - px[k][t], ey = py[j][t] - py[k][t], ez = pz[j][t] - pz[k][t];
-            const float ax = std::fabs(uy * ez) + std::fabs(uz * ey), ay = std::fabs(uz * ex) + std::fabs(ux * ez),
-                        az = std::fabs(ux * ey) + std::fabs(uy * ex);
-            const float amax = std::max(std::max(ax, ay), az);
-            const bool usable =
-                amax >= 1e-18f && amax <= 1e30f && std::fabs(ex) + std::fabs(ey) + std::fabs(ez) <= 1e20f;
-            out.fx[k][t] = uy * ez - uz * ey;
-            out.fy[k][t] = uz * ex - ux * ez;
-            out.fz[k][t] = ux * ey - uy * ex;
-            out.fbound[k][t] = usable ? 6e-7f * amax : INFINITY;
-            widest[t] = std::max(widest[t], usable ? amax : 0.0f);
+    // In lanes of triangles, written out: the compiler leaves this loop's selects as branches, one triangle at a
+    // time. max(b, a) of the lanes is std::max(a, b), NaN included (the second operand when unordered).
+    alignas(64) float widest[capacity];  // per triangle, its usable edges' largest max(A)
+    using simd::Floats;
+    const Floats zero = simd::splat(0.0f);
+    for (uint32_t t = 0; t < capacity; t += simd::width) {
+        Floats wide = zero;
+        for (int k = 0; k < 3; ++k) {
+            const int j = (k + 1) % 3;
+            const Floats ux = simd::load(ox[k] + t), uy = simd::load(oy[k] + t), uz = simd::load(oz[k] + t);
+            const Floats ex = simd::load(px[j] + t) - simd::load(px[k] + t),
+                         ey = simd::load(py[j] + t) - simd::load(py[k] + t),
+                         ez = simd::load(pz[j] + t) - simd::load(pz[k] + t);
+            const Floats ax = simd::abs(uy * ez) + simd::abs(uz * ey), ay = simd::abs(uz * ex) + simd::abs(ux * ez),
+                         az = simd::abs(ux * ey) + simd::abs(uy * ex);
+            const Floats amax = simd::max(az, simd::max(ay, ax));
+            const simd::Mask usable = (amax >= simd::splat(1e-18f)) & (amax <= simd::splat(1e30f)) &
+                (simd::abs(ex) + simd::abs(ey) + simd::abs(ez) <= simd::splat(1e20f));
+            simd::store(out.fx[k] + t, uy * ez - uz * ey);
+            simd::store(out.fy[k] + t, uz * ex - ux * ez);
+            simd::store(out.fz[k] + t, ux * ey - uy * ex);
+            simd::store(out.fbound[k] + t, simd::select(usable, simd::splat(6e-7f) * amax, simd::splat(INFINITY)));
+            wide = simd::max(simd::select(usable, amax, zero), wide);
         }
+        simd::store(widest + t, wide);
     }
     // The plane about corner a, N = (b - a) x (c - a), in float from float differences of the float corners:
     // with A = |b - a| x |c - a|, each component of N is within 4 2^-24 A of the exact normal's (two rounded
@@ -433,10 +441,11 @@ inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t
 // True when segment p -> light meets a triangle of `lit` that blocks; the same answers as
 // cb::segment_triangle on each. Every sign it needs is first settled against its error bound: the line
 // through p and the light first, for all triangles at once (line_tests: may_meet and through; the line
-// misses most triangles, and then nothing else matters), then in double the edge signs float left
-// unsettled, then the two ends' sides of the plane; a triangle the bounds cannot settle (a segment within
-// rounding of its plane or of an edge line) goes to the exact test. Sets *touched when an exactly tested
-// triangle was touched. Makes the double terms of the triangles it needs that `lit` lacks.
+// misses most triangles, and then nothing else matters), then in double the side of the plane where
+// contacts start to count, then the edge signs float left unsettled, then the point's side of the plane; a
+// triangle the bounds cannot settle (a segment within rounding of its plane or of an edge line) goes to the
+// exact test. Sets *touched when an exactly tested triangle was touched. Makes the double terms of the
+// triangles it needs that `lit` lacks.
 inline bool triangles_block(Triangles& lit, const double* p, double from, const double* light, uint32_t may_meet,
                             uint32_t through, bool* touched) {
     const double e0 = p[0] - light[0], e1 = p[1] - light[1], e2 = p[2] - light[2];
@@ -444,8 +453,23 @@ inline bool triangles_block(Triangles& lit, const double* p, double from, const 
     for (; may_meet; may_meet &= may_meet - 1) {
         const uint32_t t = math::lowest_bit(may_meet);
         const TriangleTerms& terms = lit.terms[t];
-        bool settled = through >> t & 1;
         if (!(lit.has_plane >> t & 1)) plane_terms(lit, t, light, lit.terms[t]), lit.has_plane |= 1u << t;
+        // The plane first: a segment that from f on stays on the light's side of the plane meets nothing of the
+        // triangle, wherever its line passes. So go the points on or by the plane of a neighbour (a floor's
+        // triangles, a grazing light), whose lines pass too near the edges for the float test to settle. Not
+        // when contacts are counted (`touched`): a point on a neighbour's edge touches it, and the exact test
+        // reports that.
+        const double dq = terms.dq;
+        const bool light_side = std::fabs(dq) > terms.bq;  // the light's side settled
+        double dp = 0, bp = INFINITY, mix = 0, mix_bound = INFINITY;
+        if (light_side) {
+            // mix: the side of the point at f, where contacts start to count (see segment_triangle)
+            dp = plane_side(terms, p, bp);
+            mix = (1 - from) * dp + from * dq;
+            mix_bound = (1 - from) * bp + from * terms.bq + 8e-16 * (std::fabs(dp) + std::fabs(dq));
+            if (!touched && std::fabs(mix) > mix_bound && (mix > 0) == (dq > 0)) continue;
+        }
+        bool settled = through >> t & 1;
         if (!settled && !(lit.has_edges >> t & 1)) edge_terms(lit, t, light, lit.terms[t]), lit.has_edges |= 1u << t;
         if (!settled) {  // the signs in double
             double o[3];
@@ -456,24 +480,16 @@ inline bool triangles_block(Triangles& lit, const double* p, double from, const 
             }
             if (settled && ((o[0] > 0) != (o[1] > 0) || (o[1] > 0) != (o[2] > 0))) continue;  // the line passes outside
         }
+        // Through the interior: the point's side of the plane decides, then where the crossing lies.
         bool decided = false, blocks = false;
-        if (settled && std::fabs(terms.dq) > terms.bq) {
-            // Through the interior: the point's side of the plane (the light's is dq).
-            double bp;
-            const double dp = plane_side(terms, p, bp), dq = terms.dq;
-            if (std::fabs(dp) > bp) {
-                decided = true;
-                if ((dq > 0) == (dp > 0) || (!(lit.two_sided >> t & 1) && dq < 0))
-                    continue;  // no crossing, or front-facing
-                // The crossing counts when it is at t >= f (see segment_triangle).
-                const double f = from;
-                double mix = (1 - f) * dp + f * dq;
-                double mix_bound = (1 - f) * bp + f * terms.bq + 8e-16 * (std::fabs(dp) + std::fabs(dq));
-                if (std::fabs(mix) > mix_bound)
-                    blocks = (mix > 0) == (dp > 0);
-                else
-                    decided = false;
-            }
+        if (settled && light_side && std::fabs(dp) > bp) {
+            decided = true;
+            if ((dq > 0) == (dp > 0) || (!(lit.two_sided >> t & 1) && dq < 0))
+                continue;  // no crossing, or front-facing
+            if (std::fabs(mix) > mix_bound)
+                blocks = (mix > 0) == (dp > 0);
+            else
+                decided = false;
         }
         if (!decided) {
             SegmentTest s = exact_triangle(p, light, lit.corner[t], lit.two_sided >> t & 1, from);

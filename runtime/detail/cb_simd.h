@@ -77,6 +77,7 @@ inline Mask operator&(Mask a, Mask b) { return {__mmask16(a.m & b.m)}; }
 inline Mask and_not(Mask a, Mask b) { return {__mmask16(a.m & ~b.m)}; }
 inline Mask all_lanes() { return {__mmask16(0xffff)}; }
 inline uint32_t bits(Mask m) { return m.m; }
+inline Floats select(Mask m, Floats a, Floats b) { return {_mm512_mask_blend_ps(m.m, b.v, a.v)}; }  // m ? a : b
 #elif defined(CB_SIMD_AVX)
 constexpr uint32_t width = 8;
 #if defined(__AVX2__) && defined(__FMA__)
@@ -116,6 +117,7 @@ inline Mask operator&(Mask a, Mask b) { return {_mm256_and_ps(a.v, b.v)}; }
 inline Mask and_not(Mask a, Mask b) { return {_mm256_andnot_ps(b.v, a.v)}; }  // a and not b
 inline Mask all_lanes() { return {_mm256_castsi256_ps(_mm256_set1_epi32(-1))}; }
 inline uint32_t bits(Mask m) { return uint32_t(_mm256_movemask_ps(m.v)); }
+inline Floats select(Mask m, Floats a, Floats b) { return {_mm256_blendv_ps(b.v, a.v, m.v)}; }  // m ? a : b
 #elif defined(CB_SIMD_SSE2)
 constexpr uint32_t width = 4;
 constexpr char name[] = "sse2";
@@ -146,6 +148,7 @@ inline Mask operator&(Mask a, Mask b) { return {_mm_and_ps(a.v, b.v)}; }
 inline Mask and_not(Mask a, Mask b) { return {_mm_andnot_ps(b.v, a.v)}; }
 inline Mask all_lanes() { return {_mm_castsi128_ps(_mm_set1_epi32(-1))}; }
 inline uint32_t bits(Mask m) { return uint32_t(_mm_movemask_ps(m.v)); }
+inline Floats select(Mask m, Floats a, Floats b) { return {_mm_or_ps(_mm_and_ps(m.v, a.v), _mm_andnot_ps(m.v, b.v))}; }
 #else
 constexpr uint32_t width = 4;
 constexpr char name[] = "portable";
@@ -216,6 +219,9 @@ inline Mask operator&(Mask a, Mask b) { return {a.b & b.b}; }
 inline Mask and_not(Mask a, Mask b) { return {a.b & ~b.b}; }
 inline Mask all_lanes() { return {(1u << width) - 1}; }
 inline uint32_t bits(Mask m) { return m.b; }
+inline Floats select(Mask m, Floats a, Floats b) {
+    return each([&](uint32_t i) { return m.b >> i & 1 ? a.v[i] : b.v[i]; });
+}
 #endif
 
 inline Floats operator-(Floats a) { return splat(0.0f) - a; }
