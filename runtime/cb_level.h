@@ -410,6 +410,8 @@ public:
     // The sphere about instance `handle`'s world box: centre x, y, z and radius (INFINITY beyond double's
     // range), made when the instance is placed.
     const double* world_sphere(uint32_t handle) const { return instances_[handle].sphere; }
+    // Instance `handle`'s world box, made when the instance is placed (empty: it blocks nothing).
+    const level_detail::Box& world_box(uint32_t handle) const { return instances_[handle].box; }
 
     // Where instance `handle` is, for a traversal's build.
     Placement placement(uint32_t handle) const { return {instances_[handle].mesh, instances_[handle].transform}; }
@@ -650,7 +652,7 @@ public:
         o.scratch = scratch;
         for (size_t i = first; i < last; ++i) {
             const uint32_t h = needed_[i];
-            spheres_[i] = light_sphere(level_->world_sphere(h));
+            spheres_[i] = light_sphere(level_->world_sphere(h), level_->world_box(h));
             o.bounds = level_->scan_bounds(level_->asset_of(h));
             if (sun_)
                 shadows_[i].build_sun(level_->asset(level_->asset_of(h)), level_->placement(h), light_, o);
@@ -672,6 +674,8 @@ public:
                 TileCache;
         cache->clear();
         alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];
+        alignas(64) float whole[tile_capacity];  // box_lanes over the whole segment
+        std::fill(whole, whole + tile_capacity, 1.0f);
         double across[tile_capacity][3];
         SunTile sun_tile;
         for (size_t t = first; t < last; ++t) {
@@ -683,11 +687,11 @@ public:
             if (sun_) sun_tile.make(across, regular);
             for (uint64_t slot : tile_lists_[t]) {
                 if (!alive) break;
-                // Only the points whose segment may meet the instance's sphere enter it: an instance's set-up
-                // per tile costs per point.
+                // Only the points whose segment may meet the instance's sphere and box enter it: an instance's
+                // set-up per tile costs per point.
                 const uint64_t in = alive &
                     (sun_ ? sun_instance_points(spheres_[slot], regular, count, across, sun_tile)
-                          : instance_points(spheres_[slot], regular, ex, ey, ez, fd));
+                          : instance_points(spheres_[slot], regular, ex, ey, ez, fd, whole));
                 if (!in) continue;
                 const uint64_t s = shadows_[slot].occluded_tile(points_, index, count, in, stack, stats, cache);
                 shadowed |= s;
@@ -730,7 +734,8 @@ public:
     size_t memory_bytes() const {
         size_t bytes = (order_.capacity() + order_scratch_.capacity() + slot_of_.capacity() + stamp_.capacity() +
                         needed_.capacity()) *
-            sizeof(uint32_t);
+                sizeof(uint32_t) +
+            unculled_.capacity() * sizeof(uint64_t);
         for (const level_detail::LaneVector<uint64_t>& l : tile_lists_)
             bytes += l.capacity() * sizeof(uint64_t) + sizeof(l);
         for (size_t i = 0; i < shadows_.size(); ++i)
@@ -748,6 +753,9 @@ private:
         double c[3], r, size;  // suns: the centre in the sun's frame, the radius, and |centre|_1 + r
         float f[4];            // points: the centre from the light and the grown radius, in float
         bool whole;
+        // Points: the world box from the light (box_lanes), far tighter than the sphere about a tall or flat
+        // instance; not usable for a sun, or where float could overflow.
+        BoxFilter box;
     };
 
     void start(const Level& level, const double* light, const double* points, size_t n,
@@ -766,7 +774,7 @@ private:
         if (tile_lists_.size() < tiles) tile_lists_.resize(tiles);
         tile_count_ = tiles;
         built_count_ = 0;
-        lone_ = lone_instance();
+        list_unculled();
     }
 
     // A tile's list entry: the float bits of `near` (not below 0, so that entries order as integers; NaN: 0)
@@ -778,15 +786,26 @@ private:
         return uint64_t(bits) << 32 | h;
     }
 
-    // A level of one instance is not culled per tile: every tile lists it, and a point enters it only when its
-    // segment may meet the instance's bounding sphere (instance_points, in float lanes). Making the tile's
-    // pyramid costs more than the tiles it could leave out save. With more instances, lists of all of them
-    // cost more than the culling: their spheres let through points that their boxes do not. Returns that
-    // instance, or none (another count of instances, or one without a box, which blocks nothing).
-    uint32_t lone_instance() const {
-        uint32_t lone = none;
-        if (level_->instance_count() == 1) level_->visit_all([&](uint32_t h) { lone = h; });
-        return lone;
+    // A level of one instance, or for a point light of at most `few` instances, is not culled per tile: every
+    // tile lists them all (unculled_), nearest the light first, and a point enters one only when its segment may
+    // meet the instance's bounding sphere and world box (instance_points, float lanes). Making the tile's
+    // pyramid costs more than the tiles it could leave out save. Instances without a box block nothing and are
+    // left out.
+    static constexpr uint32_t few = 8;
+    void list_unculled() {
+        unculled_.clear();
+        const uint32_t count = level_->instance_count();
+        if (count != 1 && (sun_ || count > few)) return;
+        level_->visit_all([&](uint32_t h) {
+            const level_detail::Box& b = level_->world_box(h);
+            double d2 = 0;  // the light's distance to the box, squared
+            for (int k = 0; k < 3; ++k) {
+                const double d = std::max({b.lo[k] - light_[k], 0.0, light_[k] - b.hi[k]});
+                d2 += d * d;
+            }
+            unculled_.push_back(entry(sun_ ? 0.0 : std::sqrt(d2), h));
+        });
+        std::sort(unculled_.begin(), unculled_.end(), [](uint64_t x, uint64_t y) { return x < y; });
     }
 
     // A sun's tile: each point's coordinates in the sun's frame (across: a, b; along: z, up toward the sun);
@@ -960,10 +979,11 @@ private:
         return finite & tile_lanes(count);
     }
 
-    // Instance sphere `sphere` (centre, radius) for this light. For a point light, the radius grown by 2e-5 of
-    // itself and of the centre's distance, as the scan's spheres are, and rounded up to float; past the float
-    // test's range (lit_sphere_points) every point enters. For a sun, the centre in the sun's frame.
-    LightSphere light_sphere(const double* sphere) const {
+    // Instance sphere `sphere` (centre, radius) and world box `box` for this light. For a point light, the
+    // radius grown by 2e-5 of itself and of the centre's distance, as the scan's spheres are, and rounded up to
+    // float; past the float test's range (lit_sphere_points) every point enters. For a sun, the centre in the
+    // sun's frame.
+    LightSphere light_sphere(const double* sphere, const level_detail::Box& box) const {
         LightSphere s{};
         s.r = sphere[3];
         if (sun_) {
@@ -984,15 +1004,27 @@ private:
         s.f[1] = float(c[1]);
         s.f[2] = float(c[2]);
         s.f[3] = fr;
+        if (!box.empty()) {
+            const double axes[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+            double centre[3], half[3];
+            for (int k = 0; k < 3; ++k) {
+                centre[k] = 0.5 * (box.lo[k] + box.hi[k]) - light_[k];
+                half[k] = 0.5 * (box.hi[k] - box.lo[k]);
+            }
+            s.box = make_box_filter(centre, half, axes);
+        }
         return s;
     }
 
-    // The tile's points whose segment may meet an instance's sphere: the regular ones by the float test, every
-    // other point, and all of them where the sphere is not within the float test's range.
+    // The tile's points whose segment may meet an instance's sphere and then its world box: the regular ones by
+    // the float tests (the box's where it is usable; `whole` is 1 in every lane), every other point, and all of
+    // them where the sphere is not within the float test's range.
     static uint64_t instance_points(const LightSphere& s, uint64_t regular, const float* ex, const float* ey,
-                                    const float* ez, const float* fd) {
+                                    const float* ez, const float* fd, const float* whole) {
         if (s.whole) return ~uint64_t(0);
-        return lit_sphere_points(s.f[0], s.f[1], s.f[2], s.f[3], regular, ex, ey, ez, fd) | ~regular;
+        uint64_t in = lit_sphere_points(s.f[0], s.f[1], s.f[2], s.f[3], regular, ex, ey, ez, fd);
+        if (in && s.box.usable) in = box_lanes(s.box, in, ex, ey, ez, fd, whole);
+        return in | ~regular;
     }
 
     // The instances tile t's pyramid (and the segments of its points the pyramid does not hold) may meet,
@@ -1000,8 +1032,8 @@ private:
     // they order as integers) above its handle.
     void cull_tile(size_t t) {
         level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
-        if (lone_ != none) {
-            list.assign(1, entry(0, lone_));
+        if (!unculled_.empty()) {
+            list.assign(unculled_.begin(), unculled_.end());
             return;
         }
         list.clear();
@@ -1115,7 +1147,7 @@ private:
     double sun_frame_[3][3] = {};  // the sun's direction and two unit axes across it (direction_frame)
     ShadowBuildOptions options_;
     level_detail::LaneVector<uint32_t> order_, order_scratch_;
-    uint32_t lone_ = none;  // the level's one instance, listed by every tile unculled (lone_instance)
+    level_detail::LaneVector<uint64_t> unculled_;  // the entries every tile lists when not culled (list_unculled)
     level_detail::LaneVector<level_detail::LaneVector<uint64_t>>
         tile_lists_;  // per tile: cull_tile's entries, then (gather) slots of needed_
     level_detail::LaneVector<uint32_t> slot_of_, stamp_, needed_;

@@ -143,6 +143,44 @@ TEST(Level, CityAnswersEqualTheExactOracle) {
     }
 }
 
+// A level of at most 8 instances is not culled per tile for a point light: every tile lists every instance, and
+// the spheres' and world boxes' float tests alone pick the points that enter each. A city of 6 buildings (one
+// mirrored) and its ground, every traversal, one- and two-sided, against the exact oracle; and a city of 8
+// buildings, culled, for the count of instances met.
+TEST(Level, FewInstancesUnculledAnswerAsTheExactOracle) {
+    const std::unique_ptr<CityLevel> c = city_level(6, 4);
+    cb::Level& level = c->level;
+    ASSERT_EQ(level.instance_count(), 7u);
+    const SceneOracle oracle(c->city, level.shadow_bias());
+    const Points p = level_points(c->city, 2000, 9);
+    const double lights[][3] = {{10, 8, 90}, {-300, 10, 20}, {3, -4, 12}, {900, 700, 1}};
+    for (const auto& light : lights) {
+        for (bool one_sided : {false, true}) {
+            for (cb::Traversal t : all_traversals) {
+                size_t dark = 0;
+                const size_t wrong =
+                    disagreements(oracle, light, p, answer(level, light, p, t, one_sided), one_sided, &dark);
+                EXPECT_EQ(wrong, 0u) << "light " << light[0] << "," << light[1] << "," << light[2] << " traversal "
+                                     << int(t) << (one_sided ? " one-sided" : "");
+                if (t == cb::Traversal::scan && !one_sided) {
+                    EXPECT_GT(dark, p.size() / 100);  // shadows to get wrong
+                }
+            }
+        }
+        cb::LevelShadow shadow;
+        std::vector<uint8_t> out(p.size());
+        shadow.occluded_batch(level, light, p[0].data(), p.size(), out.data());
+        EXPECT_EQ(shadow.instances_met(), shadow.tile_count() * 7);  // every tile lists all of them
+    }
+    const std::unique_ptr<CityLevel> more = city_level(8, 4);  // 9 instances: culled
+    cb::LevelShadow shadow;
+    const Points q = level_points(more->city, 2000, 9);
+    std::vector<uint8_t> out(q.size());
+    const double light[3] = {10, 8, 90};
+    shadow.occluded_batch(more->level, light, q[0].data(), q.size(), out.data());
+    EXPECT_LT(shadow.instances_met(), shadow.tile_count() * 9);
+}
+
 TEST(Level, SunAnswersEqualTheExactOracle) {
     // Suns over the city: overhead, low, grazing the ground (1e-9 off its plane), exactly along the ground,
     // straight down the walls, and along a diagonal of the grid; points on the surfaces, on the ground and

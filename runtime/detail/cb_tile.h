@@ -89,6 +89,73 @@ struct BoxFilter {
     bool usable;  // false where float could overflow: the points are then tested in double
 };
 
+// A box set up for box_lanes: centre c from the light, half extents h (padded for the box's own rounding) and
+// unit axes a (rows), in double; not usable where float could overflow or fall to subnormals (float_safe,
+// float_tiny of TraversalBase: 1e9, 1e-7).
+inline BoxFilter make_box_filter(const double* c, const double* h, const double (*a)[3]) {
+    BoxFilter b{};
+    const double hs = h[0] + h[1] + h[2], c1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]);
+    b.usable = c1 + hs < 1e9 && c1 + hs > 1e-7;
+    if (!b.usable) return b;
+    for (int k = 0; k < 3; ++k) {
+        double qk = math::dot3(c, a[k]), reach = h[k] + 1e-6 * (hs + c1);
+        b.lo[k] = float(qk - reach);
+        b.hi[k] = float(qk + reach);
+        b.hf[k] = float(h[k]);
+        double wk[3];
+        math::cross3(a[k], c, wk);
+        for (int j = 0; j < 3; ++j) {
+            b.w[k][j] = float(wk[j]);
+            b.ax[k][j] = float(a[k][j]);
+        }
+    }
+    b.tol = float(2e-6 * (hs + c1));
+    return b;
+}
+
+// The points of `subset` whose segment to the light may touch the box of `b` (usable) where a contact could
+// block (from the light to blocking_start of each point's `from`, cb_segment.h: `reach` = 1 - that, in float;
+// 1 takes the whole segment): separating axis tests in float over the subset's lanes (e, the points' offsets
+// from the light, and fd, their distances), on the box's 3 axes and on the segment's direction crossed with each.
+inline uint64_t box_lanes(const BoxFilter& b, uint64_t subset, const float* ex, const float* ey, const float* ez,
+                          const float* fd, const float* reach) {
+    const float(&lo)[3] = b.lo, (&hi)[3] = b.hi, (&hf)[3] = b.hf, (&w)[3][3] = b.w, (&ax)[3][3] = b.ax;
+    const float tol = b.tol;
+    uint32_t begin, end;
+    simd::lane_span(subset, begin, end);
+    uint64_t keep = 0;
+    // Per lane, the smallest margin of the 9 checks (>= 0: no separating axis): on box axis k, the segment's
+    // shadow [min(0, s g), max(0, s g)] (s = reach, the blocking part) must meet [lo, hi]; on e x axis k,
+    // where the segment projects to 0, the box's centre projects to e . (axis k x c) = e . w[k], and its
+    // support is hf[j] |g[m]| + hf[m] |g[j]|. The slack (1e-6 of the distance) holds s's rounding.
+    using simd::Floats;
+    const Floats zero = simd::splat(0.0f), micro = simd::splat(1e-6f), vtol = simd::splat(tol);
+    for (uint32_t i = begin; i < end; i += simd::width) {
+        if (!simd::group(subset, i)) continue;  // no point in these lanes (the subset is often sparse)
+        const Floats x = simd::load(ex + i), y = simd::load(ey + i), z = simd::load(ez + i), d = simd::load(fd + i),
+                     s = simd::load(reach + i);
+        const Floats slack = micro * d;
+        const Floats g[3] = {simd::dot(x, y, z, ax[0][0], ax[0][1], ax[0][2]),
+                             simd::dot(x, y, z, ax[1][0], ax[1][1], ax[1][2]),
+                             simd::dot(x, y, z, ax[2][0], ax[2][1], ax[2][2])};
+        Floats m = simd::splat(INFINITY);
+        for (int k = 0; k < 3; ++k) {
+            const Floats gk = g[k] * s;
+            m = simd::min(m, (simd::splat(hi[k]) + slack) - simd::min(gk, zero));
+            m = simd::min(m, (simd::max(gk, zero) + slack) - simd::splat(lo[k]));
+        }
+        const Floats a[3] = {simd::abs(g[0]), simd::abs(g[1]), simd::abs(g[2])};
+        const Floats td = vtol * d;
+        for (int k = 0; k < 3; ++k) {
+            const int j = (k + 1) % 3, n = (k + 2) % 3;
+            const Floats support = simd::fma(simd::splat(hf[j]), a[n], simd::fma(simd::splat(hf[n]), a[j], td));
+            m = simd::min(m, support - simd::abs(simd::dot(x, y, z, w[k][0], w[k][1], w[k][2])));
+        }
+        keep |= uint64_t(simd::bits(m >= zero)) << i;
+    }
+    return subset & keep;
+}
+
 // A box set up for one sun's float separating-axis test (SunTraversal::box_points): its centre from the
 // scan bounds' origin, its axes, each axis's padded half extent (infinite where the ray runs nearly across
 // it: no test there) with the side the ray heads to (sign) and how far along the axis it has gone at
@@ -551,30 +618,13 @@ protected:
     }
 
     BoxFilter box_filter(const Obb& box) const {
-        BoxFilter b{};
         double h[3], c[3], a[3][3];
         padded_halves(box, h);
         for (int k = 0; k < 3; ++k) {
             c[k] = double(box.center[k]) - light_[k];
             for (int j = 0; j < 3; ++j) a[k][j] = box.axis[k][j];
         }
-        const double hs = h[0] + h[1] + h[2], c1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]);
-        b.usable = c1 + hs < float_safe && c1 + hs > float_tiny;
-        if (!b.usable) return b;
-        for (int k = 0; k < 3; ++k) {
-            double qk = math::dot3(c, a[k]), reach = h[k] + 1e-6 * (hs + c1);
-            b.lo[k] = float(qk - reach);
-            b.hi[k] = float(qk + reach);
-            b.hf[k] = float(h[k]);
-            double wk[3];
-            math::cross3(a[k], c, wk);
-            for (int j = 0; j < 3; ++j) {
-                b.w[k][j] = float(wk[j]);
-                b.ax[k][j] = box.axis[k][j];
-            }
-        }
-        b.tol = float(2e-6 * (hs + c1));
-        return b;
+        return make_box_filter(c, h, a);
     }
 
     // Fine cluster f's box filter.
@@ -592,45 +642,9 @@ protected:
     }
 
     // The points of `subset` whose segment to the light may touch the box of `b` (usable, and the tile small)
-    // where a contact could block (from the light to blocking_start of each point's `from`, cb_segment.h):
-    // separating axis tests in float over the subset's lanes, on the box's 3 axes and on the segment's
-    // direction crossed with each.
+    // where a contact could block (box_lanes over the tile's points).
     static uint64_t box_points(const BoxFilter& b, uint64_t subset, const Tile& t) {
-        const float(&lo)[3] = b.lo, (&hi)[3] = b.hi, (&hf)[3] = b.hf, (&w)[3][3] = b.w, (&ax)[3][3] = b.ax;
-        const float tol = b.tol;
-        uint32_t begin, end;
-        simd::lane_span(subset, begin, end);
-        uint64_t keep = 0;
-        // Per lane, the smallest margin of the 9 checks (>= 0: no separating axis): on box axis k, the segment's
-        // shadow [min(0, s g), max(0, s g)] (s = reach, the blocking part) must meet [lo, hi]; on e x axis k,
-        // where the segment projects to 0, the box's centre projects to e . (axis k x c) = e . w[k], and its
-        // support is hf[j] |g[m]| + hf[m] |g[j]|. The slack (1e-6 of the distance) holds s's rounding.
-        using simd::Floats;
-        const Floats zero = simd::splat(0.0f), micro = simd::splat(1e-6f), vtol = simd::splat(tol);
-        for (uint32_t i = begin; i < end; i += simd::width) {
-            if (!simd::group(subset, i)) continue;  // no point in these lanes (the subset is often sparse)
-            const Floats ex = simd::load(t.ex + i), ey = simd::load(t.ey + i), ez = simd::load(t.ez + i),
-                         d = simd::load(t.fd + i), reach = simd::load(t.reach + i);
-            const Floats slack = micro * d;
-            const Floats g[3] = {simd::dot(ex, ey, ez, ax[0][0], ax[0][1], ax[0][2]),
-                                 simd::dot(ex, ey, ez, ax[1][0], ax[1][1], ax[1][2]),
-                                 simd::dot(ex, ey, ez, ax[2][0], ax[2][1], ax[2][2])};
-            Floats m = simd::splat(INFINITY);
-            for (int k = 0; k < 3; ++k) {
-                const Floats gk = g[k] * reach;
-                m = simd::min(m, (simd::splat(hi[k]) + slack) - simd::min(gk, zero));
-                m = simd::min(m, (simd::max(gk, zero) + slack) - simd::splat(lo[k]));
-            }
-            const Floats a[3] = {simd::abs(g[0]), simd::abs(g[1]), simd::abs(g[2])};
-            const Floats td = vtol * d;
-            for (int k = 0; k < 3; ++k) {
-                const int j = (k + 1) % 3, n = (k + 2) % 3;
-                const Floats support = simd::fma(simd::splat(hf[j]), a[n], simd::fma(simd::splat(hf[n]), a[j], td));
-                m = simd::min(m, support - simd::abs(simd::dot(ex, ey, ez, w[k][0], w[k][1], w[k][2])));
-            }
-            keep |= uint64_t(simd::bits(m >= zero)) << i;
-        }
-        return subset & keep;
+        return box_lanes(b, subset, t.ex, t.ey, t.ez, t.fd, t.reach);
     }
 
     // Tests fine cluster f's triangles for the points of `subset` still alive whose segment may touch its box.
