@@ -754,7 +754,7 @@ private:
         float f[4];            // points: the centre from the light and the grown radius, in float
         bool whole;
         // Points: the world box from the light (box_lanes), far tighter than the sphere about a tall or flat
-        // instance; not usable for a sun, or where float could overflow.
+        // instance; not usable for a sun, a level of one instance, or where float could overflow.
         BoxFilter box;
     };
 
@@ -1004,7 +1004,7 @@ private:
         s.f[1] = float(c[1]);
         s.f[2] = float(c[2]);
         s.f[3] = fr;
-        if (!box.empty()) {
+        if (!box.empty() && level_->instance_count() > 1) {  // one instance: its sphere alone (the box cost more)
             const double axes[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
             double centre[3], half[3];
             for (int k = 0; k < 3; ++k) {
