@@ -116,6 +116,21 @@ std::unique_ptr<CityLevel> city_level(uint32_t buildings, uint64_t seed) {
     return c;
 }
 
+// Every traversal's answers for `light`, one- and two-sided, equal to the exact oracle's; the scan's two-sided
+// ones shadow more than one point in `some` (shadows to get wrong).
+void expect_exact(cb::Level& level, const SceneOracle& oracle, const double* light, const Points& p, size_t some) {
+    for (bool one_sided : {false, true}) {
+        for (cb::Traversal t : all_traversals) {
+            size_t dark = 0;
+            const size_t wrong =
+                disagreements(oracle, light, p, answer(level, light, p, t, one_sided), one_sided, &dark);
+            EXPECT_EQ(wrong, 0u) << "light " << light[0] << "," << light[1] << "," << light[2] << " traversal "
+                                 << int(t) << (one_sided ? " one-sided" : "");
+            if (t == cb::Traversal::scan && !one_sided) EXPECT_GT(dark, p.size() / some);
+        }
+    }
+}
+
 TEST(Level, CityAnswersEqualTheExactOracle) {
     const std::unique_ptr<CityLevel> c = city_level(60, 3);
     const cb::Scene& city = c->city;
@@ -127,20 +142,7 @@ TEST(Level, CityAnswersEqualTheExactOracle) {
     const Points p = level_points(city, 3000, 5);
     const double lights[][3] = {
         {40, 30, 120}, {-500, 20, 30}, {3, -4, 12}, {2000, 1500, 1}};  // overhead, low, inside, grazing
-    for (const auto& light : lights) {
-        for (bool one_sided : {false, true}) {
-            for (cb::Traversal t : all_traversals) {
-                size_t dark = 0;
-                const size_t wrong =
-                    disagreements(oracle, light, p, answer(level, light, p, t, one_sided), one_sided, &dark);
-                EXPECT_EQ(wrong, 0u) << "light " << light[0] << "," << light[1] << "," << light[2] << " traversal "
-                                     << int(t) << (one_sided ? " one-sided" : "");
-                if (t == cb::Traversal::scan && !one_sided) {
-                    EXPECT_GT(dark, p.size() / 50);  // shadows to get wrong
-                }
-            }
-        }
-    }
+    for (const auto& light : lights) expect_exact(level, oracle, light, p, 50);
 }
 
 // A level of at most 8 instances is not culled per tile for a point light: every tile lists every instance, and
@@ -155,18 +157,7 @@ TEST(Level, FewInstancesUnculledAnswerAsTheExactOracle) {
     const Points p = level_points(c->city, 2000, 9);
     const double lights[][3] = {{10, 8, 90}, {-300, 10, 20}, {3, -4, 12}, {900, 700, 1}};
     for (const auto& light : lights) {
-        for (bool one_sided : {false, true}) {
-            for (cb::Traversal t : all_traversals) {
-                size_t dark = 0;
-                const size_t wrong =
-                    disagreements(oracle, light, p, answer(level, light, p, t, one_sided), one_sided, &dark);
-                EXPECT_EQ(wrong, 0u) << "light " << light[0] << "," << light[1] << "," << light[2] << " traversal "
-                                     << int(t) << (one_sided ? " one-sided" : "");
-                if (t == cb::Traversal::scan && !one_sided) {
-                    EXPECT_GT(dark, p.size() / 100);  // shadows to get wrong
-                }
-            }
-        }
+        expect_exact(level, oracle, light, p, 100);
         cb::LevelShadow shadow;
         std::vector<uint8_t> out(p.size());
         shadow.occluded_batch(level, light, p[0].data(), p.size(), out.data());
