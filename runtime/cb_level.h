@@ -933,13 +933,14 @@ private:
     }
 
     // The tile's points from the light in float (lanes past `count` and irregular points: distance -1, in no
-    // sphere); returns the regular ones, whose distance lies between the float filters' bounds
-    // (TraversalBase::float_tiny and float_safe, 1e-7 and 1e9).
+    // sphere); returns the regular ones, whose distance lies between the float filters' bounds (float_tiny
+    // and float_safe, cb_tile.h).
     uint64_t directions(const uint32_t* index, uint32_t count, float* ex, float* ey, float* ez, float* fd) const {
         alignas(64) double e[3][tile_capacity], dist[tile_capacity];
         offsets(index, count, e, dist);
         using simd::Doubles;
-        const Doubles zero = simd::dsplat(0), unset = simd::dsplat(-1), lo = simd::dsplat(1e-7), hi = simd::dsplat(1e9);
+        const Doubles zero = simd::dsplat(0), unset = simd::dsplat(-1), lo = simd::dsplat(float_tiny),
+                      hi = simd::dsplat(float_safe);
         const uint64_t lanes = tile_lanes(count);
         uint64_t regular = 0;
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
@@ -996,7 +997,7 @@ private:
         }
         const double c[3] = {sphere[0] - light_[0], sphere[1] - light_[1], sphere[2] - light_[2]}, r = sphere[3];
         const double d1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]), grown = r + 2e-5 * (r + d1);
-        s.whole = !(d1 + grown < 1e9 && d1 + grown > 1e-7);
+        s.whole = !(d1 + grown < float_safe && d1 + grown > float_tiny);
         if (s.whole) return s;
         float fr = float(grown);
         if (double(fr) < grown) fr = std::nextafter(fr, INFINITY);
@@ -1045,7 +1046,7 @@ private:
         const uint64_t finite = offsets(index, count, e, dist);  // a point not finite is never in shadow
         // By the light, or beyond what a pyramid holds well: alone; at the light (no length): neither.
         using simd::Doubles;
-        const Doubles zero = simd::dsplat(0), one = simd::dsplat(1), tiny = simd::dsplat(1e-7),
+        const Doubles zero = simd::dsplat(0), one = simd::dsplat(1), tiny = simd::dsplat(float_tiny),
                       huge = simd::dsplat(1e30);
         const uint64_t lanes = tile_lanes(count);
         uint64_t taken = 0, alone = 0;

@@ -541,7 +541,6 @@ private:
     double inverse_[12] = {}, toward_[3] = {}, world_toward_[3] = {}, frame_[3][3] = {}, from_ = 0;
     double start_ = 0;  // blocking_start(from_) along the unit direction frame_[0]
     bool usable_ = false, one_sided_ = false, spheres_ = false, boxes_small_ = false;
-    static constexpr double float_safe = 1e9;  // sizes below which the float box filter cannot overflow
     const ScanBounds* shared_bounds_ = nullptr;
     ScanBounds own_bounds_;
     std::vector<SunBox> coarse_boxes_;     // the coarse boxes set up for box_points (when boxes_small_)

@@ -89,13 +89,20 @@ struct BoxFilter {
     bool usable;  // false where float could overflow: the points are then tested in double
 };
 
+// Sizes (distances, coordinates from the light) below which the float filters cannot overflow: their largest
+// terms are products of four such sizes.
+constexpr double float_safe = 1e9;
+// And sizes above which their margins stay far above the absolute rounding of results that fall to float's
+// subnormals (1e-45): points nearer the light walk alone (in double), boxes and spheres that lie wholly within
+// this of it are not filtered in float.
+constexpr double float_tiny = 1e-7;
+
 // A box set up for box_lanes: centre c from the light, half extents h (padded for the box's own rounding) and
-// unit axes a (rows), in double; not usable where float could overflow or fall to subnormals (float_safe,
-// float_tiny of TraversalBase: 1e9, 1e-7).
+// unit axes a (rows), in double; not usable where float could overflow or fall to subnormals.
 inline BoxFilter make_box_filter(const double* c, const double* h, const double (*a)[3]) {
     BoxFilter b{};
     const double hs = h[0] + h[1] + h[2], c1 = std::fabs(c[0]) + std::fabs(c[1]) + std::fabs(c[2]);
-    b.usable = c1 + hs < 1e9 && c1 + hs > 1e-7;
+    b.usable = c1 + hs < float_safe && c1 + hs > float_tiny;
     if (!b.usable) return b;
     for (int k = 0; k < 3; ++k) {
         double qk = math::dot3(c, a[k]), reach = h[k] + 1e-6 * (hs + c1);
@@ -302,14 +309,6 @@ public:
     size_t capsules() const { return capsules_; }         // volumes taken as capsule-cones (metric trees)
 
 protected:
-    // Sizes (distances, coordinates from the light) below which the float filters cannot overflow: their
-    // largest terms are products of four such sizes.
-    static constexpr double float_safe = 1e9;
-    // And sizes above which their margins stay far above the absolute rounding of results that fall to
-    // float's subnormals (1e-45): points nearer the light walk alone (in double), boxes and spheres that lie
-    // wholly within this of it are not filtered in float.
-    static constexpr double float_tiny = 1e-7;
-
     struct Query {
         double p[3], e[3], dist, from;  // from: where contacts start to count (shadow_from, in world space)
         QueryStats* stats;
