@@ -37,6 +37,8 @@ CliRun run(const std::string& args, const std::string& pipe_from = "") {
     };
     r.out = slurp(out);
     r.err = slurp(err);
+    std::filesystem::remove(out);
+    std::filesystem::remove(err);
     return r;
 }
 
@@ -77,6 +79,7 @@ TEST(Cli, BadInputGivesOneLineAndExitCode2) {
     CliRun unknown = run("info " + std::string(CB_SOURCE_DIR) + "/README.md");
     EXPECT_EQ(unknown.code, 2);
     EXPECT_NE(unknown.err.find("unknown file type"), std::string::npos);
+    std::filesystem::remove(bad);
 }
 
 TEST(Cli, GoodAndBadFilesTogether) {
@@ -124,6 +127,8 @@ TEST(Cli, FailedClusterLeavesTheOutputUntouched) {
     EXPECT_EQ(v.code, 2);
     EXPECT_NE(v.err.find("too small"), std::string::npos) << v.err;
     EXPECT_EQ(run("cluster " + data("small/cube.obj") + " --method nonsense -o " + out.string()).code, 2);
+    std::filesystem::remove(out);
+    std::filesystem::remove(bad);
 }
 
 TEST(Cli, AssetIsByteIdenticalForAnyThreadCount) {

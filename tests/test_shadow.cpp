@@ -38,6 +38,23 @@ int cgal_orient(const double* a, const double* b, const double* c, const double*
     return -int(o);
 }
 
+// Values of T for the lane tests: one in `special_in` of zeros, infinities, NaN or 1 (lane i takes the i-th
+// modulo 6), else a mantissa in (-1, 1) scaled by 2^e, e drawn from [lowest, highest].
+template <class T>
+struct LaneValues {
+    std::mt19937_64 rng;
+    int special_in;
+    std::uniform_real_distribution<T> mantissa{-1, 1};
+    std::uniform_int_distribution<int> order;
+    LaneValues(uint64_t seed, int special_in, int lowest, int highest)
+        : rng(seed), special_in(special_in), order(lowest, highest) {}
+    T operator()(uint32_t i) {
+        const T special[6] = {T(0), -T(0), T(INFINITY), -T(INFINITY), T(NAN), T(1)};
+        if (rng() % special_in == 0) return special[i % 6];
+        return std::ldexp(mantissa(rng), order(rng));
+    }
+};
+
 }  // namespace
 
 // Each test build runs the filters on the lanes it was meant for (tests/CMakeLists.txt), so every width is
@@ -57,13 +74,8 @@ TEST(Lanes, BuiltForTheIntendedWidth) {
 TEST(Lanes, DoubleLanesGiveTheScalarBits) {
     using cb::simd::Doubles;
     constexpr uint32_t w = cb::simd::dwidth;
-    std::mt19937_64 rng(7);
-    std::uniform_real_distribution<double> mantissa(-1, 1);
-    std::uniform_int_distribution<int> order(-300, 300);
-    auto draw = [&](uint32_t i) {
-        if (rng() % 16 == 0) return std::vector<double>{0.0, -0.0, INFINITY, -INFINITY, NAN, 1.0}[i % 6];
-        return std::ldexp(mantissa(rng), order(rng));
-    };
+    LaneValues<double> draw(7, 16, -300, 300);
+    std::mt19937_64& rng = draw.rng;
     auto same = [](double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0 || (a != a && b != b); };
     for (int round = 0; round < 2000; ++round) {
         alignas(64) double a[w], b[w], c[w], out[w];
@@ -103,13 +115,7 @@ TEST(Lanes, DoubleLanesGiveTheScalarBits) {
 TEST(Lanes, FloatSelectAndSwappedMaxGiveTheScalarBits) {
     using cb::simd::Floats;
     constexpr uint32_t w = cb::simd::width;
-    std::mt19937_64 rng(11);
-    std::uniform_real_distribution<float> mantissa(-1, 1);
-    std::uniform_int_distribution<int> order(-140, 120);
-    auto draw = [&](uint32_t i) {
-        if (rng() % 8 == 0) return std::vector<float>{0.0f, -0.0f, INFINITY, -INFINITY, NAN, 1.0f}[i % 6];
-        return std::ldexp(mantissa(rng), order(rng));
-    };
+    LaneValues<float> draw(11, 8, -140, 120);
     auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; };
     for (int round = 0; round < 2000; ++round) {
         alignas(64) float a[w], b[w], out[w];
