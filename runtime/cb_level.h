@@ -91,6 +91,60 @@ inline Box transform_box(const Box& local, const double* m) {
     return out;
 }
 
+// A box in world space along three unit axes (rows), in double: centre c, half extents h; empty when h[0] is
+// below 0 (it meets nothing).
+struct OrientedBox {
+    double c[3] = {0, 0, 0}, h[3] = {-1, -1, -1}, axis[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    bool empty() const { return !(h[0] >= 0); }
+};
+
+// The box about the mesh-frame box `local` under `m` (column-major 3x4) along m's columns made orthonormal
+// (u0 along the first, u1 in the plane of the first two): on each axis u the half extent is the sum over
+// local axes k of h_k |u . m_k|, which holds the placed box whatever m is (sheared too) and is tight for a
+// rotation with scales; widened by 1e-9 of its size and distance from the origin, as transform_box is. Where
+// the axes come out further than 1e-12 from orthonormal (a nearly singular shear), the world axes. Empty
+// where transform_box's box is.
+inline OrientedBox orient_box(const Box& local, const double* m) {
+    OrientedBox out;
+    double inverse[12];
+    if (local.empty() || !invert_instance(m, inverse)) return out;
+    double c[3], h[3];
+    for (int k = 0; k < 3; ++k) {
+        c[k] = 0.5 * (local.lo[k] + local.hi[k]);
+        h[k] = 0.5 * (local.hi[k] - local.lo[k]);
+    }
+    apply_instance(m, c, out.c);
+    double(&u)[3][3] = out.axis;
+    const double* col[3] = {m, m + 3, m + 6};
+    const double l0 = std::sqrt(math::dot3(col[0], col[0]));
+    const double along = math::dot3(col[1], col[0]) / (l0 * l0);
+    double v[3];
+    for (int k = 0; k < 3; ++k) {
+        u[0][k] = col[0][k] / l0;
+        v[k] = col[1][k] - along * col[0][k];
+    }
+    const double l1 = std::sqrt(math::dot3(v, v));
+    for (int k = 0; k < 3; ++k) u[1][k] = v[k] / l1;
+    math::cross3(u[0], u[1], u[2]);
+    bool orthonormal = true;
+    for (int a = 0; a < 3; ++a)
+        for (int b = a; b < 3; ++b)
+            orthonormal = orthonormal && std::fabs(math::dot3(u[a], u[b]) - (a == b ? 1.0 : 0.0)) < 1e-12;
+    if (!orthonormal)
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) u[a][b] = a == b ? 1.0 : 0.0;
+    double size = 0;
+    for (int a = 0; a < 3; ++a) {
+        out.h[a] = 0;
+        for (int k = 0; k < 3; ++k) out.h[a] += h[k] * std::fabs(math::dot3(u[a], col[k]));
+        size += std::fabs(out.c[a]) + out.h[a] + std::fabs(m[9 + a]);
+    }
+    const double pad = 1e-9 * size;
+    if (!(pad < INFINITY)) return OrientedBox();
+    for (double& x : out.h) x += pad;
+    return out;
+}
+
 // False only when the segment from p to q certainly misses the box (slabs, in double, widened by 1e-9 of
 // the sizes involved).
 inline bool segment_meets_box(const double* p, const double* q, const Box& b) {
@@ -407,11 +461,13 @@ public:
             : default_shadow_bias(box_size(nodes_[0].box.lo, nodes_[0].box.hi));
     }
 
-    // The sphere about instance `handle`'s world box: centre x, y, z and radius (INFINITY beyond double's
+    // The sphere about instance `handle`'s oriented box: centre x, y, z and radius (INFINITY beyond double's
     // range), made when the instance is placed.
     const double* world_sphere(uint32_t handle) const { return instances_[handle].sphere; }
     // Instance `handle`'s world box, made when the instance is placed (empty: it blocks nothing).
     const level_detail::Box& world_box(uint32_t handle) const { return instances_[handle].box; }
+    // And its box along its transform's axes (orient_box), tighter about a turned instance.
+    const level_detail::OrientedBox& oriented_box(uint32_t handle) const { return instances_[handle].oriented; }
 
     // Where instance `handle` is, for a traversal's build.
     Placement placement(uint32_t handle) const { return {instances_[handle].mesh, instances_[handle].transform}; }
@@ -430,7 +486,8 @@ private:
         bool alive = false;
         double transform[12] = {};
         level_detail::Box box;  // in world space
-        double sphere[4] = {};  // about the box: centre, radius
+        level_detail::OrientedBox oriented;
+        double sphere[4] = {};  // about the oriented box: centre, radius
     };
     // A node of the hierarchy: an inner node's children are nodes first and first + 1; a leaf holds the
     // instances items_[first, first + count).
@@ -444,16 +501,17 @@ private:
     void place(uint32_t h, const double* transform) {
         Instance& i = instances_[h];
         std::copy(transform, transform + 12, i.transform);
-        i.box = level_detail::transform_box(assets_[i.asset].mesh_boxes[i.mesh], i.transform);
+        const level_detail::Box& local = assets_[i.asset].mesh_boxes[i.mesh];
+        i.box = level_detail::transform_box(local, i.transform);
+        i.oriented = level_detail::orient_box(local, i.transform);
         if (position_[h] != none) item_boxes_[position_[h]] = i.box;
         double r2 = 0;
         for (int k = 0; k < 3; ++k) {
-            i.sphere[k] = 0.5 * (i.box.lo[k] + i.box.hi[k]);
-            const double h = 0.5 * (i.box.hi[k] - i.box.lo[k]);
-            r2 += h * h;
+            i.sphere[k] = i.oriented.c[k];
+            r2 += i.oriented.h[k] * i.oriented.h[k];
         }
         const double radius = std::sqrt(r2) * (1 + 1e-12);
-        i.sphere[3] = radius < INFINITY ? radius : INFINITY;
+        i.sphere[3] = i.oriented.empty() ? 0.0 : radius < INFINITY ? radius : INFINITY;
     }
 
     // Top-down, median splits on the longest axis of the boxes' centres (ties by handle: deterministic).
@@ -652,7 +710,7 @@ public:
         o.scratch = scratch;
         for (size_t i = first; i < last; ++i) {
             const uint32_t h = needed_[i];
-            spheres_[i] = light_sphere(level_->world_sphere(h), level_->world_box(h));
+            spheres_[i] = light_sphere(level_->world_sphere(h), level_->oriented_box(h));
             o.bounds = level_->scan_bounds(level_->asset_of(h));
             if (sun_)
                 shadows_[i].build_sun(level_->asset(level_->asset_of(h)), level_->placement(h), light_, o);
@@ -984,7 +1042,7 @@ private:
     // radius grown by 2e-5 of itself and of the centre's distance, as the scan's spheres are, and rounded up to
     // float; past the float test's range (lit_sphere_points) every point enters. For a sun, the centre in the
     // sun's frame.
-    LightSphere light_sphere(const double* sphere, const level_detail::Box& box) const {
+    LightSphere light_sphere(const double* sphere, const level_detail::OrientedBox& box) const {
         LightSphere s{};
         s.r = sphere[3];
         if (sun_) {
@@ -1006,13 +1064,8 @@ private:
         s.f[2] = float(c[2]);
         s.f[3] = fr;
         if (!box.empty() && level_->instance_count() > 1) {  // one instance: its sphere alone (the box cost more)
-            const double axes[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-            double centre[3], half[3];
-            for (int k = 0; k < 3; ++k) {
-                centre[k] = 0.5 * (box.lo[k] + box.hi[k]) - light_[k];
-                half[k] = 0.5 * (box.hi[k] - box.lo[k]);
-            }
-            s.box = make_box_filter(centre, half, axes);
+            const double centre[3] = {box.c[0] - light_[0], box.c[1] - light_[1], box.c[2] - light_[2]};
+            s.box = make_box_filter(centre, box.h, box.axis);
         }
         return s;
     }

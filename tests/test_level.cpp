@@ -299,6 +299,72 @@ TEST(Level, MovesAndRemovalsAloneRefitTheHierarchyAsARebuildWould) {
     }
 }
 
+// An instance's oriented box (orient_box) holds every corner of its mesh box under turned, scaled, mirrored,
+// sheared and far transforms, is about half the volume of the world box for a box turned by 45 degrees about
+// z, and falls back to the world axes for a shear so strong its axes cannot be made orthonormal in double.
+TEST(Level, OrientedBoxesHoldThePlacedMeshBox) {
+    cb::level_detail::Box local;
+    for (int k = 0; k < 3; ++k) {
+        local.lo[k] = -1.0 - k;
+        local.hi[k] = 2.0 + 3 * k;
+    }
+    std::mt19937_64 rng(17);
+    std::uniform_real_distribution<double> u(-1, 1);
+    auto holds = [&](const cb::level_detail::OrientedBox& b, const double* m) {
+        for (int corner = 0; corner < 8; ++corner) {
+            const double q[3] = {corner & 1 ? local.hi[0] : local.lo[0], corner & 2 ? local.hi[1] : local.lo[1],
+                                 corner & 4 ? local.hi[2] : local.lo[2]};
+            double w[3];
+            cb::apply_instance(m, q, w);
+            for (int a = 0; a < 3; ++a) {
+                double along = 0;
+                for (int k = 0; k < 3; ++k) along += (w[k] - b.c[k]) * b.axis[a][k];
+                if (!(std::fabs(along) <= b.h[a])) return false;
+            }
+        }
+        return true;
+    };
+    for (int round = 0; round < 2000; ++round) {
+        const double angle = 3.2 * u(rng), scale = std::exp2(8 * u(rng)), far = round % 4 == 0 ? 1e7 : 10.0;
+        double m[12] = {std::cos(angle) * scale,
+                        std::sin(angle) * scale,
+                        0,
+                        -std::sin(angle),
+                        std::cos(angle),
+                        0,
+                        0,
+                        0,
+                        1,
+                        far * u(rng),
+                        far * u(rng),
+                        far * u(rng)};
+        if (round % 3 == 1) m[6] = -1.5 * m[6] + 0.7 * u(rng);  // mirrored, leaning
+        if (round % 5 == 2)
+            for (int k = 0; k < 9; ++k) m[k] += 0.4 * u(rng);  // any linear part
+        const cb::level_detail::OrientedBox b = cb::level_detail::orient_box(local, m);
+        ASSERT_FALSE(b.empty()) << round;
+        EXPECT_TRUE(holds(b, m)) << round;
+    }
+    const double s = std::sqrt(0.5);
+    const double turned[12] = {s, s, 0, -s, s, 0, 0, 0, 1, 5, 5, 5};
+    const cb::level_detail::OrientedBox b = cb::level_detail::orient_box(local, turned);
+    const cb::level_detail::Box world = cb::level_detail::transform_box(local, turned);
+    double volume = 1, world_volume = 1;
+    for (int k = 0; k < 3; ++k) {
+        volume *= b.h[k];
+        world_volume *= 0.5 * (world.hi[k] - world.lo[k]);
+    }
+    EXPECT_LT(volume, 0.55 * world_volume);
+    // y axis all but along x: Gram-Schmidt's difference keeps a few bits (its axes 8e-4 from orthogonal)
+    const double sheared[12] = {1, 0.3, 0.2, 1 + 1e-13, 0.3 - 2e-13, 0.2 + 3e-13, 0, 0, 1, 0, 0, 0};
+    const cb::level_detail::OrientedBox f = cb::level_detail::orient_box(local, sheared);
+    for (int a = 0; a < 3; ++a)
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(f.axis[a][k], a == k ? 1.0 : 0.0);
+    EXPECT_TRUE(holds(f, sheared));
+    const double flat[12] = {1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0};
+    EXPECT_TRUE(cb::level_detail::orient_box(local, flat).empty());
+}
+
 TEST(Level, SingularAndFarInstancesBlockNothingOrAnswerExactly) {
     // A flattened instance blocks nothing, and a level 1e7 from the origin answers as the oracle does.
     cb::Scene towers;
