@@ -62,6 +62,18 @@ struct Box {
     }
 };
 
+// The centre and half extents of the mesh-frame box `local`; false when it is empty or `m` is singular or not
+// finite (placed so, it blocks nothing).
+inline bool placed_halves(const Box& local, const double* m, double* c, double* h) {
+    double inverse[12];
+    if (local.empty() || !invert_instance(m, inverse)) return false;
+    for (int k = 0; k < 3; ++k) {
+        c[k] = 0.5 * (local.lo[k] + local.hi[k]);
+        h[k] = 0.5 * (local.hi[k] - local.lo[k]);
+    }
+    return true;
+}
+
 // The world box of the mesh-frame box `local` under `m` (column-major 3x4): centre moved, half extents
 // through |M|, then widened by 1e-9 of its size and distance from the origin, far above the rounding of
 // these sums and of the inverse transform that the queries apply (so a contact the exact mesh-frame test
@@ -69,13 +81,8 @@ struct Box {
 // nothing) or the mesh has no vertex.
 inline Box transform_box(const Box& local, const double* m) {
     Box out;
-    double inverse[12];
-    if (local.empty() || !invert_instance(m, inverse)) return out;
     double c[3], h[3];
-    for (int k = 0; k < 3; ++k) {
-        c[k] = 0.5 * (local.lo[k] + local.hi[k]);
-        h[k] = 0.5 * (local.hi[k] - local.lo[k]);
-    }
+    if (!placed_halves(local, m, c, h)) return out;
     double wc[3], wh[3], size = 0;
     apply_instance(m, c, wc);
     for (int k = 0; k < 3; ++k) {
@@ -106,13 +113,8 @@ struct OrientedBox {
 // where transform_box's box is.
 inline OrientedBox orient_box(const Box& local, const double* m) {
     OrientedBox out;
-    double inverse[12];
-    if (local.empty() || !invert_instance(m, inverse)) return out;
     double c[3], h[3];
-    for (int k = 0; k < 3; ++k) {
-        c[k] = 0.5 * (local.lo[k] + local.hi[k]);
-        h[k] = 0.5 * (local.hi[k] - local.lo[k]);
-    }
+    if (!placed_halves(local, m, c, h)) return out;
     apply_instance(m, c, out.c);
     double(&u)[3][3] = out.axis;
     const double* col[3] = {m, m + 3, m + 6};
@@ -719,43 +721,46 @@ public:
         }
     }
 
-    // Words of scratch occluded() needs: the deepest built structure's stack and a TileCache.
-    size_t scratch_size() const { return ordered_scratch_size(shadows_.data(), built_count_); }
+    // Words of scratch occluded() needs: the deepest built structure's stack, a TileCache and the deferred
+    // entries (Deferred).
+    size_t scratch_size() const {
+        const size_t deferred = sizeof(Deferred) + alignof(Deferred);
+        return ordered_scratch_size(shadows_.data(), built_count_) +
+            (deferred + sizeof(uint32_t) - 1) / sizeof(uint32_t);
+    }
 
-    // Tiles [first, last): out[i] = 1 when point i is in shadow, 0 otherwise.
+    // Tiles [first, last): out[i] = 1 when point i is in shadow, 0 otherwise. Each tile's points enter the
+    // instances it lists, nearest first, until one shadows them, and only those their segment may meet. An
+    // instance entered by few of a tile's points (at most Deferred::sparse) is put off, the points going on
+    // down the list: once the chunk's tiles are done, each such instance answers the points of all its
+    // entries still lit at once, in tiles of up to 64 of them. An instance's set-up per tile (frame, pyramid,
+    // coarse scan) is most of the cost of a few points, and on a large level a tile meets tens of instances,
+    // most entered by a few of its points.
     void occluded(size_t first, size_t last, uint8_t* out, uint32_t* scratch, QueryStats* stats = nullptr) const {
         uint32_t* stack = scratch;
         const uintptr_t at =
             reinterpret_cast<uintptr_t>(stack + detail::batch_stack_size(shadows_.data(), built_count_));
-        TileCache* cache =
-            new (reinterpret_cast<void*>((at + alignof(TileCache) - 1) / alignof(TileCache) * alignof(TileCache)))
-                TileCache;
+        const uintptr_t cache_at = (at + alignof(TileCache) - 1) / alignof(TileCache) * alignof(TileCache);
+        TileCache* cache = new (reinterpret_cast<void*>(cache_at)) TileCache;
         cache->clear();
-        alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];
-        alignas(64) float whole[tile_capacity];  // box_lanes over the whole segment
-        std::fill(whole, whole + tile_capacity, 1.0f);
-        double across[tile_capacity][3];
-        SunTile sun_tile;
-        for (size_t t = first; t < last; ++t) {
-            const size_t begin = t * tile_capacity;
-            const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
-            const uint32_t* index = order_.data() + begin;
-            uint64_t alive = tile_lanes(count), shadowed = 0;
-            const uint64_t regular = sun_ ? sun_across(index, count, across) : directions(index, count, ex, ey, ez, fd);
-            if (sun_) sun_tile.make(across, regular);
-            for (uint64_t slot : tile_lists_[t]) {
-                if (!alive) break;
-                // Only the points whose segment may meet the instance's sphere and box enter it: an instance's
-                // set-up per tile costs per point.
-                const uint64_t in = alive &
-                    (sun_ ? sun_instance_points(spheres_[slot], regular, count, across, sun_tile)
-                          : instance_points(spheres_[slot], regular, ex, ey, ez, fd, whole));
-                if (!in) continue;
-                const uint64_t s = shadows_[slot].occluded_tile(points_, index, count, in, stack, stats, cache);
-                shadowed |= s;
-                alive &= ~s;
+        const uintptr_t deferred_at =
+            (cache_at + sizeof(TileCache) + alignof(Deferred) - 1) / alignof(Deferred) * alignof(Deferred);
+        Deferred& d = *new (reinterpret_cast<void*>(deferred_at)) Deferred;
+        Walk w{d, stack, stats, cache, 0};
+        for (size_t c = first; c < last; c += Deferred::chunk) {
+            const size_t chunk_end = std::min(last, c + Deferred::chunk);
+            w.first_tile = c;
+            d.count = 0;
+            for (size_t t = c; t < chunk_end; ++t) {
+                d.shadowed[t - c] = 0;
+                walk(w, uint32_t(t - c));
             }
-            for (uint32_t i = 0; i < count; ++i) out[index[i]] = uint8_t(shadowed >> i & 1);
+            answer_deferred(w);
+            for (size_t t = c; t < chunk_end; ++t) {
+                const uint32_t* index = order_.data() + t * tile_capacity;
+                for (uint32_t i = 0, count = tile_count_at(t); i < count; ++i)
+                    out[index[i]] = uint8_t(d.shadowed[t - c] >> i & 1);
+            }
         }
     }
 
@@ -804,6 +809,106 @@ public:
 
 private:
     static constexpr uint32_t none = 0xffffffffu;
+
+    // Entries put off in a chunk of tiles (occluded): entry i, the instance of slot key[i] >> 32 entered by
+    // points in[i] of the chunk's tile tile[i] (key's low word: i, so that a sort by key keeps each instance's
+    // entries in tile order); and each tile's points found in shadow.
+    struct Deferred {
+        static constexpr uint32_t chunk = 256;      // tiles
+        static constexpr uint32_t sparse = 32;      // an instance entered by at most this many points is put off
+        static constexpr uint32_t capacity = 4096;  // entries held (when full, they are answered)
+        uint32_t count = 0;
+        uint64_t key[capacity], in[capacity];
+        uint32_t tile[capacity];
+        uint64_t shadowed[chunk];
+    };
+    struct Walk {
+        Deferred& d;
+        uint32_t* stack;
+        QueryStats* stats;
+        TileCache* cache;
+        size_t first_tile;  // the chunk's
+    };
+
+    uint32_t tile_count_at(size_t t) const { return uint32_t(std::min<size_t>(tile_capacity, n_ - t * tile_capacity)); }
+
+    // The points of the chunk's tile `tile` down its list: each instance entered by many of them answers them
+    // now, one entered by few is put off to answer_deferred.
+    void walk(Walk& w, uint32_t tile) const {
+        const size_t t = w.first_tile + tile;
+        const level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
+        alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];
+        alignas(64) float whole[tile_capacity];  // box_lanes over the whole segment
+        std::fill(whole, whole + tile_capacity, 1.0f);
+        double across[tile_capacity][3];
+        SunTile sun_tile;
+        const uint32_t count = tile_count_at(t);
+        const uint32_t* index = order_.data() + t * tile_capacity;
+        uint64_t alive = tile_lanes(count);
+        const uint64_t regular = sun_ ? sun_across(index, count, across) : directions(index, count, ex, ey, ez, fd);
+        if (sun_) sun_tile.make(across, regular);
+        Deferred& d = w.d;
+        for (uint64_t slot : list) {
+            if (!alive) break;
+            // Only the points whose segment may meet the instance's sphere and box enter it.
+            const uint64_t in = alive &
+                (sun_ ? sun_instance_points(spheres_[slot], regular, count, across, sun_tile)
+                      : instance_points(spheres_[slot], regular, ex, ey, ez, fd, whole));
+            if (!in) continue;
+            if (math::bit_count(uint32_t(in)) + math::bit_count(uint32_t(in >> 32)) <= Deferred::sparse) {
+                if (d.count == Deferred::capacity) {  // full: those put off so far are answered first
+                    answer_deferred(w);
+                    alive &= ~d.shadowed[tile];
+                    if (!(in & alive)) continue;
+                }
+                d.key[d.count] = slot << 32 | d.count;
+                d.tile[d.count] = tile;
+                d.in[d.count++] = in & alive;
+                continue;
+            }
+            const uint64_t s = shadows_[slot].occluded_tile(points_, index, count, in, w.stack, w.stats, w.cache);
+            d.shadowed[tile] |= s;
+            alive &= ~s;
+        }
+    }
+
+    // Answers the entries put off, instance by instance: the points of its entries still lit gathered into
+    // tiles of up to 64.
+    void answer_deferred(Walk& w) const {
+        Deferred& d = w.d;
+        const uint32_t waiting = d.count;
+        std::sort(d.key, d.key + waiting);
+        uint32_t packed[tile_capacity];
+        uint16_t lane_entry[tile_capacity];
+        uint8_t lane_point[tile_capacity];
+        for (uint32_t e = 0; e < waiting;) {
+            const uint32_t slot = uint32_t(d.key[e] >> 32);
+            uint32_t n = 0;
+            auto answer = [&] {
+                const uint64_t s =
+                    shadows_[slot].occluded_tile(points_, packed, n, tile_lanes(n), w.stack, w.stats, w.cache);
+                for (uint64_t bits = s; bits; bits &= bits - 1) {
+                    const uint32_t i = math::lowest_bit(bits), entry = lane_entry[i];
+                    const uint64_t bit = uint64_t(1) << lane_point[i];
+                    d.shadowed[d.tile[entry]] |= bit;
+                }
+                n = 0;
+            };
+            for (; e < waiting && uint32_t(d.key[e] >> 32) == slot; ++e) {
+                const uint32_t i = uint32_t(d.key[e]);
+                const uint32_t* index = order_.data() + (w.first_tile + d.tile[i]) * tile_capacity;
+                for (uint64_t bits = d.in[i] & ~d.shadowed[d.tile[i]]; bits; bits &= bits - 1) {
+                    const uint32_t p = math::lowest_bit(bits);
+                    packed[n] = index[p];
+                    lane_entry[n] = uint16_t(i);
+                    lane_point[n] = uint8_t(p);
+                    if (++n == tile_capacity) answer();
+                }
+            }
+            if (n) answer();
+        }
+        d.count = 0;
+    }
 
     // An instance's bounding sphere as the tiles test it for this light (instance_points, sun_instance_points):
     // `whole` when every point must enter the instance, the tests' range exceeded.

@@ -434,6 +434,51 @@ TEST(Level, ShadowsSettleAsTheLightMovesAway) {
     EXPECT_GT(share[3], share[5] - 0.01);              // nothing lost on the way out
 }
 
+// A field of 4,096 small towers (one mesh, turned) under a low light from its side and a light inside it:
+// a tile meets tens of instances, most entered by a few of its points, which are put off and answered with
+// other tiles' points, more of them than are held at once (so some are answered while the tiles go on).
+// Every answer equals the level's reference query, in one batch and in ranges of tiles.
+TEST(Level, InstancesEnteredByFewPointsAnswerAsTheReference) {
+    cb::Scene field;
+    field.meshes.push_back(cb::generate::tower("t", 1.0, 1.0, 2.0, 1));
+    field.instances.push_back({0, cb::identity_transform(), "t"});
+    const cb::test::Baked baked = cb::test::bake_scene(field);
+    cb::Level level;
+    const uint32_t asset = level.add_asset(baked.view);
+    for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 64; ++x) {
+            const double turn = 0.1 * ((x * 5 + y * 3) % 16), c = std::cos(turn), s = std::sin(turn);
+            const double m[12] = {c, s, 0, -s, c, 0, 0, 0, 1, 3.0 * x, 3.0 * y, 0};
+            level.add_instance(asset, 0, m);
+        }
+    level.commit();
+    Points p;  // on the ground and up to the towers' height, in rows as a camera sees them
+    for (int y = 0; y < 200; ++y)
+        for (int x = 0; x < 200; ++x)
+            p.push_back({0.96 * x, 0.96 * y, (x * 7 + y * 3) % 5 == 0 ? 0.0 : 0.2 * ((x * 13 + y * 17) % 11)});
+    const double bias = level.shadow_bias();
+    for (const std::array<double, 3>& light : {std::array<double, 3>{-40, 70, 1.5}, std::array<double, 3>{97, 95, 3}}) {
+        const std::vector<uint8_t> got = answer(level, light.data(), p, cb::Traversal::scan, false);
+        size_t wrong = 0, dark = 0;
+        for (size_t i = 0; i < p.size(); ++i) {
+            const bool expect = cb::occluded_reference(level, p[i].data(), light.data(), bias);
+            wrong += got[i] != uint8_t(expect);
+            dark += expect;
+        }
+        EXPECT_EQ(wrong, 0u) << light[0];
+        EXPECT_GT(dark, p.size() / 4) << light[0];
+        cb::LevelShadow shadow;  // the same in ranges of 3 tiles
+        shadow.begin(level, light.data(), p[0].data(), p.size());
+        shadow.cull(0, shadow.tile_count());
+        shadow.build(0, shadow.gather());
+        std::vector<uint32_t> scratch(shadow.scratch_size());
+        std::vector<uint8_t> ranged(p.size(), 2);
+        for (size_t t = 0; t < shadow.tile_count(); t += 3)
+            shadow.occluded(t, std::min(t + 3, shadow.tile_count()), ranged.data(), scratch.data());
+        EXPECT_EQ(ranged, got) << light[0];
+    }
+}
+
 TEST(Level, ConcurrentQueriesFromEightThreadsGiveTheSingleThreadedAnswers) {
     const std::unique_ptr<CityLevel> c = city_level(200, 4);
     const cb::Scene& city = c->city;
