@@ -877,7 +877,9 @@ private:
     void answer_deferred(Walk& w) const {
         Deferred& d = w.d;
         const uint32_t waiting = d.count;
-        std::sort(d.key, d.key + waiting);
+        // A comparator of this namespace's own, as cull_tile's (std::sort of plain integers would be one
+        // instance shared with code built for other lanes).
+        std::sort(d.key, d.key + waiting, [](uint64_t a, uint64_t b) { return a < b; });
         uint32_t packed[tile_capacity];
         uint16_t lane_entry[tile_capacity];
         uint8_t lane_point[tile_capacity];
