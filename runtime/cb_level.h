@@ -746,7 +746,9 @@ public:
         const uintptr_t deferred_at =
             (cache_at + sizeof(TileCache) + alignof(Deferred) - 1) / alignof(Deferred) * alignof(Deferred);
         Deferred& d = *new (reinterpret_cast<void*>(deferred_at)) Deferred;
-        Walk w{d, stack, stats, cache, 0};
+        alignas(64) float whole[tile_capacity];  // box_lanes over the whole segment
+        std::fill(whole, whole + tile_capacity, 1.0f);
+        Walk w{d, stack, stats, cache, whole, 0};
         for (size_t c = first; c < last; c += Deferred::chunk) {
             const size_t chunk_end = std::min(last, c + Deferred::chunk);
             w.first_tile = c;
@@ -827,7 +829,8 @@ private:
         uint32_t* stack;
         QueryStats* stats;
         TileCache* cache;
-        size_t first_tile;  // the chunk's
+        const float* whole;  // 1 in every lane: box_lanes over the whole segment
+        size_t first_tile;   // the chunk's
     };
 
     uint32_t tile_count_at(size_t t) const { return uint32_t(std::min<size_t>(tile_capacity, n_ - t * tile_capacity)); }
@@ -838,8 +841,6 @@ private:
         const size_t t = w.first_tile + tile;
         const level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
         alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];
-        alignas(64) float whole[tile_capacity];  // box_lanes over the whole segment
-        std::fill(whole, whole + tile_capacity, 1.0f);
         double across[tile_capacity][3];
         SunTile sun_tile;
         const uint32_t count = tile_count_at(t);
@@ -853,7 +854,7 @@ private:
             // Only the points whose segment may meet the instance's sphere and box enter it.
             const uint64_t in = alive &
                 (sun_ ? sun_instance_points(spheres_[slot], regular, count, across, sun_tile)
-                      : instance_points(spheres_[slot], regular, ex, ey, ez, fd, whole));
+                      : instance_points(spheres_[slot], regular, ex, ey, ez, fd, w.whole));
             if (!in) continue;
             if (math::bit_count(uint32_t(in)) + math::bit_count(uint32_t(in >> 32)) <= Deferred::sparse) {
                 if (d.count == Deferred::capacity) {  // full: those put off so far are answered first
@@ -1043,9 +1044,8 @@ private:
     // The instances a sun's tile t meets: those whose box meets the prism of its regular points, the sun's
     // side first, and for the other finite points those whose box their ray may meet.
     void cull_sun_tile(size_t t, level_detail::LaneVector<uint64_t>& list) {
-        const size_t begin = t * tile_capacity;
-        const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
-        const uint32_t* index = order_.data() + begin;
+        const uint32_t count = tile_count_at(t);
+        const uint32_t* index = order_.data() + t * tile_capacity;
         if (!sun_usable_) return;
         double across[tile_capacity][3];
         const uint64_t regular = sun_across(index, count, across);
@@ -1199,9 +1199,8 @@ private:
         }
         list.clear();
         if (sun_) return cull_sun_tile(t, list);
-        const size_t begin = t * tile_capacity;
-        const uint32_t count = uint32_t(std::min<size_t>(tile_capacity, n_ - begin));
-        const uint32_t* index = order_.data() + begin;
+        const uint32_t count = tile_count_at(t);
+        const uint32_t* index = order_.data() + t * tile_capacity;
         alignas(64) double e[3][tile_capacity], dist[tile_capacity];
         const uint64_t finite = offsets(index, count, e, dist);  // a point not finite is never in shadow
         // By the light, or beyond what a pyramid holds well: alone; at the light (no length): neither.
