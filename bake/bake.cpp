@@ -73,15 +73,11 @@ bool is_closed(const Mesh& mesh) { return is_closed(mesh.indices.data(), mesh.in
 
 namespace {
 
-// A clustered mesh's triangles gathered into cluster order in parallel blocks, sidedness following each
-// triangle to its place (its positions and closed flag are set apart).
-void order_triangles(const Mesh& mesh, const Hierarchy& h, unsigned threads, AssetMesh& out) {
-    const size_t n = h.order.size(), block = 1 << 16;
-    out.triangles.resize(n * 3);
-    parallel_for((n + block - 1) / block, threads, [&](size_t b) {
-        for (size_t i = b * block; i < std::min(n, (b + 1) * block); ++i)
-            for (int k = 0; k < 3; ++k) out.triangles[i * 3 + k] = mesh.indices[size_t(h.order[i]) * 3 + k];
-    });
+// A clustered mesh's triangles (the hierarchy's corners, taken), sidedness following each triangle to its
+// place (its positions and closed flag are set apart).
+void order_triangles(const Mesh& mesh, Hierarchy& h, AssetMesh& out) {
+    const size_t n = h.order.size();
+    out.triangles = std::move(h.corners);
     bool any = std::any_of(mesh.primitives.begin(), mesh.primitives.end(),
                            [](const Primitive& p) { return p.double_sided && p.triangle_count; });
     if (any) {
@@ -126,7 +122,7 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
                                       mesh.triangle_count(), options, &cs, report, threads);
         const size_t triangles = mesh.triangle_count();
         AssetMesh am;
-        order_triangles(mesh, h, threads, am);
+        order_triangles(mesh, h, am);
         h = Hierarchy{};
         if (release) {
             Mesh& owned = release->meshes[m];

@@ -66,7 +66,7 @@ struct Compactness {
 };
 
 // `cluster_of_position` lists triangles cluster by cluster; `sizes` gives each cluster's count.
-Compactness compactness(const Input& in, const std::vector<uint32_t>& tris, const std::vector<uint32_t>& sizes) {
+Compactness compactness(const Input& in, const uint32_t* tris, const std::vector<uint32_t>& sizes) {
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t i = 0; i < in.positions.size(); ++i) {
         lo[i % 3] = std::min(lo[i % 3], in.positions[i]);
@@ -160,11 +160,10 @@ void run(const Input& in, uint32_t fine, int runs) {
             h = cb::build_hierarchy(in.positions.data(), in.vertices(), in.indices.data(), in.triangles(), o, nullptr,
                                     {}, hw);
         });
-        std::vector<uint32_t> ordered = permuted(in, h.order);
-        r.acmr = cb::fifo_acmr(ordered.data(), in.triangles(), in.vertices(), 32);
+        r.acmr = cb::fifo_acmr(h.corners.data(), in.triangles(), in.vertices(), 32);
         std::vector<uint32_t> sizes;
         for (size_t f = 0; f < h.fine_count(); ++f) sizes.push_back(h.fine_offsets[f + 1] - h.fine_offsets[f]);
-        r.c = compactness(in, h.order, sizes);
+        r.c = compactness(in, h.order.data(), sizes);
         rows.push_back(r);
     }
     // meshoptimizer's meshlets on the input order, at most `limit` triangles and 3 * limit vertices: once at
@@ -201,7 +200,7 @@ void run(const Input& in, uint32_t fine, int runs) {
             sizes.push_back(ml.triangle_count);
         }
         r.acmr = cb::fifo_acmr(local.indices.data(), local.indices.size() / 3, in.vertices(), 32);
-        r.c = compactness(local, tris, sizes);
+        r.c = compactness(local, tris.data(), sizes);
         rows.push_back(r);
     }
     for (const Row& r : rows) print_row(in, r, hw);

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "unset_vector.h"
+
 namespace cb {
 
 // The most triangles a fine cluster may hold: even with no corner shared, its vertices fit the asset's 8-bit
@@ -60,7 +62,8 @@ std::string describe(ClusterOptionsError error, const std::function<std::string(
 // Ranges: fine cluster f holds triangles order[fine_offsets[f] .. fine_offsets[f+1]); coarse cluster c holds
 // fine clusters [coarse_offsets[c] .. coarse_offsets[c+1]), whose triangles are contiguous in `order`.
 struct Hierarchy {
-    std::vector<uint32_t> order;           // triangle permutation: position -> original triangle index
+    UnsetVector<uint32_t> order;           // triangle permutation: position -> original triangle index
+    std::vector<uint32_t> corners;         // the triangles' corners (3 per triangle) in that order
     std::vector<uint32_t> fine_offsets;    // fine cluster count + 1 entries, into `order`
     std::vector<uint32_t> coarse_offsets;  // coarse cluster count + 1 entries, into fine clusters
 
@@ -85,7 +88,7 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
 
 // Triangle indices sorted by the 63-bit Morton code of each triangle's box centre within the mesh bounds;
 // ties keep input order. The same for any thread count (0: all hardware threads).
-std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count,
+UnsetVector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count,
                                    unsigned threads = 1);
 
 // Sorts the n keys stably in place; order[i] gets the input index of the key that ends at i. The same for

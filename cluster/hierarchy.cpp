@@ -9,6 +9,7 @@
 #include "cluster.h"
 #include "parallel.h"
 #include "random.h"
+#include "unset_vector.h"
 
 namespace cb {
 
@@ -121,40 +122,59 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
     const ClusterOptions& o = options;
     Hierarchy h;
 
-    // Coarse level. With a Morton order, the triangles' corners are first copied into it (`work_indices`),
-    // and both levels work on positions in that order: each chunk's k-means gathers its triangles' boxes,
-    // twice over (coarse, then fine), from corners that lie together instead of scattered over the mesh.
-    std::vector<uint32_t> chunk_sizes, morton, morton_indices;
-    const uint32_t* work_indices = indices;
-    auto work_in_morton_order = [&] {
-        morton = morton_order(positions, indices, triangle_count, threads);
-        morton_indices.resize(triangle_count * 3);
+    // Coarse level. With a Morton order, the triangles' corners are first copied into it (`h.corners`), and
+    // both levels work on corners that lie together instead of scattered over the mesh: each k-means call
+    // gathers its triangles' boxes from them, and its triangles' corners then move to their new places within
+    // its own range of the array, while that range is in cache (`in_place`). `h.order` then holds the mesh's
+    // triangles, in the order of the corners.
+    std::vector<uint32_t> chunk_sizes;
+    const bool in_morton_order =
+        !(o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree && o.kmeans_presplit == 0);
+    if (in_morton_order) {
+        const UnsetVector<uint32_t> morton = morton_order(positions, indices, triangle_count, threads);
+        h.corners.resize(triangle_count * 3);
         h.order.resize(triangle_count);
         const Parts parts(triangle_count, size_t(1) << 16);
         parallel_for(parts.count(), threads, [&](size_t p) {
             for (size_t i = parts.first(p); i < parts.last(p); ++i) {
-                std::copy_n(indices + size_t(morton[i]) * 3, 3, &morton_indices[i * 3]);
-                h.order[i] = uint32_t(i);
+                std::copy_n(indices + size_t(morton[i]) * 3, 3, &h.corners[i * 3]);
+                h.order[i] = morton[i];
             }
         });
-        work_indices = morton_indices.data();
+    }
+    // Runs k-means (or the chunk's own method) on the corners [first, first + count) of the Morton order, then
+    // moves them, and their triangles in `h.order`, into the order it found.
+    auto in_place = [&](size_t first, size_t count, auto&& split) {
+        thread_local UnsetVector<uint32_t> local, corners, triangles;
+        local.resize(count);
+        std::iota(local.begin(), local.end(), uint32_t(first));
+        split(local.data());
+        corners.assign(h.corners.begin() + std::ptrdiff_t(first * 3),
+                       h.corners.begin() + std::ptrdiff_t((first + count) * 3));
+        triangles.assign(h.order.begin() + std::ptrdiff_t(first), h.order.begin() + std::ptrdiff_t(first + count));
+        for (size_t i = 0; i < count; ++i) {
+            const size_t from = local[i] - first;
+            std::copy_n(&corners[from * 3], 3, &h.corners[(first + i) * 3]);
+            h.order[first + i] = triangles[from];
+        }
     };
-    if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree && o.kmeans_presplit == 0) {
+    if (!in_morton_order) {
         h.order.resize(triangle_count);
         std::iota(h.order.begin(), h.order.end(), 0u);
         kmeans_tris(positions, indices, h.order.data(), triangle_count, o.coarse_size, o, o.seed, chunk_sizes);
     } else if (o.method == ClusterMethod::kmeans && o.kmeans_coarse_from_tree) {
-        work_in_morton_order();
         const size_t part = std::max<size_t>(o.kmeans_presplit, o.coarse_size),
                      parts = (triangle_count + part - 1) / part;
         std::vector<std::vector<uint32_t>> sizes(parts);
         parallel_for(parts, threads, [&](size_t p) {
-            kmeans_tris(positions, work_indices, h.order.data() + p * part, std::min(part, triangle_count - p * part),
-                        o.coarse_size, o, splitmix(o.seed ^ (p + 1)), sizes[p]);
+            const size_t first = p * part, count = std::min(part, triangle_count - first);
+            in_place(first, count, [&](uint32_t* tris) {
+                kmeans_tris(positions, h.corners.data(), tris, count, o.coarse_size, o, splitmix(o.seed ^ (p + 1)),
+                            sizes[p]);
+            });
         });
         for (const auto& s : sizes) chunk_sizes.insert(chunk_sizes.end(), s.begin(), s.end());
     } else {
-        work_in_morton_order();
         for (size_t at = 0; at < triangle_count; at += o.coarse_size)
             chunk_sizes.push_back(uint32_t(std::min<size_t>(o.coarse_size, triangle_count - at)));
     }
@@ -166,15 +186,21 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
     std::atomic<size_t> done{0};
     const std::thread::id caller = std::this_thread::get_id();  // progress is reported from the caller only
     parallel_for(chunk_sizes.size(), threads, [&](size_t c) {
-        split_chunk(positions, work_indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
+        if (in_morton_order)
+            in_place(chunk_start[c], chunk_sizes[c], [&](uint32_t* tris) {
+                split_chunk(positions, h.corners.data(), tris, chunk_sizes[c], c, o, fine[c]);
+            });
+        else
+            split_chunk(positions, indices, h.order.data() + chunk_start[c], chunk_sizes[c], c, o, fine[c]);
         size_t finished = done.fetch_add(1) + 1;
         if (progress && std::this_thread::get_id() == caller) progress(finished, chunk_sizes.size());
     });
-    if (!morton.empty()) {  // positions in the Morton order back to the mesh's triangles
-        morton_indices = {};
+    if (!in_morton_order) {  // one tree over the mesh's own triangles: their corners gathered into its order
+        h.corners.resize(triangle_count * 3);
         const Parts parts(triangle_count, size_t(1) << 16);
         parallel_for(parts.count(), threads, [&](size_t p) {
-            for (size_t i = parts.first(p); i < parts.last(p); ++i) h.order[i] = morton[h.order[i]];
+            for (size_t i = parts.first(p); i < parts.last(p); ++i)
+                std::copy_n(indices + size_t(h.order[i]) * 3, 3, &h.corners[i * 3]);
         });
     }
 

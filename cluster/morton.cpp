@@ -7,6 +7,7 @@
 
 #include "cluster.h"
 #include "parallel.h"
+#include "unset_vector.h"
 
 namespace cb {
 namespace {
@@ -130,8 +131,8 @@ void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads) {
     uint64_t differ = 0;
     for (uint64_t d : part_differ) differ |= d;
     if (!differ) return;
-    std::vector<uint64_t> tmp_keys(n);
-    std::vector<uint32_t> tmp_order(n);
+    UnsetVector<uint64_t> tmp_keys(n);
+    UnsetVector<uint32_t> tmp_order(n);
     if (n <= cached_limit) return sort_range(keys, order, tmp_keys.data(), tmp_order.data(), n);
 
     // The split on the highest differing digit: each part counts its digits, then scatters its keys to
@@ -175,7 +176,7 @@ void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads) {
     });
 }
 
-std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count,
+UnsetVector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count,
                                    unsigned threads) {
     // Bounds and keys in parts of consecutive triangles, one item of parallel_for each; sort_keys sorts them
     // in parts of its own, with the one answer of a stable sort.
@@ -205,7 +206,7 @@ std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indic
     double scale[3];
     for (int k = 0; k < 3; ++k) scale[k] = hi[k] > lo[k] ? cells / (hi[k] - lo[k]) : 0.0;
 
-    std::vector<uint64_t> keys(triangle_count);
+    UnsetVector<uint64_t> keys(triangle_count);
     parallel_for(parts, threads, [&](size_t p) {
         auto [first, last] = range(p);
         for (size_t t = first; t < last; ++t) {
@@ -217,7 +218,7 @@ std::vector<uint32_t> morton_order(const float* positions, const uint32_t* indic
             keys[t] = code;
         }
     });
-    std::vector<uint32_t> order(triangle_count);
+    UnsetVector<uint32_t> order(triangle_count);
     sort_keys(keys.data(), order.data(), triangle_count, threads);
     return order;
 }

@@ -55,9 +55,13 @@ bool shares_vertex(const uint32_t* a, const uint32_t* b) {
 void check_hierarchy(const cb::Hierarchy& h, const uint32_t* indices, size_t triangle_count,
                      const cb::ClusterOptions& o) {
     ASSERT_EQ(h.order.size(), triangle_count);
-    std::vector<uint32_t> sorted = h.order;
+    std::vector<uint32_t> sorted(h.order.begin(), h.order.end());
     std::sort(sorted.begin(), sorted.end());
     for (size_t i = 0; i < sorted.size(); ++i) ASSERT_EQ(sorted[i], i) << "order is not a permutation";
+    ASSERT_EQ(h.corners.size(), triangle_count * 3);
+    for (size_t i = 0; i < triangle_count; ++i)
+        for (int k = 0; k < 3; ++k)
+            ASSERT_EQ(h.corners[i * 3 + k], indices[size_t(h.order[i]) * 3 + k]) << "corners of triangle " << i;
     ASSERT_FALSE(h.fine_offsets.empty());
     ASSERT_FALSE(h.coarse_offsets.empty());
     EXPECT_EQ(h.fine_offsets.front(), 0u);
@@ -199,6 +203,7 @@ TEST(Cluster, IdenticalForAnyThreadCount) {
         for (unsigned threads : {2u, 3u, 8u}) {
             cb::Hierarchy many = cluster(m, o, threads);
             EXPECT_EQ(one.order, many.order) << cb::method_name(method) << " threads " << threads;
+            EXPECT_EQ(one.corners, many.corners);
             EXPECT_EQ(one.fine_offsets, many.fine_offsets);
             EXPECT_EQ(one.coarse_offsets, many.coarse_offsets);
         }
@@ -247,7 +252,7 @@ TEST(Cluster, DegenerateCoincidentAndCollinearInput) {
 TEST(Cluster, HugeCoordinatesKeepResolution) {
     // A 1 m grid a million metres from the origin: Morton codes still separate every triangle.
     TestMesh m = grid(64, 64, 1.0f, 1.0e6f, 5);
-    std::vector<uint32_t> order = cb::morton_order(m.positions.data(), m.indices.data(), m.triangles());
+    auto order = cb::morton_order(m.positions.data(), m.indices.data(), m.triangles());
     cb::ClusterOptions o;
     o.coarse_size = 512;
     cb::Hierarchy h = cluster(m, o);
@@ -275,7 +280,7 @@ TEST(Cluster, MortonOrderIsZOrder) {
         m.positions.insert(m.positions.end(), {x, y, z, x + 0.01f, y, z, x, y + 0.01f, z});
         m.indices.insert(m.indices.end(), {base, base + 1, base + 2});
     }
-    std::vector<uint32_t> order = cb::morton_order(m.positions.data(), m.indices.data(), m.triangles());
+    auto order = cb::morton_order(m.positions.data(), m.indices.data(), m.triangles());
     for (size_t i = 0; i < 8; ++i) EXPECT_EQ(corner_of_triangle[order[i]], int(i));
 }
 
@@ -285,7 +290,7 @@ TEST(Cluster, MortonOrderIsTheSameInParallelAndStable) {
     TestMesh m = grid(400, 200, 1, 0, 4);
     const size_t half = m.indices.size() / 2;
     m.indices.insert(m.indices.end(), m.indices.begin(), m.indices.begin() + std::ptrdiff_t(half));
-    std::vector<uint32_t> one = cb::morton_order(m.positions.data(), m.indices.data(), m.triangles(), 1);
+    auto one = cb::morton_order(m.positions.data(), m.indices.data(), m.triangles(), 1);
     for (unsigned threads : {2u, 3u, 0u})
         EXPECT_EQ(cb::morton_order(m.positions.data(), m.indices.data(), m.triangles(), threads), one) << threads;
     // Stable: each copy, with the same key as its original, comes after it.
