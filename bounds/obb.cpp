@@ -99,49 +99,70 @@ bool area_frame(const float* positions, const uint32_t* indices, const uint32_t*
     return true;
 }
 
-// 2-D convex hull (monotone chain) of `p` (sorted in place) into `h`, counter-clockwise, collinear points
-// dropped.
-void hull2d(std::vector<std::array<double, 2>>& p, std::vector<std::array<double, 2>>& h) {
-    // std::array's own order, spelled out: its generic lexicographic compare was most of this function.
-    std::sort(p.begin(), p.end(),
-              [](const auto& a, const auto& b) { return a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]); });
-    p.erase(std::unique(p.begin(), p.end(), [](const auto& a, const auto& b) { return a[0] == b[0] && a[1] == b[1]; }),
-            p.end());
-    if (p.size() < 3) {
-        h = p;
-        return;
+typedef std::array<double, 2> Point2;
+
+// 2-D convex hull (monotone chain) of p[0, n) (sorted in place) into h, counter-clockwise, collinear points
+// dropped; returns its size. `h` has room for 2n points.
+size_t hull2d(Point2* p, size_t n, Point2* h) {
+    // std::array's own order, spelled out: its generic lexicographic compare was most of this function. A
+    // fine cluster's few points sort fastest by insertion; equal points are equal, so any sort gives them
+    // in the same order.
+    auto before = [](const Point2& a, const Point2& b) { return a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]); };
+    if (n <= 32) {
+        for (size_t i = 1; i < n; ++i) {
+            const Point2 x = p[i];
+            size_t j = i;
+            for (; j > 0 && before(x, p[j - 1]); --j) p[j] = p[j - 1];
+            p[j] = x;
+        }
+    } else {
+        std::sort(p, p + n, before);
     }
-    auto turn = [](const auto& o, const auto& a, const auto& b) {
+    n = size_t(std::unique(p, p + n, [](const Point2& a, const Point2& b) { return a[0] == b[0] && a[1] == b[1]; }) -
+               p);
+    if (n < 3) {
+        std::copy_n(p, n, h);
+        return n;
+    }
+    auto turn = [](const Point2& o, const Point2& a, const Point2& b) {
         return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
     };
-    h.resize(2 * p.size());
     size_t k = 0;
-    for (size_t i = 0; i < p.size(); ++i) {
+    for (size_t i = 0; i < n; ++i) {
         while (k >= 2 && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
         h[k++] = p[i];
     }
-    for (size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
+    for (size_t i = n - 1, t = k + 1; i-- > 0;) {
         while (k >= t && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
         h[k++] = p[i];
     }
-    h.resize(k - 1);
+    return k - 1;
 }
 
 // Keeps axis `fixed` of the frame and turns the other two to the minimum-area rectangle of the points
 // projected on their plane (one rectangle side lies on a hull edge: test every edge direction).
 Frame min_area_rect_frame(const double* pts, size_t n, const Frame& f, int fixed) {
-    int u = (fixed + 1) % 3, w = (fixed + 2) % 3;
-    thread_local std::vector<std::array<double, 2>> proj, h;  // scratch: this runs a few dozen times per cluster
-    proj.resize(n);
+    const int u = (fixed + 1) % 3, w = (fixed + 2) % 3;
+    // A fine cluster's points and hull on the stack; a larger set's in scratch kept by the thread.
+    constexpr size_t few = 64;
+    Point2 proj_few[few], hull_few[2 * few + 1];
+    thread_local std::vector<Point2> proj_many, hull_many;
+    Point2* proj = proj_few;
+    Point2* h = hull_few;
+    if (n > few) {
+        proj_many.resize(n);
+        hull_many.resize(2 * n + 1);
+        proj = proj_many.data();
+        h = hull_many.data();
+    }
     for (size_t v = 0; v < n; ++v) proj[v] = {dot3(pts + v * 3, f.axis[u]), dot3(pts + v * 3, f.axis[w])};
-    hull2d(proj, h);
+    const size_t m = hull2d(proj, n, h);
     double best = INFINITY, best_c = 1, best_s = 0;
     // Rotating calipers: across the edges in counter-clockwise order, the vertex farthest along the edge
     // (i), farthest from it (j) and farthest back (k) only move forward, so each edge costs a few steps
     // instead of a pass over the hull. The near side is the edge itself.
-    const size_t m = h.size();
-    h.resize(2 * m + 1);  // the hull twice round and once more: the calipers index past the end without wrapping
-    for (size_t v = 0; v <= m; ++v) h[m + v] = h[v];
+    if (m >= 3)
+        for (size_t v = 0; v <= m; ++v) h[m + v] = h[v];  // the hull twice round and once more: no wrapping
     auto along = [&](size_t v, double c, double s) { return c * h[v][0] + s * h[v][1]; };
     auto across = [&](size_t v, double c, double s) { return -s * h[v][0] + c * h[v][1]; };
     for (size_t e = 0, i = 1, j = 1, k = 1; e < m && m >= 3; ++e) {
@@ -294,6 +315,29 @@ CB_VECTOR_CLONES void turned_areas(const double* x, const double* y, size_t n, d
     }
     for (int t = 0; t < 2; ++t)
         area[t] = (highest(hi[t][0]) - lowest(lo[t][0]) + pad) * (highest(hi[t][1]) - lowest(lo[t][1]) + pad);
+}
+
+// Turns the points (x, y) in their plane as turned_areas's first turn turns them (the angle of cosine c and
+// sine s, either sign), in place, and gives the turned extents along both axes.
+CB_VECTOR_CLONES void turn_points(double* x, double* y, size_t n, double c, double s, double extent[2]) {
+    Lanes lo[2], hi[2];
+    for (int j = 0; j < 2; ++j) {
+        fill_lanes(INFINITY, lo[j]);
+        fill_lanes(-INFINITY, hi[j]);
+    }
+    for (size_t v = 0; v < n; v += lane_count) {
+        Lanes px, py;
+        load_lanes(x + v, px);
+        load_lanes(y + v, py);
+        const Lanes turned[2] = {c * px + s * py, c * py - s * px};
+        std::memcpy(x + v, &turned[0], sizeof(Lanes));
+        std::memcpy(y + v, &turned[1], sizeof(Lanes));
+        for (int j = 0; j < 2; ++j) {
+            lo[j] = turned[j] < lo[j] ? turned[j] : lo[j];
+            hi[j] = turned[j] > hi[j] ? turned[j] : hi[j];
+        }
+    }
+    for (int j = 0; j < 2; ++j) extent[j] = highest(hi[j]) - lowest(lo[j]);
 }
 
 // Axes spread evenly over a half sphere (a golden-angle spiral), for extreme_points: one array per
@@ -462,19 +506,12 @@ Frame refined_frame(const double* pts, size_t n, const Frame* pca, size_t pca_co
                     improved = true;
                     ++wins;
                     current = false;
-                    // The winning try's projections, turned as turned_areas turned them, become the current ones.
-                    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-                    for (size_t v = 0; v < padded; ++v) {  // the copies turn as their point does
-                        const double a = c * x[v] + sign * s * y[v], b = c * y[v] - sign * s * x[v];
-                        x[v] = a;
-                        y[v] = b;
-                        lo[0] = std::min(lo[0], a);
-                        hi[0] = std::max(hi[0], a);
-                        lo[1] = std::min(lo[1], b);
-                        hi[1] = std::max(hi[1], b);
-                    }
-                    extent[u] = hi[0] - lo[0];
-                    extent[w] = hi[1] - lo[1];
+                    // The winning try's projections, turned as turned_areas turned them (the copies as their
+                    // point), become the current ones: -s times y is minus s times y, so the same doubles.
+                    double turned_extent[2];
+                    turn_points(x, y, padded, c, sign * s, turned_extent);
+                    extent[u] = turned_extent[0];
+                    extent[w] = turned_extent[1];
                     // The turn back is then a try of its own, on the turned projections.
                     if (t == 0) {
                         turned_areas(x, y, padded, c, s, pad, area);
