@@ -166,14 +166,15 @@ private:
         return SIZE_MAX;
     }
 
-    // Lloyd iterations until the assignments settle (or the cap). An empty cluster takes the point farthest
-    // from its own centre, so k clusters stay k.
+    // Lloyd iterations until the assignments settle (or the cap), scanning the points as seed_centres left
+    // them in coords_. An empty cluster takes the point farthest from its own centre, so k clusters stay k.
     void lloyd(const float* points, size_t n, size_t k) {
         assignment_.assign(n, uint32_t(-1));
         std::vector<double> sum(k * 6);
         std::vector<uint32_t> size(k);
         for (uint32_t iteration = 0; iteration < max_iterations_; ++iteration) {
-            size_t changed = assign_nearest(points, n, centres_.data(), k, assignment_.data(), nearest_.data());
+            size_t changed =
+                assign_nearest(points, n, centres_.data(), k, assignment_.data(), nearest_.data(), coords_.data());
             if (changed * lloyd_settled <= n) break;
             std::fill(sum.begin(), sum.end(), 0.0);
             std::fill(size.begin(), size.end(), 0u);

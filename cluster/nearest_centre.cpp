@@ -30,44 +30,75 @@ inline float distance2_at(const float* const x[6], size_t i, const Centre& c) {
     return d;
 }
 
+// The scan of one block of `nearest_block` points, given as six coordinate arrays, over the k centres: each
+// distance sums its six terms in coordinate order, and a centre replaces the best only when strictly
+// nearer, so the same floats and the same ties as a point-by-point scan. Inlined into each clone below.
+constexpr size_t nearest_block = 64;
+[[gnu::always_inline]] inline size_t scan_block(const float* const x[6], size_t m, const float* centres, size_t k,
+                                                uint32_t* assignment, float* nearest_d2) {
+    alignas(64) float best[nearest_block];
+    alignas(64) uint32_t best_c[nearest_block];
+    for (size_t i = 0; i < nearest_block; ++i) {
+        best[i] = INFINITY;
+        best_c[i] = 0;
+    }
+    for (size_t c = 0; c < k; ++c) {
+        Centre q;
+        std::copy_n(centres + c * 6, 6, q.q);
+        const uint32_t id = uint32_t(c);
+        for (size_t i = 0; i < nearest_block; ++i) {
+            const float d = distance2_at(x, i, q);
+            // Branch-free so that the compiler keeps the lanes: an all-ones mask where nearer.
+            const uint32_t nearer = 0u - uint32_t(d < best[i]);
+            best_c[i] = (id & nearer) | (best_c[i] & ~nearer);
+            best[i] = d < best[i] ? d : best[i];
+        }
+    }
+    size_t changed = 0;
+    for (size_t i = 0; i < m; ++i) {
+        changed += assignment[i] != best_c[i];
+        assignment[i] = best_c[i];
+        nearest_d2[i] = best[i];
+    }
+    return changed;
+}
+
 // Cloned (vector_clones.h): the block scan then takes 16 or 8 points a step instead of 4.
 CB_VECTOR_CLONES size_t assign_nearest_brute(const float* points, size_t n, const float* centres, size_t k,
                                              uint32_t* assignment, float* nearest_d2) {
     // Blocks of points transposed to one array per coordinate, so the scan over a block runs across points
-    // in vector lanes. Each distance still sums its six terms in coordinate order, and a centre replaces
-    // the best only when strictly nearer: the same floats and the same ties as a point-by-point scan.
-    constexpr size_t block = 64;
-    alignas(64) float x[6][block], best[block];
-    alignas(64) uint32_t best_c[block];
+    // in vector lanes.
+    alignas(64) float x[6][nearest_block];
     const float* const lanes[6] = {x[0], x[1], x[2], x[3], x[4], x[5]};
     size_t changed = 0;
-    for (size_t at = 0; at < n; at += block) {
-        const size_t m = std::min(block, n - at);
+    for (size_t at = 0; at < n; at += nearest_block) {
+        const size_t m = std::min(nearest_block, n - at);
         for (size_t i = 0; i < m; ++i)
             for (int j = 0; j < 6; ++j) x[j][i] = points[(at + i) * 6 + j];
-        for (size_t i = m; i < block; ++i)
+        for (size_t i = m; i < nearest_block; ++i)
             for (int j = 0; j < 6; ++j) x[j][i] = 0;
-        for (size_t i = 0; i < block; ++i) {
-            best[i] = INFINITY;
-            best_c[i] = 0;
-        }
-        for (size_t c = 0; c < k; ++c) {
-            Centre q;
-            std::copy_n(centres + c * 6, 6, q.q);
-            const uint32_t id = uint32_t(c);
-            for (size_t i = 0; i < block; ++i) {
-                const float d = distance2_at(lanes, i, q);
-                // Branch-free so that the compiler keeps the lanes: an all-ones mask where nearer.
-                const uint32_t nearer = 0u - uint32_t(d < best[i]);
-                best_c[i] = (id & nearer) | (best_c[i] & ~nearer);
-                best[i] = d < best[i] ? d : best[i];
+        changed += scan_block(lanes, m, centres, k, assignment + at, nearest_d2 + at);
+    }
+    return changed;
+}
+
+CB_VECTOR_CLONES size_t assign_nearest_coords(const float* coords, size_t n, const float* centres, size_t k,
+                                              uint32_t* assignment, float* nearest_d2) {
+    // Whole blocks straight from the arrays; the last, partial one copied out and padded.
+    alignas(64) float x[6][nearest_block];
+    size_t changed = 0;
+    for (size_t at = 0; at < n; at += nearest_block) {
+        const size_t m = std::min(nearest_block, n - at);
+        const float* lanes[6];
+        for (int j = 0; j < 6; ++j) lanes[j] = coords + size_t(j) * n + at;
+        if (m < nearest_block) {
+            for (int j = 0; j < 6; ++j) {
+                std::copy_n(lanes[j], m, x[j]);
+                std::fill(x[j] + m, x[j] + nearest_block, 0.0f);
+                lanes[j] = x[j];
             }
         }
-        for (size_t i = 0; i < m; ++i) {
-            changed += assignment[at + i] != best_c[i];
-            assignment[at + i] = best_c[i];
-            nearest_d2[at + i] = best[i];
-        }
+        changed += scan_block(lanes, m, centres, k, assignment + at, nearest_d2 + at);
     }
     return changed;
 }
@@ -120,9 +151,10 @@ size_t assign_nearest_flann(const float* points, size_t n, const float* centres,
 }
 
 size_t assign_nearest(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,
-                      float* nearest_d2) {
-    return k >= flann_crossover ? assign_nearest_flann(points, n, centres, k, assignment, nearest_d2)
-                                : assign_nearest_brute(points, n, centres, k, assignment, nearest_d2);
+                      float* nearest_d2, const float* coords) {
+    if (k >= flann_crossover) return assign_nearest_flann(points, n, centres, k, assignment, nearest_d2);
+    return coords ? assign_nearest_coords(coords, n, centres, k, assignment, nearest_d2)
+                  : assign_nearest_brute(points, n, centres, k, assignment, nearest_d2);
 }
 
 }  // namespace cb

@@ -12,9 +12,10 @@ extern const size_t flann_crossover;
 
 // Sets assignment[i] to the index of the centre nearest points[i] (ties: lowest index) and nearest_d2[i]
 // to its squared distance; returns how many assignments changed. Brute force below flann_crossover
-// centres, FLANN above.
+// centres, FLANN above. `coords`, when given, holds the same points as six coordinate arrays (as
+// lower_nearest takes them), which the brute-force scan then reads instead of transposing `points`.
 size_t assign_nearest(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,
-                      float* nearest_d2);
+                      float* nearest_d2, const float* coords = nullptr);
 
 // k-means++ seeding's pass for one new centre over points given as six coordinate arrays (`coords`, each of
 // `n` floats: all the x of the boxes' minima, then all their y, ...). Lowers nearest_d2[i] to the squared
@@ -26,6 +27,8 @@ constexpr size_t lower_nearest_block = 64;
 // Both strategies, always, for the benchmark and the tests.
 size_t assign_nearest_brute(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,
                             float* nearest_d2);
+size_t assign_nearest_coords(const float* coords, size_t n, const float* centres, size_t k, uint32_t* assignment,
+                             float* nearest_d2);
 size_t assign_nearest_flann(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,
                             float* nearest_d2);
 

@@ -427,6 +427,15 @@ TEST(Cluster, BlockedNearestCentreScanMatchesThePlainOne) {
             }
             EXPECT_EQ(got, want) << n << " points, " << k << " centres";
             EXPECT_EQ(got_d, want_d) << n << " points, " << k << " centres";
+            // The same points as six coordinate arrays: the same answers.
+            std::vector<float> coords(n * 6);
+            for (size_t i = 0; i < n; ++i)
+                for (size_t j = 0; j < 6; ++j) coords[j * n + i] = points[i * 6 + j];
+            std::vector<uint32_t> from_coords(n, 7);
+            std::vector<float> from_coords_d(n);
+            cb::assign_nearest_coords(coords.data(), n, centres.data(), k, from_coords.data(), from_coords_d.data());
+            EXPECT_EQ(from_coords, want) << n << " points, " << k << " centres, coordinate arrays";
+            EXPECT_EQ(from_coords_d, want_d) << n << " points, " << k << " centres, coordinate arrays";
         }
     }
 }
