@@ -13,22 +13,34 @@ struct Plane {
     Vec point;  // a vertex, world
 };
 
+// Where the apexes may start along the axis line through `centre`: the s at which centre + s * axis lies on
+// each plane, the highest (front) and lowest (back) of them, and the smallest cosine between the axis and a
+// normal. Every normal is within 90 degrees of the axis, so each cosine is positive.
+struct ApexStart {
+    double front = -INFINITY, back = INFINITY, min_cos = INFINITY;
+};
+ApexStart apex_start(const std::vector<Plane>& planes, const Vec& axis, const double* centre) {
+    ApexStart a;
+    for (const Plane& pl : planes) {
+        double along = dot3(axis.data(), pl.n.data());
+        Vec d = sub(pl.point.data(), centre);
+        double need = dot3(d.data(), pl.n.data()) / along;
+        a.front = std::max(a.front, need);
+        a.back = std::min(a.back, need);
+        a.min_cos = std::min(a.min_cos, along);
+    }
+    return a;
+}
+
 // An apex on the axis line through `centre`, strictly on the `sign` side of every plane as decoded: the
 // distance along the axis is rounded to float and the apex computed as unpack_cone does, then its
 // clearance re-measured, and the apex pushed further until it clears every plane by more than the
 // measurement could err or another compiler's decode could move it (two float steps of its coordinates).
 // False if it cannot be made to (never guess).
 bool place_apex(const std::vector<Plane>& planes, const Vec& axis, const double* centre, double sign, double extent,
-                float& stored_s) {
+                const ApexStart& start, float& stored_s) {
     // The lowest s with sign * dot3(centre + s * axis - point, n) >= 0 for all planes (sign = -1 for the back).
-    double s = sign > 0 ? -INFINITY : INFINITY, min_cos = INFINITY;
-    for (const Plane& pl : planes) {
-        double along = dot3(axis.data(), pl.n.data());  // > 0: every normal is within 90 degrees of the axis
-        Vec d = sub(pl.point.data(), centre);
-        double need = dot3(d.data(), pl.n.data()) / along;
-        s = sign > 0 ? std::max(s, need) : std::min(s, need);
-        min_cos = std::min(min_cos, along);
-    }
+    const double s = sign > 0 ? start.front : start.back, min_cos = start.min_cos;
     double push = 1e-7 * extent;
     for (int attempt = 0; attempt < 40; ++attempt) {
         stored_s = float(s + sign * push);
@@ -111,8 +123,9 @@ PackedCone fit_cone(const float* positions, const uint32_t* indices, const uint3
     if (!(half > 0)) return none;
     // The apexes lie on the decoded (double) axis line through the box centre, as unpack_cone computes
     // them; any line would do, as long as they clear every plane.
-    if (!place_apex(planes, decoded, centre, +1, extent, cone.front)) return none;
-    if (!place_apex(planes, decoded, centre, -1, extent, cone.back)) return none;
+    const ApexStart start = apex_start(planes, decoded, centre);
+    if (!place_apex(planes, decoded, centre, +1, extent, start, cone.front)) return none;
+    if (!place_apex(planes, decoded, centre, -1, extent, start, cone.back)) return none;
     cone.cos_half_angle = round_up(std::cos(half));
     return cone;
 }

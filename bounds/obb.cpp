@@ -76,7 +76,10 @@ Frame pca_frame(const double* pts, size_t n) {
 // by its area, so dense tessellation in one corner does not tilt the frame. False when the area is zero.
 bool area_frame(const float* positions, const uint32_t* indices, const uint32_t* tris, size_t count,
                 const double* origin, Frame& out) {
-    Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
+    // The second moment's six distinct entries (the solver reads the lower triangle), each summed as the
+    // matrix expression area / 12 * (9 m m^T + sum of p p^T) sums it, term by term in that order.
+    constexpr int row[6] = {0, 1, 2, 1, 2, 2}, col[6] = {0, 0, 0, 1, 1, 2};
+    double second[6] = {0, 0, 0, 0, 0, 0};
     Eigen::Vector3d first = Eigen::Vector3d::Zero();
     double total = 0;
     for (size_t i = 0; i < count; ++i) {
@@ -88,14 +91,19 @@ bool area_frame(const float* positions, const uint32_t* indices, const uint32_t*
         double area = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).norm();
         if (!(area > 0)) continue;
         Eigen::Vector3d m = (p[0] + p[1] + p[2]) / 3.0;
-        second += area / 12.0 *
-            (9.0 * m * m.transpose() + p[0] * p[0].transpose() + p[1] * p[1].transpose() + p[2] * p[2].transpose());
+        const double weight = area / 12.0;
+        for (int e = 0; e < 6; ++e) {
+            const int r = row[e], c = col[e];
+            second[e] += weight * ((9.0 * m[r]) * m[c] + p[0][r] * p[0][c] + p[1][r] * p[1][c] + p[2][r] * p[2][c]);
+        }
         first += area * m;
         total += area;
     }
     if (!(total > 0)) return false;
+    Eigen::Matrix3d moment;
+    for (int e = 0; e < 6; ++e) moment(row[e], col[e]) = moment(col[e], row[e]) = second[e];
     Eigen::Vector3d mean = first / total;
-    out = eigen_frame(second / total - mean * mean.transpose());
+    out = eigen_frame(moment / total - mean * mean.transpose());
     return true;
 }
 
@@ -643,17 +651,20 @@ PackedObb store_obb(const Frame& f, const double* local, size_t n, const double*
     pack_rotation(f, p);
     for (int k = 0; k < 3; ++k) p.center[k] = float(centre[k]);
     Obb b = unpack_obb(p);
-    double c[3] = {b.center[0], b.center[1], b.center[2]};
-    for (int i = 0; i < 3; ++i) {
-        double a[3] = {b.axis[i][0], b.axis[i][1], b.axis[i][2]}, h = 0, scale = 0;
-        for (size_t v = 0; v < n; ++v) {
-            Vec d = sub(world + v * 3, c);
-            double l1 = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]);
-            h = std::max(h, std::fabs(dot3(d.data(), a)) + axis_step * l1);
-            scale = std::max(scale, std::fabs(d[0] * a[0]) + std::fabs(d[1] * a[1]) + std::fabs(d[2] * a[2]));
+    const double c[3] = {b.center[0], b.center[1], b.center[2]};
+    double a[3][3], h[3] = {0, 0, 0}, scale[3] = {0, 0, 0};
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) a[i][k] = b.axis[i][k];
+    for (size_t v = 0; v < n; ++v) {  // a vertex's offset and its norm once, for the three axes
+        const Vec d = sub(world + v * 3, c);
+        const double l1 = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]);
+        for (int i = 0; i < 3; ++i) {
+            h[i] = std::max(h[i], std::fabs(dot3(d.data(), a[i])) + axis_step * l1);
+            scale[i] =
+                std::max(scale[i], std::fabs(d[0] * a[i][0]) + std::fabs(d[1] * a[i][1]) + std::fabs(d[2] * a[i][2]));
         }
-        p.half[i] = round_up(h + measure_margin * scale);
     }
+    for (int i = 0; i < 3; ++i) p.half[i] = round_up(h[i] + measure_margin * scale[i]);
     return p;
 }
 
