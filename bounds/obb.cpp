@@ -113,8 +113,8 @@ typedef std::array<double, 2> Point2;
 // dropped; returns its size. `h` has room for 2n points.
 size_t hull2d(Point2* p, size_t n, Point2* h) {
     // std::array's own order, spelled out: its generic lexicographic compare was most of this function. A
-    // fine cluster's few points sort fastest by insertion; equal points are equal, so any sort gives them
-    // in the same order.
+    // fine cluster's few points sort fastest by insertion; points that compare equal differ at most in the
+    // sign of a zero, which moves no extent, so the sort's choice among them changes no rectangle.
     auto before = [](const Point2& a, const Point2& b) { return a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]); };
     if (n <= 32) {
         for (size_t i = 1; i < n; ++i) {

@@ -24,7 +24,8 @@ size_t assign_nearest(const float* points, size_t n, const float* centres, size_
 void lower_nearest(const float* coords, size_t n, const float* centre, float* nearest_d2, double* block_sums);
 constexpr size_t lower_nearest_block = 64;
 
-// Both strategies, always, for the benchmark and the tests.
+// Each strategy, always, for the benchmark and the tests: the brute-force scan over 6-float records and over
+// coordinate arrays, and FLANN.
 size_t assign_nearest_brute(const float* points, size_t n, const float* centres, size_t k, uint32_t* assignment,
                             float* nearest_d2);
 size_t assign_nearest_coords(const float* coords, size_t n, const float* centres, size_t k, uint32_t* assignment,
