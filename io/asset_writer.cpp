@@ -9,6 +9,7 @@
 #include <thread>
 #include <list>
 #include <filesystem>
+#include <fstream>
 #include <stdexcept>
 #include <type_traits>
 #include <fcntl.h>
@@ -308,6 +309,17 @@ bool write_at(int fd, const uint8_t* bytes, uint64_t size, uint64_t offset) {
 // The name of this process's temporary for `path`: `path` + ".tmp" + the process id.
 std::string temporary_name(const std::string& path) { return path + ".tmp" + std::to_string(getpid()); }
 
+// Whether process `pid` has ended: gone, or a zombie that nobody has reaped yet (a killed bake whose parent
+// died with it waits for the init process, which may take its time, while its output is baked again).
+bool process_ended(pid_t pid) {
+    if (::kill(pid, 0) != 0) return errno == ESRCH;
+    std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+    std::string line;
+    if (!std::getline(stat, line)) return false;
+    const size_t name_end = line.rfind(')');  // the state follows the command name, which may hold anything
+    return name_end != std::string::npos && name_end + 2 < line.size() && line[name_end + 2] == 'Z';
+}
+
 }  // namespace
 
 void remove_dead_temporaries(const std::string& path) {
@@ -322,7 +334,7 @@ void remove_dead_temporaries(const std::string& path) {
         const std::string digits = name.substr(prefix.size());
         if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
         const pid_t pid = pid_t(std::stol(digits));
-        if (pid > 0 && ::kill(pid, 0) != 0 && errno == ESRCH) fs::remove(it->path(), ec);
+        if (pid > 0 && process_ended(pid)) fs::remove(it->path(), ec);
     }
 }
 

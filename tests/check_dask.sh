@@ -160,7 +160,8 @@ compare_outputs() {
     n=$((n + 1))
   done < <(cd local && find . -name '*.cbk' | sort)
   [ "$n" -eq $((scenes - 1)) ] || die "the local batch wrote $n assets, not $((scenes - 1))"
-  [ "$(cd dask && find . -type f ! -name summary.json | wc -l)" -eq "$n" ] || die "dask/ holds other files"
+  [ "$(cd dask && find . -type f ! -name summary.json | wc -l)" -eq "$n" ] ||
+    die "dask/ holds other files: $(cd dask && find . -type f ! -name summary.json ! -name '*.cbk' | tr '\n' ' ')"
   echo "$n"
 }
 assets=$(compare_outputs)

@@ -90,6 +90,32 @@ TEST(AtomicWrite, StaleTemporariesOfDeadWritersAreRemoved) {
     fs::remove_all(d);
 }
 
+// A writer killed in the instant its temporary has a name, and not yet reaped (its parent died with it), is
+// dead: its temporary goes.
+TEST(AtomicWrite, StaleTemporariesOfUnreapedWritersAreRemoved) {
+    const fs::path d = fresh_dir("zombie");
+    const fs::path out = d / "scene.cbk";
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) _exit(0);
+    // Until it is waited for, the child stays a zombie: kill(pid, 0) still finds it.
+    for (int i = 0; i < 1000; ++i) {
+        std::ifstream stat("/proc/" + std::to_string(child) + "/stat");
+        std::string line;
+        std::getline(stat, line);
+        if (line.find(") Z") != std::string::npos) break;
+        usleep(1000);
+    }
+    const fs::path left = d / ("scene.cbk.tmp" + std::to_string(child));
+    std::ofstream(left) << "half an asset";
+    cb::write_file_atomic(out.string(), std::vector<uint8_t>(10, 1));
+    EXPECT_FALSE(fs::exists(left));
+    EXPECT_EQ(read_all(out), std::vector<uint8_t>(10, 1));
+    int status = 0;
+    EXPECT_EQ(waitpid(child, &status, 0), child);
+    fs::remove_all(d);
+}
+
 TEST(AtomicWrite, RefusesToReplaceWhatIsNotARegularFile) {
     const fs::path d = fresh_dir("special");
     const fs::path fifo = d / "pipe", folder = d / "folder";
