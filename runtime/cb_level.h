@@ -846,15 +846,21 @@ private:
         const uint32_t count = tile_count_at(t);
         const uint32_t* index = order_.data() + t * tile_capacity;
         uint64_t alive = tile_lanes(count);
-        const uint64_t regular = sun_ ? sun_across(index, count, across) : directions(index, count, ex, ey, ez, fd);
+        // A point light's only instance takes every point: its traversal's first test (the coarse spheres) is
+        // this one, finer, and the points asked of a lone mesh lie on it.
+        const bool lone = !sun_ && level_->instance_count() == 1;
+        const uint64_t regular = sun_ ? sun_across(index, count, across)
+            : lone                    ? 0
+                                      : directions(index, count, ex, ey, ez, fd);
         if (sun_) sun_tile.make(across, regular);
         Deferred& d = w.d;
         for (uint64_t slot : list) {
             if (!alive) break;
             // Only the points whose segment may meet the instance's sphere and box enter it.
             const uint64_t in = alive &
-                (sun_ ? sun_instance_points(spheres_[slot], regular, count, across, sun_tile)
-                      : instance_points(spheres_[slot], regular, ex, ey, ez, fd, w.whole));
+                (sun_       ? sun_instance_points(spheres_[slot], regular, count, across, sun_tile)
+                     : lone ? ~uint64_t(0)
+                            : instance_points(spheres_[slot], regular, ex, ey, ez, fd, w.whole));
             if (!in) continue;
             if (math::bit_count(uint32_t(in)) + math::bit_count(uint32_t(in >> 32)) <= Deferred::sparse) {
                 if (d.count == Deferred::capacity) {  // full: those put off so far are answered first
@@ -1170,7 +1176,7 @@ private:
         s.f[1] = float(c[1]);
         s.f[2] = float(c[2]);
         s.f[3] = fr;
-        if (!box.empty() && level_->instance_count() > 1) {  // one instance: its sphere alone (the box cost more)
+        if (!box.empty() && level_->instance_count() > 1) {  // one instance takes every point (walk)
             const double centre[3] = {box.c[0] - light_[0], box.c[1] - light_[1], box.c[2] - light_[2]};
             s.box = make_box_filter(centre, box.h, box.axis);
         }

@@ -183,7 +183,7 @@ private:
         for (uint64_t w = t.alive; w; w &= w - 1) {
             const uint32_t i = math::lowest_bit(w);
             const double inv = 1 / t.dist[i];
-            for (int k = 0; k < 3; ++k) d.u[i][k] = t.e[i][k] * inv;
+            for (int k = 0; k < 3; ++k) d.u[i][k] = t.e[k][i] * inv;
             d.off[i] = metric_tree::angle_above(d.u[i], d.z);
         }
     }

@@ -327,8 +327,10 @@ protected:
         uint64_t alive;  // in the pyramid and not yet found in shadow
         uint64_t shadowed;
         bool small;  // every live point within float_safe of the light: the float filters apply
-        double p[tile_capacity][3], e[tile_capacity][3], dist[tile_capacity];
+        double p[tile_capacity][3], dist[tile_capacity];
+        alignas(64) double e[3][tile_capacity];  // p - light, by coordinate
         double from[tile_capacity];              // where each point's contacts start to count (shadow_from)
+        uint64_t close;                          // from < 1e-6: a light more than a million biases away
         alignas(64) float keep[tile_capacity];   // 1 - from, in float (the triangles' plane test)
         alignas(64) float reach[tile_capacity];  // 1 - blocking_start(from), in float (box_points)
         alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity],
@@ -510,7 +512,7 @@ protected:
         // order as shadow_from and apply_instance take on one point.
         using simd::Doubles;
         alignas(64) double wx[tile_capacity], wy[tile_capacity], wz[tile_capacity];
-        alignas(64) double ex[tile_capacity], ey[tile_capacity], ez[tile_capacity];
+        double *ex = t.e[0], *ey = t.e[1], *ez = t.e[2];
         const uint64_t wanted = alive & tile_lanes(count);
         for (uint32_t g = 0; g < tile_capacity; g += simd::dwidth) {
             if (!simd::double_group(wanted, g)) continue;  // zeros below
@@ -522,7 +524,7 @@ protected:
             }
         }
         const double* m = inverse_;
-        uint64_t blockable = 0, regular = 0;
+        uint64_t blockable = 0, regular = 0, close = 0;
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
             if (!simd::double_group(wanted, i)) {  // (an instance often takes a few points)
                 const Doubles zero = simd::dsplat(0);
@@ -549,6 +551,7 @@ protected:
             simd::store(ey + i, e[1]);
             simd::store(ez + i, e[2]);
             blockable |= uint64_t(simd::bits(from <= simd::dsplat(1))) << i;  // may_block
+            close |= uint64_t(simd::bits(from < simd::dsplat(1e-6))) << i;
             regular |= uint64_t(simd::bits((dist > simd::dsplat(float_tiny)) & (dist < simd::dsplat(1e30)))) << i;
         }
         for (uint64_t w = wanted; w; w &= w - 1) {  // the exact tests read the points they test only
@@ -556,10 +559,8 @@ protected:
             t.p[i][0] = wx[i];
             t.p[i][1] = wy[i];
             t.p[i][2] = wz[i];
-            t.e[i][0] = ex[i];
-            t.e[i][1] = ey[i];
-            t.e[i][2] = ez[i];
         }
+        t.close = close;
         const uint64_t live = wanted & blockable;
         // Not regular: at or by the light, not finite, or beyond float's range.
         alone = live & ~regular;
@@ -573,7 +574,8 @@ protected:
             // The float lanes of the groups that hold a live point (every lane test skips the other groups), in
             // double lanes: the same operations as on one point, each rounded to float once.
             const Doubles zero = simd::dsplat(0), one = simd::dsplat(1), unset = simd::dsplat(-1),
-                          half = simd::dsplat(0.5), grow = simd::dsplat(1.000001);
+                          half = simd::dsplat(0.5), grow = simd::dsplat(1.000001), inf = simd::dsplat(INFINITY);
+            Doubles l1_lo = inf, l1_hi = zero;  // over the live points (their l1 is finite)
             for (uint32_t g = 0; g < tile_capacity; g += simd::width) {
                 if (!simd::group(t.alive, g)) continue;
                 for (uint32_t i = g; i < g + simd::width; i += simd::dwidth) {
@@ -590,16 +592,13 @@ protected:
                     const Doubles l1 = simd::abs(x) + simd::abs(y) + simd::abs(z);
                     simd::store(t.l1 + i, l1);
                     simd::store_floats(t.vl + i, l1 * grow);
+                    l1_lo = simd::min(l1_lo, simd::select(in, l1, inf));
+                    l1_hi = simd::max(l1_hi, simd::select(in, l1, zero));
                 }
                 simd::store(t.slack + g, simd::load(t.fd + g) * simd::splat(2e-6f));
             }
-            t.l1_lo = INFINITY;
-            t.l1_hi = 0;
-            for (uint64_t w = t.alive; w; w &= w - 1) {
-                const uint32_t i = math::lowest_bit(w);
-                t.l1_lo = std::min(t.l1_lo, t.l1[i]);
-                t.l1_hi = std::max(t.l1_hi, t.l1[i]);
-            }
+            t.l1_lo = simd::lane_min(l1_lo);
+            t.l1_hi = simd::lane_max(l1_hi);
         }
         return off;
     }
@@ -663,9 +662,7 @@ protected:
             // distance) lets through the cluster a point lies on, whose segment leaves the thin box soon after
             // it starts to count: those points again in double, as the cluster's triangles cost far more.
             subset = box_points(b, subset, t);
-            check = 0;
-            for (uint64_t w = subset; w; w &= w - 1)
-                check |= uint64_t(t.from[math::lowest_bit(w)] < 1e-6) << math::lowest_bit(w);
+            check = subset & t.close;
             if (!check) return subset;
         }
         const Obb box = fine_obb(f, t.fine_obbs);
