@@ -121,6 +121,17 @@ private:
     // Coarse cluster c entered by the points `in`: its fine spheres scanned (walk_entered).
     void enter_coarse(uint32_t c, uint64_t in, Tile& t) const {
         const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
+        if (r.count == 1 && t.small && spheres_small_) {
+            // Its only fine cluster holds the same triangles: the coarse sphere and box the points passed are
+            // its own tests, near enough (its box comes next, in test_pending).
+            const uint32_t f = r.first;
+            if (skippable_fine(f)) return;
+            const LitSphere lit = lit_sphere(f);  // the fine spheres come first
+            const double* axis = t.frame[0];
+            prefetch(f);
+            add_pending(t, lit.x * float(axis[0]) + lit.y * float(axis[1]) + lit.z * float(axis[2]) - lit.r, f, in);
+            return;
+        }
         scan_fine({r.first, r.count}, in, t);
     }
 
