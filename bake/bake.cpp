@@ -6,6 +6,7 @@
 #include <mutex>
 #include <numeric>
 
+#include "free_storage.h"
 #include "parallel.h"
 #include "timing.h"
 
@@ -32,7 +33,7 @@ bool closed_between(const uint32_t* indices, size_t corners, uint32_t lo, uint32
     std::vector<Entry> entry(start.back());
     std::vector<uint32_t> fill(start.begin(), start.end() - 1);
     each_edge([&](uint32_t a, uint32_t b, uint32_t v) { entry[fill[v]++] = Entry(std::max(a, b)) << 1 | (a < b); });
-    fill = {};
+    free_storage(fill);
     for (uint32_t v = 0; v < hi - lo; ++v) {
         Entry* first = entry.data() + start[v];
         Entry* last = entry.data() + start[v + 1];
@@ -127,9 +128,8 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
         if (release) {
             Mesh& owned = release->meshes[m];
             am.positions = std::move(owned.positions);
-            owned.positions = {};
-            owned.indices = {};
-            owned.primitives = {};
+            free_storage(owned.indices);
+            free_storage(owned.primitives);
         } else {
             am.positions = mesh.positions;
         }

@@ -17,6 +17,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "free_storage.h"
+
 namespace cb {
 namespace {
 
@@ -145,8 +147,8 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<E
         L.coarse.insert(L.coarse.end(), m.coarse.begin(), m.coarse.end());
         c = EncodedMesh{};
         if (release) {
-            (*release)[i].positions = {};
-            (*release)[i].triangles = {};
+            free_storage((*release)[i].positions);
+            free_storage((*release)[i].triangles);
         }
     }
     L.instances.resize(instances.size());
