@@ -121,15 +121,16 @@ private:
     // Coarse cluster c entered by the points `in`: its fine spheres scanned (walk_entered).
     void enter_coarse(uint32_t c, uint64_t in, Tile& t) const {
         const ClusterRange& r = view_->coarse[mesh_->first_coarse + c];
-        if (r.count == 1 && t.small && spheres_small_) {
+        if (r.count == 1 && float_tests(t)) {
             // Its only fine cluster holds the same triangles: the coarse sphere and box the points passed are
-            // its own tests, near enough (its box comes next, in test_pending).
+            // its own tests, near enough (its box comes next, in test_pending); scan_coarse tests the coarse
+            // box only with the float tests, hence the condition.
             const uint32_t f = r.first;
             if (skippable_fine(f)) return;
-            const LitSphere lit = lit_sphere(f);  // the fine spheres come first
             const double* axis = t.frame[0];
             prefetch(f);
-            add_pending(t, lit.x * float(axis[0]) + lit.y * float(axis[1]) + lit.z * float(axis[2]) - lit.r, f, in);
+            // (sphere f is fine cluster f's: the fine spheres come first in the scan bounds)
+            add_pending(t, near_key(lit_sphere(f), float(axis[0]), float(axis[1]), float(axis[2])), f, in);
             return;
         }
         scan_fine({r.first, r.count}, in, t);
@@ -151,6 +152,16 @@ private:
         const double d1 = std::fabs(x) + std::fabs(y) + std::fabs(z), r = s.r[i], grown = r + 2e-5 * (r + d1);
         return {float(x), float(y), float(z), float(grown), d1 + grown < float_tiny};
     }
+
+    // The key that orders sphere s's cluster by distance from the light: its nearest reach along the tile's
+    // axis (ax, ay, az).
+    static float near_key(const LitSphere& s, float ax, float ay, float az) {
+        return s.x * ax + s.y * ay + s.z * az - s.r;
+    }
+
+    // Whether the float tests (the pyramid against spheres, spheres and boxes against the tile's points)
+    // may run: the tile's coordinates and every sphere's, and the light's, within float_safe.
+    bool float_tests(const Tile& t) const { return t.small && spheres_small_; }
 
     // Conservative, in double: the segment from the query point to the light may meet sphere i.
     bool segment_may_touch_sphere(uint32_t i, const Query& q) const {
@@ -201,7 +212,7 @@ private:
     // tolerance, which make_pyramid leaves for it).
     template <bool each_point, class Pass>
     void scan_spheres(uint32_t first_sphere, uint32_t count, uint64_t in, Tile& t, Pass pass) const {
-        if (!t.small || !spheres_small_) {
+        if (!float_tests(t)) {
             for (uint32_t i = first_sphere; i < first_sphere + count; ++i) pass(i, in, 0.0f);
             return;
         }
@@ -249,7 +260,7 @@ private:
                 const uint32_t i = first + math::lowest_bit(keep);
                 const LitSphere lit = lit_sphere(i);
                 const uint64_t points = lit.everything || !each_point ? in : sphere_points(lit, in, t);
-                if (points) pass(i, points, lit.x * ax + lit.y * ay + lit.z * az - lit.r);
+                if (points) pass(i, points, near_key(lit, ax, ay, az));
             }
         }
         t.pyramid = whole;
@@ -259,7 +270,7 @@ private:
     // their boxes (or spheres, where a box's float test could overflow), onto the entered list.
     void scan_coarse(Tile& t) const {
         const uint32_t first = scan_bounds().coarse_first;
-        const bool narrow = t.small && spheres_small_;
+        const bool narrow = float_tests(t);
         scan_spheres<false>(first, mesh_->coarse_count, t.alive, t, [&](uint32_t i, uint64_t points, float key) {
             const uint32_t c = i - first;
             if (one_sided_ && coarse_skipped_[c]) return;
