@@ -81,10 +81,10 @@ bool up_to_date(const BakeRequest& r, BakeResult& result) {
 }
 
 // Bytes a bake holds per triangle of the scene's meshes at its peak besides the loaded scene (clustering,
-// fitting and encoding side by side). Measured as peak resident bytes less the scene's and the idle
-// process's, on 2 M-triangle copies of fandisk, teapot, homer and spot and on a 2 M-triangle grid (1 and 2
-// threads; every method and `--bounds all` on homer): 41-45, and 73 when k-means grows one tree over a
-// whole mesh (`--presplit 0`). The estimates keep about half again as margin.
+// fitting and encoding side by side; the scene's indices are freed once its mesh is clustered). Measured as
+// peak resident bytes less the scene's and the idle process's, on 2 M triangles of dragon copies (1 and 2
+// threads): 26-31, and 89-93 when k-means grows one tree over a whole mesh (`--presplit 0`). Meshes with
+// more vertices per triangle, or other methods and bounds, hold more: the estimates keep a margin.
 uint64_t bake_bytes_per_triangle(const ClusterOptions& c) {
     const bool one_tree =
         c.method == ClusterMethod::kmeans && (c.kmeans_presplit == 0 || c.kmeans_presplit > (uint32_t(1) << 20));
