@@ -728,6 +728,24 @@ TEST(Cluster, CityModelAtHugeCoordinates) {
     EXPECT_LT(mean_extent, 40.0) << "fine clusters of a 524 m terrain should span metres, not the whole site";
 }
 
+// cluster_scene_releasing clusters as cluster_scene does and gives the scene's storage back as it goes: each
+// mesh's positions move into its clustered mesh, and its indices and primitives are freed, not only emptied.
+TEST(Cluster, ReleasingClusteringFreesTheScenesArrays) {
+    cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    cb::ClusterOptions o;
+    cb::BakeStats stats;
+    const std::vector<cb::AssetMesh> kept = cb::cluster_scene(scene, o, stats);
+    const std::vector<cb::AssetMesh> released = cb::cluster_scene_releasing(scene, o, stats, {}, 2);
+    ASSERT_EQ(released.size(), kept.size());
+    for (size_t m = 0; m < kept.size(); ++m) {
+        EXPECT_EQ(released[m].positions, kept[m].positions);
+        EXPECT_EQ(released[m].triangles, kept[m].triangles);
+        EXPECT_EQ(released[m].fine.size(), kept[m].fine.size());
+        const cb::Mesh& mesh = scene.meshes[m];
+        EXPECT_EQ(mesh.positions.capacity() + mesh.indices.capacity() + mesh.primitives.capacity(), 0u) << m;
+    }
+}
+
 // Bounds fitting reports its progress by cluster triangles, a block of clusters at a time, from one thread
 // at a time, rising to the total (every fine and coarse cluster's triangles), and fits the same volumes as
 // without a report.
