@@ -63,9 +63,11 @@ std::string describe(ClusterOptionsError error, const std::function<std::string(
 // fine clusters [coarse_offsets[c] .. coarse_offsets[c+1]), whose triangles are contiguous in `order`.
 struct Hierarchy {
     UnsetVector<uint32_t> order;           // triangle permutation: position -> original triangle index
-    std::vector<uint32_t> corners;         // the triangles' corners (3 per triangle) in that order
     std::vector<uint32_t> fine_offsets;    // fine cluster count + 1 entries, into `order`
     std::vector<uint32_t> coarse_offsets;  // coarse cluster count + 1 entries, into fine clusters
+    // The triangles' corners (3 per triangle) in `order`. A std::vector, zeroed when sized unlike `order`,
+    // because it becomes the asset's triangles (AssetMesh::triangles) by a move, without a copy.
+    std::vector<uint32_t> corners;
 
     size_t fine_count() const { return fine_offsets.empty() ? 0 : fine_offsets.size() - 1; }
     size_t coarse_count() const { return coarse_offsets.empty() ? 0 : coarse_offsets.size() - 1; }
