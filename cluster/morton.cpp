@@ -30,15 +30,16 @@ inline double doubled_centre(const float* positions, const uint32_t* tri, int k)
     return double(std::min({a, b, c})) + double(std::max({a, b, c}));
 }
 
-// Key sorting: one split on the highest digit in which the keys differ, across the whole array and in
-// parallel parts, then each digit's range on its own, in cache: ranges of more than `cached_limit` keys
-// split again on their own highest differing digit, smaller ones take LSD passes over only the digits in
-// which their keys differ, where one LSD pass per digit over the whole array would scatter every key across
-// it six times. Every step is stable, so the order is the one stable order of the keys whatever the thread
-// count.
-constexpr int radix_bits = 11;                    // 2048 counts: 8 KB, in the first-level cache
+// Key sorting: stable counting passes, each on the highest digit in which a range's keys differ, splitting
+// the range into one range per digit value, which are sorted the same way in turn; ranges of a few keys sort
+// by insertion. The first split runs across the whole array in parallel parts, the rest range by range, in
+// cache. A digit is about log2(n) - 2 bits wide: a few keys per value, so that a range of a few thousand
+// keys is sorted after one or two passes, where passes per digit from the lowest (LSD) take five to seven
+// over the 40 to 50 bits in which such a range of Morton codes differs. Every step is stable, so the order is
+// the one stable order of the keys whatever the thread count.
+constexpr int radix_bits = 11;                    // at most 2048 counts: 8 KB, in the first-level cache
+constexpr int least_bits = 4;                     // 16 counts for the smallest ranges split
 constexpr size_t cached_limit = size_t(1) << 16;  // 64 Ki keys with their indices and scatter room: 1.5 MB
-constexpr size_t small_range = 4096;              // below this, 8-bit digits: fewer counts to clear and sum
 constexpr size_t insertion_limit = 32;
 
 // The bits in which some of the n keys differ from the first.
@@ -69,7 +70,9 @@ void scatter_digit(const uint64_t* keys, const uint32_t* order, size_t n, int sh
     }
 }
 
-// Sorts (keys, order)[0, n) stably by key, with (tmp_keys, tmp_order)[0, n) as scatter room.
+// Sorts (keys, order)[0, n) stably by key, with (tmp_keys, tmp_order)[0, n) as scatter room. Each level
+// splits below the highest differing bit of the one before, so the recursion is at most 64 / least_bits
+// deep.
 void sort_range(uint64_t* keys, uint32_t* order, uint64_t* tmp_keys, uint32_t* tmp_order, size_t n) {
     if (n <= insertion_limit) {
         for (size_t i = 1; i < n; ++i) {
@@ -88,31 +91,14 @@ void sort_range(uint64_t* keys, uint32_t* order, uint64_t* tmp_keys, uint32_t* t
     const uint64_t differ = differing_bits(keys, n);
     if (!differ) return;
     const int top = 64 - std::countl_zero(differ);
+    const int bits = std::clamp(int(std::bit_width(n)) - 2, least_bits, radix_bits);
+    const int shift = std::max(0, top - bits);
     uint32_t count[size_t(1) << radix_bits];
-    if (n > cached_limit) {
-        const int shift = std::max(0, top - radix_bits);
-        scatter_digit(keys, order, n, shift, radix_bits, count, tmp_keys, tmp_order);
-        std::copy_n(tmp_keys, n, keys);
-        std::copy_n(tmp_order, n, order);
-        for (size_t d = 0, start = 0; d < (size_t(1) << radix_bits); start = count[d++])
-            sort_range(keys + start, order + start, tmp_keys + start, tmp_order + start, count[d] - start);
-        return;
-    }
-    const int bits = n < small_range ? 8 : radix_bits;
-    const uint64_t mask = (uint64_t(1) << bits) - 1;
-    bool in_tmp = false;
-    for (int shift = 0; shift < top; shift += bits) {
-        if (!((differ >> shift) & mask)) continue;  // every key has the same digit here: a pass would not move one
-        if (in_tmp)
-            scatter_digit(tmp_keys, tmp_order, n, shift, bits, count, keys, order);
-        else
-            scatter_digit(keys, order, n, shift, bits, count, tmp_keys, tmp_order);
-        in_tmp = !in_tmp;
-    }
-    if (in_tmp) {
-        std::copy_n(tmp_keys, n, keys);
-        std::copy_n(tmp_order, n, order);
-    }
+    scatter_digit(keys, order, n, shift, bits, count, tmp_keys, tmp_order);
+    std::copy_n(tmp_keys, n, keys);
+    std::copy_n(tmp_order, n, order);
+    for (size_t d = 0, start = 0; d < (size_t(1) << bits); start = count[d++])
+        sort_range(keys + start, order + start, tmp_keys + start, tmp_order + start, count[d] - start);
 }
 
 }  // namespace

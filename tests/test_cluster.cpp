@@ -301,8 +301,9 @@ TEST(Cluster, MortonOrderIsTheSameInParallelAndStable) {
 
 TEST(Cluster, SortKeysIsTheStableSortOfTheKeys) {
     // Key sets that take every path: tiny, all equal, few distinct values (long runs of ties), keys that
-    // differ only in low bits, keys spread over all 63 bits, and dense groups far apart whose ranges split
-    // twice before they fit in cache; each against std::stable_sort, on one thread and on several.
+    // differ only in low bits, keys spread over all 63 bits, keys differing in scattered single bits (one
+    // split per level, many levels deep), and dense groups far apart whose ranges split twice before they
+    // fit in cache; each against std::stable_sort, on one thread and on several.
     std::mt19937_64 rng(7);
     auto spread = [&](size_t n, uint64_t mask) {
         std::vector<uint64_t> k(n);
@@ -315,6 +316,8 @@ TEST(Cluster, SortKeysIsTheStableSortOfTheKeys) {
                                                std::vector<uint64_t>(100000, 42),
                                                spread(1000, 7),
                                                spread(5000, 0xff00),
+                                               spread(5000, (uint64_t(1) << 63) - 1),
+                                               spread(20000, 0x8421084210842108),
                                                spread(70000, (uint64_t(1) << 63) - 1),
                                                spread(300000, 0x3ff),
                                                spread(1200000, (uint64_t(1) << 63) - 1)};
