@@ -73,15 +73,31 @@ inline SegmentTest segment_triangle(const double* p, const double* q, const doub
                                     double from, bool two_sided = true) {
     SegmentTest r;
     double bp, bq, ep = exact::orient3d_estimate(a, b, c, p, bp), eq = exact::orient3d_estimate(a, b, c, q, bq);
-    int sp = ep > bp ? 1 : -ep > bp ? -1 : exact::sign(exact::orient3d_exact(a, b, c, p));
-    int sq = eq > bq ? 1 : -eq > bq ? -1 : exact::sign(exact::orient3d_exact(a, b, c, q));
+    int sq = exact::settled_sign(eq, bq);
+    if (sq == exact::unsettled) sq = exact::sign(exact::orient3d_exact(a, b, c, q));
     if (!two_sided && sq != 1) return r;  // one-sided: the light sees its front, or lies in its plane
-    if (sp == 0 && sq == 0) return r;     // coplanar (or no area): edge-on, never blocks
-    if (sp == sq) return r;               // both ends strictly on one side
     // The line through p and q must pass through the closed triangle: no two edge orientations of
     // opposite strict signs.
-    int e0 = exact::orient3d(p, q, a, b), e1 = exact::orient3d(p, q, b, c), e2 = exact::orient3d(p, q, c, a);
-    if ((e0 > 0 || e1 > 0 || e2 > 0) && (e0 < 0 || e1 < 0 || e2 < 0)) return r;
+    int e0 = 0, e1 = 0, e2 = 0;
+    auto line_misses = [&] {
+        e0 = exact::orient3d(p, q, a, b);
+        e1 = exact::orient3d(p, q, b, c);
+        e2 = exact::orient3d(p, q, c, a);
+        return (e0 > 0 || e1 > 0 || e2 > 0) && (e0 < 0 || e1 < 0 || e2 < 0);
+    };
+    // p's side of the plane, when the double estimate settles it. When it does not (p on or next to the
+    // plane: a point on a flat surface against the triangles around it), the line test comes first: the
+    // tests that return nothing commute, and it needs no side, so the exact side is evaluated only for a
+    // line through the triangle.
+    int sp = exact::settled_sign(ep, bp);
+    const bool p_settled = sp != exact::unsettled;
+    if (!p_settled) {
+        if (line_misses()) return r;
+        sp = exact::sign(exact::orient3d_exact(a, b, c, p));
+    }
+    if (sp == 0 && sq == 0) return r;  // coplanar (or no area): edge-on, never blocks
+    if (sp == sq) return r;            // both ends strictly on one side
+    if (p_settled && line_misses()) return r;
     r.touching = sp == 0 || sq == 0 || e0 == 0 || e1 == 0 || e2 == 0;
     // The crossing is at t = Dp / (Dp - Dq) with D the plane determinants; it counts when t >= f (f = from),
     // that is when Dp + f (Dq - Dp) = (1 - f) Dp + f Dq has Dp's sign or is zero (Dp and Dq have opposite

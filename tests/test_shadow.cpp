@@ -207,6 +207,35 @@ TEST(Exact, OrientationAgreesWithCgal) {
     EXPECT_GT(zeros, 40000u);  // the coplanar family really is coplanar
 }
 
+TEST(Exact, ZeroBoundIsAnExactZero) {
+    // Four points on a plane of constant x, y or z, and the fourth point equal to one of the others: every
+    // product of the estimate has a zero difference, so its bound is zero and the sign is settled as zero
+    // without the exact path. CGAL agrees.
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(-1e3, 1e3);
+    size_t settled = 0;
+    const int cases = 30000;
+    for (int i = 0; i < cases; ++i) {
+        double pts[4][3];
+        for (auto& p : pts)
+            for (double& x : p) x = u(rng);
+        if (i % 2 == 0)
+            for (auto& p : pts) p[i / 2 % 3] = pts[0][i / 2 % 3];
+        else
+            std::copy_n(pts[i / 2 % 3], 3, pts[3]);
+        double bound, det = cb::exact::orient3d_estimate(pts[0], pts[1], pts[2], pts[3], bound);
+        settled += cb::exact::settled_sign(det, bound) == 0;
+        ASSERT_EQ(cb::exact::orient3d(pts[0], pts[1], pts[2], pts[3]), 0) << "case " << i;
+        ASSERT_EQ(cgal_orient(pts[0], pts[1], pts[2], pts[3]), 0) << "case " << i;
+    }
+    EXPECT_EQ(settled, size_t(cases));
+    // A bound above zero is never settled as zero, however small the estimate.
+    const double a[3] = {0, 0, 0}, b[3] = {1, 0, 0}, c[3] = {0, 1, 0}, d[3] = {0.25, 0.25, 1e-80};
+    double bound, det = cb::exact::orient3d_estimate(a, b, c, d, bound);
+    EXPECT_NE(cb::exact::settled_sign(det, bound), 0);
+    EXPECT_EQ(cb::exact::orient3d(a, b, c, d), cgal_orient(a, b, c, d));
+}
+
 TEST(Exact, SegmentTestAgreesWithCgalOracle) {
     std::mt19937 rng(9);
     std::uniform_int_distribution<int> grid(-3, 3);  // small integer grids: many exact contacts

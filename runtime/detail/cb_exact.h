@@ -167,6 +167,15 @@ inline double orient3d_estimate(const double* a, const double* b, const double* 
     return adx * bc + ady * ca + adz * ab;
 }
 
+// The sign an estimate and its bound settle: +1 or -1, 0 for a zero bound, `unsettled` otherwise. A zero bound
+// is an exact zero: each product of the determinant then has a rounded difference of zero, which in the
+// domain above (no product underflows) is an exact zero (two points on an axis-aligned plane, a triangle with
+// two equal corners).
+constexpr int unsettled = 2;
+inline int settled_sign(double estimate, double bound) {
+    return estimate > bound ? 1 : -estimate > bound ? -1 : bound == 0 ? 0 : unsettled;
+}
+
 // The determinant of three rows, each entry given exactly as an expansion (a difference of doubles, or a
 // double), exactly: row 0 . (row 1 x row 2).
 inline Expansion det3_exact(const Expansion (&r)[3][3]) {
@@ -215,9 +224,8 @@ inline Expansion det3_exact(const Row (&rows)[3]) {
 }
 inline int det3_sign(const Row (&rows)[3]) {
     double bound, det = det3_estimate(rows, bound);
-    if (det > bound) return 1;
-    if (-det > bound) return -1;
-    return sign(det3_exact(rows));
+    const int s = settled_sign(det, bound);
+    return s != unsettled ? s : sign(det3_exact(rows));
 }
 
 // Sign of | a - d, b - d, c - d |: +1, 0 or -1, exact. Positive when d sees a, b, c clockwise (equivalently,
@@ -225,9 +233,8 @@ inline int det3_sign(const Row (&rows)[3]) {
 inline int orient3d(const double* a, const double* b, const double* c, const double* d) {
     double bound, det = orient3d_estimate(a, b, c, d, bound);
     // Non-finite values fall through to the exact path, which then decides.
-    if (det > bound) return 1;
-    if (-det > bound) return -1;
-    return sign(orient3d_exact(a, b, c, d));
+    const int s = settled_sign(det, bound);
+    return s != unsettled ? s : sign(orient3d_exact(a, b, c, d));
 }
 
 }  // namespace exact
