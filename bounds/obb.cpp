@@ -411,6 +411,11 @@ CB_VECTOR_CLONES void extreme_points(const double* pts, size_t n, std::vector<do
 // 3dfier) for a quarter of the fitting time; on coarse ones they gain 0.5 to 1.5%.
 const size_t frame_search_limit = 64;
 
+// The refined search's area-weighted frame only starts it: from about this many of a large cluster's
+// triangles, coarse boxes are -0.03% to +0.2% in volume on the scanned meshes, for 4% of the fitting's
+// instructions (docs/PERFORMANCE.md).
+const size_t area_frame_samples = 512;
+
 // The best box whose one axis is a PCA axis or (in a large cluster, with `positions`) a triangle normal and
 // whose other two form the minimum-area rectangle across it; then a descent over small rotations about each
 // axis. `fine`: the cluster has at most frame_search_limit points, given in full.
@@ -622,10 +627,7 @@ Frame search_frame(const double* pts, size_t n, ObbMethod method, const float* p
     if (method == ObbMethod::pca || method == ObbMethod::refined) pca[pca_count++] = pca_frame(pts, n);
     if (method == ObbMethod::pca_area || (method == ObbMethod::refined && !fine)) {
         Frame f;
-        // The refined search's area-weighted frame only starts it: from about 512 of a large cluster's
-        // triangles, coarse boxes are -0.03% to +0.2% in volume on the scanned meshes, for 4% of the
-        // fitting's instructions (docs/PERFORMANCE.md).
-        const size_t stride = method == ObbMethod::refined ? std::max<size_t>(1, count / 512) : 1;
+        const size_t stride = method == ObbMethod::refined ? std::max<size_t>(1, count / area_frame_samples) : 1;
         if (positions && area_frame(positions, indices, tris, count, origin, f, stride))
             pca[pca_count++] = f;
         else if (method == ObbMethod::pca_area)

@@ -17,9 +17,10 @@ namespace {
 // coordinates, well inside the domain where that bound holds.
 [[gnu::noinline]] int orient2d_exact(const double* a, const double* b, const double* c) {
     using namespace exact;
-    Expansion e = multiply(difference(a[0], c[0]), difference(b[1], c[1]));
-    add(e, negated(multiply(difference(a[1], c[1]), difference(b[0], c[0]))));
-    return sign(e);
+    double det[16];
+    const int n =
+        det2_exact(difference(a[0], c[0]), difference(a[1], c[1]), difference(b[0], c[0]), difference(b[1], c[1]), det);
+    return sign(det, n);
 }
 
 inline int orient2d(const double* a, const double* b, const double* c) {

@@ -75,6 +75,18 @@ inline void batch_keys(const double* light, const double* points, size_t first, 
 // order[0, n): the indices 0..n-1 sorted by keys[0, n) (batch_keys), stably. `scratch` holds
 // batch_order_scratch_size(n) - n words.
 inline void batch_order_from_keys(const uint32_t* keys, size_t n, uint32_t* order, uint32_t* scratch) {
+    // A few points (a small mesh's view): a comparison sort of (key, index) pairs gives the same order
+    // without the radix sort's 6,144 counts to clear and sum, the most of its cost under a few hundred points.
+    constexpr size_t few = 256;
+    if (n <= few) {
+        uint64_t pairs[few];
+        for (size_t i = 0; i < n; ++i) pairs[i] = uint64_t(keys[i] & 0x7fffffu) << 32 | i;
+        // A comparator of these lanes' own: std::sort's instance for plain integers would be shared with the
+        // builds for other lanes (cb_simd.h), and the linker could keep a wider build's copy.
+        std::sort(pairs, pairs + n, [](uint64_t a, uint64_t b) { return a < b; });
+        for (size_t i = 0; i < n; ++i) order[i] = uint32_t(pairs[i]);
+        return;
+    }
     // Radix sort, 12 then 11 bits, both counts in one pass. The passes move indices only, the second reading
     // each key through its index (the keys, just read by the first pass, are mostly still in cache): half the
     // bytes written of moving key and index together.

@@ -158,8 +158,9 @@ inline SegmentTest ray_triangle(const double* p, const double* d, const double* 
     const double f0 = from, ahead = ep + f0 * ed,
                  ahead_bound = bp + f0 * bd + 4e-16 * (std::fabs(ep) + f0 * std::fabs(ed));
     if (f0 >= 0 && ((ed > bd && ahead > ahead_bound) || (-ed > bd && -ahead > ahead_bound))) return r;
-    int sp = ep > bp ? 1 : -ep > bp ? -1 : exact::sign(exact::orient3d_exact(a, b, c, p));
-    int sd = ed > bd ? 1 : -ed > bd ? -1 : exact::sign(exact::det3_exact(side_rows));
+    int sp = exact::settled_sign(ep, bp), sd = exact::settled_sign(ed, bd);
+    if (sp == exact::unsettled) sp = exact::sign(exact::orient3d_exact(a, b, c, p));
+    if (sd == exact::unsettled) sd = exact::sign(exact::det3_exact(side_rows));
     if (!two_sided && sd != 1) return r;  // one-sided: the sun sees its front, or grazes its plane
     if (sd == 0) return r;                // parallel to the plane: in it (edge-on) or never meeting it
     if (sp == sd) return r;               // heading away from the plane

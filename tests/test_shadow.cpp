@@ -168,6 +168,22 @@ TEST(Exact, NextFloatMatchesNextafter) {
     EXPECT_EQ(wrong, 0u);
 }
 
+TEST(Shadow, BatchOrderSortsByKeyStably) {
+    // batch_order_from_keys sorts few points by comparison and many by radix: both give the indices ordered by
+    // the key's 23 bits, ties in index order. Keys drawn from a few values (many ties), with bits above the 23.
+    std::mt19937 rng(23);
+    for (size_t n : {size_t(0), size_t(1), size_t(7), size_t(255), size_t(256), size_t(257), size_t(5000)})
+        for (uint32_t values : {3u, 1000u, 1u << 23}) {
+            std::vector<uint32_t> keys(n), order(n), scratch(cb::batch_order_scratch_size(n)), expected(n);
+            for (uint32_t& k : keys) k = uint32_t(rng()) % values | (uint32_t(rng()) & 0xff800000u);
+            cb::batch_order_from_keys(keys.data(), n, order.data(), scratch.data());
+            for (size_t i = 0; i < n; ++i) expected[i] = uint32_t(i);
+            std::stable_sort(expected.begin(), expected.end(),
+                             [&](uint32_t a, uint32_t b) { return (keys[a] & 0x7fffffu) < (keys[b] & 0x7fffffu); });
+            EXPECT_EQ(order, expected) << n << " points, " << values << " key values";
+        }
+}
+
 TEST(Exact, OrientationAgreesWithCgal) {
     std::mt19937 rng(5);
     std::uniform_real_distribution<double> u(-1, 1);

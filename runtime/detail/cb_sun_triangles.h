@@ -94,9 +94,7 @@ inline void sun_triangles(const AssetView& v, const MeshRecord& mesh, const Fine
         // when it is zero, and never blocks; one-sided, a triangle whose front the sun sees never blocks.
         const double minus_d[3] = {-toward[0], -toward[1], -toward[2]};
         const exact::Row rows[3] = {{minus_d, nullptr}, {x[1], x[0]}, {x[2], x[0]}};
-        double bound;
-        const double side = exact::det3_estimate(rows, bound);
-        const int sign = side > bound ? 1 : -side > bound ? -1 : exact::sign(exact::det3_exact(rows));
+        const int sign = exact::det3_sign(rows);
         const bool blocks = sign == 1 || (sign == -1 && (out.two_sided >> t & 1));
         out.may_block |= uint32_t(blocks) << t;
         out.heading[t] = float(-sign);
