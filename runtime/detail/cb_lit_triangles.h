@@ -76,7 +76,97 @@ struct Triangles {
     // unsettled (a line through the interior needs none).
     uint32_t has_plane = 0, has_edges = 0;  // bit t: terms[t]'s plane, edges are made
     TriangleTerms terms[capacity];
+    // Whether the group is flat (a floor's, a CAD face's): every corner v within flat_thick of the plane
+    // n . v = flat_d, in double with its rounding bounded (group_plane, made when a point first needs double
+    // work). Points lying on such a group leave it too closely for the float tests to settle under a grazing
+    // light; one plane test each then settles the whole group (beside_flat).
+    bool flat_known = false, flat = false;
+    double flat_n[3] = {0, 0, 0}, flat_d = 0, flat_thick = 0;
 };
+
+// 1e-15 times the sum of the terms' magnitudes bounds the rounding of n . x - d (3 products and 3 sums: under
+// 4 2^-53 of it) in group_plane and beside_flat.
+constexpr double plane_error = 1e-15;
+
+// Whether the group lies in one plane to within a millionth of its size, and which: the normal of its largest
+// triangle (a cross product of the float corners' differences, in double) and every corner's offset from it,
+// each widened by its rounding. Only a group whose float normals all lie within about a thousandth of a
+// radian of the first triangle's is looked at (a gate, never an answer): a curved mesh's groups stop there.
+inline void group_plane(Triangles& out) {
+    out.flat_known = true;
+    out.flat = false;
+    using simd::Floats;
+    const Floats n0x = simd::splat(out.nx[0]), n0y = simd::splat(out.ny[0]), n0z = simd::splat(out.nz[0]);
+    const Floats n0 = simd::abs(n0x) + simd::abs(n0y) + simd::abs(n0z);
+    uint32_t aligned = 0;
+    for (uint32_t t = 0; t < capacity; t += simd::width) {
+        const Floats x = simd::load(out.nx + t), y = simd::load(out.ny + t), z = simd::load(out.nz + t);
+        const Floats off = simd::abs(y * n0z - z * n0y) + simd::abs(z * n0x - x * n0z) + simd::abs(x * n0y - y * n0x);
+        const Floats size = simd::abs(x) + simd::abs(y) + simd::abs(z);
+        aligned |= simd::bits(off <= simd::splat(1e-3f) * size * n0) << t;
+    }
+    if ((aligned | ~((1u << out.count) - 1)) != ~0u) return;
+    double best = 0, n[3] = {0, 0, 0};
+    const float* base = nullptr;
+    for (uint32_t t = 0; t < out.count; ++t) {
+        const float *a = out.corner[t][0], *b = out.corner[t][1], *c = out.corner[t][2];
+        const double b0 = double(b[0]) - a[0], b1 = double(b[1]) - a[1], b2 = double(b[2]) - a[2];
+        const double c0 = double(c[0]) - a[0], c1 = double(c[1]) - a[1], c2 = double(c[2]) - a[2];
+        const double m[3] = {b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0};
+        const double area2 = m[0] * m[0] + m[1] * m[1] + m[2] * m[2];  // (twice the area) squared
+        if (area2 > best) {
+            best = area2;
+            std::copy(m, m + 3, n);
+            base = a;
+        }
+    }
+    if (!(best > 0 && best < INFINITY)) return;  // no triangle with an area (or not finite)
+    const double d = n[0] * base[0] + n[1] * base[1] + n[2] * base[2];
+    double thick = 0, size = 0;
+    for (uint32_t t = 0; t < out.count; ++t)
+        for (int k = 0; k < 3; ++k) {
+            const float* v = out.corner[t][k];
+            const double r = n[0] * v[0] + n[1] * v[1] + n[2] * v[2] - d;
+            const double bound =
+                plane_error * (std::fabs(n[0] * v[0]) + std::fabs(n[1] * v[1]) + std::fabs(n[2] * v[2]) + std::fabs(d));
+            thick = std::max(thick, std::fabs(r) + bound);
+            size = std::max(size,
+                            std::fabs(double(v[0]) - base[0]) + std::fabs(double(v[1]) - base[1]) +
+                                std::fabs(double(v[2]) - base[2]));
+        }
+    out.flat = thick < 1e-6 * (std::fabs(n[0]) + std::fabs(n[1]) + std::fabs(n[2])) * size;  // NaN: not flat
+    std::copy(n, n + 3, out.flat_n);
+    out.flat_d = d;
+    out.flat_thick = thick;
+}
+
+// The points p[i], i in `which`, whose segment stays beyond flat group `lit`'s plane on the light's side from
+// where contacts start to count (from[i]) to the light: they meet none of its triangles. The segment's offset
+// from the plane is linear along it, (1 - f) s_p + f s_q at fraction f, so its two ends decide; each offset
+// is bounded with its rounding, and has to clear the corners' flat_thick.
+inline uint64_t beside_flat(const Triangles& lit, const double (*p)[3], const double* from, uint64_t which,
+                            const double* light) {
+    const double *n = lit.flat_n, d = lit.flat_d, thick = lit.flat_thick;
+    auto offset = [&](const double* x, double& bound) {
+        bound = plane_error * (std::fabs(n[0] * x[0]) + std::fabs(n[1] * x[1]) + std::fabs(n[2] * x[2]) + std::fabs(d));
+        return n[0] * x[0] + n[1] * x[1] + n[2] * x[2] - d;
+    };
+    double bq;
+    const double sq = offset(light, bq);
+    if (!(std::fabs(sq) - bq > thick)) return 0;  // the light by the plane (or not finite)
+    uint64_t beside = 0;
+    for (uint64_t w = which; w; w &= w - 1) {
+        const uint32_t i = math::lowest_bit(w);
+        const double f = from[i];
+        if (!(f >= 0 && f <= 1)) continue;
+        double bp;
+        const double sp = offset(p[i], bp);
+        const double s = (1 - f) * sp + f * sq,
+                     bound = (1 - f) * bp + f * bq + plane_error * (std::fabs(sp) + std::fabs(sq));
+        beside |= uint64_t(std::fabs(s) - bound > thick && (s > 0) == (sq > 0)) << i;
+    }
+    return beside;
+}
 
 // Triangle t's corners, and their offsets from the light.
 inline void triangle_corners(const Triangles& lit, uint32_t t, const double* light, double (&p)[3][3],
@@ -253,6 +343,7 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     out.max_scale = widest[0];
     out.plane_scale = flat[0];
     out.has_plane = out.has_edges = 0;
+    out.flat_known = out.flat = false;
 }
 
 // orient3d(a, b, c, x) for a triangle with `terms`, in double, and a bound on its error in `bound`.
@@ -552,16 +643,24 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         } else {
             light_triangles(v, mesh, c, first, count, light, one_sided, own);
         }
+        // A flat group settles the points whose segments clear its plane (not when contacts are counted: a
+        // point on the group touches it): before the line tests once its plane is known, and it is made the
+        // first time some point needs double work, which a group set up for a point or two rarely does.
+        const bool planes = !touched;
+        const uint64_t test = planes && lit->flat ? which & ~beside_flat(*lit, p, from, which, light) : which;
+        if (!test) continue;
+        const uint32_t tested = math::bit_count(uint32_t(test)) + math::bit_count(uint32_t(test >> 32));
         uint32_t may_meet[64], through[64];
         // A tile's line tests at once where half its points or more reach the group: the groups it decides
         // are those near the light, which nearly every point reaches (docs/PERFORMANCE.md).
         uint64_t sure = 0, left = 0;  // points surely blocked (no double work), points with triangles left
-        const bool whole = tile && math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32)) >= 32 &&
-            tile_line_tests(*lit, *tile, which, may_meet, through, &sure, &left);
-        if (!whole) sure = line_tests(*lit, p, from, which, light, may_meet, through, &left);
-        if (stats)
-            stats->triangles_tested +=
-                uint64_t(lit->count) * (math::bit_count(uint32_t(which)) + math::bit_count(uint32_t(which >> 32)));
+        const bool whole = tile && tested >= 32 && tile_line_tests(*lit, *tile, test, may_meet, through, &sure, &left);
+        if (!whole) sure = line_tests(*lit, p, from, test, light, may_meet, through, &left);
+        if (stats) stats->triangles_tested += uint64_t(lit->count) * tested;
+        if (left && planes && !lit->flat_known) {
+            group_plane(*lit);
+            if (lit->flat) left &= ~beside_flat(*lit, p, from, left, light);
+        }
         blocked |= sure;
         which &= ~sure;
         for (uint64_t w = left; w; w &= w - 1) {
