@@ -85,8 +85,15 @@ struct Triangles {
 };
 
 // 1e-15 times the sum of the terms' magnitudes bounds the rounding of n . x - d (3 products and 3 sums: under
-// 4 2^-53 of it) in group_plane and beside_flat.
+// 4 2^-53 of it).
 constexpr double plane_error = 1e-15;
+
+// x's offset n . x - d from a plane, in double, and in `bound` a bound on its rounding (group_plane, beside_flat).
+template <class T>
+inline double plane_offset(const double* n, double d, const T* x, double& bound) {
+    bound = plane_error * (std::fabs(n[0] * x[0]) + std::fabs(n[1] * x[1]) + std::fabs(n[2] * x[2]) + std::fabs(d));
+    return n[0] * x[0] + n[1] * x[1] + n[2] * x[2] - d;
+}
 
 // Whether the group lies in one plane to within a millionth of its size, and which: the normal of its largest
 // triangle (a cross product of the float corners' differences, in double) and every corner's offset from it,
@@ -126,9 +133,8 @@ inline void group_plane(Triangles& out) {
     for (uint32_t t = 0; t < out.count; ++t)
         for (int k = 0; k < 3; ++k) {
             const float* v = out.corner[t][k];
-            const double r = n[0] * v[0] + n[1] * v[1] + n[2] * v[2] - d;
-            const double bound =
-                plane_error * (std::fabs(n[0] * v[0]) + std::fabs(n[1] * v[1]) + std::fabs(n[2] * v[2]) + std::fabs(d));
+            double bound;
+            const double r = plane_offset(n, d, v, bound);
             thick = std::max(thick, std::fabs(r) + bound);
             size = std::max(size,
                             std::fabs(double(v[0]) - base[0]) + std::fabs(double(v[1]) - base[1]) +
@@ -147,12 +153,8 @@ inline void group_plane(Triangles& out) {
 inline uint64_t beside_flat(const Triangles& lit, const double (*p)[3], const double* from, uint64_t which,
                             const double* light) {
     const double *n = lit.flat_n, d = lit.flat_d, thick = lit.flat_thick;
-    auto offset = [&](const double* x, double& bound) {
-        bound = plane_error * (std::fabs(n[0] * x[0]) + std::fabs(n[1] * x[1]) + std::fabs(n[2] * x[2]) + std::fabs(d));
-        return n[0] * x[0] + n[1] * x[1] + n[2] * x[2] - d;
-    };
     double bq;
-    const double sq = offset(light, bq);
+    const double sq = plane_offset(n, d, light, bq);
     if (!(std::fabs(sq) - bq > thick)) return 0;  // the light by the plane (or not finite)
     uint64_t beside = 0;
     for (uint64_t w = which; w; w &= w - 1) {
@@ -160,7 +162,7 @@ inline uint64_t beside_flat(const Triangles& lit, const double (*p)[3], const do
         const double f = from[i];
         if (!(f >= 0 && f <= 1)) continue;
         double bp;
-        const double sp = offset(p[i], bp);
+        const double sp = plane_offset(n, d, p[i], bp);
         const double s = (1 - f) * sp + f * sq,
                      bound = (1 - f) * bp + f * bq + plane_error * (std::fabs(sp) + std::fabs(sq));
         beside |= uint64_t(std::fabs(s) - bound > thick && (s > 0) == (sq > 0)) << i;
