@@ -364,11 +364,37 @@ private:
         return cache->sun_box[slot];
     }
 
-    // The points of `subset` whose ray, from blocking_start on, may touch `box`: in double, point by point.
+    // The points of `subset` whose ray, from blocking_start on, may touch `box`: box_points' separating axes
+    // in double, point by point, without a division. Along a box axis the stored box is its slab (cb_asset.h),
+    // so half[k] bounds it exactly; across the ray, the padded halves. The margin, 1e-9 of the sizes involved,
+    // is far above double's rounding and the frame's departure from the ray's direction (1e-16 of the way to
+    // the box), and far below a bias: a point on a flat cluster, whose ray leaves its thin box as it starts to
+    // count, is settled here (the float test cannot).
     uint64_t double_box_points(const Obb& box, uint64_t subset, const Tile& t) const {
+        if (!subset) return 0;
+        const double* z = frame_[0];
+        double h[3], a[3][3], w[3][3], sign[3], lift[3], support[3];
+        padded_halves(box, h);
+        for (int k = 0; k < 3; ++k) {
+            for (int j = 0; j < 3; ++j) a[k][j] = box.axis[k][j];
+            const double zk = math::dot3(a[k], z);
+            sign[k] = zk > 1e-6 ? 1 : zk < -1e-6 ? -1 : 0;  // else the ray may not head one way along a[k]
+            lift[k] = start_ * zk;
+            math::cross3(z, a[k], w[k]);
+        }
+        for (int k = 0; k < 3; ++k)
+            support[k] = h[0] * std::fabs(math::dot3(w[k], a[0])) + h[1] * std::fabs(math::dot3(w[k], a[1])) +
+                h[2] * std::fabs(math::dot3(w[k], a[2]));
+        const double extent = h[0] + h[1] + h[2] + start_;
         for (uint64_t b = subset; b; b &= b - 1) {
             const uint32_t i = math::lowest_bit(b);
-            if (!ray_may_touch_box(box, t.p[i], toward_, blocking_start(from_))) subset &= ~(uint64_t(1) << i);
+            const double q[3] = {t.p[i][0] - box.center[0], t.p[i][1] - box.center[1], t.p[i][2] - box.center[2]};
+            const double margin = 1e-9 * (std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]) + extent);
+            bool apart = false;  // NaN or infinity anywhere: kept
+            for (int k = 0; k < 3; ++k)
+                apart = apart || sign[k] * (math::dot3(q, a[k]) + lift[k]) > double(box.half[k]) + margin ||
+                    std::fabs(math::dot3(q, w[k])) > support[k] + margin;
+            if (apart) subset &= ~(uint64_t(1) << i);
         }
         return subset;
     }
