@@ -672,7 +672,10 @@ public:
 
     // The instances tiles [first, last) meet, each tile's nearest first.
     void cull(size_t first, size_t last) {
-        for (size_t t = first; t < last; ++t) cull_tile(t);
+        for (size_t t = first; t < last; ++t) {
+            if (t + 1 < last) prefetch_points(t + 1);
+            cull_tile(t);
+        }
     }
 
     // The instances met by any tile, once each, in the order of their first meeting; returns how many.
@@ -755,6 +758,7 @@ public:
             d.count = 0;
             for (size_t t = c; t < chunk_end; ++t) {
                 d.shadowed[t - c] = 0;
+                if (t + 1 < last) prefetch_points(t + 1);
                 walk(w, uint32_t(t - c));
             }
             answer_deferred(w);
@@ -832,6 +836,16 @@ private:
         const float* whole;  // 1 in every lane: box_lanes over the whole segment
         size_t first_tile;   // the chunk's
     };
+
+    // Asks for tile t's points, which lie anywhere in the caller's array, while the tile before it is worked.
+    void prefetch_points(size_t t) const {
+        const uint32_t* index = order_.data() + t * tile_capacity;
+        for (uint32_t i = 0, count = tile_count_at(t); i < count; ++i) {
+            const double* p = points_ + size_t(index[i]) * 3;
+            simd::prefetch(p);
+            simd::prefetch(p + 2);  // a point may straddle two cache lines
+        }
+    }
 
     uint32_t tile_count_at(size_t t) const { return uint32_t(std::min<size_t>(tile_capacity, n_ - t * tile_capacity)); }
 
