@@ -285,26 +285,39 @@ private:
         }
     }
 
+    // Box axis k as the sun's separating-axis tests take it (sun_box in float, double_box_points in double):
+    // the axis, the way the ray heads along it (sign; 0 where it runs nearly across it: no test there), how
+    // far along it the ray has gone at blocking_start (lift), and the axis z x a across the ray (w).
+    struct RayAxis {
+        double a[3], sign, lift, w[3];
+    };
+    RayAxis ray_axis(const Obb& box, int k) const {
+        RayAxis r;
+        for (int j = 0; j < 3; ++j) r.a[j] = box.axis[k][j];
+        const double zk = math::dot3(r.a, frame_[0]);
+        r.sign = zk > 1e-6 ? 1 : zk < -1e-6 ? -1 : 0;
+        r.lift = start_ * zk;
+        math::cross3(frame_[0], r.a, r.w);
+        return r;
+    }
+
     // A cluster's box set up for box_points (SunBox, cb_tile.h).
     SunBox sun_box(const Obb& box) const {
         SunBox b;
         const ScanBounds& s = bounds();
         double h[3];
         padded_halves(box, h);
-        const double* z = frame_[0];
         double scale = h[0] + h[1] + h[2];
         for (int k = 0; k < 3; ++k) {
-            const double a[3] = {box.axis[k][0], box.axis[k][1], box.axis[k][2]}, c = box.center[k] - s.origin[k];
+            const double c = box.center[k] - s.origin[k];
             b.c[k] = float(c);
             scale += std::fabs(c);
+            const RayAxis r = ray_axis(box, k);
             for (int j = 0; j < 3; ++j) b.a[k][j] = box.axis[k][j];
-            const double zk = math::dot3(a, z);
-            b.sign[k] = zk > 1e-6 ? 1.0f : zk < -1e-6 ? -1.0f : 0.0f;
-            b.h[k] = b.sign[k] != 0 ? float(h[k]) : INFINITY;
-            b.lift[k] = float(start_ * zk);
-            double w[3];
-            math::cross3(z, a, w);
-            for (int j = 0; j < 3; ++j) b.w[k][j] = float(w[j]);
+            b.sign[k] = float(r.sign);
+            b.h[k] = r.sign != 0 ? float(h[k]) : INFINITY;
+            b.lift[k] = float(r.lift);
+            for (int j = 0; j < 3; ++j) b.w[k][j] = float(r.w[j]);
         }
         for (int k = 0; k < 3; ++k) {
             const double w[3] = {b.w[k][0], b.w[k][1], b.w[k][2]};
@@ -372,19 +385,12 @@ private:
     // count, is settled here (the float test cannot).
     uint64_t double_box_points(const Obb& box, uint64_t subset, const Tile& t) const {
         if (!subset) return 0;
-        const double* z = frame_[0];
-        double h[3], a[3][3], w[3][3], sign[3], lift[3], support[3];
+        double h[3], support[3];
         padded_halves(box, h);
-        for (int k = 0; k < 3; ++k) {
-            for (int j = 0; j < 3; ++j) a[k][j] = box.axis[k][j];
-            const double zk = math::dot3(a[k], z);
-            sign[k] = zk > 1e-6 ? 1 : zk < -1e-6 ? -1 : 0;  // else the ray may not head one way along a[k]
-            lift[k] = start_ * zk;
-            math::cross3(z, a[k], w[k]);
-        }
+        const RayAxis r[3] = {ray_axis(box, 0), ray_axis(box, 1), ray_axis(box, 2)};
         for (int k = 0; k < 3; ++k)
-            support[k] = h[0] * std::fabs(math::dot3(w[k], a[0])) + h[1] * std::fabs(math::dot3(w[k], a[1])) +
-                h[2] * std::fabs(math::dot3(w[k], a[2]));
+            support[k] = h[0] * std::fabs(math::dot3(r[k].w, r[0].a)) + h[1] * std::fabs(math::dot3(r[k].w, r[1].a)) +
+                h[2] * std::fabs(math::dot3(r[k].w, r[2].a));
         const double extent = h[0] + h[1] + h[2] + start_;
         for (uint64_t b = subset; b; b &= b - 1) {
             const uint32_t i = math::lowest_bit(b);
@@ -392,8 +398,8 @@ private:
             const double margin = 1e-9 * (std::fabs(q[0]) + std::fabs(q[1]) + std::fabs(q[2]) + extent);
             bool apart = false;  // NaN or infinity anywhere: kept
             for (int k = 0; k < 3; ++k)
-                apart = apart || sign[k] * (math::dot3(q, a[k]) + lift[k]) > double(box.half[k]) + margin ||
-                    std::fabs(math::dot3(q, w[k])) > support[k] + margin;
+                apart = apart || r[k].sign * (math::dot3(q, r[k].a) + r[k].lift) > double(box.half[k]) + margin ||
+                    std::fabs(math::dot3(q, r[k].w)) > support[k] + margin;
             if (apart) subset &= ~(uint64_t(1) << i);
         }
         return subset;
