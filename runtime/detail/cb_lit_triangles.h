@@ -594,6 +594,12 @@ inline bool triangles_block(Triangles& lit, const double* p, double from, const 
     return false;
 }
 
+// Where an owner's entries start in a direct-mapped table: instances of one mesh name the same clusters, and
+// a level's tile meets several of them, so each owner's run of slots starts at a place of its own.
+inline uint32_t owner_salt(const void* owner) {
+    return uint32_t((uint64_t(reinterpret_cast<uintptr_t>(owner)) >> 4) * 0x9e3779b97f4a7c15ULL >> 40);
+}
+
 // Triangle groups already lit, kept for later tests from the same light: a direct-mapped table, about 280 KB.
 // An entry is named by its owner (a token for one mesh, light and mode: cb::occluded_batch uses the traversal),
 // its fine cluster and its first triangle. clear() before the owners' lights or meshes change.
@@ -605,9 +611,11 @@ struct Cache {
     void clear() {
         for (const void*& o : owner) o = nullptr;
     }
-    static uint32_t slot(uint32_t f, uint32_t first) { return (f + first / lit::capacity) % size; }
+    static uint32_t slot(const void* o, uint32_t f, uint32_t first) {
+        return (owner_salt(o) + f + first / lit::capacity) % size;
+    }
     bool holds(const void* o, uint32_t f, uint32_t first) const {
-        const uint32_t s = slot(f, first);
+        const uint32_t s = slot(o, f, first);
         return owner[s] == o && cluster[s] == f && this->first[s] == first;
     }
 };
@@ -634,7 +642,7 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         const uint32_t count = std::min<uint32_t>(capacity, c.triangle_count - first);
         Triangles* lit = &own;
         if (cache) {
-            const uint32_t slot = lit::Cache::slot(f, first);
+            const uint32_t slot = lit::Cache::slot(owner, f, first);
             lit = &cache->entry[slot];
             if (!cache->holds(owner, f, first)) {
                 light_triangles(v, mesh, c, first, count, light, one_sided, *lit);

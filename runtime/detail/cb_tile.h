@@ -630,7 +630,7 @@ protected:
 
     // Fine cluster f's box filter from the batch's cache, set up there when it is not yet.
     const BoxFilter& cached_fine_box_filter(uint32_t f, const Obb* fine_obbs, TileCache& cache) const {
-        const uint32_t slot = f % TileCache::box_slots;
+        const uint32_t slot = (lit::owner_salt(this) + f) % TileCache::box_slots;
         if (cache.box_owner[slot] != this || cache.box_cluster[slot] != f) {
             cache.box[slot] = fine_box_filter(f, fine_obbs);
             cache.box_owner[slot] = this;
