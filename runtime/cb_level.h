@@ -202,6 +202,77 @@ inline bool pyramid_meets_box(const WorldPyramid& w, const Box& b, double& near)
     return !(near > w.dmax + eps);
 }
 
+// Instances a group of tiles' pyramid met (LevelShadow::cull), for each tile's own pyramid to test in lanes
+// across them: each box's centre from the light, half extents and size (|centre|_1 plus the halves), as
+// pyramid_meets_box makes them, padded with empty lanes to a whole vector.
+struct MetBoxes {
+    LaneVector<double> cx, cy, cz, hx, hy, hz, size;
+    LaneVector<uint32_t> handle;
+    uint32_t count = 0;
+    bool usable = false;  // whether the group's pyramid was made (otherwise every tile walks the hierarchy)
+    void clear() {
+        for (LaneVector<double>* v : {&cx, &cy, &cz, &hx, &hy, &hz, &size}) v->clear();
+        handle.clear();
+        count = 0;
+    }
+    void add(const Box& b, const double* light, uint32_t h) {
+        double c[3], half[3], s = 0;
+        for (int k = 0; k < 3; ++k) {
+            c[k] = 0.5 * (b.lo[k] + b.hi[k]) - light[k];
+            half[k] = 0.5 * (b.hi[k] - b.lo[k]);
+            s += std::fabs(c[k]) + half[k];
+        }
+        cx.push_back(c[0]);
+        cy.push_back(c[1]);
+        cz.push_back(c[2]);
+        hx.push_back(half[0]);
+        hy.push_back(half[1]);
+        hz.push_back(half[2]);
+        size.push_back(s);
+        handle.push_back(h);
+        ++count;
+    }
+    void pad() {
+        while (cx.size() % simd::dwidth)
+            for (LaneVector<double>* v : {&cx, &cy, &cz, &hx, &hy, &hz, &size}) v->push_back(0);
+    }
+};
+
+// f(handle, near) for each box of `met` that may meet pyramid w: pyramid_meets_box's test, in lanes across
+// the boxes.
+template <class F>
+inline void visit_met(const WorldPyramid& w, const MetBoxes& met, F f) {
+    using simd::Doubles;
+    const double* z = w.axis;
+    const Doubles dmax = simd::dsplat(w.dmax), nano = simd::dsplat(1e-9), zx = simd::dsplat(z[0]),
+                  zy = simd::dsplat(z[1]), zz = simd::dsplat(z[2]), ax = simd::dsplat(std::fabs(z[0])),
+                  ay = simd::dsplat(std::fabs(z[1])), az = simd::dsplat(std::fabs(z[2]));
+    alignas(64) double near[simd::dwidth];
+    for (uint32_t i = 0; i < met.count; i += simd::dwidth) {
+        const Doubles cx = simd::load(met.cx.data() + i), cy = simd::load(met.cy.data() + i),
+                      cz = simd::load(met.cz.data() + i), hx = simd::load(met.hx.data() + i),
+                      hy = simd::load(met.hy.data() + i), hz = simd::load(met.hz.data() + i);
+        const Doubles eps = nano * (dmax + simd::load(met.size.data() + i)), below = simd::dsplat(0) - eps;
+        uint32_t out = 0;
+        for (uint32_t s = 0; s < 4; ++s) {
+            const Doubles reach = simd::dsplat(w.ax[s]) * hx + simd::dsplat(w.ay[s]) * hy + simd::dsplat(w.az[s]) * hz;
+            const Doubles side =
+                simd::dsplat(w.nx[s]) * cx + simd::dsplat(w.ny[s]) * cy + simd::dsplat(w.nz[s]) * cz + reach;
+            out |= simd::bits(side < below);  // NaN: kept
+        }
+        const Doubles n = (zx * cx + zy * cy + zz * cz) - (ax * hx + ay * hy + az * hz);
+        out |= simd::bits(n > dmax + eps);
+        const uint32_t lanes = met.count - i < simd::dwidth ? (1u << (met.count - i)) - 1 : (1u << simd::dwidth) - 1;
+        uint32_t keep = lanes & ~out;
+        if (!keep) continue;
+        simd::store(near, n);
+        for (; keep; keep &= keep - 1) {
+            const uint32_t k = math::lowest_bit(keep);
+            f(met.handle[i + k], near[k]);
+        }
+    }
+}
+
 // A prism along a sun's direction in world space that holds the rays of some points: the rectangle [lo, hi]
 // across the direction (on the unit axes a, b) that bounds their projections, from `low` (the lowest point
 // along the unit direction z) up; `top` is the level's highest reach along z (an order for the instances met).
@@ -670,11 +741,35 @@ public:
 
     size_t tile_count() const { return tile_count_; }
 
-    // The instances tiles [first, last) meet, each tile's nearest first.
+    // The instances tiles [first, last) meet, each tile's nearest first: every instance when the level is not
+    // culled (list_unculled), a sun's tiles each on its own (cull_sun_tile). A point light's tiles go in groups
+    // of group_tiles, the same groups whatever the range: the group's pyramid walks the level's hierarchy
+    // once, and each tile's own pyramid tests the instances that walk met, in lanes (cull_point_tile).
+    // Neighbouring tiles look the same way from the light and meet mostly the same instances, and a tile's own
+    // walk tests several of the hierarchy's boxes for each instance it meets.
     void cull(size_t first, size_t last) {
-        for (size_t t = first; t < last; ++t) {
-            if (t + 1 < last) prefetch_points(t + 1);
-            cull_tile(t);
+        if (!unculled_.empty()) {
+            for (size_t t = first; t < last; ++t) tile_lists_[t].assign(unculled_.begin(), unculled_.end());
+            return;
+        }
+        if (sun_) {
+            for (size_t t = first; t < last; ++t) {
+                if (t + 1 < last) prefetch_points(t + 1);
+                tile_lists_[t].clear();
+                cull_sun_tile(t, tile_lists_[t]);
+            }
+            return;
+        }
+        TileOffsets tiles[group_tiles];
+        level_detail::MetBoxes met;
+        for (size_t g = first / group_tiles * group_tiles; g < last; g += group_tiles) {
+            const size_t end = std::min<size_t>(g + group_tiles, tile_count_);
+            for (size_t t = g; t < end; ++t) {
+                if (t + 1 < end) prefetch_points(t + 1);
+                tile_offsets(t, tiles[t - g]);
+            }
+            cull_group(tiles, uint32_t(end - g), met);
+            for (size_t t = std::max(g, first); t < std::min(end, last); ++t) cull_point_tile(t, tiles[t - g], met);
         }
     }
 
@@ -898,7 +993,7 @@ private:
     void answer_deferred(Walk& w) const {
         Deferred& d = w.d;
         const uint32_t waiting = d.count;
-        // A comparator of this namespace's own, as cull_tile's (std::sort of plain integers would be one
+        // A comparator of this namespace's own, as cull_point_tile's (std::sort of plain integers would be one
         // instance shared with code built for other lanes).
         std::sort(d.key, d.key + waiting, [](uint64_t a, uint64_t b) { return a < b; });
         uint32_t packed[tile_capacity];
@@ -1208,21 +1303,21 @@ private:
         return in | ~regular;
     }
 
-    // The instances tile t's pyramid (and the segments of its points the pyramid does not hold) may meet,
-    // nearest first: each entry the float bits of its distance along the pyramid's axis (not below 0, so
-    // they order as integers) above its handle.
-    void cull_tile(size_t t) {
-        level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
-        if (!unculled_.empty()) {
-            list.assign(unculled_.begin(), unculled_.end());
-            return;
-        }
-        list.clear();
-        if (sun_) return cull_sun_tile(t, list);
+    // A point light's tile, by coordinate from the light (offsets), and which of its points a pyramid takes:
+    // `taken` (finite, beyond float_tiny of the light and within 1e30), `alone` (the others finite and not at
+    // the light: they walk the hierarchy on their own segment), m the sum of the taken ones' unit directions;
+    // `group_held`, those the tile's group's pyramid holds (cull_group).
+    struct TileOffsets {
+        alignas(64) double e[3][tile_capacity], dist[tile_capacity];
+        uint64_t taken = 0, alone = 0, group_held = 0;
+        double m[3] = {0, 0, 0};
+    };
+    static constexpr uint32_t group_tiles = 8;
+
+    void tile_offsets(size_t t, TileOffsets& o) const {
         const uint32_t count = tile_count_at(t);
         const uint32_t* index = order_.data() + t * tile_capacity;
-        alignas(64) double e[3][tile_capacity], dist[tile_capacity];
-        const uint64_t finite = offsets(index, count, e, dist);  // a point not finite is never in shadow
+        const uint64_t finite = offsets(index, count, o.e, o.dist);  // a point not finite is never in shadow
         // By the light, or beyond what a pyramid holds well: alone; at the light (no length): neither.
         using simd::Doubles;
         const Doubles zero = simd::dsplat(0), one = simd::dsplat(1), tiny = simd::dsplat(float_tiny),
@@ -1230,25 +1325,67 @@ private:
         const uint64_t lanes = tile_lanes(count);
         uint64_t taken = 0, alone = 0;
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            const Doubles d = simd::load(dist + i);
+            const Doubles d = simd::load(o.dist + i);
             const simd::DoubleMask in = simd::double_lanes(simd::double_group(lanes, i));
             taken |= uint64_t(simd::bits(in & (d > tiny) & (d < huge))) << i;
             alone |= uint64_t(simd::bits(in & (d > zero))) << i;
         }
-        alone &= finite & ~taken;
+        o.alone = alone & finite & ~taken;
+        o.taken = taken;
         Doubles sum[3] = {zero, zero, zero};
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
             const uint32_t group = simd::double_group(taken, i);
             if (!group) continue;
             const simd::DoubleMask in = simd::double_lanes(group);
-            const Doubles inv = one / simd::load(dist + i);
-            for (int k = 0; k < 3; ++k) sum[k] = sum[k] + simd::select(in, simd::load(e[k] + i) * inv, zero);
+            const Doubles inv = one / simd::load(o.dist + i);
+            for (int k = 0; k < 3; ++k) sum[k] = sum[k] + simd::select(in, simd::load(o.e[k] + i) * inv, zero);
         }
-        const double m[3] = {simd::lane_sum(sum[0]), simd::lane_sum(sum[1]), simd::lane_sum(sum[2])};
+        for (int k = 0; k < 3; ++k) o.m[k] = simd::lane_sum(sum[k]);
+    }
+
+    // The pyramid of a group of `n` tiles (every taken point of theirs within 60 degrees of their mean
+    // direction; each tile's group_held) and into `met` the instances it may meet; met.usable false when
+    // there is none such pyramid.
+    void cull_group(TileOffsets* tiles, uint32_t n, level_detail::MetBoxes& met) const {
+        met.clear();
+        met.usable = false;
+        double m[3] = {0, 0, 0}, frame[3][3];
+        for (uint32_t i = 0; i < n; ++i)
+            for (int k = 0; k < 3; ++k) m[k] += tiles[i].m[k];
+        for (uint32_t i = 0; i < n; ++i) tiles[i].group_held = 0;
+        if (!direction_frame(m, frame)) return;
+        PyramidSpan span;
+        uint64_t held = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            tiles[i].group_held = span.add(frame, tiles[i].e, tiles[i].dist, tiles[i].taken);
+            held |= tiles[i].group_held;
+        }
+        if (!held) return;
         level_detail::WorldPyramid w;
-        const uint64_t held = taken ? make_pyramid(e, dist, taken, m, w) : 0;
-        if (held) level_->visit_pyramid(w, [&](uint32_t h, double near) { list.push_back(entry(near, h)); });
-        alone |= taken & ~held;  // over 60 degrees off the tile's mean direction
+        span.finish(frame, light_, w);
+        level_->visit_pyramid(w, [&](uint32_t h, double) { met.add(level_->world_box(h), light_, h); });
+        met.pad();
+        met.usable = true;
+    }
+
+    // The instances point-light tile t's pyramid (and the segments of its points the pyramid does not hold) may
+    // meet, nearest first: each entry the float bits of its distance along the pyramid's axis (not below 0, so
+    // they order as integers) above its handle. The pyramid's from those its group met (`met`) when the group's
+    // pyramid holds every point the tile's holds, else from the level's hierarchy.
+    void cull_point_tile(size_t t, const TileOffsets& o, const level_detail::MetBoxes& met) {
+        level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
+        list.clear();
+        const uint32_t* index = order_.data() + t * tile_capacity;
+        level_detail::WorldPyramid w;
+        const uint64_t held = o.taken ? make_pyramid(o.e, o.dist, o.taken, o.m, w) : 0;
+        auto add = [&](uint32_t h, double near) { list.push_back(entry(near, h)); };
+        if (held) {
+            if (met.usable && !(held & ~o.group_held))
+                level_detail::visit_met(w, met, add);
+            else
+                level_->visit_pyramid(w, add);
+        }
+        const uint64_t alone = o.alone | (o.taken & ~held);  // over 60 degrees off the tile's mean direction
         for (uint64_t b = alone; b; b &= b - 1) {
             const double* p = points_ + size_t(index[math::lowest_bit(b)]) * 3;
             level_->visit_segment(p, light_, [&](uint32_t h, double) { list.push_back(entry(0, h)); });
@@ -1259,63 +1396,82 @@ private:
         std::sort(list.begin(), list.end(), [](uint64_t x, uint64_t y) { return x < y; });
     }
 
+    // The bounding rectangle of some points' central projections in a frame (direction_frame: z, then the
+    // axes a and b across it) and their largest distance, over one tile or several (add), and the pyramid
+    // from the light through that rectangle widened by 1e-6, far above the projections' rounding (finish).
+    struct PyramidSpan {
+        simd::Doubles lo0 = simd::dsplat(INFINITY), lo1 = simd::dsplat(INFINITY), hi0 = simd::dsplat(-INFINITY),
+                      hi1 = simd::dsplat(-INFINITY), far = simd::dsplat(0);
+
+        // Takes the points of `taken` (e from the light, by coordinate, dist their lengths) within 60 degrees of
+        // z; returns them.
+        uint64_t add(const double (*frame)[3], const double (*e)[tile_capacity], const double* dist, uint64_t taken) {
+            const double *z = frame[0], *a = frame[1], *b = frame[2];
+            using simd::Doubles;
+            const Doubles inf = simd::dsplat(INFINITY), ninf = simd::dsplat(-INFINITY), zero = simd::dsplat(0);
+            uint64_t held = 0;
+            for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+                const uint32_t group = simd::double_group(taken, i);
+                if (!group) continue;
+                const Doubles x = simd::load(e[0] + i), y = simd::load(e[1] + i), v = simd::load(e[2] + i),
+                              d = simd::load(dist + i);
+                const Doubles depth = x * simd::dsplat(z[0]) + y * simd::dsplat(z[1]) + v * simd::dsplat(z[2]);
+                const simd::DoubleMask in = simd::double_lanes(group) & (depth > simd::dsplat(0.5) * d);
+                const Doubles u = (x * simd::dsplat(a[0]) + y * simd::dsplat(a[1]) + v * simd::dsplat(a[2])) / depth,
+                              s = (x * simd::dsplat(b[0]) + y * simd::dsplat(b[1]) + v * simd::dsplat(b[2])) / depth;
+                lo0 = simd::min(lo0, simd::select(in, u, inf));
+                hi0 = simd::max(hi0, simd::select(in, u, ninf));
+                lo1 = simd::min(lo1, simd::select(in, s, inf));
+                hi1 = simd::max(hi1, simd::select(in, s, ninf));
+                far = simd::max(far, simd::select(in, d, zero));
+                held |= uint64_t(simd::bits(in)) << i;
+            }
+            return held;
+        }
+
+        // The pyramid through the rectangle (some point added and held).
+        void finish(const double (*frame)[3], const double* light, level_detail::WorldPyramid& w) const {
+            const double lo[2] = {simd::lane_min(lo0) - 1e-6, simd::lane_min(lo1) - 1e-6},
+                         hi[2] = {simd::lane_max(hi0) + 1e-6, simd::lane_max(hi1) + 1e-6};
+            w.dmax = simd::lane_max(far);
+            const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
+            double ray[4][3], inside[3];
+            for (int r = 0; r < 4; ++r) frame_ray(frame, corner[r][0], corner[r][1], ray[r]);
+            // Each side's normal turned toward the rectangle's centre: the mean direction z may lie outside the
+            // rectangle when points over 60 degrees off it were left out.
+            frame_ray(frame, 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), inside);
+            for (int r = 0; r < 4; ++r) {
+                double n[3];
+                math::cross3(ray[r], ray[(r + 1) & 3], n);
+                if (math::dot3(n, inside) < 0)
+                    for (int k = 0; k < 3; ++k) n[k] = -n[k];
+                const double nl = std::sqrt(math::dot3(n, n));
+                for (int k = 0; k < 3; ++k) n[k] = nl > 0 ? n[k] / nl : 0.0;
+                w.nx[r] = n[0];
+                w.ny[r] = n[1];
+                w.nz[r] = n[2];
+                w.ax[r] = std::fabs(n[0]);
+                w.ay[r] = std::fabs(n[1]);
+                w.az[r] = std::fabs(n[2]);
+            }
+            for (int k = 0; k < 3; ++k) {
+                w.light[k] = light[k];
+                w.axis[k] = frame[0][k];
+            }
+        }
+    };
+
     // The pyramid from the light holding the directions of the points `taken` (e from the light, by
-    // coordinate, dist their lengths, m the sum of their unit directions): a frame on their mean direction, the
-    // bounding rectangle of their central projections, widened by 1e-6 (far above their rounding). Returns the
-    // points it holds: those of `taken` within 60 degrees of the mean direction.
+    // coordinate, dist their lengths, m the sum of their unit directions): a frame on their mean direction and
+    // the points' PyramidSpan. Returns the points it holds: those of `taken` within 60 degrees of the mean
+    // direction.
     uint64_t make_pyramid(const double (*e)[tile_capacity], const double* dist, uint64_t taken, const double* m,
                           level_detail::WorldPyramid& w) const {
         double frame[3][3];
         if (!direction_frame(m, frame)) return 0;
-        const double *z = frame[0], *a = frame[1], *b = frame[2];
-        using simd::Doubles;
-        const Doubles inf = simd::dsplat(INFINITY), ninf = simd::dsplat(-INFINITY), zero = simd::dsplat(0);
-        Doubles lo0 = inf, lo1 = inf, hi0 = ninf, hi1 = ninf, far = zero;
-        uint64_t held = 0;
-        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            const uint32_t group = simd::double_group(taken, i);
-            if (!group) continue;
-            const Doubles x = simd::load(e[0] + i), y = simd::load(e[1] + i), v = simd::load(e[2] + i),
-                          d = simd::load(dist + i);
-            const Doubles depth = x * simd::dsplat(z[0]) + y * simd::dsplat(z[1]) + v * simd::dsplat(z[2]);
-            const simd::DoubleMask in = simd::double_lanes(group) & (depth > simd::dsplat(0.5) * d);
-            const Doubles u = (x * simd::dsplat(a[0]) + y * simd::dsplat(a[1]) + v * simd::dsplat(a[2])) / depth,
-                          s = (x * simd::dsplat(b[0]) + y * simd::dsplat(b[1]) + v * simd::dsplat(b[2])) / depth;
-            lo0 = simd::min(lo0, simd::select(in, u, inf));
-            hi0 = simd::max(hi0, simd::select(in, u, ninf));
-            lo1 = simd::min(lo1, simd::select(in, s, inf));
-            hi1 = simd::max(hi1, simd::select(in, s, ninf));
-            far = simd::max(far, simd::select(in, d, zero));
-            held |= uint64_t(simd::bits(in)) << i;
-        }
-        if (!held) return 0;
-        const double lo[2] = {simd::lane_min(lo0) - 1e-6, simd::lane_min(lo1) - 1e-6},
-                     hi[2] = {simd::lane_max(hi0) + 1e-6, simd::lane_max(hi1) + 1e-6};
-        w.dmax = simd::lane_max(far);
-        const double corner[4][2] = {{lo[0], lo[1]}, {hi[0], lo[1]}, {hi[0], hi[1]}, {lo[0], hi[1]}};
-        double ray[4][3], inside[3];
-        for (int r = 0; r < 4; ++r) frame_ray(frame, corner[r][0], corner[r][1], ray[r]);
-        // Each side's normal turned toward the rectangle's centre: the mean direction z may lie outside the
-        // rectangle when points over 60 degrees off it were left out.
-        frame_ray(frame, 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), inside);
-        for (int r = 0; r < 4; ++r) {
-            double n[3];
-            math::cross3(ray[r], ray[(r + 1) & 3], n);
-            if (math::dot3(n, inside) < 0)
-                for (int k = 0; k < 3; ++k) n[k] = -n[k];
-            const double nl = std::sqrt(math::dot3(n, n));
-            for (int k = 0; k < 3; ++k) n[k] = nl > 0 ? n[k] / nl : 0.0;
-            w.nx[r] = n[0];
-            w.ny[r] = n[1];
-            w.nz[r] = n[2];
-            w.ax[r] = std::fabs(n[0]);
-            w.ay[r] = std::fabs(n[1]);
-            w.az[r] = std::fabs(n[2]);
-        }
-        for (int k = 0; k < 3; ++k) {
-            w.light[k] = light_[k];
-            w.axis[k] = z[k];
-        }
+        PyramidSpan span;
+        const uint64_t held = span.add(frame, e, dist, taken);
+        if (held) span.finish(frame, light_, w);
         return held;
     }
 
@@ -1329,7 +1485,7 @@ private:
     level_detail::LaneVector<uint32_t> order_, order_scratch_;
     level_detail::LaneVector<uint64_t> unculled_;  // the entries every tile lists when not culled (list_unculled)
     level_detail::LaneVector<level_detail::LaneVector<uint64_t>>
-        tile_lists_;  // per tile: cull_tile's entries, then (gather) slots of needed_
+        tile_lists_;  // per tile: cull's entries, then (gather) slots of needed_
     level_detail::LaneVector<uint32_t> slot_of_, stamp_, needed_;
     uint32_t generation_ = 0;
     std::vector<InstanceShadow> shadows_;
