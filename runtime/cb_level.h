@@ -202,39 +202,37 @@ inline bool pyramid_meets_box(const WorldPyramid& w, const Box& b, double& near)
     return !(near > w.dmax + eps);
 }
 
-// Instances a group of tiles' pyramid met (LevelShadow::cull), for each tile's own pyramid to test in lanes
-// across them: each box's centre from the light, half extents and size (|centre|_1 plus the halves), as
-// pyramid_meets_box makes them, padded with empty lanes to a whole vector.
+// Instances a group of tiles' pyramid or prism met (LevelShadow::cull), for each tile's own to test in lanes
+// across them: each world box's centre and half extents, as pyramid_meets_box and prism_meets_box make them
+// (the lanes past `count` hold whatever they held: each visit leaves them out).
 struct MetBoxes {
-    LaneVector<double> cx, cy, cz, hx, hy, hz, size;
+    LaneVector<double> cx, cy, cz, hx, hy, hz;  // sized in whole vectors
     LaneVector<uint32_t> handle;
     uint32_t count = 0;
     bool usable = false;  // whether the group's pyramid was made (otherwise every tile walks the hierarchy)
-    void clear() {
-        for (LaneVector<double>* v : {&cx, &cy, &cz, &hx, &hy, &hz, &size}) v->clear();
-        handle.clear();
-        count = 0;
-    }
-    void add(const Box& b, const double* light, uint32_t h) {
-        double c[3], half[3], s = 0;
-        for (int k = 0; k < 3; ++k) {
-            c[k] = 0.5 * (b.lo[k] + b.hi[k]) - light[k];
-            half[k] = 0.5 * (b.hi[k] - b.lo[k]);
-            s += std::fabs(c[k]) + half[k];
+    void clear() { count = 0; }
+    void add(const Box& b, uint32_t h) {
+        if (count == handle.size()) {
+            const size_t size = (handle.size() * 2 + 64 + simd::dwidth - 1) / simd::dwidth * simd::dwidth;
+            for (LaneVector<double>* v : {&cx, &cy, &cz, &hx, &hy, &hz}) v->resize(size);
+            handle.resize(size);
         }
-        cx.push_back(c[0]);
-        cy.push_back(c[1]);
-        cz.push_back(c[2]);
-        hx.push_back(half[0]);
-        hy.push_back(half[1]);
-        hz.push_back(half[2]);
-        size.push_back(s);
-        handle.push_back(h);
-        ++count;
+        cx[count] = 0.5 * (b.lo[0] + b.hi[0]);
+        cy[count] = 0.5 * (b.lo[1] + b.hi[1]);
+        cz[count] = 0.5 * (b.lo[2] + b.hi[2]);
+        hx[count] = 0.5 * (b.hi[0] - b.lo[0]);
+        hy[count] = 0.5 * (b.hi[1] - b.lo[1]);
+        hz[count] = 0.5 * (b.hi[2] - b.lo[2]);
+        handle[count++] = h;
     }
-    void pad() {
-        while (cx.size() % simd::dwidth)
-            for (LaneVector<double>* v : {&cx, &cy, &cz, &hx, &hy, &hz, &size}) v->push_back(0);
+    // f(handle, near) for the lanes of `keep` in the vector from box i, near[k] lane k's.
+    template <class F>
+    void each(uint32_t i, uint32_t keep, const double* near, F& f) const {
+        if (count - i < simd::dwidth) keep &= (1u << (count - i)) - 1;
+        for (; keep; keep &= keep - 1) {
+            const uint32_t k = math::lowest_bit(keep);
+            f(handle[i + k], near[k]);
+        }
     }
 };
 
@@ -244,15 +242,17 @@ template <class F>
 inline void visit_met(const WorldPyramid& w, const MetBoxes& met, F f) {
     using simd::Doubles;
     const double* z = w.axis;
-    const Doubles dmax = simd::dsplat(w.dmax), nano = simd::dsplat(1e-9), zx = simd::dsplat(z[0]),
+    const Doubles dmax = simd::dsplat(w.dmax), nano = simd::dsplat(1e-9), lx = simd::dsplat(w.light[0]),
+                  ly = simd::dsplat(w.light[1]), lz = simd::dsplat(w.light[2]), zx = simd::dsplat(z[0]),
                   zy = simd::dsplat(z[1]), zz = simd::dsplat(z[2]), ax = simd::dsplat(std::fabs(z[0])),
                   ay = simd::dsplat(std::fabs(z[1])), az = simd::dsplat(std::fabs(z[2]));
     alignas(64) double near[simd::dwidth];
     for (uint32_t i = 0; i < met.count; i += simd::dwidth) {
-        const Doubles cx = simd::load(met.cx.data() + i), cy = simd::load(met.cy.data() + i),
-                      cz = simd::load(met.cz.data() + i), hx = simd::load(met.hx.data() + i),
+        const Doubles cx = simd::load(met.cx.data() + i) - lx, cy = simd::load(met.cy.data() + i) - ly,
+                      cz = simd::load(met.cz.data() + i) - lz, hx = simd::load(met.hx.data() + i),
                       hy = simd::load(met.hy.data() + i), hz = simd::load(met.hz.data() + i);
-        const Doubles eps = nano * (dmax + simd::load(met.size.data() + i)), below = simd::dsplat(0) - eps;
+        const Doubles scale = dmax + (simd::abs(cx) + hx) + (simd::abs(cy) + hy) + (simd::abs(cz) + hz);
+        const Doubles eps = nano * scale, below = simd::dsplat(0) - eps;
         uint32_t out = 0;
         for (uint32_t s = 0; s < 4; ++s) {
             const Doubles reach = simd::dsplat(w.ax[s]) * hx + simd::dsplat(w.ay[s]) * hy + simd::dsplat(w.az[s]) * hz;
@@ -262,14 +262,10 @@ inline void visit_met(const WorldPyramid& w, const MetBoxes& met, F f) {
         }
         const Doubles n = (zx * cx + zy * cy + zz * cz) - (ax * hx + ay * hy + az * hz);
         out |= simd::bits(n > dmax + eps);
-        const uint32_t lanes = met.count - i < simd::dwidth ? (1u << (met.count - i)) - 1 : (1u << simd::dwidth) - 1;
-        uint32_t keep = lanes & ~out;
+        const uint32_t keep = ((1u << simd::dwidth) - 1) & ~out;
         if (!keep) continue;
         simd::store(near, n);
-        for (; keep; keep &= keep - 1) {
-            const uint32_t k = math::lowest_bit(keep);
-            f(met.handle[i + k], near[k]);
-        }
+        met.each(i, keep, near, f);
     }
 }
 
@@ -298,6 +294,45 @@ inline bool prism_meets_box(const WorldPrism& w, const Box& b, double& near) {
     if (ca + ra < w.lo[0] || ca - ra > w.hi[0] || cb + rb < w.lo[1] || cb - rb > w.hi[1] || up < w.low) return false;
     near = w.top - up > 0 ? w.top - up : 0.0;  // NaN: 0
     return true;
+}
+
+// f(handle, near) for each box of `met` that may meet prism w: prism_meets_box's test, in lanes across the
+// boxes.
+template <class F>
+inline void visit_met(const WorldPrism& w, const MetBoxes& met, F f) {
+    using simd::Doubles;
+    const Doubles nano = simd::dsplat(1e-9), margin = simd::dsplat(w.margin), zero = simd::dsplat(0);
+    Doubles axis[3][3], reach[3][3];  // a, b, z and their absolute values, by coordinate
+    const double* n[3] = {w.a, w.b, w.z};
+    for (int j = 0; j < 3; ++j)
+        for (int k = 0; k < 3; ++k) {
+            axis[j][k] = simd::dsplat(n[j][k]);
+            reach[j][k] = simd::dsplat(std::fabs(n[j][k]));
+        }
+    alignas(64) double near[simd::dwidth];
+    for (uint32_t i = 0; i < met.count; i += simd::dwidth) {
+        const Doubles c[3] = {simd::load(met.cx.data() + i), simd::load(met.cy.data() + i),
+                              simd::load(met.cz.data() + i)},
+                      h[3] = {simd::load(met.hx.data() + i), simd::load(met.hy.data() + i),
+                              simd::load(met.hz.data() + i)};
+        Doubles size = margin;
+        for (int k = 0; k < 3; ++k) size = size + nano * (simd::abs(c[k]) + h[k]);
+        Doubles along[3], ends[3];  // the centre on a, b, z and the box's reach on them
+        for (int j = 0; j < 3; ++j) {
+            along[j] = axis[j][0] * c[0] + axis[j][1] * c[1] + axis[j][2] * c[2];
+            ends[j] = reach[j][0] * h[0] + reach[j][1] * h[1] + reach[j][2] * h[2] + size;
+        }
+        const Doubles up = along[2] + ends[2];
+        const uint32_t out = simd::bits(along[0] + ends[0] < simd::dsplat(w.lo[0])) |
+            simd::bits(simd::dsplat(w.hi[0]) < along[0] - ends[0]) |
+            simd::bits(along[1] + ends[1] < simd::dsplat(w.lo[1])) |
+            simd::bits(simd::dsplat(w.hi[1]) < along[1] - ends[1]) | simd::bits(up < simd::dsplat(w.low));
+        const uint32_t keep = ((1u << simd::dwidth) - 1) & ~out;
+        if (!keep) continue;
+        const Doubles below = simd::dsplat(w.top) - up;
+        simd::store(near, simd::select(below > zero, below, zero));  // NaN: 0
+        met.each(i, keep, near, f);
+    }
 }
 
 // False only when the ray p + t d (t >= 0) certainly misses the box (slabs, in double, widened by 1e-9 of the
@@ -752,16 +787,21 @@ public:
             for (size_t t = first; t < last; ++t) tile_lists_[t].assign(unculled_.begin(), unculled_.end());
             return;
         }
+        level_detail::MetBoxes met;
         if (sun_) {
-            for (size_t t = first; t < last; ++t) {
-                if (t + 1 < last) prefetch_points(t + 1);
-                tile_lists_[t].clear();
-                cull_sun_tile(t, tile_lists_[t]);
+            SunTileCull tiles[group_tiles];
+            for (size_t g = first / group_tiles * group_tiles; g < last; g += group_tiles) {
+                const size_t end = std::min<size_t>(g + group_tiles, tile_count_);
+                for (size_t t = g; t < end; ++t) {
+                    if (t + 1 < end) prefetch_points(t + 1);
+                    sun_tile_prism(t, tiles[t - g]);
+                }
+                cull_sun_group(tiles, uint32_t(end - g), met);
+                for (size_t t = std::max(g, first); t < std::min(end, last); ++t) cull_sun_tile(t, tiles[t - g], met);
             }
             return;
         }
         TileOffsets tiles[group_tiles];
-        level_detail::MetBoxes met;
         for (size_t g = first / group_tiles * group_tiles; g < last; g += group_tiles) {
             const size_t end = std::min<size_t>(g + group_tiles, tile_count_);
             for (size_t t = g; t < end; ++t) {
@@ -1156,15 +1196,17 @@ private:
         return in | (all & ~regular);
     }
 
-    // The instances a sun's tile t meets: those whose box meets the prism of its regular points, the sun's
-    // side first, and for the other finite points those whose box their ray may meet.
-    void cull_sun_tile(size_t t, level_detail::LaneVector<uint64_t>& list) {
-        const uint32_t count = tile_count_at(t);
-        const uint32_t* index = order_.data() + t * tile_capacity;
-        if (!sun_usable_) return;
+    // A sun's tile for culling: its points' coordinates in the sun's frame (sun_across), the regular ones, and
+    // the prism that holds their rays.
+    struct SunTileCull {
         double across[tile_capacity][3];
-        const uint64_t regular = sun_across(index, count, across);
+        uint64_t regular = 0;
         level_detail::WorldPrism w;
+    };
+
+    void sun_tile_prism(size_t t, SunTileCull& o) const {
+        level_detail::WorldPrism& w = o.w;
+        o.regular = sun_usable_ ? sun_across(order_.data() + t * tile_capacity, tile_count_at(t), o.across) : 0;
         for (int k = 0; k < 3; ++k) {
             w.a[k] = sun_frame_[1][k];
             w.b[k] = sun_frame_[2][k];
@@ -1173,8 +1215,8 @@ private:
         w.lo[0] = w.lo[1] = w.low = INFINITY;
         w.hi[0] = w.hi[1] = -INFINITY;
         double size = 0;
-        for (uint64_t b = regular; b; b &= b - 1) {
-            const double* q = across[math::lowest_bit(b)];
+        for (uint64_t b = o.regular; b; b &= b - 1) {
+            const double* q = o.across[math::lowest_bit(b)];
             w.lo[0] = std::min(w.lo[0], q[0]);
             w.hi[0] = std::max(w.hi[0], q[0]);
             w.lo[1] = std::min(w.lo[1], q[1]);
@@ -1190,10 +1232,43 @@ private:
             reach += std::fabs(w.z[k]) * 0.5 * (hi[k] - lo[k]);
         }
         w.top = math::dot3(centre, w.z) + reach;
-        if (regular) level_->visit_prism(w, [&](uint32_t h, double near) { list.push_back(entry(near, h)); });
+    }
+
+    // The prism holding the rays of a group of `n` sun tiles (all in the sun's frame: each tile's prism lies
+    // in it), and into `met` the instances it may meet.
+    void cull_sun_group(const SunTileCull* tiles, uint32_t n, level_detail::MetBoxes& met) const {
+        met.clear();
+        met.usable = false;
+        level_detail::WorldPrism w = tiles[0].w;
+        uint64_t regular = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            const level_detail::WorldPrism& t = tiles[i].w;
+            w.lo[0] = std::min(w.lo[0], t.lo[0]);
+            w.hi[0] = std::max(w.hi[0], t.hi[0]);
+            w.lo[1] = std::min(w.lo[1], t.lo[1]);
+            w.hi[1] = std::max(w.hi[1], t.hi[1]);
+            w.low = std::min(w.low, t.low);
+            w.margin = std::max(w.margin, t.margin);
+            regular |= tiles[i].regular;
+        }
+        if (!regular) return;
+        level_->visit_prism(w, [&](uint32_t h, double) { met.add(level_->world_box(h), h); });
+        met.usable = true;
+    }
+
+    // The instances a sun's tile t meets, the sun's side first: those whose box meets the prism of its regular
+    // points (from those its group met), and for the other finite points those whose box their ray may meet.
+    void cull_sun_tile(size_t t, const SunTileCull& o, const level_detail::MetBoxes& met) {
+        level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
+        list.clear();
+        if (!sun_usable_) return;
+        const uint32_t count = tile_count_at(t);
+        const uint32_t* index = order_.data() + t * tile_capacity;
+        auto add = [&](uint32_t h, double near) { list.push_back(entry(near, h)); };
+        if (o.regular) level_detail::visit_met(o.w, met, add);
         uint64_t alone = 0;
         for (uint32_t i = 0; i < count; ++i)
-            if (!(regular >> i & 1) && finite3(points_ + size_t(index[i]) * 3)) alone |= uint64_t(1) << i;
+            if (!(o.regular >> i & 1) && finite3(points_ + size_t(index[i]) * 3)) alone |= uint64_t(1) << i;
         for (uint64_t b = alone; b; b &= b - 1) {
             const double* p = points_ + size_t(index[math::lowest_bit(b)]) * 3;
             level_->visit_ray(p, light_, [&](uint32_t h, double) { list.push_back(entry(0, h)); });
@@ -1363,8 +1438,7 @@ private:
         if (!held) return;
         level_detail::WorldPyramid w;
         span.finish(frame, light_, w);
-        level_->visit_pyramid(w, [&](uint32_t h, double) { met.add(level_->world_box(h), light_, h); });
-        met.pad();
+        level_->visit_pyramid(w, [&](uint32_t h, double) { met.add(level_->world_box(h), h); });
         met.usable = true;
     }
 
