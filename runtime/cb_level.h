@@ -802,14 +802,22 @@ public:
             return;
         }
         TileOffsets tiles[group_tiles];
+        bool grouped = true;
         for (size_t g = first / group_tiles * group_tiles; g < last; g += group_tiles) {
             const size_t end = std::min<size_t>(g + group_tiles, tile_count_);
-            for (size_t t = g; t < end; ++t) {
-                if (t + 1 < end) prefetch_points(t + 1);
-                tile_offsets(t, tiles[t - g]);
+            const size_t probe = g / probe_tiles * probe_tiles;
+            if (g != probe && g == first / group_tiles * group_tiles) grouped = probe_pays(probe, tiles, met);
+            offsets_of(g, end, tiles);
+            if (g == probe || grouped) {
+                cull_group(tiles, uint32_t(end - g), met);
+            } else {
+                met.usable = false;
             }
-            cull_group(tiles, uint32_t(end - g), met);
-            for (size_t t = std::max(g, first); t < std::min(end, last); ++t) cull_point_tile(t, tiles[t - g], met);
+            uint32_t met_by_tiles = 0;
+            for (size_t t = g; t < end; ++t)
+                if (g == probe || (t >= first && t < last))
+                    met_by_tiles += cull_point_tile(t, tiles[t - g], met, t >= first && t < last);
+            if (g == probe) grouped = pays(met.count, met_by_tiles, uint32_t(end - g));
         }
     }
 
@@ -1388,6 +1396,9 @@ private:
         double m[3] = {0, 0, 0};
     };
     static constexpr uint32_t group_tiles = 8;
+    // Every probe_tiles tiles, the first group decides whether the next ones cull in groups (pays): a group
+    // pays while it meets at most group_cost times the instances of one of its tiles.
+    static constexpr uint32_t probe_tiles = 64, group_cost = 4;
 
     void tile_offsets(size_t t, TileOffsets& o) const {
         const uint32_t count = tile_count_at(t);
@@ -1442,23 +1453,55 @@ private:
         met.usable = true;
     }
 
+    // Whether culling in groups pays, from a probe group of n tiles: their group's pyramid met `group_met`
+    // instances and their own pyramids `tiles_met` in all. Where a group meets many times what one of its
+    // tiles does (light from above onto a wide level: each tile's pyramid is wide against the instances),
+    // the group's walk costs more than the tiles' own walks it saves.
+    static bool pays(uint32_t group_met, uint32_t tiles_met, uint32_t n) {
+        return uint64_t(group_met) * n <= uint64_t(group_cost) * tiles_met;
+    }
+
+    // The offsets of tiles [g, end) into `tiles`.
+    void offsets_of(size_t g, size_t end, TileOffsets* tiles) const {
+        for (size_t t = g; t < end; ++t) {
+            if (t + 1 < end) prefetch_points(t + 1);
+            tile_offsets(t, tiles[t - g]);
+        }
+    }
+
+    // `pays` for the probe group from tile `probe` (the first of probe_tiles), for a range that starts past
+    // it: the same decision whatever the ranges.
+    bool probe_pays(size_t probe, TileOffsets* tiles, level_detail::MetBoxes& met) {
+        const size_t end = std::min<size_t>(probe + group_tiles, tile_count_);
+        offsets_of(probe, end, tiles);
+        cull_group(tiles, uint32_t(end - probe), met);
+        uint32_t met_by_tiles = 0;
+        for (size_t t = probe; t < end; ++t) met_by_tiles += cull_point_tile(t, tiles[t - probe], met, false);
+        return pays(met.count, met_by_tiles, uint32_t(end - probe));
+    }
+
     // The instances point-light tile t's pyramid (and the segments of its points the pyramid does not hold) may
     // meet, nearest first: each entry the float bits of its distance along the pyramid's axis (not below 0, so
     // they order as integers) above its handle. The pyramid's from those its group met (`met`) when the group's
     // pyramid holds every point the tile's holds, else from the level's hierarchy.
-    void cull_point_tile(size_t t, const TileOffsets& o, const level_detail::MetBoxes& met) {
+    uint32_t cull_point_tile(size_t t, const TileOffsets& o, const level_detail::MetBoxes& met, bool keep = true) {
         level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
-        list.clear();
+        if (keep) list.clear();
         const uint32_t* index = order_.data() + t * tile_capacity;
         level_detail::WorldPyramid w;
         const uint64_t held = o.taken ? make_pyramid(o.e, o.dist, o.taken, o.m, w) : 0;
-        auto add = [&](uint32_t h, double near) { list.push_back(entry(near, h)); };
+        uint32_t count = 0;
+        auto add = [&](uint32_t h, double near) {
+            ++count;
+            if (keep) list.push_back(entry(near, h));
+        };
         if (held) {
             if (met.usable && !(held & ~o.group_held))
                 level_detail::visit_met(w, met, add);
             else
                 level_->visit_pyramid(w, add);
         }
+        if (!keep) return count;
         const uint64_t alone = o.alone | (o.taken & ~held);  // over 60 degrees off the tile's mean direction
         for (uint64_t b = alone; b; b &= b - 1) {
             const double* p = points_ + size_t(index[math::lowest_bit(b)]) * 3;
@@ -1468,6 +1511,7 @@ private:
         // A comparator of this namespace's own: std::sort's instantiation for plain integers would be shared
         // with the builds for other lanes (cb_simd.h), and the linker could keep a wider build's copy.
         std::sort(list.begin(), list.end(), [](uint64_t x, uint64_t y) { return x < y; });
+        return count;
     }
 
     // The bounding rectangle of some points' central projections in a frame (direction_frame: z, then the
