@@ -600,11 +600,11 @@ inline uint32_t owner_salt(const void* owner) {
     return uint32_t((uint64_t(reinterpret_cast<uintptr_t>(owner)) >> 4) * 0x9e3779b97f4a7c15ULL >> 40);
 }
 
-// Triangle groups already lit, kept for later tests from the same light: a direct-mapped table, about 280 KB.
+// Triangle groups already lit, kept for later tests from the same light: a direct-mapped table, about 570 KB.
 // An entry is named by its owner (a token for one mesh, light and mode: cb::occluded_batch uses the traversal),
 // its fine cluster and its first triangle. clear() before the owners' lights or meshes change.
 struct Cache {
-    static constexpr uint32_t size = 64;
+    static constexpr uint32_t size = 128;
     const void* owner[size];
     uint32_t cluster[size], first[size];
     lit::Triangles entry[size];
