@@ -209,7 +209,7 @@ struct MetBoxes {
     LaneVector<double> cx, cy, cz, hx, hy, hz;  // sized in whole vectors
     LaneVector<uint32_t> handle;
     uint32_t count = 0;
-    bool usable = false;  // whether the group's pyramid was made (otherwise every tile walks the hierarchy)
+    bool usable = false;  // whether the group's pyramid was made (a point-light tile reads `met` only then)
     void clear() { count = 0; }
     void add(const Box& b, uint32_t h) {
         if (count == handle.size()) {
@@ -777,11 +777,12 @@ public:
     size_t tile_count() const { return tile_count_; }
 
     // The instances tiles [first, last) meet, each tile's nearest first: every instance when the level is not
-    // culled (list_unculled), a sun's tiles each on its own (cull_sun_tile). A point light's tiles go in groups
-    // of group_tiles, the same groups whatever the range: the group's pyramid walks the level's hierarchy
-    // once, and each tile's own pyramid tests the instances that walk met, in lanes (cull_point_tile).
-    // Neighbouring tiles look the same way from the light and meet mostly the same instances, and a tile's own
-    // walk tests several of the hierarchy's boxes for each instance it meets.
+    // culled (list_unculled). Otherwise tiles go in groups of group_tiles, the same groups whatever the range:
+    // the group's pyramid (a sun's: prism) walks the level's hierarchy once, and each tile's own tests the
+    // instances that walk met, in lanes (cull_point_tile, cull_sun_tile). Neighbouring tiles look the same way
+    // from the light and meet mostly the same instances, and a tile's own walk tests several of the
+    // hierarchy's boxes for each instance it meets. For a point light, the first group of every probe_tiles
+    // decides whether the groups after it pay (pays); where not, their tiles walk the hierarchy themselves.
     void cull(size_t first, size_t last) {
         if (!unculled_.empty()) {
             for (size_t t = first; t < last; ++t) tile_lists_[t].assign(unculled_.begin(), unculled_.end());

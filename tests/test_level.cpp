@@ -497,6 +497,9 @@ TEST(Level, ConcurrentQueriesFromEightThreadsGiveTheSingleThreadedAnswers) {
             shadow.occluded_sun_batch(level, sun, p[0].data(), p.size(), one.data(), o);
         else
             shadow.occluded_batch(level, light, p[0].data(), p.size(), one.data(), o);
+        const size_t met = shadow.instances_met();
+        std::vector<uint32_t> set_up;
+        for (size_t i = 0; i < shadow.build_count(); ++i) set_up.push_back(shadow.built_handle(i));
         // The same steps in ranges: culling and building on 8 threads, then 8 threads answering interleaved
         // tile ranges of the same const structure.
         if (k == 3)
@@ -509,6 +512,10 @@ TEST(Level, ConcurrentQueriesFromEightThreadsGiveTheSingleThreadedAnswers) {
         for (std::thread& th : pool) th.join();
         pool.clear();
         const size_t built = shadow.gather();
+        // The same lists whatever the ranges (tiles are culled in groups, and some groups decide for others).
+        EXPECT_EQ(shadow.instances_met(), met) << k;
+        ASSERT_EQ(built, set_up.size()) << k;
+        for (size_t i = 0; i < built; ++i) EXPECT_EQ(shadow.built_handle(i), set_up[i]) << k;
         std::vector<cb::BuildScratch> scratch(8);
         for (size_t w = 0; w < 8; ++w)
             pool.emplace_back([&, w] { shadow.build(built * w / 8, built * (w + 1) / 8, &scratch[w]); });
