@@ -368,7 +368,7 @@ private:
     // Fine cluster f's box set up for box_points, from the batch's cache when it holds it (and left there).
     const SunBox& fine_sun_box(uint32_t f, TileCache* cache, SunBox& own) const {
         if (!cache) return own = sun_box(bounds().fine_obbs[f]);
-        const uint32_t slot = (lit::owner_salt(this) + f) % TileCache::box_slots;
+        const uint32_t slot = TileCache::box_slot(this, f);
         if (cache->box_owner[slot] != this || cache->box_cluster[slot] != f) {
             cache->sun_box[slot] = sun_box(bounds().fine_obbs[f]);
             cache->box_owner[slot] = this;

@@ -181,6 +181,8 @@ struct TileCache {
     uint32_t box_cluster[box_slots];
     BoxFilter box[box_slots];
     SunBox sun_box[box_slots];  // for a sun's traversal (an owner is of one kind)
+    // Fine cluster f's slot for `owner` (each owner's run of slots starts at a place of its own, as lit's).
+    static uint32_t box_slot(const void* owner, uint32_t f) { return (lit::owner_salt(owner) + f) % box_slots; }
     void clear() {
         lit.clear();
         for (const void*& o : box_owner) o = nullptr;
@@ -630,7 +632,7 @@ protected:
 
     // Fine cluster f's box filter from the batch's cache, set up there when it is not yet.
     const BoxFilter& cached_fine_box_filter(uint32_t f, const Obb* fine_obbs, TileCache& cache) const {
-        const uint32_t slot = (lit::owner_salt(this) + f) % TileCache::box_slots;
+        const uint32_t slot = TileCache::box_slot(this, f);
         if (cache.box_owner[slot] != this || cache.box_cluster[slot] != f) {
             cache.box[slot] = fine_box_filter(f, fine_obbs);
             cache.box_owner[slot] = this;
