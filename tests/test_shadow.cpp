@@ -1150,6 +1150,98 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
     EXPECT_LT(blocked, answers - answers / 50);
 }
 
+// tile_points_line_tests runs line_tests across a tile's points, one triangle at a time: for every point it
+// takes, the same points surely blocked, the same candidates, and for those the same may_meet and through.
+// Points on the cluster's triangles, at their edges and corners, and up to 1e-3 and 0.3 off them; lights on a
+// triangle's plane, near it and off it, at offsets up to 3e7, biases from 0 to 1e-3 of the points' reach;
+// every point, random parts of the tile and lone points. A tile whose |e|_1 leaves the float tests' range for
+// some points is refused (line_tests then takes it point by point).
+TEST(Shadow, TilePointsLineTestsGiveLineTestsAnswers) {
+    std::mt19937 rng(41);
+    std::uniform_real_distribution<double> u(0, 1);
+    size_t runs = 0, refused = 0, compared = 0, candidates = 0, blocked = 0, wrong = 0;
+    for_each_grid_cluster(
+        {0.0, 1e6, 3e7}, 1, 1, 0.3, 1.7, 60, rng,
+        [&](double, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
+            const cb::FineCluster& c = v.fine[m.first_fine + f];
+            auto random_point_on = [&](uint32_t k, double* out) {
+                double q[3][3];
+                triangle_corners(v, m, f, c.first_triangle + k, q);
+                double s = u(rng), t = u(rng) * (1 - s);
+                if (rng() % 4 == 0) s = std::round(s), t = rng() % 2 ? 0.0 : 1 - s;  // a corner or an edge
+                for (int j = 0; j < 3; ++j) out[j] = q[0][j] + s * (q[1][j] - q[0][j]) + t * (q[2][j] - q[0][j]);
+            };
+            double light[3], mid[3];
+            random_point_on(uint32_t(rng() % c.triangle_count), mid);
+            const double lift = trial % 3 == 0 ? 0.0 : trial % 3 == 1 ? 1e-3 : 0.7 + 2 * u(rng);
+            for (int k = 0; k < 3; ++k) light[k] = mid[k] + lift * (u(rng) - 0.5) + (trial % 3 == 2 ? lift : 0.0);
+            double p[64][3], from[64], l1[64];
+            alignas(64) float ex[64], ey[64], ez[64], vl[64], keep[64];
+            const double bias = 1e-3 * u(rng) * u(rng);
+            for (int i = 0; i < 64; ++i) {
+                random_point_on(uint32_t(rng() % c.triangle_count), p[i]);
+                const double off = i % 4 == 0 ? 0.0 : i % 4 == 1 ? 1e-9 : i % 4 == 2 ? 1e-3 : 0.3;
+                for (double& q : p[i]) q += off * (u(rng) - 0.5);
+                const double e[3] = {p[i][0] - light[0], p[i][1] - light[1], p[i][2] - light[2]};
+                ex[i] = float(e[0]);
+                ey[i] = float(e[1]);
+                ez[i] = float(e[2]);
+                l1[i] = std::fabs(e[0]) + std::fabs(e[1]) + std::fabs(e[2]);
+                vl[i] = float(l1[i] * 1.000001);
+                from[i] = cb::shadow_from(p[i], light, bias * l1[i]);
+                keep[i] = float(1 - from[i]);
+            }
+            if (trial % 10 == 9) {  // one point at the light: its |e|_1 leaves the range
+                for (int k = 0; k < 3; ++k) p[5][k] = light[k];
+                ex[5] = ey[5] = ez[5] = vl[5] = 0.0f;
+                l1[5] = 0;
+                from[5] = 0;
+                keep[5] = 1;
+            }
+            const cb::lit::TileView tile{
+                ex,      ey,      ez,     vl, keep, l1, *std::min_element(l1, l1 + 64), *std::max_element(l1, l1 + 64),
+                nullptr, nullptr, nullptr};
+            const uint64_t parts[3] = {~uint64_t(0), uint64_t(rng()) << 32 | rng(), uint64_t(1) << (rng() % 64)};
+            for (bool one_sided : {false, true})
+                for (uint32_t first = 0; first < c.triangle_count; first += cb::lit::capacity) {
+                    const uint32_t count = std::min<uint32_t>(cb::lit::capacity, c.triangle_count - first);
+                    cb::lit::Triangles lit;
+                    cb::lit::light_triangles(v, m, c, first, count, light, one_sided, lit);
+                    for (uint64_t which : parts) {
+                        if (!which) continue;
+                        ++runs;
+                        uint32_t may_meet[64], through[64], may_meet_1[64], through_1[64];
+                        uint64_t sure = 0, left = 0, left_1 = 0;
+                        if (!cb::lit::tile_points_line_tests(lit, tile, which, may_meet, through, &sure, &left)) {
+                            ++refused;
+                            wrong += trial % 10 != 9 && cb::lit::line_test_usable(tile.l1_lo, lit.max_scale) &&
+                                cb::lit::line_test_usable(tile.l1_hi, lit.max_scale) &&
+                                cb::lit::plane_test_usable(tile.l1_lo, lit.plane_scale) ==
+                                    cb::lit::plane_test_usable(tile.l1_hi, lit.plane_scale);  // refused needlessly
+                            continue;
+                        }
+                        const uint64_t sure_1 =
+                            cb::lit::line_tests(lit, p, from, which, light, may_meet_1, through_1, &left_1);
+                        wrong += sure != sure_1 || left != left_1;
+                        for (uint64_t w = left & left_1; w; w &= w - 1) {
+                            const int i = __builtin_ctzll(w);
+                            wrong += may_meet[i] != may_meet_1[i] || through[i] != through_1[i];
+                        }
+                        compared += __builtin_popcountll(which);
+                        candidates += __builtin_popcountll(left);
+                        blocked += __builtin_popcountll(sure);
+                    }
+                }
+        });
+    std::printf("%zu runs (%zu refused), %zu points compared: %zu candidates, %zu surely blocked\n", runs, refused,
+                compared, candidates, blocked);
+    EXPECT_EQ(wrong, 0u);
+    EXPECT_GT(refused, 0u);
+    EXPECT_LT(refused, runs / 4);
+    EXPECT_GT(candidates, compared / 20);
+    EXPECT_GT(blocked, compared / 50);
+}
+
 // A flat group (lit::group_plane: a floor's, a CAD face's) settles a point's segment for all its triangles
 // only when no triangle of it blocks that segment exactly, and cluster_blocks_points still answers as the exact
 // test. Level grids (every corner in one plane exactly) and tilted ones (corners rounded to float off their

@@ -355,6 +355,12 @@ inline double plane_side(const TriangleTerms& terms, const double* x, double& bo
     return terms.plane[0] * d0 + terms.plane[1] * d1 + terms.plane[2] * d2;
 }
 
+// Whether the float line test (light_triangles' bounds) holds for a point with |e|_1 = l1: nothing overflows,
+// and e is far above float's subnormals.
+inline bool line_test_usable(double l1, double max_scale) {
+    return l1 * max_scale < 1e30 && l1 * max_scale > 1e-20 && l1 > 1e-30;
+}
+
 // The float plane test (light_triangles' bounds): whether a point with |e|_1 = l1 keeps its products in
 // range, and its crossing value mix = dq - (1 - f) N . e (keep = 1 - f in float, f its `from`) settled above
 // (up) or below (down) its bound qbound + |e|_1 pbound, a vector an instruction (of triangles, or of points).
@@ -391,7 +397,7 @@ inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], const dou
         const double e_l1 = std::fabs(e0) + std::fabs(e1) + std::fabs(e2);
         may_meet[i] = all;
         through[i] = 0;
-        if (!(e_l1 * lit.max_scale < 1e30 && e_l1 * lit.max_scale > 1e-20 && e_l1 > 1e-30)) {
+        if (!line_test_usable(e_l1, lit.max_scale)) {
             left |= uint64_t(1) << i;
             continue;
         }
@@ -436,10 +442,10 @@ inline uint64_t line_tests(const Triangles& lit, const double (*p)[3], const dou
     return blocked;
 }
 
-// A tile of points as the clustered structure holds them (cb_tile.h), for tile_line_tests: for point i,
-// e = p[i] - light in float (ex, ey, ez), |e|_1 in double (l1) and in float a little above it (vl), 1 - its
-// `from` in float (keep); and four float rays from the light (rx, ry, rz) of which every point's e is a
-// positive mix.
+// A tile of points as the clustered structure holds them (cb_tile.h), for tile_line_tests and
+// tile_points_line_tests: for point i, e = p[i] - light in float (ex, ey, ez), |e|_1 in double (l1) and in
+// float a little above it (vl), 1 - its `from` in float (keep); and four float rays from the light (rx, ry,
+// rz) of which every point's e is a positive mix.
 struct TileView {
     const float *ex, *ey, *ez, *vl, *keep;
     const double* l1;
@@ -527,6 +533,92 @@ inline bool tile_line_tests(const Triangles& lit, const TileView& tile, uint64_t
         for (uint32_t m = inside; m; m &= m - 1)
             meet |= uint32_t(kept[math::lowest_bit(m)] >> i & 1) << math::lowest_bit(m);
         may_meet[i] = through[i] = meet;
+    }
+    return true;
+}
+
+// Vector steps over `count` triangles, and the groups of lanes of a tile that hold a point of `which`.
+inline uint32_t triangle_steps(uint32_t count) { return (count + simd::width - 1) / simd::width; }
+inline uint32_t lane_groups(uint64_t which) {
+    uint32_t groups = 0;
+    for (uint32_t g = 0; g < 64; g += simd::width) groups += simd::group(which, g) != 0;
+    return groups;
+}
+
+// line_tests turned across: a vector of the tile's points an instruction, one triangle at a time, where
+// line_tests takes a point at a time and a vector of triangles. The same float operations on the same values
+// in each lane (the tile's e, |e|_1 and 1 - from are those line_tests rounds from the point), so the same
+// answers: the points surely blocked, *candidates, and their may_meet and through. A tile's points by one
+// cluster share its triangles, and a point's mask work across triangles is a chain of dependent
+// instructions, where each triangle here gives every point's bits at once. False, with nothing written, when
+// some point's |e|_1 is outside the range where line_tests runs the float tests (the tile's extremes decide:
+// each range is an interval of |e|_1).
+inline bool tile_points_line_tests(const Triangles& lit, const TileView& tile, uint64_t which, uint32_t* may_meet,
+                                   uint32_t* through, uint64_t* blocked, uint64_t* candidates) {
+    if (!line_test_usable(tile.l1_lo, lit.max_scale) || !line_test_usable(tile.l1_hi, lit.max_scale)) return false;
+    const bool planes_lo = plane_test_usable(tile.l1_lo, lit.plane_scale);
+    if (planes_lo != plane_test_usable(tile.l1_hi, lit.plane_scale)) return false;  // some points only
+    const bool planes = planes_lo;
+    const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f);
+    uint32_t begin, end;
+    simd::lane_span(which, begin, end);
+    // Per triangle, the points whose line it surely misses (missed) and surely passes inside (inside).
+    uint64_t missed[capacity], inside[capacity], crossed = 0, all_missed = ~uint64_t(0);
+    for (uint32_t t = 0; t < lit.count; ++t) {
+        simd::Floats fx[3], fy[3], fz[3], fb[3];
+        for (int k = 0; k < 3; ++k) {
+            fx[k] = simd::splat(lit.fx[k][t]);
+            fy[k] = simd::splat(lit.fy[k][t]);
+            fz[k] = simd::splat(lit.fz[k][t]);
+            fb[k] = simd::splat(lit.fbound[k][t]);
+        }
+        const float dq = lit.dq[t], qb = lit.qbound[t];
+        const bool light_up = dq > qb, light_down = -dq > qb, two_sided = lit.two_sided >> t & 1;
+        const simd::Floats nx = simd::splat(lit.nx[t]), ny = simd::splat(lit.ny[t]), nz = simd::splat(lit.nz[t]),
+                           sdq = simd::splat(dq), sqb = simd::splat(qb), spb = simd::splat(lit.pbound[t]);
+        uint64_t miss = 0, in = 0;
+        for (uint32_t i = begin; i < end; i += simd::width) {
+            if (!simd::group(which, i)) continue;
+            const simd::Floats ex = simd::load(tile.ex + i), ey = simd::load(tile.ey + i), ez = simd::load(tile.ez + i),
+                               vl = simd::load(tile.vl + i);
+            simd::Floats lo = simd::splat(INFINITY), hi = simd::splat(-INFINITY);
+            simd::Mask settled = simd::all_lanes();
+            for (int k = 0; k < 3; ++k) {
+                const simd::Floats o = simd::dot(ex, ey, ez, fx[k], fy[k], fz[k]);
+                settled = settled & (simd::abs(o) > simd::fma(vl, fb[k], tiny));
+                lo = simd::min(lo, o);
+                hi = simd::max(hi, o);
+            }
+            const simd::Mask mixed = (lo < zero) & (hi > zero);
+            uint64_t m = simd::bits(settled & mixed), n = simd::bits(simd::and_not(settled, mixed)), across = 0;
+            if (planes && (light_up || light_down)) {
+                simd::Mask up, down;
+                crossing_signs(ex, ey, ez, vl, nx, ny, nz, sdq, sqb, spb, simd::load(tile.keep + i), up, down);
+                m |= simd::bits(light_up ? up : down);
+                across = light_up ? simd::bits(down) : two_sided ? simd::bits(up) : 0;
+            }
+            miss |= m << i;
+            in |= n << i;
+            crossed |= (across & n) << i;
+        }
+        missed[t] = miss;
+        inside[t] = in;
+        all_missed &= miss;
+    }
+    crossed &= which;
+    *blocked = crossed;
+    const uint64_t left = which & ~crossed & ~all_missed;
+    *candidates = left;
+    for (uint64_t w = left; w; w &= w - 1) {
+        const uint32_t i = math::lowest_bit(w);
+        uint32_t meet = 0, in = 0;
+        for (uint32_t t = 0; t < lit.count; ++t) {
+            const uint32_t kept = uint32_t(~missed[t] >> i & 1);
+            meet |= kept << t;
+            in |= (kept & uint32_t(inside[t] >> i & 1)) << t;
+        }
+        may_meet[i] = meet;
+        through[i] = in;
     }
     return true;
 }
@@ -665,7 +757,12 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         // are those near the light, which nearly every point reaches (docs/PERFORMANCE.md).
         uint64_t sure = 0, left = 0;  // points surely blocked (no double work), points with triangles left
         const bool whole = tile && tested >= 32 && tile_line_tests(*lit, *tile, test, may_meet, through, &sure, &left);
-        if (!whole) sure = line_tests(*lit, p, from, test, light, may_meet, through, &left);
+        // Otherwise across the points where that takes fewer vector steps: a triangle per step for each group of
+        // lanes holding a point, against a vector of triangles per step for each point.
+        if (!whole &&
+            !(tile && tested * triangle_steps(lit->count) >= lit->count * lane_groups(test) &&
+              tile_points_line_tests(*lit, *tile, test, may_meet, through, &sure, &left)))
+            sure = line_tests(*lit, p, from, test, light, may_meet, through, &left);
         if (stats) stats->triangles_tested += uint64_t(lit->count) * tested;
         if (left && planes && !lit->flat_known) {
             group_plane(*lit);
