@@ -1415,10 +1415,11 @@ TEST(Shadow, SunSphereTestKeepsEveryRayThatMeetsTheSphere) {
 
 TEST(Shadow, SunLineTestsDecideLikeTheExactTest) {
     // Every triangle the float tests rule out must be missed by ray_triangle, every one they find surely
-    // blocking must block it.
+    // blocking must block it; the tests across the points (sun_points_line_tests) give the point-by-point
+    // answers.
     std::mt19937 rng(23);
     std::uniform_real_distribution<double> u(0, 1);
-    size_t pairs = 0, ruled_out = 0, sure = 0, wrong = 0, answers = 0, blocked = 0;
+    size_t pairs = 0, ruled_out = 0, sure = 0, wrong = 0, answers = 0, blocked = 0, compared = 0;
     for_each_grid_cluster(
         {0.0, 1e6, 3e7}, 1, 1, 0.3, 1.7, 120, rng,
         [&](double, const cb::AssetView& v, const cb::MeshRecord& m, uint32_t f, int trial) {
@@ -1464,6 +1465,20 @@ TEST(Shadow, SunLineTestsDecideLikeTheExactTest) {
                     cb::sun_lit::SunTriangles lit;
                     cb::sun_lit::sun_triangles(v, m, c, first, count, toward, frame[0], one_sided, lit);
                     const double lift[3] = {from * toward[0], from * toward[1], from * toward[2]};
+                    // Across the points, for every point and for a random part of them: the same answers.
+                    const uint64_t parts[2] = {~uint64_t(0), uint64_t(rng()) << 32 | rng()};
+                    for (uint64_t which : parts) {
+                        uint32_t across[64];
+                        const uint64_t surely = cb::sun_lit::sun_points_line_tests(lit, p, which, lift, across);
+                        for (int i = 0; i < 64; ++i) {
+                            if (!(which >> i & 1)) continue;
+                            uint32_t blocks;
+                            const uint32_t kept = cb::sun_lit::sun_line_tests(lit, p[i], lift, blocks);
+                            wrong += bool(surely >> i & 1) != (blocks != 0);
+                            if (!blocks) wrong += across[i] != kept;
+                            ++compared;
+                        }
+                    }
                     for (int i = 0; i < 64; ++i) {
                         uint32_t blocks;
                         const uint32_t kept = cb::sun_lit::sun_line_tests(lit, p[i], lift, blocks);
@@ -1497,9 +1512,10 @@ TEST(Shadow, SunLineTestsDecideLikeTheExactTest) {
         });
     std::printf(
         "%zu point and triangle pairs, %zu ruled out and %zu found blocking in float; %zu answers (%zu "
-        "blocked)\n",
-        pairs, ruled_out, sure, answers, blocked);
+        "blocked); %zu points compared across\n",
+        pairs, ruled_out, sure, answers, blocked, compared);
     EXPECT_EQ(wrong, 0u);
+    EXPECT_GT(compared, pairs / 16);
     EXPECT_GT(ruled_out, pairs / 2);
     EXPECT_GT(sure, blocked / 4);
     EXPECT_GT(blocked, answers / 20);
