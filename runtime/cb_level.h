@@ -804,21 +804,21 @@ public:
         }
         TileOffsets tiles[group_tiles];
         bool grouped = true;
-        for (size_t g = first / group_tiles * group_tiles; g < last; g += group_tiles) {
+        const size_t first_group = first / group_tiles * group_tiles;
+        for (size_t g = first_group; g < last; g += group_tiles) {
             const size_t end = std::min<size_t>(g + group_tiles, tile_count_);
             const size_t probe = g / probe_tiles * probe_tiles;
-            if (g != probe && g == first / group_tiles * group_tiles) grouped = probe_pays(probe, tiles, met);
-            offsets_of(g, end, tiles);
-            if (g == probe || grouped) {
-                cull_group(tiles, uint32_t(end - g), met);
-            } else {
-                met.usable = false;
+            if (g == probe) {
+                grouped = probe_pays(probe, first, last, tiles, met);
+                continue;
             }
-            uint32_t met_by_tiles = 0;
-            for (size_t t = g; t < end; ++t)
-                if (g == probe || (t >= first && t < last))
-                    met_by_tiles += cull_point_tile(t, tiles[t - g], met, t >= first && t < last);
-            if (g == probe) grouped = pays(met.count, met_by_tiles, uint32_t(end - g));
+            if (g == first_group) grouped = probe_pays(probe, first, last, tiles, met);  // its probe lies before
+            offsets_of(g, end, tiles);
+            if (grouped)
+                cull_group(tiles, uint32_t(end - g), met);
+            else
+                met.usable = false;
+            for (size_t t = std::max(g, first); t < std::min(end, last); ++t) cull_point_tile(t, tiles[t - g], met);
         }
     }
 
@@ -1471,14 +1471,16 @@ private:
         }
     }
 
-    // `pays` for the probe group from tile `probe` (the first of probe_tiles), for a range that starts past
-    // it: the same decision whatever the ranges.
-    bool probe_pays(size_t probe, TileOffsets* tiles, level_detail::MetBoxes& met) {
+    // The probe group from tile `probe` (the first of probe_tiles), culled in a group with its tiles' lists
+    // kept for those in the range [first, last); returns `pays` for it, counted over all its tiles: the same
+    // decision whatever the ranges (a range that starts past its probe counts it and keeps nothing).
+    bool probe_pays(size_t probe, size_t first, size_t last, TileOffsets* tiles, level_detail::MetBoxes& met) {
         const size_t end = std::min<size_t>(probe + group_tiles, tile_count_);
         offsets_of(probe, end, tiles);
         cull_group(tiles, uint32_t(end - probe), met);
         uint32_t met_by_tiles = 0;
-        for (size_t t = probe; t < end; ++t) met_by_tiles += cull_point_tile(t, tiles[t - probe], met, false);
+        for (size_t t = probe; t < end; ++t)
+            met_by_tiles += cull_point_tile(t, tiles[t - probe], met, t >= first && t < last);
         return pays(met.count, met_by_tiles, uint32_t(end - probe));
     }
 

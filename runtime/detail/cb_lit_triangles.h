@@ -556,9 +556,8 @@ inline uint32_t lane_groups(uint64_t which) {
 inline bool tile_points_line_tests(const Triangles& lit, const TileView& tile, uint64_t which, uint32_t* may_meet,
                                    uint32_t* through, uint64_t* blocked, uint64_t* candidates) {
     if (!line_test_usable(tile.l1_lo, lit.max_scale) || !line_test_usable(tile.l1_hi, lit.max_scale)) return false;
-    const bool planes_lo = plane_test_usable(tile.l1_lo, lit.plane_scale);
-    if (planes_lo != plane_test_usable(tile.l1_hi, lit.plane_scale)) return false;  // some points only
-    const bool planes = planes_lo;
+    const bool planes = plane_test_usable(tile.l1_lo, lit.plane_scale);
+    if (planes != plane_test_usable(tile.l1_hi, lit.plane_scale)) return false;  // some points only
     const simd::Floats tiny = simd::splat(1e-30f), zero = simd::splat(0.0f);
     uint32_t begin, end;
     simd::lane_span(which, begin, end);
