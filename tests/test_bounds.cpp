@@ -249,6 +249,46 @@ TEST(Bounds, RotatedBoxIsFoundExactly) {
     EXPECT_NEAR(cb::obb_volume(optimal), 8.0, 8 * 3e-4);
 }
 
+TEST(Bounds, FineBoxesComeNearTheOptimum) {
+    // Fine clusters whose best box PCA misses: 12 points in a random triangle, 1% as thick as wide, turned at
+    // random. The best rectangle across the plate lies along a side of the triangle, not along PCA's axes;
+    // the refined fit's rectangle and descent must come near CGAL's optimum.
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> unit(-1, 1);
+    double sum = 0, worst = 0;
+    const int sets = 200;
+    for (int set = 0; set < sets; ++set) {
+        double corner[3][2];
+        for (auto& c : corner) c[0] = unit(rng), c[1] = unit(rng);
+        double q[4] = {unit(rng), unit(rng), unit(rng), unit(rng)}, len = 0;
+        for (double x : q) len += x * x;
+        for (double& x : q) x /= std::sqrt(len);
+        const double w = q[0], x = q[1], y = q[2], z = q[3];
+        const double r[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},
+                                {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
+                                {2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)}};
+        std::vector<double> pts;
+        for (int i = 0; i < 12; ++i) {
+            double a = 0.5 * (unit(rng) + 1), b = 0.5 * (unit(rng) + 1);
+            if (a + b > 1) a = 1 - a, b = 1 - b;
+            const double p[3] = {corner[0][0] + a * (corner[1][0] - corner[0][0]) + b * (corner[2][0] - corner[0][0]),
+                                 corner[0][1] + a * (corner[1][1] - corner[0][1]) + b * (corner[2][1] - corner[0][1]),
+                                 0.01 * unit(rng)};
+            for (int k = 0; k < 3; ++k) pts.push_back(r[k][0] * p[0] + r[k][1] * p[1] + r[k][2] * p[2]);
+        }
+        const double origin[3] = {0, 0, 0};
+        const double refined = cb::obb_volume(cb::fit_obb(pts.data(), 12, origin, cb::ObbMethod::refined));
+        const double optimal = cb::obb_volume(cb::fit_obb(pts.data(), 12, origin, cb::ObbMethod::cgal_optimal));
+        ASSERT_GT(optimal, 0);
+        sum += refined / optimal;
+        worst = std::max(worst, refined / optimal);
+    }
+    std::printf("refined / optimal volume: mean %.4f, worst %.3f\n", sum / sets, worst);
+    // Measured: mean 1.0099, worst 1.082; from the PCA frame without a rectangle 1.0153 and 1.199.
+    EXPECT_LT(sum / sets, 1.0125);
+    EXPECT_LT(worst, 1.15);
+}
+
 TEST(Bounds, BoxesAlongTheWorldAxesPackExactly) {
     // A flat face in the plane y = 0.25, longer along z than along x: PCA finds its axes in the order z, x, y,
     // a turn of the world axes. Stored as found, the 16-bit quaternion would turn it by a few 1e-5 radians and
