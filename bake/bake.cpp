@@ -176,6 +176,26 @@ std::vector<AssetMesh> cluster_scene_releasing(Scene& scene, const ClusterOption
     return cluster_meshes(scene, &scene, options, stats, progress, threads);
 }
 
+void size_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options) {
+    // Arrays already in shape are not touched: an AssetWriter may be reading where they are meanwhile.
+    auto size = [](auto& array, bool fitted, size_t n) {
+        if (fitted && array.size() != n)
+            array.resize(n);
+        else if (!fitted && array.capacity() > 0)
+            std::vector<typename std::decay_t<decltype(array)>::value_type>().swap(array);
+    };
+    for (AssetMesh& am : meshes)
+        for (bool fine : {true, false}) {
+            LevelVolumes& v = fine ? am.fine_volumes : am.coarse_volumes;
+            const size_t n = fine ? am.fine.size() : am.coarse.size();
+            size(v.obbs, options.mask & (bounds_obb | bounds_cone), n);  // cones are stored relative to boxes
+            size(v.spheres, options.mask & bounds_sphere, n);
+            size(v.capsules, options.mask & bounds_capsule, n);
+            size(v.cones, options.mask & bounds_cone, n);
+            size(v.slabs, options.mask & bounds_slab, n);
+        }
+}
+
 void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats,
                       const std::function<void(size_t, size_t)>& progress) {
     auto start = std::chrono::steady_clock::now();
@@ -199,17 +219,8 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
     for (uint32_t m = 0; m < meshes.size(); ++m) {
         AssetMesh& am = meshes[m];
         for (uint32_t f = 0; f < am.fine.size(); ++f) items.push_back({m, 1, f, am.fine[f].first, am.fine[f].count});
-        for (bool fine : {true, false}) {
-            LevelVolumes& v = fine ? am.fine_volumes : am.coarse_volumes;
-            const size_t n = fine ? am.fine.size() : am.coarse.size();
-            v = LevelVolumes{};
-            if (options.mask & (bounds_obb | bounds_cone)) v.obbs.resize(n);  // cones are stored relative to boxes
-            if (options.mask & bounds_sphere) v.spheres.resize(n);
-            if (options.mask & bounds_capsule) v.capsules.resize(n);
-            if (options.mask & bounds_cone) v.cones.resize(n);
-            if (options.mask & bounds_slab) v.slabs.resize(n);
-        }
     }
+    size_scene_bounds(meshes, options);
     uint32_t largest = 0;
     size_t total = 0;
     for (const Item& it : items) {

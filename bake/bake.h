@@ -49,6 +49,11 @@ std::vector<AssetMesh> cluster_scene_releasing(Scene& scene, const ClusterOption
 void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options, unsigned threads, BakeStats& stats,
                       const std::function<void(size_t, size_t)>& progress = {});
 
+// Sizes every mesh's volume arrays to its clusters for the kinds `options` fits and empties the others, as
+// fit_scene_bounds does first: an asset can then be laid out before they are filled (AssetWriter). Sized
+// again for the same clusters and options, the arrays stay where they are.
+void size_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& options);
+
 // What a bake reports as it goes, each when set: cluster_scene's and fit_scene_bounds's progress.
 struct BakeProgress {
     std::function<void(size_t, size_t, size_t, size_t)> clustering;

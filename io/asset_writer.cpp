@@ -110,12 +110,17 @@ struct AssetLayout {
     std::vector<InstanceRecord> instances;
     std::vector<uint32_t> sided, flags;
     std::list<std::vector<uint8_t>> owned;
+    // The parts from this one on are the volumes' and what follows them: written once the volumes are filled,
+    // after `gathers` have copied the volumes of several meshes into their sections.
+    size_t bounds_from = 0;
+    std::vector<std::function<void(const std::vector<AssetMesh>&)>> gathers;
 };
 
-// Lays out the asset of `meshes`, whose encode_geometry is `geometry`. With `release` (the same meshes), each
-// mesh's positions and triangles are freed as it is laid out: the encoded copy replaces them.
+// Lays out the asset of `meshes`, whose encode_geometry is `geometry`. The bounds sections are those whose
+// arrays every mesh has sized to its clusters; their bytes are read when written (a single mesh's straight
+// from its arrays, several meshes' once `gathers` have run).
 void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<EncodedMesh> geometry,
-             std::vector<AssetMesh>* release, const std::vector<Instance>& instances, const std::string& source) {
+             const std::vector<Instance>& instances, const std::string& source) {
     if (geometry.size() != meshes.size()) throw std::invalid_argument("encoded geometry of other meshes");
     // Concatenate every mesh's arrays; records hold each mesh's offsets into them.
     for (size_t i = 0; i < meshes.size(); ++i) {
@@ -125,7 +130,7 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<E
         r.first_vertex = uint32_t(L.positions.size() / 3);
         r.vertex_count = uint32_t(c.positions.size() / 3);
         r.first_triangle = uint32_t(L.triangles.size() / 3);
-        r.triangle_count = uint32_t(m.triangles.size() / 3);
+        r.triangle_count = uint32_t(c.local.size() / 3);  // the mesh's own triangles may be freed already
         r.first_fine = uint32_t(L.fine.size());
         r.fine_count = uint32_t(m.fine.size());
         r.first_coarse = uint32_t(L.coarse.size());
@@ -146,10 +151,6 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<E
         }
         L.coarse.insert(L.coarse.end(), m.coarse.begin(), m.coarse.end());
         c = EncodedMesh{};
-        if (release) {
-            free_storage((*release)[i].positions);
-            free_storage((*release)[i].triangles);
-        }
     }
     L.instances.resize(instances.size());
     for (size_t i = 0; i < instances.size(); ++i) {
@@ -207,14 +208,21 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<E
             add(type, (fine ? meshes[0].fine_volumes : meshes[0].coarse_volumes).*member, sizeof(Record));
             return true;
         }
-        L.owned.emplace_back();
-        for (const AssetMesh& m : meshes) {
-            const LevelVolumes& v = fine ? m.fine_volumes : m.coarse_volumes;
-            append(L.owned.back(), (v.*member).data(), (v.*member).size());
-        }
-        add(type, L.owned.back(), sizeof(Record));
+        std::vector<uint8_t>& owned = L.owned.emplace_back();
+        size_t records = 0;
+        for (const AssetMesh& m : meshes) records += ((fine ? m.fine_volumes : m.coarse_volumes).*member).size();
+        owned.reserve(records * sizeof(Record));
+        L.gathers.push_back([&owned, fine, member](const std::vector<AssetMesh>& filled) {
+            owned.clear();
+            for (const AssetMesh& m : filled) {
+                const LevelVolumes& v = fine ? m.fine_volumes : m.coarse_volumes;
+                append(owned, (v.*member).data(), (v.*member).size());
+            }
+        });
+        sections.push_back({type, uint32_t(sizeof(Record)), owned.data(), records * sizeof(Record), records});
         return true;
     };
+    const size_t bounds_from = sections.size();
     for (bool fine : {true, false}) {
         bool boxes = level_section(fine ? SectionType::fine_obbs : SectionType::coarse_obbs, fine, &LevelVolumes::obbs);
         level_section(fine ? SectionType::fine_spheres : SectionType::coarse_spheres, fine, &LevelVolumes::spheres);
@@ -235,6 +243,7 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<E
         at = aligned(at + p.size);
     }
     L.file_size = at;
+    L.bounds_from = bounds_from;
 
     AssetHeader h{};
     std::memcpy(h.magic, asset_magic, 8);
@@ -249,31 +258,32 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<E
 
 constexpr size_t checksum_at = offsetof(AssetHeader, checksum);
 
-// The file's bytes in order, as pieces: the head, then each section preceded by its zero padding.
+// The file's bytes in order, as pieces, for parts [from, to): the head first when `from` is 0, then each
+// part preceded by its zero padding, and the padding at the end when `to` is the last.
 template <class Piece>
-void each_piece(const AssetLayout& L, Piece&& piece) {
+void each_piece(const AssetLayout& L, size_t from, size_t to, Piece&& piece) {
     static const uint8_t zeros[asset_alignment] = {};
-    uint64_t at = L.head.size();
-    piece(L.head.data(), L.head.size(), uint64_t(0));
-    for (const AssetLayout::Part& p : L.parts) {
+    if (from == 0) piece(L.head.data(), L.head.size(), uint64_t(0));
+    uint64_t at = from == 0 ? L.head.size() : L.parts[from - 1].offset + L.parts[from - 1].size;
+    for (size_t i = from; i < to; ++i) {
+        const AssetLayout::Part& p = L.parts[i];
         if (p.offset > at) piece(zeros, p.offset - at, at);
         piece(p.bytes, p.size, p.offset);
         at = p.offset + p.size;
     }
-    if (L.file_size > at) piece(zeros, L.file_size - at, at);
+    if (to == L.parts.size() && L.file_size > at) piece(zeros, L.file_size - at, at);
 }
 
-// The checksum over the pieces, skipping the checksum field (asset_checksum, computed as the file is written).
-uint64_t layout_checksum(const AssetLayout& L) {
-    AssetChecksum sum;
-    sum.add(L.head.data(), checksum_at);
-    sum.add(L.head.data() + checksum_at + 8, L.head.size() - checksum_at - 8);
-    bool first = true;
-    each_piece(L, [&](const uint8_t* bytes, uint64_t size, uint64_t) {
-        if (!first) sum.add(bytes, size_t(size));
-        first = false;
+// Adds the pieces of parts [from, to) to the checksum, skipping the checksum field (asset_checksum,
+// computed as the file is written).
+void sum_pieces(const AssetLayout& L, size_t from, size_t to, AssetChecksum& sum) {
+    if (from == 0) {
+        sum.add(L.head.data(), checksum_at);
+        sum.add(L.head.data() + checksum_at + 8, L.head.size() - checksum_at - 8);
+    }
+    each_piece(L, from, to, [&](const uint8_t* bytes, uint64_t size, uint64_t offset) {
+        if (offset != 0) sum.add(bytes, size_t(size));  // the head is summed above
     });
-    return sum.finish();
 }
 
 }  // namespace
@@ -281,10 +291,12 @@ uint64_t layout_checksum(const AssetLayout& L) {
 std::vector<uint8_t> encode_asset(const std::vector<AssetMesh>& meshes, const std::vector<Instance>& instances,
                                   const std::string& source) {
     AssetLayout L;
-    lay_out(L, meshes, encode_geometry(meshes), nullptr, instances, source);
+    lay_out(L, meshes, encode_geometry(meshes), instances, source);
+    for (const auto& gather : L.gathers) gather(meshes);
     std::vector<uint8_t> out;
     out.reserve(L.file_size);  // one allocation for the whole file
-    each_piece(L, [&](const uint8_t* bytes, uint64_t size, uint64_t) { out.insert(out.end(), bytes, bytes + size); });
+    each_piece(L, 0, L.parts.size(),
+               [&](const uint8_t* bytes, uint64_t size, uint64_t) { out.insert(out.end(), bytes, bytes + size); });
     const uint64_t checksum = asset_checksum(out.data(), out.size());
     std::memcpy(out.data() + checksum_at, &checksum, sizeof checksum);
     return out;
@@ -344,7 +356,7 @@ void write_file_atomic(const std::string& path, const std::vector<uint8_t>& byte
     write_file_atomic(path, [&](int fd) { return write_at(fd, bytes.data(), bytes.size(), 0); });
 }
 
-void write_file_atomic(const std::string& path, const std::function<bool(int)>& fill) {
+AtomicFile::AtomicFile(const std::string& path) : path_(path), tmp_(temporary_name(path)) {
     // Only a regular file (or nothing) is replaced: renaming over a device node, a FIFO or a directory
     // would destroy it.
     struct stat st;
@@ -353,35 +365,58 @@ void write_file_atomic(const std::string& path, const std::function<bool(int)>& 
     remove_dead_temporaries(path);
     const std::filesystem::path target(path);
     const std::string dir = target.has_parent_path() ? target.parent_path().string() : std::string(".");
-    const std::string tmp = temporary_name(path);
     // An unnamed file in the output's folder first (O_TMPFILE): killed while writing, the process leaves
     // nothing behind. It gets the temporary's name only for the instant before the rename; a process
     // killed in that instant leaves a temporary that the next write of the same output removes.
-    int fd = ::open(dir.c_str(), O_TMPFILE | O_WRONLY | O_CLOEXEC, 0666);
-    const bool unnamed = fd >= 0;
-    if (!unnamed) {  // a filesystem without O_TMPFILE: a named temporary from the start
-        fd = ::open(tmp.c_str(), O_CREAT | O_TRUNC | O_WRONLY | O_CLOEXEC, 0666);
-        if (fd < 0) write_error(path, std::strerror(errno));
+    fd_ = ::open(dir.c_str(), O_TMPFILE | O_WRONLY | O_CLOEXEC, 0666);
+    unnamed_ = fd_ >= 0;
+    if (!unnamed_) {  // a filesystem without O_TMPFILE: a named temporary from the start
+        fd_ = ::open(tmp_.c_str(), O_CREAT | O_TRUNC | O_WRONLY | O_CLOEXEC, 0666);
+        if (fd_ < 0) write_error(path, std::strerror(errno));
     }
-    bool ok = fill(fd);
-    int err = ok ? 0 : errno;
-    if (ok && unnamed) {
-        const std::string self = "/proc/self/fd/" + std::to_string(fd);
-        ok = ::linkat(AT_FDCWD, self.c_str(), AT_FDCWD, tmp.c_str(), AT_SYMLINK_FOLLOW) == 0;
+}
+
+AtomicFile::~AtomicFile() {
+    if (fd_ >= 0) ::close(fd_);
+    if (!committed_) ::unlink(tmp_.c_str());
+}
+
+void AtomicFile::fail(int err) {
+    ::close(fd_);
+    fd_ = -1;
+    ::unlink(tmp_.c_str());
+    write_error(path_, std::strerror(err ? err : EIO));
+}
+
+void AtomicFile::commit() {
+    int err = 0;
+    bool ok = true;
+    if (unnamed_) {
+        const std::string self = "/proc/self/fd/" + std::to_string(fd_);
+        ok = ::linkat(AT_FDCWD, self.c_str(), AT_FDCWD, tmp_.c_str(), AT_SYMLINK_FOLLOW) == 0;
         if (!ok) err = errno;
     }
-    if (::close(fd) != 0 && ok) {
+    const int closing = ::close(fd_);
+    fd_ = -1;
+    if (closing != 0 && ok) {
         ok = false;
         err = errno;
     }
-    if (ok && std::rename(tmp.c_str(), path.c_str()) != 0) {
+    if (ok && std::rename(tmp_.c_str(), path_.c_str()) != 0) {
         ok = false;
         err = errno;
     }
     if (!ok) {
-        ::unlink(tmp.c_str());
-        write_error(path, std::strerror(err ? err : EIO));
+        ::unlink(tmp_.c_str());
+        write_error(path_, std::strerror(err ? err : EIO));
     }
+    committed_ = true;
+}
+
+void write_file_atomic(const std::string& path, const std::function<bool(int)>& fill) {
+    AtomicFile file(path);
+    if (!fill(file.fd())) file.fail(errno);
+    file.commit();
 }
 
 }  // namespace cb
@@ -394,36 +429,74 @@ std::vector<EncodedMesh> encode_geometry(const std::vector<AssetMesh>& meshes) {
     return out;
 }
 
-uint64_t write_asset(const std::string& path, std::vector<AssetMesh>& meshes, std::vector<EncodedMesh> geometry,
-                     const std::vector<Instance>& instances, const std::string& source, unsigned threads) {
+struct AssetWriter::State {
     AssetLayout L;
-    lay_out(L, meshes, std::move(geometry), &meshes, instances, source);
-    write_file_atomic(path, [&](int fd) {
-        // The pieces go to the file on a second thread while this one sums them: the checksum, serial by its
-        // definition, then costs no time of its own. The checksum field is written last.
+    AtomicFile file;
+    AssetChecksum sum;
+    std::string source;  // the source section's bytes, written by finish()
+    State(const std::string& path, const std::string& source) : file(path), source(source) {}
+
+    // Writes the pieces of parts [from, to) at their offsets and adds them to the checksum: the writing on
+    // a second thread while this one sums, when `threads` allows (the checksum, serial by its definition,
+    // then costs no time of its own).
+    void write_parts(size_t from, size_t to, unsigned threads) {
         std::atomic<bool> written{true};
         std::atomic<int> error{0};
         auto write_pieces = [&] {
-            each_piece(L, [&](const uint8_t* bytes, uint64_t size, uint64_t offset) {
-                if (written && !write_at(fd, bytes, size, offset)) {
-                    written = false;
+            each_piece(L, from, to, [&](const uint8_t* bytes, uint64_t size, uint64_t offset) {
+                if (written && !write_at(file.fd(), bytes, size, offset)) {
                     error = errno;
+                    written = false;
                 }
             });
         };
-        uint64_t checksum;
         if ((threads ? threads : std::thread::hardware_concurrency()) > 1) {
             std::thread writer(write_pieces);
-            checksum = layout_checksum(L);
+            sum_pieces(L, from, to, sum);
             writer.join();
         } else {
             write_pieces();
-            checksum = layout_checksum(L);
+            sum_pieces(L, from, to, sum);
         }
-        errno = error;
-        return written && write_at(fd, reinterpret_cast<const uint8_t*>(&checksum), 8, checksum_at);
-    });
+        if (!written) file.fail(error);
+    }
+};
+
+AssetWriter::AssetWriter(const std::string& path, const std::vector<AssetMesh>& meshes,
+                         std::vector<EncodedMesh> geometry, const std::vector<Instance>& instances,
+                         const std::string& source)
+    : state_(std::make_unique<State>(path, source)) {
+    AssetLayout& L = state_->L;
+    lay_out(L, meshes, std::move(geometry), instances, state_->source);
+    // On the thread that calls: beside a fitting that keeps every core busy, a second one would only take
+    // turns with it.
+    state_->write_parts(0, L.bounds_from, 1);
+    free_storage(L.positions);
+    free_storage(L.triangles);
+    free_storage(L.refs);
+    free_storage(L.fine);
+}
+
+AssetWriter::~AssetWriter() = default;
+
+uint64_t AssetWriter::finish(std::vector<AssetMesh>& meshes, unsigned threads) {
+    AssetLayout& L = state_->L;
+    for (const auto& gather : L.gathers) gather(meshes);
+    for (AssetMesh& m : meshes) {  // their encoded copies are in the file
+        free_storage(m.positions);
+        free_storage(m.triangles);
+    }
+    state_->write_parts(L.bounds_from, L.parts.size(), threads);
+    const uint64_t checksum = state_->sum.finish();
+    if (!write_at(state_->file.fd(), reinterpret_cast<const uint8_t*>(&checksum), 8, checksum_at))
+        state_->file.fail(errno);
+    state_->file.commit();
     return L.file_size;
+}
+
+uint64_t write_asset(const std::string& path, std::vector<AssetMesh>& meshes, std::vector<EncodedMesh> geometry,
+                     const std::vector<Instance>& instances, const std::string& source, unsigned threads) {
+    return AssetWriter(path, meshes, std::move(geometry), instances, source).finish(meshes, threads);
 }
 
 }  // namespace cb

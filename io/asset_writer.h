@@ -4,6 +4,7 @@
 #include <cb_asset.h>
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,26 @@ void remove_dead_temporaries(const std::string& path);
 // with errno set when it fails.
 void write_file_atomic(const std::string& path, const std::function<bool(int fd)>& fill);
 
+// write_file_atomic in steps: the temporary is opened on construction (throwing as write_file_atomic does),
+// written through fd() for as long as it takes, and renamed over the path by commit(). Destroyed without a
+// commit (an exception on the way), it leaves nothing behind and the path untouched.
+class AtomicFile {
+public:
+    explicit AtomicFile(const std::string& path);
+    ~AtomicFile();
+    AtomicFile(const AtomicFile&) = delete;
+    AtomicFile& operator=(const AtomicFile&) = delete;
+    int fd() const { return fd_; }
+    // Throws std::runtime_error naming the path, for a write through fd() that failed with `err` (an errno).
+    [[noreturn]] void fail(int err);
+    void commit();
+
+private:
+    std::string path_, tmp_;
+    int fd_ = -1;
+    bool unnamed_ = false, committed_ = false;
+};
+
 // A mesh's geometry as the asset stores it: vertices renumbered in order of first use (a vertex too far
 // back for a 16-bit reference stored again), each fine cluster's corners as 8-bit indices into its list of
 // new vertices followed by reused ones. It depends on the triangles alone, not on the bounding volumes.
@@ -46,10 +67,30 @@ struct EncodedMesh {
 // The encoded geometry of every mesh; throws as encode_asset does.
 std::vector<EncodedMesh> encode_geometry(const std::vector<AssetMesh>& meshes);
 
-// encode_asset's bytes written to `path` by write_file_atomic without assembling them in memory, from the
-// meshes and their encode_geometry; each mesh's positions and triangles are freed once laid out (its
-// volumes are written from where they are). The file goes out on a second thread while the checksum is
-// summed when `threads` (0: all hardware threads) allows. Returns the file's size.
+// encode_asset's bytes written to `path` as write_file_atomic writes, without assembling them in memory, in
+// two steps so that the geometry can go to the file while the volumes are still being fitted. The
+// constructor lays the asset out, its volume arrays already sized as they will be filled (one record per
+// cluster; fit_scene_bounds sizes them first), opens the temporary and writes everything before the
+// bounds sections, summing the checksum as it goes; the encoded geometry is then freed. finish(), once the
+// volumes are filled, writes the bounds sections and the rest, the checksum, and renames the file over
+// `path`; it frees each mesh's positions and triangles and returns the file's size. The meshes must stay
+// as they are (but for their volumes' values) in between, and their positions and triangles may be freed
+// once encoded.
+class AssetWriter {
+public:
+    AssetWriter(const std::string& path, const std::vector<AssetMesh>& meshes, std::vector<EncodedMesh> geometry,
+                const std::vector<Instance>& instances, const std::string& source);
+    ~AssetWriter();
+    // `threads` (0: all hardware threads) > 1: the rest of the file goes out on a second thread while the
+    // checksum is summed.
+    uint64_t finish(std::vector<AssetMesh>& meshes, unsigned threads);
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
+
+// AssetWriter's two steps in one.
 uint64_t write_asset(const std::string& path, std::vector<AssetMesh>& meshes, std::vector<EncodedMesh> geometry,
                      const std::vector<Instance>& instances, const std::string& source, unsigned threads);
 

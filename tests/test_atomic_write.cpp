@@ -168,3 +168,44 @@ TEST(AtomicWrite, StreamedAssetEqualsTheEncodedOne) {
     EXPECT_EQ(entries(d), 2u);  // the two outputs, no temporary
     fs::remove_all(d);
 }
+
+// AssetWriter writes the geometry before the volumes are fitted (their arrays only sized) and the rest once
+// they are: the file holds the asset of the filled meshes exactly, for one mesh and many; the old output
+// stays as it was until finish(), and a writer dropped before it leaves the old output and nothing else.
+TEST(AtomicWrite, GeometryWrittenBeforeTheVolumesAreFitted) {
+    const fs::path d = fresh_dir("early");
+    cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    ASSERT_GT(scene.meshes.size(), 1u);
+    cb::Scene one;
+    one.meshes.push_back(scene.meshes[0]);
+    one.instances.push_back({0, cb::identity_transform(), "one"});
+    cb::BoundsOptions bounds;
+    bounds.mask = cb::bounds_all;
+    const fs::path out = d / "asset.cbk";
+    const std::vector<uint8_t> old_bytes(100, 3);
+    for (const cb::Scene* s : {&scene, &one}) {
+        cb::BakeStats stats;
+        const std::vector<cb::AssetMesh> clustered = cb::cluster_scene(*s, {}, stats);
+        std::vector<cb::AssetMesh> fitted = clustered;
+        cb::fit_scene_bounds(fitted, bounds, 2, stats);
+        const std::vector<uint8_t> encoded = cb::encode_asset(fitted, s->instances, "source\n");
+        for (bool finished : {false, true}) {
+            cb::write_file_atomic(out.string(), old_bytes);
+            std::vector<cb::AssetMesh> meshes = clustered;
+            cb::size_scene_bounds(meshes, bounds);
+            const cb::AssetMesh* where = meshes.data();
+            const void* fine_boxes = meshes[0].fine_volumes.obbs.data();
+            {
+                cb::AssetWriter writer(out.string(), meshes, cb::encode_geometry(meshes), s->instances, "source\n");
+                cb::fit_scene_bounds(meshes, bounds, 2, stats);
+                EXPECT_EQ(meshes.data(), where);
+                EXPECT_EQ(meshes[0].fine_volumes.obbs.data(), fine_boxes);  // sized once, filled in place
+                EXPECT_EQ(read_all(out), old_bytes);
+                if (finished) EXPECT_EQ(writer.finish(meshes, 2), encoded.size());
+            }
+            EXPECT_EQ(read_all(out), finished ? encoded : old_bytes) << s->meshes.size() << " meshes";
+            EXPECT_EQ(entries(d), 1u);  // no temporary either way
+        }
+    }
+    fs::remove_all(d);
+}
