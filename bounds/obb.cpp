@@ -351,55 +351,57 @@ CB_VECTOR_CLONES void turn_points(double* x, double* y, size_t n, double c, doub
 
 // min_area_rect_frame's rectangle for a fine cluster, sampled: the best of 32 turns of the other two axes,
 // evenly spaced over the quarter turn after which a rectangle repeats, all measured in one pass over the
-// points (the turns in lanes). Samples 2.8 degrees apart, the descent then closing in; no sort or hull,
-// whose branches follow the data: the refined box in 0.83 of the time on the 13 scanned meshes' fine
-// clusters, mean volume within 0.001 of the exact rectangle's (docs/PERFORMANCE.md).
-constexpr int sampled_turns = 32;
+// points (the turns in lanes, in float: the areas only choose where the descent starts). Samples 2.8
+// degrees apart, the descent then closing in; no sort or hull, whose branches follow the data: the
+// refined box in 0.79 to 0.85 of the time on 12 of the 13 scanned meshes' fine clusters, mean volume within
+// 0.001 of the exact rectangle's (docs/PERFORMANCE.md).
+typedef float FloatLanes __attribute__((vector_size(32)));
+constexpr int sampled_turns = 32, float_lanes = 8;
 CB_VECTOR_CLONES Frame sampled_rect_frame(const double* pts, size_t n, const Frame& f, int fixed, double pad) {
-    constexpr int groups = sampled_turns / int(lane_count);
+    constexpr int groups = sampled_turns / float_lanes;
     struct Turns {
-        Lanes c[groups], s[groups];
+        FloatLanes c[groups], s[groups];
     };
     static const Turns turns = [] {
         Turns t;
         for (int g = 0; g < groups; ++g)
-            for (int l = 0; l < int(lane_count); ++l) {
-                const double a = (g * int(lane_count) + l) * (M_PI / 2) / sampled_turns;
-                t.c[g][l] = std::cos(a);
-                t.s[g][l] = std::sin(a);
+            for (int l = 0; l < float_lanes; ++l) {
+                const double a = (g * float_lanes + l) * (M_PI / 2) / sampled_turns;
+                t.c[g][l] = float(std::cos(a));
+                t.s[g][l] = float(std::sin(a));
             }
         return t;
     }();
     const int u = (fixed + 1) % 3, w = (fixed + 2) % 3;
-    Lanes lo[2][groups], hi[2][groups];
+    FloatLanes lo[2][groups], hi[2][groups];
     for (int j = 0; j < 2; ++j)
         for (int g = 0; g < groups; ++g) {
-            fill_lanes(INFINITY, lo[j][g]);
-            fill_lanes(-INFINITY, hi[j][g]);
+            lo[j][g] = FloatLanes{} + INFINITY;
+            hi[j][g] = FloatLanes{} - INFINITY;
         }
     for (size_t v = 0; v < n; ++v) {
-        Lanes x, y;
-        fill_lanes(dot3(pts + v * 3, f.axis[u]), x);
-        fill_lanes(dot3(pts + v * 3, f.axis[w]), y);
+        const FloatLanes x = FloatLanes{} + float(dot3(pts + v * 3, f.axis[u])),
+                         y = FloatLanes{} + float(dot3(pts + v * 3, f.axis[w]));
         for (int g = 0; g < groups; ++g) {
-            const Lanes along = turns.c[g] * x + turns.s[g] * y, across = turns.c[g] * y - turns.s[g] * x;
+            const FloatLanes along = turns.c[g] * x + turns.s[g] * y, across = turns.c[g] * y - turns.s[g] * x;
             lo[0][g] = along < lo[0][g] ? along : lo[0][g];
             hi[0][g] = along > hi[0][g] ? along : hi[0][g];
             lo[1][g] = across < lo[1][g] ? across : lo[1][g];
             hi[1][g] = across > hi[1][g] ? across : hi[1][g];
         }
     }
-    double best = INFINITY, c = 1, s = 0;
+    float best = INFINITY;
+    int pick = 0;
     for (int g = 0; g < groups; ++g) {
-        const Lanes area = (hi[0][g] - lo[0][g] + pad) * (hi[1][g] - lo[1][g] + pad);
-        for (int l = 0; l < int(lane_count); ++l)
+        const FloatLanes area = (hi[0][g] - lo[0][g] + float(pad)) * (hi[1][g] - lo[1][g] + float(pad));
+        for (int l = 0; l < float_lanes; ++l)
             if (area[l] < best) {
                 best = area[l];
-                c = turns.c[g][l];
-                s = turns.s[g][l];
+                pick = g * float_lanes + l;
             }
     }
-    return rotated(f, fixed, c, s);
+    const double a = pick * (M_PI / 2) / sampled_turns;
+    return rotated(f, fixed, std::cos(a), std::sin(a));
 }
 
 // Axes spread evenly over a half sphere (a golden-angle spiral), for extreme_points: one array per
