@@ -361,15 +361,17 @@ CB_VECTOR_CLONES Frame sampled_rect_frame(const double* pts, size_t n, const Fra
     constexpr int groups = sampled_turns / float_lanes;
     struct Turns {
         FloatLanes c[groups], s[groups];
+        double cos[sampled_turns], sin[sampled_turns];  // the chosen turn, in double
     };
     static const Turns turns = [] {
         Turns t;
-        for (int g = 0; g < groups; ++g)
-            for (int l = 0; l < float_lanes; ++l) {
-                const double a = (g * float_lanes + l) * (M_PI / 2) / sampled_turns;
-                t.c[g][l] = float(std::cos(a));
-                t.s[g][l] = float(std::sin(a));
-            }
+        for (int i = 0; i < sampled_turns; ++i) {
+            const double a = i * (M_PI / 2) / sampled_turns;
+            t.cos[i] = std::cos(a);
+            t.sin[i] = std::sin(a);
+            t.c[i / float_lanes][i % float_lanes] = float(t.cos[i]);
+            t.s[i / float_lanes][i % float_lanes] = float(t.sin[i]);
+        }
         return t;
     }();
     const int u = (fixed + 1) % 3, w = (fixed + 2) % 3;
@@ -400,8 +402,7 @@ CB_VECTOR_CLONES Frame sampled_rect_frame(const double* pts, size_t n, const Fra
                 pick = g * float_lanes + l;
             }
     }
-    const double a = pick * (M_PI / 2) / sampled_turns;
-    return rotated(f, fixed, std::cos(a), std::sin(a));
+    return rotated(f, fixed, turns.cos[pick], turns.sin[pick]);
 }
 
 // Axes spread evenly over a half sphere (a golden-angle spiral), for extreme_points: one array per
