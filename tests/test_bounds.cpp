@@ -251,8 +251,8 @@ TEST(Bounds, RotatedBoxIsFoundExactly) {
 
 TEST(Bounds, FineBoxesComeNearTheOptimum) {
     // Fine clusters whose best box PCA misses: 12 points in a random triangle, 1% as thick as wide, turned at
-    // random. The best rectangle across the plate lies along a side of the triangle, not along PCA's axes;
-    // the refined fit's rectangle and descent must come near CGAL's optimum.
+    // random. The best rectangle across the plate lies along an edge of the points' hull, rarely along PCA's
+    // axes; the refined fit's rectangle and descent must come near CGAL's optimum.
     std::mt19937 rng(11);
     std::uniform_real_distribution<double> unit(-1, 1);
     double sum = 0, worst = 0;
