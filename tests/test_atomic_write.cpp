@@ -37,6 +37,15 @@ std::vector<uint8_t> read_all(const fs::path& p) {
 
 size_t entries(const fs::path& d) { return size_t(std::distance(fs::directory_iterator(d), fs::directory_iterator())); }
 
+// The default scene (several meshes), and a scene of its first mesh alone: assets of many meshes and of one.
+std::vector<cb::Scene> default_scene_and_its_first_mesh() {
+    std::vector<cb::Scene> scenes(2);
+    scenes[0] = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
+    scenes[1].meshes.push_back(scenes[0].meshes.at(0));
+    scenes[1].instances.push_back({0, cb::identity_transform(), "one"});
+    return scenes;
+}
+
 }  // namespace
 
 TEST(AtomicWrite, KilledWritersLeaveTheOldFileAndNoTemporary) {
@@ -142,25 +151,22 @@ TEST(AtomicWrite, RefusesToReplaceWhatIsNotARegularFile) {
 // and the meshes' geometry is freed once encoded.
 TEST(AtomicWrite, StreamedAssetEqualsTheEncodedOne) {
     const fs::path d = fresh_dir("stream");
-    cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
-    ASSERT_GT(scene.meshes.size(), 1u);
-    cb::Scene one;
-    one.meshes.push_back(scene.meshes[0]);
-    one.instances.push_back({0, cb::identity_transform(), "one"});
-    for (const cb::Scene* s : {&scene, &one}) {
+    const std::vector<cb::Scene> scenes = default_scene_and_its_first_mesh();
+    ASSERT_GT(scenes[0].meshes.size(), 1u);
+    for (const cb::Scene& s : scenes) {
         cb::BakeStats stats;
-        std::vector<cb::AssetMesh> meshes = cb::cluster_scene(*s, {}, stats);
+        std::vector<cb::AssetMesh> meshes = cb::cluster_scene(s, {}, stats);
         cb::BoundsOptions bounds;
         bounds.mask = cb::bounds_auto;
         cb::fit_scene_bounds(meshes, bounds, 2, stats);
         for (const std::string source : {"", "made by a test\n"}) {
-            const std::vector<uint8_t> encoded = cb::encode_asset(meshes, s->instances, source);
+            const std::vector<uint8_t> encoded = cb::encode_asset(meshes, s.instances, source);
             for (unsigned threads : {1u, 2u}) {
                 std::vector<cb::AssetMesh> copy = meshes;
                 const fs::path out = d / ("asset" + std::to_string(threads) + ".cbk");
-                EXPECT_EQ(cb::write_asset(out.string(), copy, cb::encode_geometry(copy), s->instances, source, threads),
+                EXPECT_EQ(cb::write_asset(out.string(), copy, cb::encode_geometry(copy), s.instances, source, threads),
                           encoded.size());
-                EXPECT_EQ(read_all(out), encoded) << s->meshes.size() << " meshes, " << threads << " threads";
+                EXPECT_EQ(read_all(out), encoded) << s.meshes.size() << " meshes, " << threads << " threads";
                 for (const cb::AssetMesh& m : copy) EXPECT_EQ(m.positions.capacity() + m.triangles.capacity(), 0u);
             }
         }
@@ -174,21 +180,18 @@ TEST(AtomicWrite, StreamedAssetEqualsTheEncodedOne) {
 // stays as it was until finish(), and a writer dropped before it leaves the old output and nothing else.
 TEST(AtomicWrite, GeometryWrittenBeforeTheVolumesAreFitted) {
     const fs::path d = fresh_dir("early");
-    cb::Scene scene = cb::load_scene(std::string(CB_SOURCE_DIR) + "/data/default_scene.glb");
-    ASSERT_GT(scene.meshes.size(), 1u);
-    cb::Scene one;
-    one.meshes.push_back(scene.meshes[0]);
-    one.instances.push_back({0, cb::identity_transform(), "one"});
+    const std::vector<cb::Scene> scenes = default_scene_and_its_first_mesh();
+    ASSERT_GT(scenes[0].meshes.size(), 1u);
     cb::BoundsOptions bounds;
     bounds.mask = cb::bounds_all;
     const fs::path out = d / "asset.cbk";
     const std::vector<uint8_t> old_bytes(100, 3);
-    for (const cb::Scene* s : {&scene, &one}) {
+    for (const cb::Scene& s : scenes) {
         cb::BakeStats stats;
-        const std::vector<cb::AssetMesh> clustered = cb::cluster_scene(*s, {}, stats);
+        const std::vector<cb::AssetMesh> clustered = cb::cluster_scene(s, {}, stats);
         std::vector<cb::AssetMesh> fitted = clustered;
         cb::fit_scene_bounds(fitted, bounds, 2, stats);
-        const std::vector<uint8_t> encoded = cb::encode_asset(fitted, s->instances, "source\n");
+        const std::vector<uint8_t> encoded = cb::encode_asset(fitted, s.instances, "source\n");
         for (bool finished : {false, true}) {
             cb::write_file_atomic(out.string(), old_bytes);
             std::vector<cb::AssetMesh> meshes = clustered;
@@ -196,14 +199,14 @@ TEST(AtomicWrite, GeometryWrittenBeforeTheVolumesAreFitted) {
             const cb::AssetMesh* where = meshes.data();
             const void* fine_boxes = meshes[0].fine_volumes.obbs.data();
             {
-                cb::AssetWriter writer(out.string(), meshes, cb::encode_geometry(meshes), s->instances, "source\n");
+                cb::AssetWriter writer(out.string(), meshes, cb::encode_geometry(meshes), s.instances, "source\n");
                 cb::fit_scene_bounds(meshes, bounds, 2, stats);
                 EXPECT_EQ(meshes.data(), where);
                 EXPECT_EQ(meshes[0].fine_volumes.obbs.data(), fine_boxes);  // sized once, filled in place
                 EXPECT_EQ(read_all(out), old_bytes);
                 if (finished) EXPECT_EQ(writer.finish(meshes, 2), encoded.size());
             }
-            EXPECT_EQ(read_all(out), finished ? encoded : old_bytes) << s->meshes.size() << " meshes";
+            EXPECT_EQ(read_all(out), finished ? encoded : old_bytes) << s.meshes.size() << " meshes";
             EXPECT_EQ(entries(d), 1u);  // no temporary either way
         }
     }
