@@ -222,7 +222,7 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<E
         sections.push_back({type, uint32_t(sizeof(Record)), owned.data(), records * sizeof(Record), records});
         return true;
     };
-    const size_t bounds_from = sections.size();
+    L.bounds_from = sections.size();  // one part per section, in the same order
     for (bool fine : {true, false}) {
         bool boxes = level_section(fine ? SectionType::fine_obbs : SectionType::coarse_obbs, fine, &LevelVolumes::obbs);
         level_section(fine ? SectionType::fine_spheres : SectionType::coarse_spheres, fine, &LevelVolumes::spheres);
@@ -243,7 +243,6 @@ void lay_out(AssetLayout& L, const std::vector<AssetMesh>& meshes, std::vector<E
         at = aligned(at + p.size);
     }
     L.file_size = at;
-    L.bounds_from = bounds_from;
 
     AssetHeader h{};
     std::memcpy(h.magic, asset_magic, 8);
