@@ -9,62 +9,99 @@
 #include "free_storage.h"
 #include "parallel.h"
 #include "timing.h"
+#include "unset_vector.h"
 
 namespace cb {
 
 namespace {
 
-// The closed-surface check for the vertices [lo, hi): every edge whose lower vertex lies there, listed under
-// that vertex by a counting sort (entries: the other end, shifted, and whether the edge leaves the lower
-// vertex), then each vertex's short list checked on its own. Entry is uint32_t while vertex numbers fit in
-// 31 bits, halving the largest array of the check.
-template <class Entry>
-bool closed_between(const uint32_t* indices, size_t corners, uint32_t lo, uint32_t hi) {
-    auto each_edge = [&](auto&& f) {
-        for (size_t t = 0; t < corners; t += 3)
-            for (int k = 0; k < 3; ++k) {
-                uint32_t a = indices[t + k], b = indices[t + (k + 1) % 3], low = std::min(a, b);
-                if (low >= lo && low < hi) f(a, b, low - lo);
-            }
-    };
-    std::vector<uint32_t> start(size_t(hi - lo) + 1, 0);
-    each_edge([&](uint32_t, uint32_t, uint32_t v) { ++start[v + 1]; });
-    for (size_t v = 0; v + 1 < start.size(); ++v) start[v + 1] += start[v];
-    std::vector<Entry> entry(start.back());
-    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-    each_edge([&](uint32_t a, uint32_t b, uint32_t v) { entry[fill[v]++] = Entry(std::max(a, b)) << 1 | (a < b); });
-    free_storage(fill);
-    for (uint32_t v = 0; v < hi - lo; ++v) {
-        Entry* first = entry.data() + start[v];
-        Entry* last = entry.data() + start[v + 1];
-        std::sort(first, last);
-        for (Entry* e = first; e < last;) {
-            if (*e >> 1 == lo + v) {  // loop edge (a, a): its own reverse, so it must appear once
-                if (e + 1 < last && e[1] == e[0]) return false;
-                ++e;
-                continue;
-            }
-            if (last - e < 2 || (*e & 1) != 0 || e[1] != (*e | 1)) return false;  // both directions, once each
-            e += 2;
-            if (e < last && *e >> 1 == e[-1] >> 1) return false;  // a third use of the edge
-        }
+// The closed-surface check, by ranges [lo, hi) of the edges' lower vertex: every edge whose lower vertex lies
+// in the range, listed under that vertex by a counting sort (entries: the other end, shifted, and whether
+// the edge leaves the lower vertex), then each vertex's short list checked on its own. Entry is uint32_t
+// while vertex numbers fit in 31 bits, halving the largest array of the check.
+class EdgeRange {
+public:
+    EdgeRange(const uint32_t* indices, size_t corners, uint32_t lo, uint32_t hi)
+        : indices_(indices), corners_(corners), lo_(lo), hi_(hi) {}
+
+    // Counts the range's edges per vertex; returns how many entries check() takes.
+    size_t count() {
+        start_.assign(size_t(hi_ - lo_) + 1, 0);
+        each_edge([&](uint32_t, uint32_t, uint32_t v) { ++start_[v + 1]; });
+        for (size_t v = 0; v + 1 < start_.size(); ++v) start_[v + 1] += start_[v];
+        return start_.back();
     }
-    return true;
-}
+
+    // Lists the edges into entry[0, count()) and checks each vertex's list.
+    template <class Entry>
+    bool check(Entry* entry) {
+        std::vector<uint32_t> fill(start_.begin(), start_.end() - 1);
+        each_edge([&](uint32_t a, uint32_t b, uint32_t v) { entry[fill[v]++] = Entry(std::max(a, b)) << 1 | (a < b); });
+        free_storage(fill);
+        for (uint32_t v = 0; v < hi_ - lo_; ++v) {
+            Entry* first = entry + start_[v];
+            Entry* last = entry + start_[v + 1];
+            std::sort(first, last);
+            for (Entry* e = first; e < last;) {
+                if (*e >> 1 == lo_ + v) {  // loop edge (a, a): its own reverse, so it must appear once
+                    if (e + 1 < last && e[1] == e[0]) return false;
+                    ++e;
+                    continue;
+                }
+                if (last - e < 2 || (*e & 1) != 0 || e[1] != (*e | 1)) return false;  // both directions, once each
+                e += 2;
+                if (e < last && *e >> 1 == e[-1] >> 1) return false;  // a third use of the edge
+            }
+        }
+        return true;
+    }
+
+private:
+    template <class F>
+    void each_edge(F&& f) const {
+        for (size_t t = 0; t < corners_; t += 3)
+            for (int k = 0; k < 3; ++k) {
+                uint32_t a = indices_[t + k], b = indices_[t + (k + 1) % 3], low = std::min(a, b);
+                if (low >= lo_ && low < hi_) f(a, b, low - lo_);
+            }
+    }
+
+    const uint32_t* indices_;
+    size_t corners_;
+    uint32_t lo_, hi_;
+    std::vector<uint32_t> start_;  // per vertex of the range, its first entry; then the end
+};
 
 }  // namespace
 
 // Every edge used exactly twice, once in each direction: a closed, consistently wound surface, on which
 // one-sided and two-sided shadows agree for points outside the solid. Linear, and split over threads by
 // ranges of the edges' lower vertex, each range read from the whole index array and checked on its own.
-bool is_closed(const uint32_t* indices, size_t corners, size_t vertices, unsigned threads) {
+// The ranges' entries, one per corner in all, go to `scratch` when it is given and vertex numbers fit in 31
+// bits, each range after the ones before it.
+bool is_closed(const uint32_t* indices, size_t corners, size_t vertices, unsigned threads, uint32_t* scratch) {
     if (corners == 0) return false;
     const size_t parts = std::min<size_t>(threads_or_all(threads), std::max<size_t>(1, corners / 30000));
+    std::vector<EdgeRange> ranges;
+    for (size_t p = 0; p < parts; ++p)
+        ranges.emplace_back(indices, corners, uint32_t(vertices * p / parts), uint32_t(vertices * (p + 1) / parts));
+    std::vector<size_t> first(parts + 1, 0);
+    parallel_for(parts, unsigned(parts), [&](size_t p) { first[p + 1] = ranges[p].count(); });
+    for (size_t p = 0; p < parts; ++p) first[p + 1] += first[p];
+    const bool narrow = vertices < (size_t(1) << 31);
     std::atomic<bool> closed{true};
     parallel_for(parts, unsigned(parts), [&](size_t p) {
-        uint32_t lo = uint32_t(vertices * p / parts), hi = uint32_t(vertices * (p + 1) / parts);
-        bool ok = vertices < (size_t(1) << 31) ? closed_between<uint32_t>(indices, corners, lo, hi)
-                                               : closed_between<uint64_t>(indices, corners, lo, hi);
+        const size_t n = first[p + 1] - first[p];
+        bool ok;
+        if (narrow && scratch) {
+            ok = ranges[p].check(scratch + first[p]);
+        } else if (narrow) {
+            UnsetVector<uint32_t> entry(n);
+            ok = ranges[p].check(entry.data());
+        } else {
+            UnsetVector<uint64_t> entry(n);
+            ok = ranges[p].check(entry.data());
+        }
         if (!ok) closed = false;
     });
     return closed;
@@ -95,10 +132,10 @@ void order_triangles(const Mesh& mesh, Hierarchy& h, AssetMesh& out) {
         out.coarse.push_back({h.coarse_offsets[c], h.coarse_offsets[c + 1] - h.coarse_offsets[c]});
 }
 
-// The closed flag, from the clustered triangles (the same set as the mesh's, so the same answer) once the
-// mesh's own indices may have been freed.
-void flag_closed(AssetMesh& out, unsigned threads) {
-    if (is_closed(out.triangles.data(), out.triangles.size(), out.positions.size() / 3, threads))
+// The closed flag, from the clustered triangles (the same set as the mesh's, so the same answer). `scratch`:
+// one value per corner that the check may overwrite (the mesh's own indices, done with), or null.
+void flag_closed(AssetMesh& out, unsigned threads, uint32_t* scratch) {
+    if (is_closed(out.triangles.data(), out.triangles.size(), out.positions.size() / 3, threads, scratch))
         out.flags |= mesh_closed;
 }
 
@@ -128,12 +165,13 @@ std::vector<AssetMesh> cluster_meshes(const Scene& scene, Scene* release, const 
         if (release) {
             Mesh& owned = release->meshes[m];
             am.positions = std::move(owned.positions);
+            flag_closed(am, threads, owned.indices.data());
             free_storage(owned.indices);
             free_storage(owned.primitives);
         } else {
             am.positions = mesh.positions;
+            flag_closed(am, threads, nullptr);
         }
-        flag_closed(am, threads);
         stats.triangles += triangles;
         stats.fine_clusters += am.fine.size();
         stats.coarse_clusters += am.coarse.size();
@@ -244,7 +282,7 @@ void fit_scene_bounds(std::vector<AssetMesh>& meshes, const BoundsOptions& optio
             const Item& it = items[i];
             AssetMesh& am = meshes[it.mesh];
             ClusterBounds fitted = fit_bounds(am.positions.data(), am.triangles.data() + size_t(it.first) * 3,
-                                              ids.data(), it.count, options);
+                                              ids.data(), it.count, options, am.positions.size() / 3);
             LevelVolumes& v = it.fine ? am.fine_volumes : am.coarse_volumes;
             if (!v.obbs.empty()) v.obbs[it.index] = fitted.packed_obb;
             if (!v.spheres.empty()) v.spheres[it.index] = fitted.sphere;

@@ -25,8 +25,9 @@ struct BakeStats {
 };
 
 // Every edge used exactly twice, once in each direction (a closed, consistently wound surface): the
-// triangles indices[0..corners) over `vertices` vertices, checked on `threads` threads (0 = all).
-bool is_closed(const uint32_t* indices, size_t corners, size_t vertices, unsigned threads);
+// triangles indices[0..corners) over `vertices` vertices, checked on `threads` threads (0 = all). `scratch`,
+// when given, holds `corners` values that the check overwrites, in place of arrays of its own.
+bool is_closed(const uint32_t* indices, size_t corners, size_t vertices, unsigned threads, uint32_t* scratch = nullptr);
 bool is_closed(const Mesh& mesh);
 
 // Clusters every mesh of the scene on `threads` threads (0 = all); the result does not depend on the count.
@@ -36,8 +37,8 @@ std::vector<AssetMesh> cluster_scene(const Scene& scene, const ClusterOptions& o
                                      unsigned threads = 0);
 
 // The same, for a bake that needs the scene's geometry no longer: each mesh's positions move into its
-// clustered mesh and its indices are freed as soon as it is clustered, so the two never coexist. The scene
-// keeps its instances, names and report.
+// clustered mesh, and its indices, once it is clustered, serve the closed-surface check as scratch and are
+// freed. The scene keeps its instances, names and report.
 std::vector<AssetMesh> cluster_scene_releasing(Scene& scene, const ClusterOptions& options, BakeStats& stats,
                                                const std::function<void(size_t, size_t, size_t, size_t)>& progress = {},
                                                unsigned threads = 0);

@@ -61,7 +61,7 @@ bool parse_bounds_mask(const std::string& text, uint32_t& mask) {
 }
 
 ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const uint32_t* triangle_ids, size_t count,
-                         const BoundsOptions& options) {
+                         const BoundsOptions& options, size_t vertex_count) {
     ClusterBounds out{};
     // The cluster's distinct vertices in order of first use, in double, world and local (around the centre
     // of their box). A vertex is new when its stamp is not this call's: no sort, no clearing between calls.
@@ -71,6 +71,7 @@ ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const 
         std::fill(stamp.begin(), stamp.end(), 0u);
         call = 1;
     }
+    if (vertex_count > stamp.size()) stamp.resize(vertex_count, 0u);
     thread_local std::vector<uint32_t> ids;  // scratch, as the arrays below: no allocation per cluster
     thread_local std::vector<double> world, local;
     // Branch-free: whether a corner's vertex is new follows no pattern a predictor could learn.

@@ -74,9 +74,11 @@ BoundsOptionsError check_options(const BoundsOptions& options);
 std::string describe(BoundsOptionsError error, const std::function<std::string(const char* field)>& name = {});
 
 // The triangles are `count` indices into `triangle_ids`, each a triangle of `indices` (3 per triangle)
-// over `positions` (xyz floats). Pure: no state, safe to call from many threads.
+// over `positions` (xyz floats). Pure: no state, safe to call from many threads. `vertex_count`, when known
+// (not 0), is the positions' count: each thread's per-vertex scratch then takes its size once, instead of
+// growing (a copy and fresh pages each time) as higher vertex numbers come.
 ClusterBounds fit_bounds(const float* positions, const uint32_t* indices, const uint32_t* triangle_ids, size_t count,
-                         const BoundsOptions& options);
+                         const BoundsOptions& options, size_t vertex_count = 0);
 
 // ---- the pieces, for tests and benchmarks. Points are xyz doubles, already relative to a local origin.
 

@@ -89,13 +89,15 @@ Hierarchy build_hierarchy(const float* positions, size_t vertex_count, const uin
 // ---- the building blocks, exposed for tests and benchmarks
 
 // Triangle indices sorted by the 63-bit Morton code of each triangle's box centre within the mesh bounds;
-// ties keep input order. The same for any thread count (0: all hardware threads).
+// ties keep input order. The same for any thread count (0: all hardware threads). `scratch`, when given, is
+// sort_keys's.
 UnsetVector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count,
-                                   unsigned threads = 1);
+                                   unsigned threads = 1, uint32_t* scratch = nullptr);
 
 // Sorts the n keys stably in place; order[i] gets the input index of the key that ends at i. The same for
-// any thread count (0: all hardware threads).
-void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads = 1);
+// any thread count (0: all hardware threads). `scratch`: room for 3 n values, 8-byte aligned, that the sort
+// overwrites (a caller's array that is filled afterwards lends its pages); without it, the sort takes its own.
+void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads = 1, uint32_t* scratch = nullptr);
 
 // Hierarchical k-means++ over the triangles `tris` (reordered in place) with at most `max_size` per leaf;
 // appends the leaf sizes to `leaf_sizes` in order. `boxes` holds 6 floats (min xyz, max xyz) per triangle.

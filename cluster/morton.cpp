@@ -7,6 +7,7 @@
 
 #include "cluster.h"
 #include "parallel.h"
+#include "parallel_resize.h"
 #include "unset_vector.h"
 
 namespace cb {
@@ -49,10 +50,14 @@ uint64_t differing_bits(const uint64_t* keys, size_t n) {
     return d;
 }
 
+// The scatter room's keys. The room may be a caller's array of uint32_t lent for the sort (sort_keys), so its
+// keys are read and written through a type that may alias it.
+typedef uint64_t __attribute__((may_alias)) RoomKey;
+
 // A stable counting pass on the `bits`-bit digit at `shift`, from (keys, order) to (to_keys, to_order);
 // `count` (2^bits entries) ends holding each digit's end.
 void scatter_digit(const uint64_t* keys, const uint32_t* order, size_t n, int shift, int bits, uint32_t* count,
-                   uint64_t* to_keys, uint32_t* to_order) {
+                   RoomKey* to_keys, uint32_t* to_order) {
     const size_t digits = size_t(1) << bits;
     const uint64_t mask = digits - 1;
     std::fill_n(count, digits, 0u);
@@ -73,7 +78,7 @@ void scatter_digit(const uint64_t* keys, const uint32_t* order, size_t n, int sh
 // Sorts (keys, order)[0, n) stably by key, with (tmp_keys, tmp_order)[0, n) as scatter room. Each level
 // splits below the highest differing bit of the one before, so the recursion is at most 64 / least_bits
 // deep.
-void sort_range(uint64_t* keys, uint32_t* order, uint64_t* tmp_keys, uint32_t* tmp_order, size_t n) {
+void sort_range(uint64_t* keys, uint32_t* order, RoomKey* tmp_keys, uint32_t* tmp_order, size_t n) {
     if (n <= insertion_limit) {
         for (size_t i = 1; i < n; ++i) {
             const uint64_t k = keys[i];
@@ -103,7 +108,7 @@ void sort_range(uint64_t* keys, uint32_t* order, uint64_t* tmp_keys, uint32_t* t
 
 }  // namespace
 
-void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads) {
+void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads, uint32_t* scratch) {
     const Parts parts(n, size_t(1) << 16);
     std::vector<uint64_t> part_differ(parts.count());
     parallel_for(parts.count(), threads, [&](size_t p) {
@@ -117,9 +122,15 @@ void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads) {
     uint64_t differ = 0;
     for (uint64_t d : part_differ) differ |= d;
     if (!differ) return;
-    UnsetVector<uint64_t> tmp_keys(n);
-    UnsetVector<uint32_t> tmp_order(n);
-    if (n <= cached_limit) return sort_range(keys, order, tmp_keys.data(), tmp_order.data(), n);
+    // The scatter room: the caller's, or fresh.
+    UnsetVector<uint32_t> own;
+    if (!scratch) {
+        parallel_resize(own, 3 * n, threads);
+        scratch = own.data();
+    }
+    RoomKey* const tmp_keys = reinterpret_cast<RoomKey*>(scratch);
+    uint32_t* const tmp_order = scratch + 2 * n;
+    if (n <= cached_limit) return sort_range(keys, order, tmp_keys, tmp_order, n);
 
     // The split on the highest differing digit: each part counts its digits, then scatters its keys to
     // their digit's range after those of earlier parts.
@@ -151,19 +162,17 @@ void sort_keys(uint64_t* keys, uint32_t* order, size_t n, unsigned threads) {
         }
     });
     parallel_for(parts.count(), threads, [&](size_t p) {
-        std::copy(tmp_keys.begin() + std::ptrdiff_t(parts.first(p)), tmp_keys.begin() + std::ptrdiff_t(parts.last(p)),
-                  keys + parts.first(p));
-        std::copy(tmp_order.begin() + std::ptrdiff_t(parts.first(p)), tmp_order.begin() + std::ptrdiff_t(parts.last(p)),
-                  order + parts.first(p));
+        std::copy(tmp_keys + parts.first(p), tmp_keys + parts.last(p), keys + parts.first(p));
+        std::copy(tmp_order + parts.first(p), tmp_order + parts.last(p), order + parts.first(p));
     });
     parallel_for(digits, threads, [&](size_t d) {
         const size_t start = digit_start[d], size = digit_start[d + 1] - start;
-        sort_range(keys + start, order + start, tmp_keys.data() + start, tmp_order.data() + start, size);
+        sort_range(keys + start, order + start, tmp_keys + start, tmp_order + start, size);
     });
 }
 
 UnsetVector<uint32_t> morton_order(const float* positions, const uint32_t* indices, size_t triangle_count,
-                                   unsigned threads) {
+                                   unsigned threads, uint32_t* scratch) {
     // Bounds and keys in parts of consecutive triangles, one item of parallel_for each; sort_keys sorts them
     // in parts of its own, with the one answer of a stable sort.
     const size_t part = std::max<size_t>(size_t(1) << 16, (triangle_count + 63) / 64);
@@ -192,7 +201,8 @@ UnsetVector<uint32_t> morton_order(const float* positions, const uint32_t* indic
     double scale[3];
     for (int k = 0; k < 3; ++k) scale[k] = hi[k] > lo[k] ? cells / (hi[k] - lo[k]) : 0.0;
 
-    UnsetVector<uint64_t> keys(triangle_count);
+    UnsetVector<uint64_t> keys;
+    parallel_resize(keys, triangle_count, threads);
     parallel_for(parts, threads, [&](size_t p) {
         auto [first, last] = range(p);
         for (size_t t = first; t < last; ++t) {
@@ -204,8 +214,9 @@ UnsetVector<uint32_t> morton_order(const float* positions, const uint32_t* indic
             keys[t] = code;
         }
     });
-    UnsetVector<uint32_t> order(triangle_count);
-    sort_keys(keys.data(), order.data(), triangle_count, threads);
+    UnsetVector<uint32_t> order;
+    parallel_resize(order, triangle_count, threads);
+    sort_keys(keys.data(), order.data(), triangle_count, threads, scratch);
     return order;
 }
 

@@ -15,6 +15,7 @@
 
 #include "load.h"
 #include "parallel.h"
+#include "parallel_resize.h"
 #include "polygon_triangulate.h"
 #include "text_scan.h"
 
@@ -193,7 +194,7 @@ bool read_float_triangles(std::string_view body, const std::vector<Element>& ele
     constexpr size_t smallest_part = size_t(1) << 18;
     std::atomic<bool> taken{true};  // false once a part meets a record it cannot take as it is
     const size_t vertices = size_t(vertex_el.count), faces = size_t(face_el->count);
-    mesh.positions.resize(vertices * 3);
+    parallel_resize(mesh.positions, vertices * 3, threads);
     const Parts vertex_parts(vertices, smallest_part);
     parallel_for(vertex_parts.count(), threads, [&](size_t p) {
         const char* v = body.data() + vertex_at + vertex_parts.first(p) * vertex_stride;
@@ -209,7 +210,7 @@ bool read_float_triangles(std::string_view body, const std::vector<Element>& ele
             }
     });
     const bool signed_index = face_el->properties[0].type < 0;
-    mesh.indices.resize(faces * 3);
+    parallel_resize(mesh.indices, faces * 3, threads);
     const Parts face_parts(faces, smallest_part);
     parallel_for(face_parts.count(), threads, [&](size_t p) {
         const char* f = body.data() + face_at + face_parts.first(p) * index_bytes;
@@ -429,7 +430,7 @@ Scene load_ply_memory(const uint8_t* data, size_t size, const std::string& name,
     if (header.enc == Encoding::little &&
         read_float_triangles(text.substr(header.body_at), header.elements, *vertex.element, vertex.xyz, mesh,
                              threads)) {
-        Origin origin = shift_exactly(mesh.positions);
+        Origin origin = shift_exactly(mesh.positions, threads);
         return single_mesh_scene(std::move(mesh), name, origin, threads);
     }
     mesh = Mesh{};

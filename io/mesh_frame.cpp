@@ -1,7 +1,10 @@
 #include "mesh_frame.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+
+#include "parallel.h"
 
 namespace cb {
 namespace {
@@ -51,19 +54,38 @@ Origin store_centred(const std::vector<double>& xyz, std::vector<float>& positio
     return origin;
 }
 
-Origin shift_exactly(std::vector<float>& positions) {
+Origin shift_exactly(std::vector<float>& positions, unsigned threads) {
     Origin origin = {0, 0, 0};
     if (positions.empty()) return origin;
-    double lo[3], hi[3];
-    axis_box(positions, lo, hi);
-    const double side = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+    // Both passes over parts of whole vertices: a large scan's positions are hundreds of megabytes.
+    const Parts parts(positions.size() / 3, size_t(1) << 18);
+    std::vector<std::array<float, 6>> part_box(parts.count());
+    parallel_for(parts.count(), threads, [&](size_t p) {
+        std::array<float, 6> b = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
+        for (size_t v = parts.first(p); v < parts.last(p); ++v)
+            for (int k = 0; k < 3; ++k) {
+                b[k] = std::min(b[k], positions[v * 3 + k]);
+                b[3 + k] = std::max(b[3 + k], positions[v * 3 + k]);
+            }
+        part_box[p] = b;
+    });
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (const auto& b : part_box)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], b[k]);
+            hi[k] = std::max(hi[k], b[3 + k]);
+        }
+    const double side = std::max({double(hi[0]) - lo[0], double(hi[1]) - lo[1], double(hi[2]) - lo[2]});
     float c[3];
     for (int k = 0; k < 3; ++k) {
-        c[k] = exact_offset(float(lo[k]), float(hi[k]), side);
+        c[k] = exact_offset(lo[k], hi[k], side);
         origin[k] = c[k];
     }
     if (c[0] == 0 && c[1] == 0 && c[2] == 0) return origin;
-    for (size_t i = 0; i < positions.size(); ++i) positions[i] -= c[i % 3];  // exact, as proven above
+    parallel_for(parts.count(), threads, [&](size_t p) {
+        for (size_t v = parts.first(p); v < parts.last(p); ++v)
+            for (int k = 0; k < 3; ++k) positions[v * 3 + k] -= c[k];  // exact, as proven above
+    });
     return origin;
 }
 

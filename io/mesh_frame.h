@@ -20,8 +20,8 @@ Origin store_centred(const std::vector<double>& xyz, std::vector<float>& positio
 // For coordinates that are floats already (glTF accessors, Draco, float PLY, binary STL): per axis, a float
 // origin that every coordinate minus it is exact in float, so the world positions are the file's floats
 // exactly; 0 on an axis where the mesh is not far from the world origin for its size. Shifts `positions`
-// in place.
-Origin shift_exactly(std::vector<float>& positions);
+// in place, on `threads` threads (0: all).
+Origin shift_exactly(std::vector<float>& positions, unsigned threads = 1);
 
 // t * translate(origin), exactly t when the origin is 0.
 Transform with_origin(const Transform& t, const Origin& origin);

@@ -562,10 +562,16 @@ TEST(Cluster, ClosedMeshCheckSplitOverThreads) {
     open.indices.erase(open.indices.begin() + 60000, open.indices.begin() + 60003);
     extra.indices.insert(extra.indices.end(), {5000, 5001, 5002});  // its edges used a third time
     for (unsigned threads : {1u, 2u, 3u, 7u}) {
-        for (const cb::Mesh* m : {&closed, &flipped, &open, &extra})
+        for (const cb::Mesh* m : {&closed, &flipped, &open, &extra}) {
             EXPECT_EQ(cb::is_closed(m->indices.data(), m->indices.size(), m->vertex_count(), threads),
                       closed_by_sorting(*m))
                 << threads << " threads";
+            // The entries in a caller's array instead, whatever it held: each range in its own stretch of it.
+            std::vector<uint32_t> scratch(m->indices.size(), 0xabababab);
+            EXPECT_EQ(cb::is_closed(m->indices.data(), m->indices.size(), m->vertex_count(), threads, scratch.data()),
+                      closed_by_sorting(*m))
+                << threads << " threads, scratch given";
+        }
     }
     EXPECT_TRUE(closed_by_sorting(closed));
 }
