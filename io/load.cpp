@@ -163,7 +163,7 @@ Scene load_scene_unguarded(const std::string& path, const LoadOptions& options) 
     }
     FileBytes bytes;
     std::string error;
-    if (!bytes.read(path, error)) throw LoadError(error);
+    if (!bytes.read(path, error, options.threads)) throw LoadError(error);
 
     SourceHasher source;
     source.add(std::filesystem::path(path).filename().string(), bytes.data(), bytes.size());

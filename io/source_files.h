@@ -49,8 +49,8 @@ public:
     FileBytes& operator=(const FileBytes&) = delete;
 
     // Replaces the bytes held with the file's. False, with "PATH: cannot open (REASON)" or "PATH: read error",
-    // when it cannot be read.
-    bool read(const std::string& path, std::string& error);
+    // when it cannot be read. A mapped file's pages are mapped in by `threads` threads (0: all), in parts.
+    bool read(const std::string& path, std::string& error, unsigned threads = 1);
     const uint8_t* data() const { return mapped_ ? mapped_ : copy_.data(); }
     size_t size() const { return mapped_ ? mapped_size_ : copy_.size(); }
 

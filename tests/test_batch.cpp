@@ -205,11 +205,11 @@ TEST(BatchSource, TheHashCoversExternalBuffersAndMatchesARehash) {
     fs::remove_all(d);
 }
 
-// A large file is mapped, a small one read and a pipe read in blocks: the same bytes each way, and one
-// FileBytes read again holds the new file's bytes alone.
+// A large file is mapped (its pages mapped in by one thread or in parts by several), a small one read and a
+// pipe read in blocks: the same bytes each way, and one FileBytes read again holds the new file's bytes alone.
 TEST(BatchSource, FileBytesAreTheFilesWhetherMappedReadOrPiped) {
     fs::path d = fresh_dir("bytes");
-    std::string large(3u << 20, '\0'), little = "ply\nformat ascii 1.0\n";
+    std::string large((9u << 20) + 12345, '\0'), little = "ply\nformat ascii 1.0\n";
     for (size_t i = 0; i < large.size(); ++i) large[i] = char((i * 2654435761u) >> 13);
     write(d / "large.bin", large);
     write(d / "little.bin", little);
@@ -218,6 +218,10 @@ TEST(BatchSource, FileBytesAreTheFilesWhetherMappedReadOrPiped) {
     auto text = [&] { return std::string(reinterpret_cast<const char*>(bytes.data()), bytes.size()); };
     ASSERT_TRUE(bytes.read((d / "large.bin").string(), error)) << error;
     EXPECT_EQ(text(), large);
+    for (unsigned threads : {2u, 3u}) {
+        ASSERT_TRUE(bytes.read((d / "large.bin").string(), error, threads)) << error;
+        EXPECT_EQ(text(), large) << threads << " threads";
+    }
     ASSERT_TRUE(bytes.read((d / "little.bin").string(), error)) << error;
     EXPECT_EQ(text(), little);
     ASSERT_TRUE(bytes.read((d / "large.bin").string(), error)) << error;
