@@ -1,8 +1,8 @@
 // Sizing a large zeroed vector with its fresh pages faulted in by several threads. A vector's resize zeroes
 // its new elements on the calling thread, and the first write to each fresh page is a page fault: on a
-// virtual machine one costs microseconds, so a bake's arrays of hundreds of megabytes spent tenths of a
-// second on one core while the others waited. The pages are asked for in parallel parts first; the zeroing
-// then runs over memory that is already there.
+// virtual machine one costs microseconds, so an array of hundreds of megabytes would take tenths of a second
+// on one core while the others wait. The pages are asked for in parallel parts first; the zeroing then runs
+// over memory that is already there.
 #pragma once
 
 #include <cstddef>

@@ -107,7 +107,7 @@ public:
 private:
     void gather(const uint32_t* tris, size_t n) {
         points_.resize(n * 6);
-        // memcpy of a known size is a few moves; copy_n, not knowing the ranges apart, called memmove per box.
+        // memcpy of a known size is a few moves; copy_n, not knowing the ranges apart, calls memmove per box.
         for (size_t i = 0; i < n; ++i) std::memcpy(&points_[i * 6], boxes_ + size_t(tris[i]) * 6, 6 * sizeof(float));
     }
 
@@ -187,8 +187,7 @@ private:
             std::fill(size.begin(), size.end(), 0u);
             // Each cluster's sum adds its points in order. A run of points in one cluster (the points come
             // in space order) adds in registers, not through memory, where each add would wait on the store
-            // before it.
-            // Two coordinates a lane pair: each lane's adds are the scalar ones, in the same order.
+            // before it; two coordinates a lane pair, each lane's adds the scalar ones in the same order.
             for (size_t i = 0; i < n;) {
                 const uint32_t a = assignment_[i];
                 DoublePair run[3];
