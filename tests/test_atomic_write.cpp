@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -172,6 +173,56 @@ TEST(AtomicWrite, StreamedAssetEqualsTheEncodedOne) {
         }
     }
     EXPECT_EQ(entries(d), 2u);  // the two outputs, no temporary
+    fs::remove_all(d);
+}
+
+// An asset of 8 MB or more goes to its file by direct writes from an aligned buffer (where the filesystem
+// takes them): a rolling grid whose asset is about 11 MB, so that blocks of the buffer fill, the geometry's
+// last bytes share a block with the volumes' first, and the last block is cut to the file's size. The file
+// holds encode_asset's bytes exactly, with its checksum, on one thread and two, and an output it replaces
+// stays as it was until the writer finishes.
+TEST(AtomicWrite, LargeAssetWrittenDirectlyEqualsTheEncodedOne) {
+    const fs::path d = fresh_dir("direct");
+    cb::Scene s;
+    cb::Mesh grid;
+    grid.name = "rolling grid";
+    const uint32_t side = 601;  // vertices a side: 720,000 triangles
+    for (uint32_t j = 0; j < side; ++j)
+        for (uint32_t i = 0; i < side; ++i)
+            for (float c : {float(i), float(j), 3.0f * std::sin(0.05f * float(i)) * std::cos(0.07f * float(j))})
+                grid.positions.push_back(c);
+    for (uint32_t j = 0; j + 1 < side; ++j)
+        for (uint32_t i = 0; i + 1 < side; ++i) {
+            const uint32_t v = j * side + i;
+            for (uint32_t c : {v, v + 1, v + side, v + 1, v + side + 1, v + side}) grid.indices.push_back(c);
+        }
+    s.meshes.push_back(grid);
+    s.instances.push_back({0, cb::identity_transform(), "grid"});
+    cb::BakeStats stats;
+    const std::vector<cb::AssetMesh> clustered = cb::cluster_scene(s, {}, stats);
+    cb::BoundsOptions bounds;
+    bounds.mask = cb::bounds_auto;
+    std::vector<cb::AssetMesh> fitted = clustered;
+    cb::fit_scene_bounds(fitted, bounds, 2, stats);
+    const std::string source = "made by a test\n";
+    const std::vector<uint8_t> encoded = cb::encode_asset(fitted, s.instances, source);
+    ASSERT_GE(encoded.size(), size_t(8) << 20);
+    ASSERT_NE(encoded.size() % 4096, 0u);  // a last block to cut
+    const fs::path out = d / "grid.cbk";
+    const std::vector<uint8_t> old_bytes(5000, 4);
+    for (unsigned threads : {1u, 2u}) {
+        cb::write_file_atomic(out.string(), old_bytes);
+        std::vector<cb::AssetMesh> meshes = clustered;
+        cb::size_scene_bounds(meshes, bounds);
+        cb::AssetWriter writer(out.string(), meshes, cb::encode_geometry(meshes), s.instances, source);
+        cb::fit_scene_bounds(meshes, bounds, threads, stats);
+        EXPECT_EQ(read_all(out), old_bytes);
+        EXPECT_EQ(writer.finish(meshes, threads), encoded.size());
+        const std::vector<uint8_t> written = read_all(out);
+        EXPECT_EQ(written.size(), encoded.size());
+        EXPECT_TRUE(written == encoded) << threads << " threads";
+        EXPECT_EQ(entries(d), 1u);
+    }
     fs::remove_all(d);
 }
 
