@@ -8,7 +8,7 @@
 
 #include "cluster.h"
 #include "parallel.h"
-#include "parallel_resize.h"
+#include "populate_pages.h"
 #include "random.h"
 #include "unset_vector.h"
 

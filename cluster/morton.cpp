@@ -7,7 +7,7 @@
 
 #include "cluster.h"
 #include "parallel.h"
-#include "parallel_resize.h"
+#include "populate_pages.h"
 #include "unset_vector.h"
 
 namespace cb {

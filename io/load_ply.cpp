@@ -15,7 +15,7 @@
 
 #include "load.h"
 #include "parallel.h"
-#include "parallel_resize.h"
+#include "populate_pages.h"
 #include "polygon_triangulate.h"
 #include "text_scan.h"
 

@@ -14,6 +14,7 @@
 #include <new>
 
 #include "parallel.h"
+#include "populate_pages.h"
 
 namespace cb {
 
@@ -72,22 +73,11 @@ bool FileBytes::read(const std::string& path, std::string& error, unsigned threa
     const bool regular = fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
     if (regular && st.st_size >= map_from) {
         const size_t size = size_t(st.st_size);
-#if defined(MADV_POPULATE_READ)
         // Mapped in ahead, as MAP_POPULATE would, but in parts on the load's threads.
-        constexpr size_t part = size_t(4) << 20;
-        const bool parallel = threads_or_all(threads) > 1 && size >= 2 * part;
-#else
-        const bool parallel = false;
-#endif
+        const bool parallel = can_populate_pages && threads_or_all(threads) > 1 && size >= 2 * populate_part_bytes;
         void* at = mmap(nullptr, size, PROT_READ, MAP_PRIVATE | (parallel ? 0 : MAP_POPULATE), fd, 0);
         if (at != MAP_FAILED) {
-#if defined(MADV_POPULATE_READ)
-            if (parallel)
-                parallel_for((size + part - 1) / part, threads, [&](size_t p) {
-                    // A failure (an older kernel) leaves the pages to the first reads.
-                    madvise(static_cast<uint8_t*>(at) + p * part, std::min(part, size - p * part), MADV_POPULATE_READ);
-                });
-#endif
+            if (parallel) populate_pages(at, size, populate_for_reading, threads);
             mapped_ = static_cast<const uint8_t*>(at);
             mapped_size_ = size;
             ::close(fd);
