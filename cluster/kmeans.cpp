@@ -40,6 +40,7 @@ struct KMeansScratch {
     std::vector<float> points, sample, centres, nearest, coords;
     std::vector<double> block_sums;
     std::vector<uint32_t> assignment, pick;
+    std::vector<uint8_t> picked;
     std::vector<std::vector<uint32_t>> groups;
     std::vector<std::pair<float, uint32_t>> keyed;
 };
@@ -59,6 +60,7 @@ public:
           block_sums_(s.block_sums),
           assignment_(s.assignment),
           pick_(s.pick),
+          picked_(s.picked),
           groups_(s.groups),
           keyed_(s.keyed) {}
 
@@ -117,9 +119,12 @@ private:
         pick_.resize(n);
         std::iota(pick_.begin(), pick_.end(), 0u);
         for (size_t i = 0; i < m; ++i) std::swap(pick_[i], pick_[i + size_t(rng.next() % (n - i))]);
-        std::sort(pick_.begin(), pick_.begin() + std::ptrdiff_t(m));
+        // Into node order by marks read back in one pass: sorting the m picks cost more (1.2% of a bake).
+        picked_.assign(n, 0);
+        for (size_t i = 0; i < m; ++i) picked_[pick_[i]] = 1;
         sample_.resize(m * 6);
-        for (size_t i = 0; i < m; ++i) std::copy_n(&points_[size_t(pick_[i]) * 6], 6, &sample_[i * 6]);
+        for (size_t j = 0, i = 0; i < m; ++j)
+            if (picked_[j]) std::memcpy(&sample_[6 * i++], &points_[j * 6], 6 * sizeof(float));
     }
 
     // k-means++: the first centre uniformly, each next one with probability proportional to the squared
@@ -301,6 +306,7 @@ private:
     std::vector<float>&points_, &sample_, &centres_, &nearest_, &coords_;
     std::vector<double>& block_sums_;
     std::vector<uint32_t>&assignment_, &pick_;
+    std::vector<uint8_t>& picked_;
     std::vector<std::vector<uint32_t>>& groups_;
     std::vector<std::pair<float, uint32_t>>& keyed_;
 };
