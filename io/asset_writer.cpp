@@ -43,6 +43,7 @@ EncodedMesh encode_mesh(const AssetMesh& m) {
     constexpr uint16_t reuse = 0x100;
     std::vector<uint32_t> reused;  // the current cluster's earlier vertices, in order of first use
     uint32_t next = 0;
+    const size_t corners = m.triangles.size(), ahead = 24;
     out.positions.reserve(m.positions.size() + m.positions.size() / 8);  // some vertices are stored twice
     out.local.reserve(m.triangles.size());
     out.fine.reserve(m.fine.size());
@@ -60,21 +61,28 @@ EncodedMesh encode_mesh(const AssetMesh& m) {
         // New vertices first, in order of first use, then reused ones in order of first use. A vertex too far
         // back for a 16-bit reference is stored again (same coordinates, so the same triangles).
         reused.clear();
-        for (uint32_t t = r.first; t < r.first + r.count; ++t)
-            for (int k = 0; k < 3; ++k) {
-                uint32_t v = m.triangles[size_t(t) * 3 + k];
-                if (listed[v] == mark) continue;
-                listed[v] = mark;
-                if (renumbered[v] == unseen || f.first_vertex - renumbered[v] > 65535) {
-                    slot[v] = uint16_t(next - f.first_vertex);
-                    renumbered[v] = next++;
-                    const float* p = &m.positions[size_t(v) * 3];
-                    out.positions.insert(out.positions.end(), {p[0], p[1], p[2]});
-                } else {
-                    slot[v] = uint16_t(reuse + reused.size());
-                    reused.push_back(renumbered[v]);
-                }
+        for (size_t i = size_t(r.first) * 3; i < (size_t(r.first) + r.count) * 3; ++i) {
+            // A vertex's three entries and position lie anywhere in arrays larger than the cache: those of the
+            // corner `ahead` on are asked for now, so that their misses overlap.
+            if (i + ahead < corners) {
+                const uint32_t u = m.triangles[i + ahead];
+                __builtin_prefetch(&listed[u]);
+                __builtin_prefetch(&renumbered[u]);
+                __builtin_prefetch(&m.positions[size_t(u) * 3]);
             }
+            const uint32_t v = m.triangles[i];
+            if (listed[v] == mark) continue;
+            listed[v] = mark;
+            if (renumbered[v] == unseen || f.first_vertex - renumbered[v] > 65535) {
+                slot[v] = uint16_t(next - f.first_vertex);
+                renumbered[v] = next++;
+                const float* p = &m.positions[size_t(v) * 3];
+                out.positions.insert(out.positions.end(), {p[0], p[1], p[2]});
+            } else {
+                slot[v] = uint16_t(reuse + reused.size());
+                reused.push_back(renumbered[v]);
+            }
+        }
         uint32_t fresh = next - f.first_vertex;
         if (fresh + reused.size() > max_cluster_vertices)
             throw std::invalid_argument("a fine cluster uses more than " + std::to_string(max_cluster_vertices) +
