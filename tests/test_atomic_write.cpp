@@ -255,7 +255,9 @@ TEST(AtomicWrite, GeometryWrittenBeforeTheVolumesAreFitted) {
                 EXPECT_EQ(meshes.data(), where);
                 EXPECT_EQ(meshes[0].fine_volumes.obbs.data(), fine_boxes);  // sized once, filled in place
                 EXPECT_EQ(read_all(out), old_bytes);
-                if (finished) EXPECT_EQ(writer.finish(meshes, 2), encoded.size());
+                if (finished) {
+                    EXPECT_EQ(writer.finish(meshes, 2), encoded.size());
+                }
             }
             EXPECT_EQ(read_all(out), finished ? encoded : old_bytes) << s.meshes.size() << " meshes";
             EXPECT_EQ(entries(d), 1u);  // no temporary either way
