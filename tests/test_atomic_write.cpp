@@ -177,8 +177,8 @@ TEST(AtomicWrite, StreamedAssetEqualsTheEncodedOne) {
 }
 
 // An asset of 8 MB or more goes to its file by direct writes from an aligned buffer (where the filesystem
-// takes them): a rolling grid whose asset is about 11 MB, so that blocks of the buffer fill, the geometry's
-// last bytes share a block with the volumes' first, and the last block is cut to the file's size. The file
+// takes them): a rolling grid whose asset is about 11 MB, so that the buffer fills and is written more than
+// once, the volumes follow the geometry's last bytes in it, and the last block is cut to the file's size. The file
 // holds encode_asset's bytes exactly, with its checksum, on one thread and two, and an output it replaces
 // stays as it was until the writer finishes.
 TEST(AtomicWrite, LargeAssetWrittenDirectlyEqualsTheEncodedOne) {
