@@ -4,7 +4,9 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <atomic>
+#include <cmath>
 #include <cstddef>
 #include <exception>
 #include <mutex>
@@ -94,5 +96,32 @@ struct Parts {
     size_t last(size_t p) const { return std::min(n, (p + 1) * size); }
     size_t n, size;
 };
+
+// The axis box of items [0, parts.n), `coord(i, k)` giving item i's coordinate on axis k as a T: each part's
+// box on `threads` threads (0: all), then folded. Minima and maxima are exact, so the box does not depend on
+// the parts. lo > hi on every axis when there are no items.
+template <class T, class Coord>
+void parallel_box(const Parts& parts, unsigned threads, Coord&& coord, T lo[3], T hi[3]) {
+    std::vector<std::array<T, 6>> part_box(parts.count());
+    parallel_for(parts.count(), threads, [&](size_t p) {
+        std::array<T, 6> b = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
+        for (size_t i = parts.first(p); i < parts.last(p); ++i)
+            for (int k = 0; k < 3; ++k) {
+                const T c = coord(i, k);
+                b[k] = std::min(b[k], c);
+                b[3 + k] = std::max(b[3 + k], c);
+            }
+        part_box[p] = b;
+    });
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = INFINITY;
+        hi[k] = -INFINITY;
+    }
+    for (const auto& b : part_box)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], b[k]);
+            hi[k] = std::max(hi[k], b[3 + k]);
+        }
+}
 
 }  // namespace cb

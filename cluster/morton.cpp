@@ -175,37 +175,18 @@ UnsetVector<uint32_t> morton_order(const float* positions, const uint32_t* indic
                                    unsigned threads, uint32_t* scratch) {
     // Bounds and keys in parts of consecutive triangles, one item of parallel_for each; sort_keys sorts them
     // in parts of its own, with the one answer of a stable sort.
-    const size_t part = std::max<size_t>(size_t(1) << 16, (triangle_count + 63) / 64);
-    const size_t parts = std::max<size_t>(1, (triangle_count + part - 1) / part);
-    auto range = [&](size_t p) { return std::pair(p * part, std::min(triangle_count, (p + 1) * part)); };
-
-    std::vector<std::array<double, 6>> part_bounds(parts);
-    parallel_for(parts, threads, [&](size_t p) {
-        std::array<double, 6> b = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
-        auto [first, last] = range(p);
-        for (size_t t = first; t < last; ++t)
-            for (int k = 0; k < 3; ++k) {
-                double m = doubled_centre(positions, indices + t * 3, k);
-                b[k] = std::min(b[k], m);
-                b[3 + k] = std::max(b[3 + k], m);
-            }
-        part_bounds[p] = b;
-    });
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (const auto& b : part_bounds)
-        for (int k = 0; k < 3; ++k) {
-            lo[k] = std::min(lo[k], b[k]);
-            hi[k] = std::max(hi[k], b[3 + k]);
-        }
+    const Parts parts(triangle_count, size_t(1) << 16);
+    double lo[3], hi[3];
+    parallel_box(
+        parts, threads, [&](size_t t, int k) { return doubled_centre(positions, indices + t * 3, k); }, lo, hi);
     const double cells = double((1u << 21) - 1);
     double scale[3];
     for (int k = 0; k < 3; ++k) scale[k] = hi[k] > lo[k] ? cells / (hi[k] - lo[k]) : 0.0;
 
     UnsetVector<uint64_t> keys;
     parallel_resize(keys, triangle_count, threads);
-    parallel_for(parts, threads, [&](size_t p) {
-        auto [first, last] = range(p);
-        for (size_t t = first; t < last; ++t) {
+    parallel_for(parts.count(), threads, [&](size_t p) {
+        for (size_t t = parts.first(p); t < parts.last(p); ++t) {
             uint64_t code = 0;
             for (int k = 0; k < 3; ++k) {
                 double q = std::clamp((doubled_centre(positions, indices + t * 3, k) - lo[k]) * scale[k], 0.0, cells);

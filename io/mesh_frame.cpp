@@ -1,7 +1,6 @@
 #include "mesh_frame.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 
 #include "parallel.h"
@@ -59,22 +58,9 @@ Origin shift_exactly(std::vector<float>& positions, unsigned threads) {
     if (positions.empty()) return origin;
     // Both passes over parts of whole vertices: a large scan's positions are hundreds of megabytes.
     const Parts parts(positions.size() / 3, size_t(1) << 18);
-    std::vector<std::array<float, 6>> part_box(parts.count());
-    parallel_for(parts.count(), threads, [&](size_t p) {
-        std::array<float, 6> b = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
-        for (size_t v = parts.first(p); v < parts.last(p); ++v)
-            for (int k = 0; k < 3; ++k) {
-                b[k] = std::min(b[k], positions[v * 3 + k]);
-                b[3 + k] = std::max(b[3 + k], positions[v * 3 + k]);
-            }
-        part_box[p] = b;
-    });
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (const auto& b : part_box)
-        for (int k = 0; k < 3; ++k) {
-            lo[k] = std::min(lo[k], b[k]);
-            hi[k] = std::max(hi[k], b[3 + k]);
-        }
+    float lo[3], hi[3];
+    parallel_box(
+        parts, threads, [&](size_t v, int k) { return positions[v * 3 + k]; }, lo, hi);
     const double side = std::max({double(hi[0]) - lo[0], double(hi[1]) - lo[1], double(hi[2]) - lo[2]});
     float c[3];
     for (int k = 0; k < 3; ++k) {
