@@ -100,6 +100,32 @@ inline Box transform_box(const Box& local, const double* m) {
 
 // A box in world space along three unit axes (rows), in double: centre c, half extents h; empty when h[0] is
 // below 0 (it meets nothing).
+// A mesh flat along axis `axis` of its frame: every corner's coordinate on it within [lo, hi] (its box's).
+// A segment that stays outside that slab meets none of the mesh's triangles, whatever their shape.
+struct Slab {
+    int axis = -1;  // none: the mesh is not flat
+    double lo = 0, hi = 0;
+};
+
+// The slab of a mesh whose box is thinner along an axis than 1e-6 of its largest side (a ground plane of two
+// triangles, a floor): points lying on it, whose segments rise off it toward the light, are settled by the
+// slab alone (LevelShadow's flat test) instead of entering the instance.
+inline Slab flat_slab(const Box& b) {
+    Slab s;
+    if (b.empty()) return s;
+    double largest = 0;
+    int thin = 0;
+    for (int k = 0; k < 3; ++k) {
+        largest = std::max(largest, b.hi[k] - b.lo[k]);
+        if (b.hi[k] - b.lo[k] < b.hi[thin] - b.lo[thin]) thin = k;
+    }
+    if (!(largest < INFINITY) || !(b.hi[thin] - b.lo[thin] <= 1e-6 * largest)) return s;
+    s.axis = thin;
+    s.lo = b.lo[thin];
+    s.hi = b.hi[thin];
+    return s;
+}
+
 struct OrientedBox {
     double c[3] = {0, 0, 0}, h[3] = {-1, -1, -1}, axis[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
     bool empty() const { return !(h[0] >= 0); }
@@ -372,6 +398,7 @@ public:
         a.view = view;
         if (scan_bounds) a.bounds = make_scan_bounds(view);
         a.mesh_boxes.resize(view.mesh_count);
+        a.slabs.resize(view.mesh_count);
         for (uint32_t m = 0; m < view.mesh_count; ++m) {
             const MeshRecord& mesh = view.meshes[m];
             level_detail::Box& b = a.mesh_boxes[m];
@@ -382,6 +409,7 @@ public:
                     b.hi[k] = std::max(b.hi[k], double(p[k]));
                 }
             }
+            a.slabs[m] = level_detail::flat_slab(b);
         }
         assets_.push_back(std::move(a));
         return uint32_t(assets_.size() - 1);
@@ -579,6 +607,11 @@ public:
 
     // Where instance `handle` is, for a traversal's build.
     Placement placement(uint32_t handle) const { return {instances_[handle].mesh, instances_[handle].transform}; }
+    // The slab that holds instance `handle`'s mesh when the mesh is flat along an axis of its frame (a ground, a
+    // floor): axis < 0 otherwise.
+    const level_detail::Slab& slab(uint32_t handle) const {
+        return assets_[instances_[handle].asset].slabs[instances_[handle].mesh];
+    }
     const ScanBounds* scan_bounds(uint32_t asset) const {
         return assets_[asset].bounds.empty() ? nullptr : assets_[asset].bounds.data();
     }
@@ -588,6 +621,7 @@ private:
         AssetView view;
         std::vector<ScanBounds> bounds;             // per mesh
         std::vector<level_detail::Box> mesh_boxes;  // per mesh, in its frame
+        std::vector<level_detail::Slab> slabs;      // per mesh: its box's side along a flat mesh's thin axis
     };
     struct Instance {
         uint32_t asset = 0, mesh = 0;
@@ -859,7 +893,7 @@ public:
         o.scratch = scratch;
         for (size_t i = first; i < last; ++i) {
             const uint32_t h = needed_[i];
-            spheres_[i] = light_sphere(level_->world_sphere(h), level_->oriented_box(h));
+            spheres_[i] = light_sphere(h);
             o.bounds = level_->scan_bounds(level_->asset_of(h));
             if (sun_)
                 shadows_[i].build_sun(level_->asset(level_->asset_of(h)), level_->placement(h), light_, o);
@@ -999,6 +1033,7 @@ private:
         const size_t t = w.first_tile + tile;
         const level_detail::LaneVector<uint64_t>& list = tile_lists_[t];
         alignas(64) float ex[tile_capacity], ey[tile_capacity], ez[tile_capacity], fd[tile_capacity];
+        alignas(64) double world[3][tile_capacity], dist[tile_capacity];
         double across[tile_capacity][3];
         SunTile sun_tile;
         const uint32_t count = tile_count_at(t);
@@ -1007,18 +1042,21 @@ private:
         // A point light's only instance takes every point: its traversal's first test (the coarse spheres) is
         // this one, finer, and the points asked of a lone mesh lie on it.
         const bool lone = !sun_ && level_->instance_count() == 1;
-        const uint64_t regular = sun_ ? sun_across(index, count, across)
+        const uint64_t regular = sun_ ? sun_across(index, count, across, world)
             : lone                    ? 0
-                                      : directions(index, count, ex, ey, ez, fd);
+                                      : directions(index, count, ex, ey, ez, fd, world, dist);
         if (sun_) sun_tile.make(across, regular);
         Deferred& d = w.d;
         for (uint64_t slot : list) {
             if (!alive) break;
             // Only the points whose segment may meet the instance's sphere and box enter it.
-            const uint64_t in = alive &
+            uint64_t in = alive &
                 (sun_       ? sun_instance_points(spheres_[slot], regular, count, across, sun_tile)
                      : lone ? ~uint64_t(0)
                             : instance_points(spheres_[slot], regular, ex, ey, ez, fd, w.whole));
+            if (in && spheres_[slot].flat.usable)
+                in &= ~(sun_ ? sun_clear_of_slab(spheres_[slot].flat, in, world)
+                             : clear_of_slab(spheres_[slot].flat, in, world, dist));
             if (!in) continue;
             if (math::bit_count(uint32_t(in)) + math::bit_count(uint32_t(in >> 32)) <= Deferred::sparse) {
                 if (d.count == Deferred::capacity) {  // full: those put off so far are answered first
@@ -1077,6 +1115,16 @@ private:
         d.count = 0;
     }
 
+    // A flat instance's slab (Level::slab) for a light off it, for clear_of_slab: the slab's coordinate in the
+    // mesh's frame is row . (x, y, z, 1) of a world point; `sign` turns it so that the light lies above the
+    // slab's near side `edge`. A point light at `light_side`, `light_terms` bounding that side's rounding; a
+    // sun's ray rises by `light_side` from where its contacts start to count (sun_from times the direction's
+    // coordinate), `light_terms` bounding that rise's rounding.
+    struct FlatTest {
+        bool usable = false;
+        double row[4], sign, edge, light_side, light_terms, bias;
+    };
+
     // An instance's bounding sphere as the tiles test it for this light (instance_points, sun_instance_points):
     // `whole` when every point must enter the instance, the tests' range exceeded.
     struct LightSphere {
@@ -1086,7 +1134,58 @@ private:
         // Points: the world box from the light (box_lanes), far tighter than the sphere about a tall or flat
         // instance; not usable for a sun, a level of one instance, or where float could overflow.
         BoxFilter box;
+        FlatTest flat;
     };
+
+    // The points of `in` whose segment, from where contacts start to count (shadow_from, the level's bias) to
+    // the light, stays strictly above the slab, in exact arithmetic on the coordinates the instance's
+    // traversal would compute (apply_instance): they meet none of its triangles. A point on a ground under the
+    // light rises off it from its own point on, by shadow_from's fraction of the light's height; the test
+    // asks bias (h_light - h_point) > (edge - h_point) |light - point| in double, without a division, each side
+    // moved by 1e-13 of the terms it is made of, far beyond the rounding of the coordinates, of the distance
+    // and of the products.
+    static uint64_t clear_of_slab(const FlatTest& f, uint64_t in, const double (*world)[tile_capacity],
+                                  const double* dist) {
+        using simd::Doubles;
+        const Doubles r0 = simd::dsplat(f.row[0]), r1 = simd::dsplat(f.row[1]), r2 = simd::dsplat(f.row[2]),
+                      r3 = simd::dsplat(f.row[3]), sign = simd::dsplat(f.sign), edge = simd::dsplat(f.edge),
+                      light = simd::dsplat(f.light_side), bias = simd::dsplat(f.bias),
+                      fixed = simd::dsplat(std::fabs(f.row[3]) + f.light_terms + std::fabs(f.edge)),
+                      margin = simd::dsplat(1e-13), grow = simd::dsplat(1 + 1e-13);
+        uint64_t clear = 0;
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            if (!simd::double_group(in, i)) continue;
+            const Doubles x = simd::load(world[0] + i), y = simd::load(world[1] + i), z = simd::load(world[2] + i);
+            const Doubles tx = r0 * x, ty = r1 * y, tz = r2 * z;
+            const Doubles h = sign * (tx + ty + tz + r3);  // apply_instance's order
+            const Doubles e = margin * (simd::abs(tx) + simd::abs(ty) + simd::abs(tz) + fixed);
+            const simd::DoubleMask rises = bias * (light - h - e) > (edge - h + e) * simd::load(dist + i) * grow;
+            clear |= uint64_t(simd::bits(rises)) << i;
+        }
+        return clear & in;
+    }
+
+    // The same for a sun: the points of `in` whose ray, from sun_from on, stays strictly above the slab. The
+    // ray rises along the slab's axis by f.light_side from the point to where its contacts start, and on from
+    // there; within the same margins.
+    static uint64_t sun_clear_of_slab(const FlatTest& f, uint64_t in, const double (*world)[tile_capacity]) {
+        using simd::Doubles;
+        const Doubles r0 = simd::dsplat(f.row[0]), r1 = simd::dsplat(f.row[1]), r2 = simd::dsplat(f.row[2]),
+                      r3 = simd::dsplat(f.row[3]), sign = simd::dsplat(f.sign),
+                      floor = simd::dsplat(f.edge - f.light_side),
+                      fixed = simd::dsplat(std::fabs(f.row[3]) + f.light_terms + std::fabs(f.edge) + f.light_side),
+                      margin = simd::dsplat(1e-13);
+        uint64_t clear = 0;
+        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
+            if (!simd::double_group(in, i)) continue;
+            const Doubles x = simd::load(world[0] + i), y = simd::load(world[1] + i), z = simd::load(world[2] + i);
+            const Doubles tx = r0 * x, ty = r1 * y, tz = r2 * z;
+            const Doubles h = sign * (tx + ty + tz + r3);  // apply_instance's order
+            const Doubles e = margin * (simd::abs(tx) + simd::abs(ty) + simd::abs(tz) + fixed);
+            clear |= uint64_t(simd::bits(h - e > floor)) << i;
+        }
+        return clear & in;
+    }
 
     void start(const Level& level, const double* light, const double* points, size_t n,
                const ShadowBuildOptions& options, bool sun) {
@@ -1139,12 +1238,15 @@ private:
         std::sort(unculled_.begin(), unculled_.end(), [](uint64_t x, uint64_t y) { return x < y; });
     }
 
-    // A sun's tile: each point's coordinates in the sun's frame (across: a, b; along: z, up toward the sun);
-    // returns the points whose coordinates are finite and within 1e30 (the others meet every instance).
-    uint64_t sun_across(const uint32_t* index, uint32_t count, double (*across)[3]) const {
+    // A sun's tile: each point's coordinates in the sun's frame (across: a, b; along: z, up toward the sun),
+    // and the points themselves into `world` (by coordinate) when given; returns the points whose coordinates are finite and within 1e30 (the others meet every instance).
+    uint64_t sun_across(const uint32_t* index, uint32_t count, double (*across)[3],
+                        double (*world)[tile_capacity] = nullptr) const {
         uint64_t regular = 0;
         for (uint32_t i = 0; i < count; ++i) {
             const double* p = points_ + size_t(index[i]) * 3;
+            if (world)
+                for (int k = 0; k < 3; ++k) world[k][i] = p[k];
             across[i][0] = math::dot3(p, sun_frame_[1]);
             across[i][1] = math::dot3(p, sun_frame_[2]);
             across[i][2] = math::dot3(p, sun_frame_[0]);
@@ -1298,11 +1400,13 @@ private:
     }
 
     // The tile's points from the light in float (lanes past `count` and irregular points: distance -1, in no
-    // sphere); returns the regular ones, whose distance lies between the float filters' bounds (float_tiny
-    // and float_safe, cb_tile.h).
-    uint64_t directions(const uint32_t* index, uint32_t count, float* ex, float* ey, float* ez, float* fd) const {
-        alignas(64) double e[3][tile_capacity], dist[tile_capacity];
-        offsets(index, count, e, dist);
+    // sphere), and in double the points themselves (`world`, by coordinate) and their distances (`dist`);
+    // returns the regular ones, whose distance lies between the float filters' bounds (float_tiny and
+    // float_safe, cb_tile.h).
+    uint64_t directions(const uint32_t* index, uint32_t count, float* ex, float* ey, float* ez, float* fd,
+                        double (*world)[tile_capacity], double* dist) const {
+        alignas(64) double e[3][tile_capacity];
+        offsets(index, count, e, dist, world);
         using simd::Doubles;
         const Doubles zero = simd::dsplat(0), unset = simd::dsplat(-1), lo = simd::dsplat(float_tiny),
                       hi = simd::dsplat(float_safe);
@@ -1321,8 +1425,10 @@ private:
     }
 
     // The offsets from the light of tile points points_ + 3 * index[i], by coordinate, and their lengths, in
-    // double lanes (past `count`: the light's own, zero); returns the points whose coordinates are finite.
-    uint64_t offsets(const uint32_t* index, uint32_t count, double (*e)[tile_capacity], double* dist) const {
+    // double lanes (past `count`: the light's own, zero), and the points themselves into `world` when given;
+    // returns the points whose coordinates are finite.
+    uint64_t offsets(const uint32_t* index, uint32_t count, double (*e)[tile_capacity], double* dist,
+                     double (*world)[tile_capacity] = nullptr) const {
         for (uint32_t i = 0; i < tile_capacity; ++i) {
             const double* p = i < count ? points_ + size_t(index[i]) * 3 : light_;
             for (int k = 0; k < 3; ++k) e[k][i] = p[k];
@@ -1335,6 +1441,7 @@ private:
             simd::DoubleMask bounded = simd::double_lanes(~0u);
             for (int k = 0; k < 3; ++k) {
                 const Doubles p = simd::load(e[k] + i);
+                if (world) simd::store(world[k] + i, p);
                 bounded = bounded & (simd::abs(p) <= largest);
                 d[k] = p - simd::dsplat(light_[k]);
                 simd::store(e[k] + i, d[k]);
@@ -1349,7 +1456,9 @@ private:
     // radius grown by 2e-5 of itself and of the centre's distance, as the scan's spheres are, and rounded up to
     // float; past the float test's range (lit_sphere_points) every point enters. For a sun, the centre in the
     // sun's frame.
-    LightSphere light_sphere(const double* sphere, const level_detail::OrientedBox& box) const {
+    LightSphere light_sphere(uint32_t h) const {
+        const double* sphere = level_->world_sphere(h);
+        const level_detail::OrientedBox& box = level_->oriented_box(h);
         LightSphere s{};
         s.r = sphere[3];
         if (sun_) {
@@ -1358,6 +1467,7 @@ private:
             s.c[2] = math::dot3(sphere, sun_frame_[0]);
             s.size = std::fabs(sphere[0]) + std::fabs(sphere[1]) + std::fabs(sphere[2]) + sphere[3];
             s.whole = !(s.size < 1e30);
+            s.flat = flat_test(h);
             return s;
         }
         const double c[3] = {sphere[0] - light_[0], sphere[1] - light_[1], sphere[2] - light_[2]}, r = sphere[3];
@@ -1373,8 +1483,46 @@ private:
         if (!box.empty() && level_->instance_count() > 1) {  // one instance takes every point (walk)
             const double centre[3] = {box.c[0] - light_[0], box.c[1] - light_[1], box.c[2] - light_[2]};
             s.box = make_box_filter(centre, box.h, box.axis);
+            s.flat = flat_test(h);
         }
         return s;
+    }
+
+    // Instance h's slab test for this point light (clear_of_slab): usable when its mesh is flat and the light
+    // lies off the slab by more than the test's margins.
+    FlatTest flat_test(uint32_t h) const {
+        FlatTest f;
+        const level_detail::Slab& slab = level_->slab(h);
+        double inverse[12];
+        if (slab.axis < 0 || !(options_.bias > 0 && options_.bias < INFINITY) ||
+            !invert_instance(level_->transform_of(h), inverse))
+            return f;
+        const int k = slab.axis;
+        const double row[4] = {inverse[k], inverse[3 + k], inverse[6 + k], inverse[9 + k]};
+        const double t[3] = {row[0] * light_[0], row[1] * light_[1], row[2] * light_[2]};
+        if (sun_) {  // the direction's coordinate along the axis, as apply_linear makes it
+            const double along = t[0] + t[1] + t[2], from = sun_from(light_, options_.bias);
+            const double terms = std::fabs(t[0]) + std::fabs(t[1]) + std::fabs(t[2]);
+            f.sign = along > 0 ? 1.0 : -1.0;
+            f.edge = f.sign > 0 ? slab.hi : -slab.lo;
+            f.light_side = from * f.sign * along;
+            f.light_terms = from * terms;
+            std::copy(row, row + 4, f.row);
+            f.usable = f.sign * along > 1e-12 * terms && from < INFINITY && f.light_terms < 1e300 &&
+                std::isfinite(row[0] + row[1] + row[2] + row[3]);
+            return f;
+        }
+        const double b = t[0] + t[1] + t[2] + row[3];  // apply_instance's order
+        f.light_terms = std::fabs(t[0]) + std::fabs(t[1]) + std::fabs(t[2]) + std::fabs(row[3]);
+        f.sign = b > slab.hi ? 1.0 : -1.0;
+        f.edge = f.sign > 0 ? slab.hi : -slab.lo;
+        f.light_side = f.sign * b;
+        std::copy(row, row + 4, f.row);
+        f.bias = options_.bias;
+        const double margin = 1e-13 * (f.light_terms + std::fabs(f.edge));
+        f.usable = f.light_side - f.edge > 2 * margin && f.light_terms < 1e300 &&
+            std::isfinite(row[0] + row[1] + row[2] + row[3]);
+        return f;
     }
 
     // The tile's points whose segment may meet an instance's sphere and then its world box: the regular ones by

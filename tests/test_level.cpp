@@ -395,6 +395,83 @@ TEST(Level, SingularAndFarInstancesBlockNothingOrAnswerExactly) {
     EXPECT_EQ(disagreements(oracle, sun, p, answer_sun(level, sun, p, false), false, nullptr, true), 0u);
 }
 
+// A flat mesh (a ground, a floor) settles the points whose segments rise off its slab without their entering
+// it (LevelShadow's slab test): grounds flat to the last bit and a two-sheet floor 1e-5 thick, placed as is,
+// mirrored, sheared and turned, near the origin and 2e5 from it; points on them (as rounded by their
+// placement), just above, just below (by less than the bias and by more) and between the sheets; point lights overhead, grazing, 1e-7 above the
+// ground, in its plane, under it and between the sheets; suns high, low, 1e-9 off the plane, along it and from
+// below. Every answer the exact oracle's, both modes; the ground points under an overhead light enter nothing.
+TEST(Level, FlatInstancesSettlePointsRisingOffThemExactly) {
+    cb::Scene scene;
+    cb::Mesh ground;
+    ground.positions = {-50, -50, 0, 50, -50, 0, 50, 50, 0, -50, 50, 0};
+    ground.indices = {0, 1, 2, 0, 2, 3};
+    ground.primitives.push_back({0, 2, false});
+    cb::Mesh floor;  // two sheets 1e-5 apart, facing away from each other
+    floor.positions = {-20, -20, 0,     20, -20, 0,     20, 20, 0,     -20, 20, 0,
+                       -20, -20, 1e-5f, 20, -20, 1e-5f, 20, 20, 1e-5f, -20, 20, 1e-5f};
+    floor.indices = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7};
+    floor.primitives.push_back({0, 4, false});
+    scene.meshes = {ground, floor, cb::generate::tower("t", 6, 6, 20, 3)};
+    cb::test::Baked b = cb::test::bake_scene(scene);
+    ASSERT_EQ(b.view.mesh_count, 3u);
+    for (const double offset : {0.0, 2e5}) {
+        cb::Level level;
+        const uint32_t asset = level.add_asset(b.view);
+        const double o[3] = {offset, -offset, offset * 1e-3};
+        const double c = std::cos(0.4), s = std::sin(0.4);
+        const double places[][12] = {
+            {1, 0, 0, 0, 1, 0, 0, 0, 1, o[0], o[1], o[2]},                      // ground as is
+            {-c, -s, 0, -s, c, 0, 0.3, 0, 1, o[0] + 120, o[1] + 10, o[2] + 5},  // mirrored, sheared
+            {1, 0, 0, 0, 1, 0, 0, 0, 1, o[0] - 80, o[1] + 70, o[2]},            // the floor
+            {c, s, 0, -s, c, 0, 0, 0, 1, o[0] + 15, o[1] + 10, o[2]}};          // the tower
+        const uint32_t meshes[] = {0, 0, 1, 2};
+        for (int i = 0; i < 4; ++i) level.add_instance(asset, meshes[i], places[i]);
+        level.commit();
+        const cb::Scene world = oracle_scene(level, {&scene});
+        const SceneOracle oracle(world, level.shadow_bias());
+        Points p;
+        std::mt19937_64 rng(11);
+        std::uniform_real_distribution<double> u(-1, 1);
+        const double heights[] = {0, 0, 0, 1e-12, -1e-12, 1e-9, -1e-9, 1e-3, -1e-3, 5e-6, 1e-5, 2e-5, -0.05, -1};
+        for (int i = 0; i < 1400; ++i) {
+            const int placed = i % 3 == 2 ? 2 : i % 3;  // the two grounds and the floor
+            const double extent = placed == 2 ? 20 : 50;
+            const double local[3] = {extent * u(rng), extent * u(rng), heights[i / 3 % 14]};
+            std::array<double, 3> w;
+            cb::apply_instance(places[placed], local, w.data());
+            p.push_back(w);
+        }
+        const double lights[][3] = {{0, 0, 80},    {500, 300, 0.5}, {60, 0, 1e-7}, {60, 0, 0},
+                                    {10, -5, -40}, {-80, 70, 5e-6}, {120, 10, 60}};
+        for (const auto& l : lights) {
+            const double light[3] = {l[0] + o[0], l[1] + o[1], l[2] + o[2]};
+            for (bool one_sided : {false, true})
+                EXPECT_EQ(
+                    disagreements(oracle, light, p, answer(level, light, p, cb::Traversal::scan, one_sided), one_sided),
+                    0u)
+                    << "offset " << offset << " light " << l[0] << "," << l[1] << "," << l[2]
+                    << (one_sided ? " one-sided" : "");
+        }
+        const double suns[][3] = {{0.3, 0.2, 1}, {-1, 0.2, 0.15}, {1, 0.2, 1e-9}, {1, 0.3, 0}, {0.1, 0, -1}};
+        for (const auto& sun : suns)
+            for (bool one_sided : {false, true})
+                EXPECT_EQ(disagreements(oracle, sun, p, answer_sun(level, sun, p, one_sided), one_sided, nullptr, true),
+                          0u)
+                    << "offset " << offset << " sun " << sun[0] << "," << sun[1] << "," << sun[2]
+                    << (one_sided ? " one-sided" : "");
+        // Points on the ground as is, away from the tower, under a low light (their segments within the fine
+        // boxes' padding of the ground): the ground's clusters are never tested.
+        Points on;
+        for (int i = 0; i < 200; ++i) on.push_back({o[0] - 45 + 0.2 * i, o[1] - 40, o[2]});
+        const double above[3] = {o[0] + 150, o[1] - 40, o[2] + 2};
+        cb::QueryStats stats;
+        const std::vector<uint8_t> got = answer(level, above, on, cb::Traversal::scan, false, &stats);
+        EXPECT_EQ(disagreements(oracle, above, on, got, false), 0u);
+        EXPECT_EQ(stats.clusters_tested, 0u) << "offset " << offset;
+    }
+}
+
 TEST(Level, ShadowsSettleAsTheLightMovesAway) {
     // The self-shadowing bias is a world distance: a light moved away in one direction, from 100 m to
     // 10,000 km, keeps the walls' and roofs' shadows, and the shadowed share settles to the far limit instead
