@@ -460,6 +460,32 @@ TEST(Level, FlatInstancesSettlePointsRisingOffThemExactly) {
                           0u)
                     << "offset " << offset << " sun " << sun[0] << "," << sun[1] << "," << sun[2]
                     << (one_sided ? " one-sided" : "");
+        // Points beyond what the slab test decides (not finite, beyond 1e300, 1e-300 off the ground) answer as
+        // the level's reference does.
+        const double huge = 1e300;
+        Points odd;
+        for (const auto& q : std::vector<std::array<double, 3>>{{NAN, 0, 0},
+                                                                {INFINITY, 0, 0},
+                                                                {0, 0, -INFINITY},
+                                                                {huge, huge, 0},
+                                                                {-huge, 5, 0},
+                                                                {3, 4, 1e-300},
+                                                                {3, 4, -1e-300},
+                                                                {-30, 20, -huge}})
+            odd.push_back({q[0] + o[0], q[1] + o[1], q[2] + o[2]});
+        for (const auto& l : lights) {
+            const double light[3] = {l[0] + o[0], l[1] + o[1], l[2] + o[2]};
+            const std::vector<uint8_t> got = answer(level, light, odd, cb::Traversal::scan, false);
+            for (size_t i = 0; i < odd.size(); ++i)
+                EXPECT_EQ(got[i], uint8_t(cb::occluded_reference(level, odd[i].data(), light, level.shadow_bias())))
+                    << "offset " << offset << " light " << l[0] << "," << l[1] << "," << l[2] << " point " << i;
+        }
+        for (const auto& sun : suns) {
+            const std::vector<uint8_t> got = answer_sun(level, sun, odd, false);
+            for (size_t i = 0; i < odd.size(); ++i)
+                EXPECT_EQ(got[i], uint8_t(cb::occluded_sun_reference(level, odd[i].data(), sun, level.shadow_bias())))
+                    << "offset " << offset << " sun " << sun[0] << "," << sun[1] << "," << sun[2] << " point " << i;
+        }
         // Points on the ground as is, away from the tower, under a low light (their segments within the fine
         // boxes' padding of the ground): the ground's clusters are never tested.
         Points on;
