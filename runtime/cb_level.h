@@ -98,8 +98,6 @@ inline Box transform_box(const Box& local, const double* m) {
     return out;
 }
 
-// A box in world space along three unit axes (rows), in double: centre c, half extents h; empty when h[0] is
-// below 0 (it meets nothing).
 // A mesh flat along axis `axis` of its frame: every corner's coordinate on it within [lo, hi] (its box's).
 // A segment that stays outside that slab meets none of the mesh's triangles, whatever their shape.
 struct Slab {
@@ -126,6 +124,8 @@ inline Slab flat_slab(const Box& b) {
     return s;
 }
 
+// A box in world space along three unit axes (rows), in double: centre c, half extents h; empty when h[0] is
+// below 0 (it meets nothing).
 struct OrientedBox {
     double c[3] = {0, 0, 0}, h[3] = {-1, -1, -1}, axis[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
     bool empty() const { return !(h[0] >= 0); }
@@ -1122,7 +1122,7 @@ private:
     // coordinate), `light_terms` bounding that rise's rounding.
     struct FlatTest {
         bool usable = false;
-        double row[4], sign, edge, light_side, light_terms, bias;
+        double row[4] = {0, 0, 0, 0}, sign = 1, edge = 0, light_side = 0, light_terms = 0, bias = 0;
     };
 
     // An instance's bounding sphere as the tiles test it for this light (instance_points, sun_instance_points):
@@ -1239,7 +1239,8 @@ private:
     }
 
     // A sun's tile: each point's coordinates in the sun's frame (across: a, b; along: z, up toward the sun),
-    // and the points themselves into `world` (by coordinate) when given; returns the points whose coordinates are finite and within 1e30 (the others meet every instance).
+    // and the points themselves into `world` (by coordinate) when given; returns the points whose coordinates
+    // are finite and within 1e30 (the others meet every instance).
     uint64_t sun_across(const uint32_t* index, uint32_t count, double (*across)[3],
                         double (*world)[tile_capacity] = nullptr) const {
         uint64_t regular = 0;
