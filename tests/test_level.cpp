@@ -398,9 +398,10 @@ TEST(Level, SingularAndFarInstancesBlockNothingOrAnswerExactly) {
 // A flat mesh (a ground, a floor) settles the points whose segments rise off its slab without their entering
 // it (LevelShadow's slab test): grounds flat to the last bit and a two-sheet floor 1e-5 thick, placed as is,
 // mirrored, sheared and turned, near the origin and 2e5 from it; points on them (as rounded by their
-// placement), just above, just below (by less than the bias and by more) and between the sheets; point lights overhead, grazing, 1e-7 above the
-// ground, in its plane, under it and between the sheets; suns high, low, 1e-9 off the plane, along it and from
-// below. Every answer the exact oracle's, both modes; the ground points under an overhead light enter nothing.
+// placement), just above, just below (by less than the bias and by more) and between the sheets; point
+// lights overhead, grazing, 1e-7 above the ground, in its plane, under it and between the sheets; suns high,
+// low, 1e-9 off the plane, along it and from below. Every answer the exact oracle's, both modes; points on
+// the ground under a low light test none of its clusters.
 TEST(Level, FlatInstancesSettlePointsRisingOffThemExactly) {
     cb::Scene scene;
     cb::Mesh ground;
