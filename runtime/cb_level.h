@@ -1054,9 +1054,7 @@ private:
                 (sun_       ? sun_instance_points(spheres_[slot], regular, count, across, sun_tile)
                      : lone ? ~uint64_t(0)
                             : instance_points(spheres_[slot], regular, ex, ey, ez, fd, w.whole));
-            if (in && spheres_[slot].flat.usable)
-                in &= ~(sun_ ? sun_clear_of_slab(spheres_[slot].flat, in, world)
-                             : clear_of_slab(spheres_[slot].flat, in, world, dist));
+            if (in && spheres_[slot].flat.usable) in &= ~clear_of_slab(spheres_[slot].flat, in, world, dist, sun_);
             if (!in) continue;
             if (math::bit_count(uint32_t(in)) + math::bit_count(uint32_t(in >> 32)) <= Deferred::sparse) {
                 if (d.count == Deferred::capacity) {  // full: those put off so far are answered first
@@ -1143,14 +1141,16 @@ private:
     // light rises off it from its own point on, by shadow_from's fraction of the light's height; the test
     // asks bias (h_light - h_point) > (edge - h_point) |light - point| in double, without a division, each side
     // moved by 1e-13 of the terms it is made of, far beyond the rounding of the coordinates, of the distance
-    // and of the products.
+    // and of the products. For a sun (`dist` unused), the ray from sun_from on: it rises along the slab's axis
+    // by f.light_side from the point to where its contacts start, and on from there, within the same margins.
     static uint64_t clear_of_slab(const FlatTest& f, uint64_t in, const double (*world)[tile_capacity],
-                                  const double* dist) {
+                                  const double* dist, bool sun) {
         using simd::Doubles;
         const Doubles r0 = simd::dsplat(f.row[0]), r1 = simd::dsplat(f.row[1]), r2 = simd::dsplat(f.row[2]),
                       r3 = simd::dsplat(f.row[3]), sign = simd::dsplat(f.sign), edge = simd::dsplat(f.edge),
                       light = simd::dsplat(f.light_side), bias = simd::dsplat(f.bias),
-                      fixed = simd::dsplat(std::fabs(f.row[3]) + f.light_terms + std::fabs(f.edge)),
+                      fixed = simd::dsplat(std::fabs(f.row[3]) + f.light_terms + std::fabs(f.edge) +
+                                           (sun ? f.light_side : 0.0)),
                       margin = simd::dsplat(1e-13), grow = simd::dsplat(1 + 1e-13);
         uint64_t clear = 0;
         for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
@@ -1159,30 +1159,9 @@ private:
             const Doubles tx = r0 * x, ty = r1 * y, tz = r2 * z;
             const Doubles h = sign * (tx + ty + tz + r3);  // apply_instance's order
             const Doubles e = margin * (simd::abs(tx) + simd::abs(ty) + simd::abs(tz) + fixed);
-            const simd::DoubleMask rises = bias * (light - h - e) > (edge - h + e) * simd::load(dist + i) * grow;
+            const simd::DoubleMask rises =
+                sun ? h - e > edge - light : bias * (light - h - e) > (edge - h + e) * simd::load(dist + i) * grow;
             clear |= uint64_t(simd::bits(rises)) << i;
-        }
-        return clear & in;
-    }
-
-    // The same for a sun: the points of `in` whose ray, from sun_from on, stays strictly above the slab. The
-    // ray rises along the slab's axis by f.light_side from the point to where its contacts start, and on from
-    // there; within the same margins.
-    static uint64_t sun_clear_of_slab(const FlatTest& f, uint64_t in, const double (*world)[tile_capacity]) {
-        using simd::Doubles;
-        const Doubles r0 = simd::dsplat(f.row[0]), r1 = simd::dsplat(f.row[1]), r2 = simd::dsplat(f.row[2]),
-                      r3 = simd::dsplat(f.row[3]), sign = simd::dsplat(f.sign),
-                      floor = simd::dsplat(f.edge - f.light_side),
-                      fixed = simd::dsplat(std::fabs(f.row[3]) + f.light_terms + std::fabs(f.edge) + f.light_side),
-                      margin = simd::dsplat(1e-13);
-        uint64_t clear = 0;
-        for (uint32_t i = 0; i < tile_capacity; i += simd::dwidth) {
-            if (!simd::double_group(in, i)) continue;
-            const Doubles x = simd::load(world[0] + i), y = simd::load(world[1] + i), z = simd::load(world[2] + i);
-            const Doubles tx = r0 * x, ty = r1 * y, tz = r2 * z;
-            const Doubles h = sign * (tx + ty + tz + r3);  // apply_instance's order
-            const Doubles e = margin * (simd::abs(tx) + simd::abs(ty) + simd::abs(tz) + fixed);
-            clear |= uint64_t(simd::bits(h - e > floor)) << i;
         }
         return clear & in;
     }
@@ -1489,7 +1468,7 @@ private:
         return s;
     }
 
-    // Instance h's slab test for this point light (clear_of_slab): usable when its mesh is flat and the light
+    // Instance h's slab test for this light (clear_of_slab): usable when its mesh is flat and the light
     // lies off the slab by more than the test's margins.
     FlatTest flat_test(uint32_t h) const {
         FlatTest f;
