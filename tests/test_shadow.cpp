@@ -1100,23 +1100,32 @@ TEST(Shadow, TileLineTestsDecideLikeTheExactTest) {
                     ++decided;
                     for (int i = 0; i < 64; ++i) {
                         bool blocks = false;  // exactly, by a triangle of this group
-                        for (uint32_t k = 0; k < count; ++k) {
+                        // Triangle k's place in `lit` (in order, less those edge-on to the light), if kept.
+                        for (uint32_t k = 0, at = 0; k < count; ++k) {
                             double q[3][3];
                             triangle_corners(v, m, f, c.first_triangle + first + k, q);
-                            const bool meets = (left >> i & 1) && (may_meet[i] >> k & 1);
+                            bool kept = at < lit.count;
+                            for (int z = 0; z < 3 && kept; ++z)
+                                for (int j = 0; j < 3; ++j) kept = kept && double(lit.corner[at][z][j]) == q[z][j];
+                            if (!kept) {  // edge-on: it must block nothing, whatever the side
+                                wrong += cb::segment_triangle(p[i], light, q[0], q[1], q[2], from[i], true).blocks;
+                                continue;
+                            }
+                            const uint32_t t = at++;
+                            const bool meets = (left >> i & 1) && (may_meet[i] >> t & 1);
                             if (!(sure >> i & 1) && !meets) {
                                 ++pairs_left_out;
                                 wrong += cb::segment_triangle(p[i], light, q[0], q[1], q[2], from[i], true)
                                              .blocks;  // two-sided: the strictest
                             }
-                            if (meets && (through[i] >> k & 1)) {
+                            if (meets && (through[i] >> t & 1)) {
                                 const int o0 = cb::exact::orient3d(p[i], light, q[0], q[1]),
                                           o1 = cb::exact::orient3d(p[i], light, q[1], q[2]),
                                           o2 = cb::exact::orient3d(p[i], light, q[2], q[0]);
                                 wrong += !(o0 != 0 && o0 == o1 && o1 == o2);
                             }
                             blocks = blocks ||
-                                cb::segment_triangle(p[i], light, q[0], q[1], q[2], from[i], lit.two_sided >> k & 1)
+                                cb::segment_triangle(p[i], light, q[0], q[1], q[2], from[i], lit.two_sided >> t & 1)
                                     .blocks;
                         }
                         surely_blocked += sure >> i & 1;
@@ -1601,6 +1610,90 @@ TEST(Shadow, ClusterFilterDecidesLikeTheExactTestNearDegeneracies) {
     EXPECT_GT(blocked, tests / 20);
 }
 
+TEST(Shadow, TrianglesEdgeOnToTheLightAreLeftOutExactly) {
+    // A light exactly in a triangle's plane and outside it: no segment ending at the light meets that triangle
+    // where it could block, and light_triangles leaves it out. Triangles with integer corners in planes of
+    // every tilt, lights placed in one triangle's plane by exact dyadic mixes of its corners (outside, on an
+    // edge, at a corner, inside), points on that plane (inside and outside the triangle) and off it:
+    // cluster_blocks gives segment_triangle's exact answers, and edge-on triangles (and those with no area) were
+    // left out.
+    std::mt19937 rng(41);
+    std::uniform_int_distribution<int> coord(-20, 20);
+    std::vector<float> positions;
+    std::vector<uint32_t> indices;
+    for (uint32_t t = 0; t < 60; ++t) {
+        for (int k = 0; k < 6; ++k) positions.push_back(float(coord(rng)));
+        for (int k = 0; k < 3; ++k) {  // every seventh with no area: its corners in a line, or two the same
+            const float a = positions[positions.size() - 6], b = positions[positions.size() - 3];
+            positions.push_back(t % 7 == 3 ? 2 * b - a : t % 7 == 5 ? b : float(coord(rng)));
+        }
+        indices.insert(indices.end(), {3 * t, 3 * t + 1, 3 * t + 2});
+    }
+    Baked b = bake_mesh(positions, indices);
+    ASSERT_GT(b.view.mesh_count, 0u);
+    const cb::AssetView& v = b.view;
+    const cb::MeshRecord& m = v.meshes[0];
+    const double mixes[][2] = {{-1, 0.5}, {2, -1}, {1.5, 1.5}, {0.5, 0}, {0, 0}, {0.25, 0.25}, {-0.5, -0.5}};
+    const double spots[][2] = {{0.25, 0.5}, {0.5, 0.5}, {1, 1}, {-2, 0.5}, {0, 0.75}, {3, -1}};
+    size_t tests = 0, disagreements = 0, blocked = 0, left_out = 0, kept_inside = 0;
+    for (uint32_t f = 0; f < m.fine_count; ++f) {
+        const cb::FineCluster& c = v.fine[m.first_fine + f];
+        for (uint32_t tt = c.first_triangle; tt < c.first_triangle + c.triangle_count; ++tt) {
+            double x[3][3];
+            triangle_corners(v, m, f, tt, x);
+            for (const auto& mix : mixes) {
+                double light[3];
+                for (int k = 0; k < 3; ++k)
+                    light[k] = x[0][k] + mix[0] * (x[1][k] - x[0][k]) + mix[1] * (x[2][k] - x[0][k]);
+                cb::lit::Triangles lit;
+                const uint32_t count = std::min<uint32_t>(cb::lit::capacity, c.triangle_count);
+                cb::lit::light_triangles(v, m, c, 0, count, light, false, lit);
+                left_out += count - lit.count;
+                const bool inside = mix[0] > 0 && mix[1] > 0 && mix[0] + mix[1] < 1;
+                if (inside && tt - c.first_triangle < count)  // the triangle holding the light stays
+                    for (uint32_t t = 0; t < lit.count; ++t) {
+                        double y[3][3];
+                        for (int k = 0; k < 3; ++k)
+                            for (int j = 0; j < 3; ++j) y[k][j] = lit.corner[t][k][j];
+                        kept_inside += std::equal(&y[0][0], &y[0][0] + 9, &x[0][0]);
+                    }
+                std::vector<std::array<double, 3>> points;
+                for (const auto& spot : spots) {  // on the plane, exactly
+                    std::array<double, 3> p;
+                    for (int k = 0; k < 3; ++k)
+                        p[k] = x[0][k] + spot[0] * (x[1][k] - x[0][k]) + spot[1] * (x[2][k] - x[0][k]);
+                    points.push_back(p);
+                }
+                for (int i = 0; i < 6; ++i)  // off it, and on the cluster's other corners
+                    points.push_back({double(coord(rng)) + 0.5, double(coord(rng)), double(coord(rng))});
+                for (int i = 0; i < 3; ++i) points.push_back({x[i][0], x[i][1], x[i][2]});
+                for (const auto& p : points) {
+                    const double from = cb::shadow_from(p.data(), light, 1e-3);
+                    if (!cb::may_block(from)) continue;
+                    for (bool one_sided : {false, true}) {
+                        const bool fast = cb::cluster_blocks(v, m, f, p.data(), from, light, one_sided, nullptr);
+                        bool exact = false;
+                        for (uint32_t u = c.first_triangle; u < c.first_triangle + c.triangle_count && !exact; ++u) {
+                            double y[3][3];
+                            triangle_corners(v, m, f, u, y);
+                            exact = cb::segment_triangle(p.data(), light, y[0], y[1], y[2], from, !one_sided).blocks;
+                        }
+                        ++tests;
+                        blocked += exact;
+                        disagreements += fast != exact;
+                    }
+                }
+            }
+        }
+    }
+    std::printf("%zu edge-on segment tests, %zu blocked; %zu triangles left out, %zu holding the light kept\n", tests,
+                blocked, left_out, kept_inside);
+    EXPECT_EQ(disagreements, 0u) << "of " << tests;
+    EXPECT_GT(blocked, tests / 10);
+    EXPECT_GT(left_out, 100u);
+    EXPECT_GT(kept_inside, 10u);
+}
+
 // Groups of triangles of bumpy grids at offsets up to 3e7, lit from random lights, and per triangle 4
 // points: on its plane (to rounding), barely off it, and off it (error bounds are needed most near zero).
 // visit(lit, t, corner, light, points) for each triangle t of each group.
@@ -1616,7 +1709,7 @@ void for_each_lit_plane_sample(uint32_t seed, Visit visit) {
                               cb::lit::Triangles lit;
                               const uint32_t count = std::min<uint32_t>(cb::lit::capacity, c.triangle_count);
                               cb::lit::light_triangles(v, m, c, 0, count, light, false, lit);
-                              for (uint32_t t = 0; t < count; ++t) {
+                              for (uint32_t t = 0; t < lit.count; ++t) {
                                   double corner[3][3], e1[3], e2[3], n[3], points[4][3];
                                   for (int k = 0; k < 3; ++k)
                                       for (int j = 0; j < 3; ++j) corner[k][j] = lit.corner[t][k][j];

@@ -249,12 +249,10 @@ inline void cluster_corners(const AssetView& v, const MeshRecord& mesh, const Fi
     }
 }
 
-// Triangles [first, first + count) of fine cluster c (count <= capacity), from the light: the corners
-// gathered first, then every term in loops over the triangles that the compiler runs several to an instruction.
-inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first,
-                            uint32_t count, const double* light, bool one_sided, Triangles& out) {
-    out.count = count;
-    cluster_corners(v, mesh, c, first, count, one_sided, out.corner, out.two_sided);
+// The terms of out.count triangles (out.corner) from the light, in loops over the triangles that the compiler
+// runs several to an instruction.
+inline void light_terms(const double* light, Triangles& out) {
+    const uint32_t count = out.count;
     // Corner k of each triangle (zero past `count`: such edges are unusable, below).
     alignas(64) float px[3][capacity] = {}, py[3][capacity] = {}, pz[3][capacity] = {};
     for (uint32_t t = 0; t < count; ++t)
@@ -346,6 +344,79 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     out.plane_scale = flat[0];
     out.has_plane = out.has_edges = 0;
     out.flat_known = out.flat = false;
+}
+
+// The triangles of `lit` that no segment ending at the light can meet: the light lies exactly in the
+// triangle's plane, outside the closed triangle, or the triangle has no area. A segment from a point off that
+// plane meets it only at the light, outside the triangle; one from a point in it is edge-on, which never
+// blocks (segment_triangle), nor does a triangle with no area. A light in the plane of a floor or of a CAD
+// face, with points on that face, otherwise leaves every line within rounding of those triangles' edges, and
+// every such pair goes to the exact test. Only triangles whose light side the float plane test leaves
+// unsettled are looked at, with exact signs: x, the light moved along an axis, is off the plane unless the
+// normal's component along that axis is zero; and the line through a point off the plane and the light passes
+// outside the closed triangle for every such point when it does for x.
+inline uint32_t edge_on_triangles(const Triangles& lit, const double* light) {
+    uint32_t edge_on = 0;
+    const double reach = std::max({std::fabs(light[0]), std::fabs(light[1]), std::fabs(light[2])});
+    if (!(reach < 1e30)) return 0;  // the exact products stay far from overflow
+    for (uint32_t t = 0; t < lit.count; ++t) {
+        if (std::fabs(lit.dq[t]) > lit.qbound[t]) continue;  // the light's side settled: off the plane
+        double p[3][3];
+        for (int k = 0; k < 3; ++k)
+            for (int j = 0; j < 3; ++j) p[k][j] = lit.corner[t][k][j];
+        if (!(std::isfinite(p[0][0] + p[0][1] + p[0][2] + p[1][0] + p[1][1] + p[1][2] + p[2][0] + p[2][1] + p[2][2])) ||
+            exact::orient3d(p[0], p[1], p[2], light) != 0)
+            continue;
+        // The axes in the order of the float normal's components, largest first (usually the first is off).
+        const float n[3] = {std::fabs(lit.nx[t]), std::fabs(lit.ny[t]), std::fabs(lit.nz[t])};
+        const int first = n[0] >= n[1] && n[0] >= n[2] ? 0 : n[1] >= n[2] ? 1 : 2;
+        double x[3];
+        bool off = false;
+        for (int a = 0; a < 3 && !off; ++a) {
+            const int k = (first + a) % 3;
+            std::copy(light, light + 3, x);
+            x[k] += std::max(1.0, std::fabs(x[k]));
+            off = exact::orient3d(p[0], p[1], p[2], x) != 0;
+        }
+        if (!off) {  // no area
+            edge_on |= 1u << t;
+            continue;
+        }
+        const int e0 = exact::orient3d(x, light, p[0], p[1]), e1 = exact::orient3d(x, light, p[1], p[2]),
+                  e2 = exact::orient3d(x, light, p[2], p[0]);
+        edge_on |= uint32_t((e0 > 0 || e1 > 0 || e2 > 0) && (e0 < 0 || e1 < 0 || e2 < 0)) << t;
+    }
+    return edge_on;
+}
+
+// Leaves out of `lit` its triangles edge-on to the light (edge_on_triangles), if any, and makes the terms of
+// the others again. Rare, and kept out of the inlined set-up.
+[[gnu::noinline]] inline void leave_out_edge_on(const double* light, Triangles& lit) {
+    const uint32_t edge_on = edge_on_triangles(lit, light);
+    if (!edge_on) return;
+    uint32_t kept = 0, two_sided = 0;
+    for (uint32_t t = 0; t < lit.count; ++t) {
+        if (edge_on >> t & 1) continue;
+        std::copy(lit.corner[t], lit.corner[t] + 3, lit.corner[kept]);
+        two_sided |= (lit.two_sided >> t & 1) << kept;
+        ++kept;
+    }
+    lit.count = kept;
+    lit.two_sided = two_sided;
+    light_terms(light, lit);
+}
+
+// Triangles [first, first + count) of fine cluster c (count <= capacity), from the light: the corners
+// gathered first, then their terms; triangles edge-on to the light are left out (leave_out_edge_on), looked at
+// only when the float plane test leaves the light's side of some triangle unsettled.
+inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const FineCluster& c, uint32_t first,
+                            uint32_t count, const double* light, bool one_sided, Triangles& out) {
+    out.count = count;
+    cluster_corners(v, mesh, c, first, count, one_sided, out.corner, out.two_sided);
+    light_terms(light, out);
+    uint32_t unsettled = 0;
+    for (uint32_t t = 0; t < capacity; ++t) unsettled |= uint32_t(!(std::fabs(out.dq[t]) > out.qbound[t])) << t;
+    if (unsettled & ((1u << count) - 1)) leave_out_edge_on(light, out);
 }
 
 // orient3d(a, b, c, x) for a triangle with `terms`, in double, and a bound on its error in `bound`.
@@ -744,6 +815,7 @@ inline uint64_t cluster_blocks_points(const AssetView& v, const MeshRecord& mesh
         } else {
             light_triangles(v, mesh, c, first, count, light, one_sided, own);
         }
+        if (!lit->count) continue;  // every triangle edge-on to the light
         // A flat group settles the points whose segments clear its plane (not when contacts are counted: a
         // point on the group touches it): before the line tests once its plane is known, and it is made the
         // first time some point needs double work, which a group set up for a point or two rarely does.
