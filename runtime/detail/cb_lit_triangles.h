@@ -351,16 +351,16 @@ inline void light_terms(const double* light, Triangles& out) {
 // plane meets it only at the light, outside the triangle; one from a point in it is edge-on, which never
 // blocks (segment_triangle), nor does a triangle with no area. A light in the plane of a floor or of a CAD
 // face, with points on that face, otherwise leaves every line within rounding of those triangles' edges, and
-// every such pair goes to the exact test. Only triangles whose light side the float plane test leaves
-// unsettled are looked at, with exact signs: x, the light moved along an axis, is off the plane unless the
+// every such pair goes to the exact test. Only the triangles of `unsettled`, whose light side the float plane
+// test leaves unsettled, are looked at, with exact signs: x, the light moved along an axis, is off the plane unless the
 // normal's component along that axis is zero; and the line through a point off the plane and the light passes
 // outside the closed triangle for every such point when it does for x.
-inline uint32_t edge_on_triangles(const Triangles& lit, const double* light) {
+inline uint32_t edge_on_triangles(const Triangles& lit, const double* light, uint32_t unsettled) {
     uint32_t edge_on = 0;
     const double reach = std::max({std::fabs(light[0]), std::fabs(light[1]), std::fabs(light[2])});
     if (!(reach < 1e30)) return 0;  // the exact products stay far from overflow
-    for (uint32_t t = 0; t < lit.count; ++t) {
-        if (std::fabs(lit.dq[t]) > lit.qbound[t]) continue;  // the light's side settled: off the plane
+    for (uint32_t m = unsettled; m; m &= m - 1) {
+        const uint32_t t = math::lowest_bit(m);
         double p[3][3];
         for (int k = 0; k < 3; ++k)
             for (int j = 0; j < 3; ++j) p[k][j] = lit.corner[t][k][j];
@@ -389,10 +389,10 @@ inline uint32_t edge_on_triangles(const Triangles& lit, const double* light) {
     return edge_on;
 }
 
-// Leaves out of `lit` its triangles edge-on to the light (edge_on_triangles), if any, and makes the terms of
-// the others again. Rare, and kept out of the inlined set-up.
-[[gnu::noinline]] inline void leave_out_edge_on(const double* light, Triangles& lit) {
-    const uint32_t edge_on = edge_on_triangles(lit, light);
+// Leaves out of `lit` its triangles edge-on to the light (edge_on_triangles, over `unsettled`), if any, and
+// makes the terms of the others again. Rare, and kept out of the inlined set-up.
+[[gnu::noinline]] inline void leave_out_edge_on(const double* light, uint32_t unsettled, Triangles& lit) {
+    const uint32_t edge_on = edge_on_triangles(lit, light, unsettled);
     if (!edge_on) return;
     uint32_t kept = 0, two_sided = 0;
     for (uint32_t t = 0; t < lit.count; ++t) {
@@ -414,9 +414,10 @@ inline void light_triangles(const AssetView& v, const MeshRecord& mesh, const Fi
     out.count = count;
     cluster_corners(v, mesh, c, first, count, one_sided, out.corner, out.two_sided);
     light_terms(light, out);
-    uint32_t unsettled = 0;
+    uint32_t unsettled = 0;  // the triangles whose light side the float plane test leaves open
     for (uint32_t t = 0; t < capacity; ++t) unsettled |= uint32_t(!(std::fabs(out.dq[t]) > out.qbound[t])) << t;
-    if (unsettled & ((1u << count) - 1)) leave_out_edge_on(light, out);
+    unsettled &= (1u << count) - 1;
+    if (unsettled) leave_out_edge_on(light, unsettled, out);
 }
 
 // orient3d(a, b, c, x) for a triangle with `terms`, in double, and a bound on its error in `bound`.
